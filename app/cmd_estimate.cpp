@@ -1,0 +1,212 @@
+// `lightprobe estimate`: light-source estimation on a scene bundle.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+
+#include "app/commands.h"
+#include "common/atomic_file.h"
+#include "common/color.h"
+#include "common/image_io.h"
+#include "common/parallel.h"
+#include "common/timer.h"
+
+namespace lp::app {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+std::string DefaultDataDir() {
+  if (const char* env = std::getenv("LIGHTPROBE_DATA")) return env;
+#ifdef LIGHTPROBE_SOURCE_DIR
+  return (fs::path(LIGHTPROBE_SOURCE_DIR) / ".." / "shared" / "data").lexically_normal().string();
+#else
+  return "../shared/data";
+#endif
+}
+
+void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, int* threads) {
+  cmd.add_option("--rings", o->rings, "rings of the environment map (21 -> 522 directions)")->capture_default_str();
+  cmd.add_option("--spp", o->tracer.spp, "path samples per pixel per round")->capture_default_str();
+  cmd.add_option("--bounces", o->tracer.bounces, "surface interactions per path (1 = direct only)")
+      ->capture_default_str();
+  cmd.add_option("--solver", *solver, "fast (majorize-minimize NNQP) or gradient (paper's projected GD)")
+      ->capture_default_str();
+  cmd.add_option("--alpha", o->objective.alpha, "activation penalty weight")->capture_default_str();
+  cmd.add_option("--beta", o->objective.beta, "activation penalty sharpness")->capture_default_str();
+  cmd.add_option("--sigma", o->objective.sigma, "Cauchy scale, relative to the mean pixel value")
+      ->capture_default_str();
+  cmd.add_option("--max-rounds", o->max_rounds, "sequential Monte Carlo rounds at most")->capture_default_str();
+  cmd.add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
+  cmd.add_option("--seed", o->tracer.seed, "random seed (same seed => same result for any thread count)")
+      ->capture_default_str();
+}
+
+namespace {
+
+std::string Num(double v) {
+  if (std::isnan(v)) return "";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.9g", v);
+  return buf;
+}
+
+}  // namespace
+
+void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle, const EstimateOptions& o,
+                          const EstimateResult& r, double command_seconds) {
+  const fs::path out(out_dir);
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec) throw InputError(out_dir, "cannot create output directory: " + ec.message());
+  const EnvMap& env = r.env;
+  WriteExr(out / "envmap.exr", env.ToEquirect(r.lambda, 128));
+  {
+    double peak = 0;
+    for (double v : r.lambda) peak = std::max(peak, v);
+    WritePngSrgb(out / "envmap.png", env.ToEquirect(r.lambda, 128), peak > 0 ? static_cast<float>(1 / peak) : 1.f);
+  }
+  std::ostringstream dirs;
+  dirs << "x,y,z,solid_angle,r,g,b,left_out\n";
+  for (int j = 0; j < env.size(); ++j) {
+    const auto& d = env.direction(j);
+    dirs << Num(d.x()) << ',' << Num(d.y()) << ',' << Num(d.z()) << ',' << Num(env.solid_angle(j)) << ','
+         << Num(r.lambda[3 * j]) << ',' << Num(r.lambda[3 * j + 1]) << ',' << Num(r.lambda[3 * j + 2]) << ','
+         << int(r.left_out[j]) << '\n';
+  }
+  WriteTextAtomically(out / "envmap_directions.csv", dirs.str());
+
+  std::ostringstream conv;
+  conv << "wall_seconds,round,iteration,objective,photometric_rmse,relative_rmse,angular_error_deg\n";
+  for (const auto& row : r.convergence)
+    conv << Num(row.wall_seconds) << ',' << row.round << ',' << row.iteration << ',' << Num(row.objective) << ','
+         << Num(row.photometric_rmse) << ',' << Num(row.relative_rmse) << ',' << Num(row.angular_error_deg) << '\n';
+  WriteTextAtomically(out / "convergence.csv", conv.str());
+
+  json views = json::array();
+  for (std::size_t k = 0; k < r.renders.size(); ++k) {
+    const View& v = bundle.views[k];
+    const ImageRGB& img = r.renders[k];
+    const std::string name = "render_view" + std::to_string(k);
+    WriteExr(out / (name + ".exr"), img);
+    // Same exposure for render and error image: the observed image's 99th percentile maps to white.
+    std::vector<float> lum;
+    for (std::size_t i = 0; i < v.valid.size(); ++i)
+      if (v.valid[i]) lum.push_back(static_cast<float>(Luminance(v.image.data[3 * i], v.image.data[3 * i + 1], v.image.data[3 * i + 2])));
+    float white = 1;
+    if (!lum.empty()) {
+      std::nth_element(lum.begin(), lum.begin() + lum.size() * 99 / 100, lum.end());
+      white = std::max(1e-12f, lum[lum.size() * 99 / 100]);
+    }
+    WritePngSrgb(out / (name + ".png"), img, 1 / white);
+    std::vector<float> err(img.pixels(), -1.f);
+    double se = 0;
+    for (std::size_t i = 0; i < img.pixels(); ++i) {
+      if (!v.valid[i]) continue;
+      double e2 = 0;
+      for (int c = 0; c < 3; ++c) {
+        const double d = img.data[3 * i + c] - v.image.data[3 * i + c];
+        e2 += d * d;
+      }
+      se += e2;
+      err[i] = static_cast<float>(std::sqrt(e2 / 3));
+    }
+    WriteHeatmapPng(out / ("error_view" + std::to_string(k) + ".png"), img.width, img.height, err, 0.25f * white);
+    const int n = static_cast<int>(std::count(v.valid.begin(), v.valid.end(), 1));
+    views.push_back({{"render", name + ".exr"},
+                     {"error_image", "error_view" + std::to_string(k) + ".png"},
+                     {"valid_pixels", n},
+                     {"masked_out", v.masked_out},
+                     {"non_finite", v.non_finite},
+                     {"negative", v.negative},
+                     {"render_rmse", n > 0 ? std::sqrt(se / (3.0 * n)) : 0.0}});
+  }
+
+  int left_out = 0;
+  for (auto v : r.left_out) left_out += v;
+  json rounds = json::array();
+  for (const auto& ri : r.rounds)
+    rounds.push_back({{"round", ri.round}, {"trace_seconds", ri.trace_seconds}, {"solve_seconds", ri.solve_seconds},
+                      {"solver_iterations", ri.solver_iterations}, {"objective", ri.objective},
+                      {"change", ri.change}, {"kkt_violation", ri.kkt_violation}, {"nonzeros", ri.nonzeros},
+                      {"unknown_cells", ri.unknown_cells}});
+  json dominant = json::array();
+  for (const auto& d : r.dominant) dominant.push_back({d.x(), d.y(), d.z()});
+  json rep;
+  rep["scene"] = fs::absolute(bundle.dir).lexically_normal().string();
+  rep["settings"] = {{"rings", o.rings}, {"directions", env.size()}, {"spp", o.tracer.spp},
+                     {"bounces", o.tracer.bounces}, {"solver", ToString(o.solver)},
+                     {"alpha", o.objective.alpha}, {"beta", o.objective.beta}, {"sigma", o.objective.sigma},
+                     {"max_rounds", o.max_rounds}, {"change_threshold", o.change_threshold},
+                     {"seed", o.tracer.seed}, {"threads", HardwareThreads()}, {"nee_floor", o.tracer.nee_floor},
+                     {"min_throughput", o.tracer.min_throughput}, {"combine_rounds", o.combine_rounds}};
+  rep["seconds"] = {{"total", command_seconds}, {"bvh", r.bvh_seconds}, {"trace", r.trace.seconds},
+                    {"render", r.render_seconds}, {"estimate", r.total_seconds}};
+  double solve = 0;
+  for (const auto& ri : r.rounds) solve += ri.solve_seconds;
+  rep["seconds"]["solve"] = solve;
+  rep["left_out"] = {{"directions_unreached", left_out},
+                     {"pixels_not_traced", r.trace.pixels_skipped},
+                     {"paths_stopped_roulette", r.trace.stopped_roulette},
+                     {"paths_stopped_negligible", r.trace.stopped_negligible},
+                     {"paths_stopped_max_bounces", r.trace.stopped_max_bounces},
+                     {"degenerate_triangles_removed", bundle.degenerate_triangles_removed}};
+  rep["trace"] = {{"paths", r.trace.paths}, {"rays", r.trace.rays}};
+  rep["rounds"] = rounds;
+  rep["views"] = views;
+  rep["image_mean"] = r.image_mean;
+  rep["final"] = {{"photometric_rmse", r.final_rmse}, {"relative_rmse", r.final_relative_rmse},
+                  {"kkt_violation", r.kkt_violation}, {"objective_increased", r.objective_increased},
+                  {"dominant_directions", dominant}};
+  if (!std::isnan(r.final_angular_error_deg)) rep["final"]["angular_error_deg"] = r.final_angular_error_deg;
+  rep["envmap_convention"] =
+      "equirectangular, width = 2*height; row y: polar angle (y+0.5)/H*pi from up (top = up); column x: azimuth "
+      "(x+0.5)/W*2pi from frame_x towards frame_y = up x frame_x";
+  rep["envmap_frame"] = {{"up", {env.up().x(), env.up().y(), env.up().z()}},
+                         {"frame_x", {env.frame_x().x(), env.frame_x().y(), env.frame_x().z()}},
+                         {"frame_y", {env.frame_y().x(), env.frame_y().y(), env.frame_y().z()}}};
+  WriteTextAtomically(out / "report.json", rep.dump(2) + "\n");
+}
+
+Run AddEstimate(CLI::App& app) {
+  auto* cmd = app.add_subcommand("estimate", "estimate the environment lighting of a scene bundle");
+  auto scene = std::make_shared<std::string>();
+  auto out = std::make_shared<std::string>();
+  auto o = std::make_shared<EstimateOptions>();
+  auto solver = std::make_shared<std::string>("fast");
+  auto threads = std::make_shared<int>(0);
+  auto quiet = std::make_shared<bool>(false);
+  cmd->add_option("SCENE_DIR", *scene, "scene bundle directory (scene.json, mesh.ply, views)")->required();
+  cmd->add_option("--out", *out, "output directory")->required();
+  AddEstimateOptions(*cmd, o.get(), solver.get(), threads.get());
+  cmd->add_flag("--quiet", *quiet, "no progress lines");
+  return [=] {
+    Stopwatch sw;
+    ThreadLimit limit(*threads);
+    o->solver = ParseSolverKind(*solver);
+    if (!*quiet) o->progress = [](const std::string& s) { std::fprintf(stderr, "  %s\n", s.c_str()); };
+    if (!*quiet) std::fprintf(stderr, "loading %s\n", scene->c_str());
+    SceneBundle bundle = LoadSceneBundle(*scene);
+    if (!*quiet) {
+      for (std::size_t k = 0; k < bundle.views.size(); ++k) {
+        const View& v = bundle.views[k];
+        std::fprintf(stderr, "  view %zu: %dx%d, %d pixels masked out, %d non-finite, %d negative\n", k,
+                     v.camera.width, v.camera.height, v.masked_out, v.non_finite, v.negative);
+      }
+      std::fprintf(stderr, "  mesh: %zu vertices, %zu triangles (%d degenerate removed)\n",
+                   bundle.mesh.positions.size(), bundle.mesh.triangles.size(), bundle.degenerate_triangles_removed);
+    }
+    o->time_offset = sw.Seconds();
+    EstimateResult r = Estimate(bundle, *o);
+    WriteEstimateOutputs(*out, bundle, *o, r, sw.Seconds());
+    std::printf("estimated %d directions (%d rings) in %.2f s; relative RMSE %.4f", r.env.size(), o->rings,
+                sw.Seconds(), r.final_relative_rmse);
+    if (!std::isnan(r.final_angular_error_deg)) std::printf("; dominant light error %.2f deg", r.final_angular_error_deg);
+    std::printf("\nresults in %s (envmap.exr, envmap_directions.csv, render_view*.png, error_view*.png, "
+                "convergence.csv, report.json)\n",
+                fs::absolute(*out).lexically_normal().c_str());
+  };
+}
+
+}  // namespace lp::app

@@ -1,0 +1,31 @@
+#pragma once
+/// Subcommands of the lightprobe executable. Each Add* registers its options on
+/// `app` and returns the callback that runs it.
+#include <functional>
+#include <string>
+
+#include <CLI/CLI.hpp>
+
+#include "common/error.h"
+#include "estimation/estimator.h"
+
+namespace lp::app {
+
+using Run = std::function<void()>;
+
+Run AddEstimate(CLI::App& app);
+Run AddRender(CLI::App& app);
+Run AddSynth(CLI::App& app);
+Run AddBench(CLI::App& app);
+
+/// Registers the estimator options shared by estimate and bench.
+void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, int* threads);
+
+/// Writes every output of an estimate into out_dir (atomically per file).
+void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle, const EstimateOptions& options,
+                          const EstimateResult& result, double command_seconds);
+
+/// Where shared/data lives (LIGHTPROBE_DATA, else ../shared/data next to the source tree).
+std::string DefaultDataDir();
+
+}  // namespace lp::app

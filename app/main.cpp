@@ -1,0 +1,41 @@
+// lightprobe: an RGB-D camera as a light meter. Entry point: subcommands and the
+// one place where errors become one clear line and an exit code.
+#include <cstdio>
+#include <iostream>
+#include <map>
+
+#include <CLI/CLI.hpp>
+
+#include "app/commands.h"
+#include "common/error.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"lightprobe: estimate a scene's illumination from RGB-D captures"};
+  app.require_subcommand(1);
+  app.set_version_flag("--version", "lightprobe 0.1.0");
+  std::map<std::string, lp::app::Run> runs;
+  for (auto add : {&lp::app::AddEstimate, &lp::app::AddRender, &lp::app::AddSynth, &lp::app::AddBench}) {
+    const std::size_t before = app.get_subcommands([](CLI::App*) { return true; }).size();
+    lp::app::Run r = add(app);
+    const auto subs = app.get_subcommands([](CLI::App*) { return true; });
+    if (subs.size() == before + 1) runs[subs.back()->get_name()] = r;
+  }
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  try {
+    for (CLI::App* sub : app.get_subcommands()) runs.at(sub->get_name())();
+  } catch (const lp::InputError& e) {
+    std::fprintf(stderr, "lightprobe: error: %s\n", e.what());
+    return 2;
+  } catch (const std::bad_alloc&) {
+    std::fprintf(stderr, "lightprobe: error: out of memory (try fewer --rings, --spp or a smaller image)\n");
+    return 3;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "lightprobe: internal error: %s\n", e.what());
+    return 4;
+  }
+  return 0;
+}

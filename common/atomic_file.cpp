@@ -1,0 +1,56 @@
+#include "common/atomic_file.h"
+
+#include <atomic>
+#include <fstream>
+#include <sstream>
+#include <system_error>
+
+#include <unistd.h>
+
+#include "common/error.h"
+
+namespace lp {
+namespace fs = std::filesystem;
+
+void WriteAtomically(const fs::path& path, const std::function<void(const fs::path& tmp)>& write) {
+  static std::atomic<int> counter{0};
+  fs::path dir = path.parent_path().empty() ? fs::path(".") : path.parent_path();
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  const fs::path tmp = dir / (".tmp." + std::to_string(::getpid()) + "." +
+                              std::to_string(counter++) + "." + path.filename().string());
+  try {
+    write(tmp);
+  } catch (...) {
+    fs::remove(tmp, ec);
+    throw;
+  }
+  if (!fs::exists(tmp)) throw InputError(path.string(), "writer produced no file");
+  fs::rename(tmp, path, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw InputError(path.string(), "cannot rename into place: " + ec.message());
+  }
+}
+
+void WriteTextAtomically(const fs::path& path, const std::string& text) {
+  WriteAtomically(path, [&](const fs::path& tmp) {
+    std::ofstream out(tmp, std::ios::binary);
+    out << text;
+    out.flush();
+    if (!out) throw InputError(path.string(), "cannot write");
+  });
+}
+
+std::string ReadTextFile(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw InputError(path.string(), "file not found");
+  if (fs::is_directory(path, ec)) throw InputError(path.string(), "is a directory, expected a file");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw InputError(path.string(), "cannot open for reading");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace lp

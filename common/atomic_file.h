@@ -1,0 +1,23 @@
+#pragma once
+/// Atomic output: results are written to a temporary sibling and renamed into
+/// place, so a crash never leaves a half-written file that looks complete.
+#include <filesystem>
+#include <functional>
+#include <string>
+
+namespace lp {
+
+/// Calls `write(tmp_path)` to produce the file, then renames tmp_path to `path`.
+/// The temporary keeps the extension of `path` (writers that pick a format by
+/// extension still work). Throws InputError if writing or renaming fails; the
+/// old `path`, if any, is untouched in that case.
+void WriteAtomically(const std::filesystem::path& path,
+                     const std::function<void(const std::filesystem::path& tmp)>& write);
+
+/// Writes `text` to `path` atomically.
+void WriteTextAtomically(const std::filesystem::path& path, const std::string& text);
+
+/// Reads a whole file; throws InputError naming the file if it cannot be read.
+std::string ReadTextFile(const std::filesystem::path& path);
+
+}  // namespace lp

@@ -1,0 +1,199 @@
+#include "common/image_io.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "common/atomic_file.h"
+#include "common/color.h"
+#include "common/error.h"
+
+namespace lp {
+namespace fs = std::filesystem;
+namespace {
+
+// OpenCV reads the OpenEXR switch once, at first use of the codec registry.
+const bool kExrEnabled = [] {
+  ::setenv("OPENCV_IO_ENABLE_OPENEXR", "1", 0);
+  return true;
+}();
+
+std::string Lower(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+cv::Mat ReadRaw(const fs::path& path, int flags) {
+  (void)kExrEnabled;
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw InputError(path.string(), "file not found");
+  if (fs::is_directory(path, ec)) throw InputError(path.string(), "is a directory, expected an image");
+  cv::Mat m;
+  try {
+    m = cv::imread(path.string(), flags);
+  } catch (const cv::Exception& e) {
+    throw InputError(path.string(), std::string("cannot decode image: ") + e.what());
+  }
+  if (m.empty()) throw InputError(path.string(), "cannot decode image (unsupported or corrupt)");
+  if (m.dims != 2 || m.rows <= 0 || m.cols <= 0)
+    throw InputError(path.string(), "image has no pixels");
+  return m;
+}
+
+ImageRGB FromMat(const cv::Mat& m, const fs::path& path, ImageEncoding* enc_out) {
+  const int ch = m.channels();
+  if (ch != 1 && ch != 3 && ch != 4)
+    throw InputError(path.string(), "unsupported channel count " + std::to_string(ch));
+  ImageRGB img(m.cols, m.rows);
+  ImageEncoding enc;
+  switch (m.depth()) {
+    case CV_8U: enc = ImageEncoding::kSrgb8; break;
+    case CV_16U: enc = ImageEncoding::kLinear16; break;
+    case CV_32F: case CV_16F: enc = ImageEncoding::kLinearFloat; break;
+    default: throw InputError(path.string(), "unsupported pixel type");
+  }
+  cv::Mat f;
+  m.convertTo(f, CV_MAKETYPE(CV_32F, ch));
+  for (int y = 0; y < m.rows; ++y) {
+    const float* row = f.ptr<float>(y);
+    for (int x = 0; x < m.cols; ++x) {
+      float bgr[3];
+      if (ch == 1) {
+        bgr[0] = bgr[1] = bgr[2] = row[x];
+      } else {
+        for (int c = 0; c < 3; ++c) bgr[c] = row[x * ch + c];
+      }
+      float* out = img.at(x, y);
+      for (int c = 0; c < 3; ++c) {
+        float v = bgr[2 - c];
+        if (enc == ImageEncoding::kSrgb8) v = SrgbToLinear(v / 255.f);
+        else if (enc == ImageEncoding::kLinear16) v = v / 65535.f;
+        out[c] = v;
+      }
+    }
+  }
+  if (enc_out) *enc_out = enc;
+  return img;
+}
+
+cv::Mat ToMat(const ImageRGB& image) {
+  cv::Mat m(image.height, image.width, CV_32FC3);
+  for (int y = 0; y < image.height; ++y) {
+    float* row = m.ptr<float>(y);
+    for (int x = 0; x < image.width; ++x) {
+      const float* p = image.at(x, y);
+      row[3 * x + 0] = p[2];
+      row[3 * x + 1] = p[1];
+      row[3 * x + 2] = p[0];
+    }
+  }
+  return m;
+}
+
+void WriteMat(const fs::path& path, const cv::Mat& m) {
+  WriteAtomically(path, [&](const fs::path& tmp) {
+    bool ok = false;
+    try {
+      ok = cv::imwrite(tmp.string(), m);
+    } catch (const cv::Exception& e) {
+      throw InputError(path.string(), std::string("cannot write image: ") + e.what());
+    }
+    if (!ok) throw InputError(path.string(), "cannot write image");
+  });
+}
+
+}  // namespace
+
+const char* ToString(ImageEncoding e) {
+  switch (e) {
+    case ImageEncoding::kLinearFloat: return "linear float";
+    case ImageEncoding::kSrgb8: return "8-bit sRGB-encoded (decoded to linear)";
+    case ImageEncoding::kLinear16: return "16-bit linear";
+  }
+  return "?";
+}
+
+ImageRGB ReadImageLinear(const fs::path& path, ImageEncoding* encoding) {
+  const std::string ext = Lower(path.extension().string());
+  if (ext != ".exr" && ext != ".pfm" && ext != ".png" && ext != ".hdr")
+    throw InputError(path.string(), "unsupported image format '" + ext + "' (use .exr, .pfm or .png)");
+  return FromMat(ReadRaw(path, cv::IMREAD_UNCHANGED), path, encoding);
+}
+
+Mask ReadMask(const fs::path& path) {
+  cv::Mat m = ReadRaw(path, cv::IMREAD_UNCHANGED);
+  if (m.depth() != CV_8U) throw InputError(path.string(), "mask must be an 8-bit PNG");
+  Mask mask;
+  mask.width = m.cols;
+  mask.height = m.rows;
+  mask.data.resize(static_cast<std::size_t>(m.cols) * m.rows);
+  const int ch = m.channels();
+  for (int y = 0; y < m.rows; ++y)
+    for (int x = 0; x < m.cols; ++x)
+      mask.data[static_cast<std::size_t>(y) * m.cols + x] = m.ptr<unsigned char>(y)[x * ch];
+  return mask;
+}
+
+ImageRGB ReadHdr(const fs::path& path) {
+  if (Lower(path.extension().string()) != ".hdr")
+    throw InputError(path.string(), "expected a Radiance .hdr file");
+  return FromMat(ReadRaw(path, cv::IMREAD_UNCHANGED), path, nullptr);
+}
+
+void WriteExr(const fs::path& path, const ImageRGB& image) { WriteMat(path, ToMat(image)); }
+
+void WritePngSrgb(const fs::path& path, const ImageRGB& image, float exposure) {
+  cv::Mat m(image.height, image.width, CV_8UC3);
+  for (int y = 0; y < image.height; ++y) {
+    auto* row = m.ptr<unsigned char>(y);
+    for (int x = 0; x < image.width; ++x) {
+      const float* p = image.at(x, y);
+      for (int c = 0; c < 3; ++c) {
+        float v = p[c] * exposure;
+        if (!std::isfinite(v)) v = 0.f;
+        row[3 * x + (2 - c)] = static_cast<unsigned char>(std::lround(255.f * LinearToSrgb(v)));
+      }
+    }
+  }
+  WriteMat(path, m);
+}
+
+void WritePng8(const fs::path& path, int width, int height, const std::vector<unsigned char>& rgb) {
+  LP_CHECK(rgb.size() == static_cast<std::size_t>(3) * width * height, "size mismatch");
+  cv::Mat m(height, width, CV_8UC3);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x)
+      for (int c = 0; c < 3; ++c)
+        m.ptr<unsigned char>(y)[3 * x + (2 - c)] = rgb[3 * (static_cast<std::size_t>(y) * width + x) + c];
+  WriteMat(path, m);
+}
+
+void WriteMask(const fs::path& path, const Mask& mask) {
+  cv::Mat m(mask.height, mask.width, CV_8UC1, const_cast<std::uint8_t*>(mask.data.data()));
+  WriteMat(path, m.clone());
+}
+
+void WriteHeatmapPng(const fs::path& path, int width, int height, const std::vector<float>& values,
+                     float max_value) {
+  // Piecewise-linear approximation of matplotlib's viridis.
+  static const float kStops[5][3] = {{0.267f, 0.005f, 0.329f}, {0.229f, 0.322f, 0.546f},
+                                     {0.128f, 0.567f, 0.551f}, {0.369f, 0.789f, 0.383f},
+                                     {0.993f, 0.906f, 0.144f}};
+  std::vector<unsigned char> rgb(static_cast<std::size_t>(3) * width * height, 0);
+  for (std::size_t i = 0; i < values.size() && i < static_cast<std::size_t>(width) * height; ++i) {
+    float v = values[i];
+    if (!std::isfinite(v) || v < 0.f) continue;  // invalid / masked: black
+    const float t = std::clamp(max_value > 0.f ? v / max_value : 0.f, 0.f, 1.f) * 4.f;
+    const int k = std::min(3, static_cast<int>(t));
+    const float f = t - k;
+    for (int c = 0; c < 3; ++c)
+      rgb[3 * i + c] = static_cast<unsigned char>(
+          std::lround(255.f * (kStops[k][c] * (1 - f) + kStops[k + 1][c] * f)));
+  }
+  WritePng8(path, width, height, rgb);
+}
+
+}  // namespace lp

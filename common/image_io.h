@@ -1,0 +1,40 @@
+#pragma once
+/// Image files (OpenCV stays inside image_io.cpp). Every reader throws
+/// InputError naming the file and the problem; writers are atomic.
+#include <filesystem>
+#include <string>
+
+#include "common/image.h"
+
+namespace lp {
+
+/// How ReadImageLinear interpreted the file.
+enum class ImageEncoding { kLinearFloat, kSrgb8, kLinear16 };
+const char* ToString(ImageEncoding e);
+
+/// Reads .exr / .pfm (linear float), 8-bit PNG (sRGB-encoded, decoded to linear)
+/// or 16-bit PNG (linear, /65535). Grey images are expanded to RGB.
+ImageRGB ReadImageLinear(const std::filesystem::path& path, ImageEncoding* encoding = nullptr);
+
+/// Reads an 8-bit single-channel mask PNG (a colour PNG uses its first channel).
+Mask ReadMask(const std::filesystem::path& path);
+
+/// Reads a Radiance .hdr (RGBE) environment map as linear RGB.
+ImageRGB ReadHdr(const std::filesystem::path& path);
+
+/// 32-bit float OpenEXR, linear.
+void WriteExr(const std::filesystem::path& path, const ImageRGB& image);
+/// 8-bit PNG, sRGB-encoded after multiplying by `exposure` (values clamped).
+void WritePngSrgb(const std::filesystem::path& path, const ImageRGB& image, float exposure = 1.f);
+/// 8-bit PNG with an explicit colour per pixel (already encoded, 0..255 RGB).
+void WritePng8(const std::filesystem::path& path, int width, int height,
+               const std::vector<unsigned char>& rgb);
+/// 8-bit single-channel mask PNG.
+void WriteMask(const std::filesystem::path& path, const Mask& mask);
+
+/// Maps a non-negative scalar image to a colour map (viridis-like) PNG,
+/// with `max_value` at the top of the scale.
+void WriteHeatmapPng(const std::filesystem::path& path, int width, int height,
+                     const std::vector<float>& values, float max_value);
+
+}  // namespace lp

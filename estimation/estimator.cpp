@@ -1,0 +1,161 @@
+#include "estimation/estimator.h"
+
+#include <cmath>
+#include <sstream>
+
+#include "common/error.h"
+#include "common/timer.h"
+#include "estimation/ray_tracer.h"
+
+namespace lp {
+
+std::vector<double> CollectObservations(const std::vector<View>& views) {
+  std::vector<double> y;
+  for (const View& v : views)
+    for (std::size_t i = 0; i < v.valid.size(); ++i)
+      if (v.valid[i])
+        for (int c = 0; c < 3; ++c) y.push_back(v.image.data[3 * i + c]);
+  return y;
+}
+
+namespace {
+
+std::string Fmt(const char* fmt, double a, double b = 0, double c = 0, double d = 0) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, fmt, a, b, c, d);
+  return buf;
+}
+
+}  // namespace
+
+EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
+  Stopwatch sw;
+  auto now = [&] { return opt.time_offset + sw.Seconds(); };
+  auto progress = [&](const std::string& s) {
+    if (opt.progress) opt.progress(s);
+  };
+  if (opt.rings < 2 || opt.rings > 181) throw InputError("--rings must be between 2 and 181");
+  if (opt.max_rounds < 1) throw InputError("--max-rounds must be at least 1");
+  EstimateResult res;
+  res.env = EnvMap(opt.rings, bundle.up);
+  const EnvMap& env = res.env;
+  const int L = env.size();
+
+  std::vector<double> y = CollectObservations(bundle.views);
+  res.observations = static_cast<int>(y.size() / 3);
+  if (y.empty())
+    throw InputError((bundle.dir / "scene.json").string(), "every pixel of every view is masked or invalid");
+  double mean = 0;
+  for (double v : y) mean += v;
+  mean /= y.size();
+  if (!(mean > 0) || !std::isfinite(mean))
+    throw InputError((bundle.dir / "scene.json").string(), "the observed pixels are all black");
+  res.image_mean = mean;
+  for (double& v : y) v /= mean;
+
+  Stopwatch bvh;
+  RayTracer scene(bundle.mesh);
+  res.bvh_seconds = bvh.Seconds();
+
+  std::vector<TruthLight> truth;
+  if (bundle.truth_json) truth = ParseTruthLights(*bundle.truth_json, (bundle.dir / "truth.json").string());
+
+  // Start dark and uniform (paper): every cell equally likely to be sampled.
+  std::vector<double> lambda(3 * L, 1e-3);
+  std::vector<std::uint8_t> reachable(L, 1);
+  TransportMatrix A;
+  for (int round = 1; round <= opt.max_rounds; ++round) {
+    RoundInfo info;
+    info.round = round;
+    Stopwatch ts;
+    CellSampler sampler(env, round == 1 ? std::vector<double>() : lambda, reachable, opt.tracer.nee_floor);
+    TracerOptions topt = opt.tracer;
+    topt.seed = opt.tracer.seed * 1000003ull + round;
+    TransportMatrix Ar = TraceTransport(scene, env, bundle.views, sampler, topt, &res.trace);
+    A = (opt.combine_rounds && round > 1) ? Combine(A, Ar) : std::move(Ar);
+    info.trace_seconds = ts.Seconds();
+    info.nonzeros = static_cast<std::int64_t>(A.nonzeros());
+
+    LinearProblem problem = MakeLinearProblem(A, y);
+    info.unknown_cells = problem.unknown_cells;
+    // Cells no sampled path reached are not unknowns, and are not sampled again.
+    std::fill(reachable.begin(), reachable.end(), 0);
+    for (int j : problem.cell_of) reachable[j] = 1;
+    progress(Fmt("round %.0f: traced in %.2f s, %.0f unknown cells of ", round, info.trace_seconds,
+                 problem.unknown_cells) +
+             std::to_string(L) + ", " + std::to_string(A.nonzeros()) + " non-zeros");
+    if (problem.unknown_cells == 0)
+      throw InputError((bundle.dir / "scene.json").string(),
+                       "no sampled path reaches the environment (camera inside closed geometry?)");
+
+    Objective objective(problem, opt.objective);
+    std::vector<double> init(3 * problem.unknown_cells);
+    for (int k = 0; k < problem.unknown_cells; ++k)
+      for (int c = 0; c < 3; ++c) init[3 * k + c] = lambda[3 * problem.cell_of[k] + c];
+    auto scatter = [&](const std::vector<double>& compact) {
+      std::vector<double> full(3 * L, 0.0);
+      for (int k = 0; k < problem.unknown_cells; ++k)
+        for (int c = 0; c < 3; ++c) full[3 * problem.cell_of[k] + c] = compact[3 * k + c];
+      return full;
+    };
+    SolverOptions so = opt.solver_options;
+    so.on_iteration = [&](const IterationInfo& it) {
+      ConvergenceRow row;
+      row.wall_seconds = now();
+      row.round = round;
+      row.iteration = it.iteration;
+      row.objective = it.objective;
+      row.relative_rmse = it.rmse;
+      row.photometric_rmse = it.rmse * mean;
+      if (!truth.empty()) row.angular_error_deg = DominantAngularErrorDeg(env, scatter(*it.lambda), truth);
+      res.convergence.push_back(row);
+      if (opt.solver_options.on_iteration) opt.solver_options.on_iteration(it);
+    };
+    Stopwatch ss;
+    SolveResult sr = Solve(opt.solver, objective, init, so);
+    info.solve_seconds = ss.Seconds();
+    info.solver_iterations = sr.iterations;
+    info.objective = sr.objective;
+    info.kkt_violation = sr.kkt_violation;
+    res.objective_increased = res.objective_increased || sr.objective_increased;
+    std::vector<double> next = scatter(sr.lambda);
+    double diff = 0, norm = 0;
+    for (int i = 0; i < 3 * L; ++i) {
+      diff += (next[i] - lambda[i]) * (next[i] - lambda[i]);
+      norm += next[i] * next[i];
+    }
+    info.change = norm > 0 ? std::sqrt(diff / norm) : 0.0;
+    lambda.swap(next);
+    res.kkt_violation = sr.kkt_violation;
+    res.rounds.push_back(info);
+    progress("round " + std::to_string(round) + ": " + ToString(opt.solver) + " solver, " +
+             Fmt("%.0f iterations in %.2f s, objective %.6g, change %.3g", sr.iterations, info.solve_seconds,
+                 sr.objective, info.change) +
+             Fmt(", KKT violation %.2g", sr.kkt_violation));
+    if (round > 1 && info.change < opt.change_threshold) break;
+  }
+
+  res.left_out.assign(L, 0);
+  for (int j = 0; j < L; ++j) res.left_out[j] = !reachable[j];
+  res.lambda = lambda;
+  for (double& v : res.lambda) v *= mean;
+  res.final_relative_rmse = res.convergence.empty() ? 0 : res.convergence.back().relative_rmse;
+  res.final_rmse = res.final_relative_rmse * mean;
+  if (!truth.empty()) res.final_angular_error_deg = DominantAngularErrorDeg(env, res.lambda, truth);
+  res.dominant = DominantDirections(env, res.lambda, 2);
+
+  if (opt.render) {
+    Stopwatch rs;
+    TracerOptions topt = opt.tracer;
+    topt.seed = opt.tracer.seed * 1000003ull + 999;
+    if (opt.render_spp > 0) topt.spp = opt.render_spp;
+    CellSampler sampler(env, res.lambda, reachable, opt.tracer.nee_floor);
+    res.renders = RenderEnvironment(scene, env, bundle.views, res.lambda, sampler, topt, true);
+    res.render_seconds = rs.Seconds();
+    progress(Fmt("relit %.0f view(s) in %.2f s", bundle.views.size(), res.render_seconds));
+  }
+  res.total_seconds = sw.Seconds();
+  return res;
+}
+
+}  // namespace lp

@@ -1,0 +1,83 @@
+#pragma once
+/// Light-source estimation by analytical path tracing: sequential Monte Carlo
+/// rounds of (trace A with importance from the current estimate, solve the
+/// robust non-negative problem warm-started), until the estimate settles.
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "estimation/objective.h"
+#include "estimation/path_tracer.h"
+#include "estimation/scene_bundle.h"
+#include "estimation/solver.h"
+#include "estimation/truth.h"
+
+namespace lp {
+
+struct EstimateOptions {
+  int rings = 21;
+  TracerOptions tracer;
+  ObjectiveParams objective;
+  SolverKind solver = SolverKind::kFast;
+  SolverOptions solver_options;
+  int max_rounds = 4;
+  /// Stop when |lambda_k - lambda_{k-1}| / |lambda_k| falls below this (2 %).
+  double change_threshold = 0.02;
+  /// Average A over rounds, weighted by sample counts (all rounds are unbiased).
+  bool combine_rounds = true;
+  /// Samples per pixel of the final relighting render (0 = tracer.spp).
+  int render_spp = 0;
+  bool render = true;
+  /// Wall-clock origin for the convergence log (seconds already spent before Estimate).
+  double time_offset = 0;
+  /// Progress lines ("round 2: traced 19200 pixels in 0.6 s ...").
+  std::function<void(const std::string&)> progress;
+};
+
+/// One row of convergence.csv.
+struct ConvergenceRow {
+  double wall_seconds = 0;
+  int round = 0;
+  int iteration = 0;
+  double objective = 0;
+  double photometric_rmse = 0;  ///< in image units
+  double relative_rmse = 0;     ///< photometric_rmse / mean observed value
+  double angular_error_deg = std::nan("");  ///< dominant light(s) vs truth.json; NaN without truth
+};
+
+struct RoundInfo {
+  int round = 0;
+  double trace_seconds = 0, solve_seconds = 0;
+  int solver_iterations = 0;
+  double objective = 0, change = 0, kkt_violation = 0;
+  std::int64_t nonzeros = 0;
+  int unknown_cells = 0;
+};
+
+struct EstimateResult {
+  EnvMap env{2, Eigen::Vector3d::UnitZ()};
+  std::vector<double> lambda;  ///< 3 * env.size(), linear radiance in image units; 0 for left-out cells
+  std::vector<std::uint8_t> left_out;  ///< per cell: 1 = no sampled path reached it
+  std::vector<ImageRGB> renders;       ///< relit views (every pixel), when options.render
+  std::vector<ConvergenceRow> convergence;
+  std::vector<RoundInfo> rounds;
+  TraceStats trace;
+  double image_mean = 1;  ///< normalization
+  double bvh_seconds = 0, total_seconds = 0, render_seconds = 0;
+  int observations = 0;   ///< valid pixels over all views
+  double final_rmse = 0, final_relative_rmse = 0;
+  double final_angular_error_deg = std::nan("");
+  double kkt_violation = 0;
+  bool objective_increased = false;
+  std::vector<Eigen::Vector3d> dominant;
+};
+
+/// Runs the estimate on a loaded bundle. Throws InputError when nothing usable is
+/// observed (every pixel masked/invalid, or a black image).
+EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& options);
+
+/// Observations of the valid pixels in row order (3 per pixel), in image units.
+std::vector<double> CollectObservations(const std::vector<View>& views);
+
+}  // namespace lp

@@ -1,0 +1,83 @@
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "common/error.h"
+#include "estimation/mesh.h"
+
+namespace lp {
+
+void Mesh::Append(const Mesh& other) {
+  const int offset = static_cast<int>(positions.size());
+  const bool normals_ok = normals.size() == positions.size() && other.normals.size() == other.positions.size();
+  positions.insert(positions.end(), other.positions.begin(), other.positions.end());
+  albedo.insert(albedo.end(), other.albedo.begin(), other.albedo.end());
+  if (normals_ok) normals.insert(normals.end(), other.normals.begin(), other.normals.end());
+  else normals.clear();
+  for (const auto& t : other.triangles) triangles.push_back(t + Eigen::Vector3i::Constant(offset));
+}
+
+void ComputeVertexNormals(Mesh* mesh) {
+  mesh->normals.assign(mesh->positions.size(), Eigen::Vector3f::Zero());
+  for (const auto& t : mesh->triangles) {
+    const Eigen::Vector3f& a = mesh->positions[t[0]];
+    const Eigen::Vector3f n = (mesh->positions[t[1]] - a).cross(mesh->positions[t[2]] - a);  // area-weighted
+    if (!n.allFinite()) continue;
+    for (int c = 0; c < 3; ++c) mesh->normals[t[c]] += n;
+  }
+  for (auto& n : mesh->normals) {
+    const float len = n.norm();
+    n = len > 0.f ? Eigen::Vector3f(n / len) : Eigen::Vector3f(0.f, 0.f, 0.f);
+  }
+}
+
+int SanitizeMesh(Mesh* mesh, const std::string& name) {
+  if (mesh->positions.empty()) throw InputError(name, "mesh has no vertices");
+  if (mesh->triangles.empty()) throw InputError(name, "mesh has no triangles");
+  if (mesh->albedo.size() != mesh->positions.size())
+    mesh->albedo.assign(mesh->positions.size(), Eigen::Vector3f::Constant(0.5f));
+  for (auto& a : mesh->albedo)
+    for (int c = 0; c < 3; ++c) a[c] = std::isfinite(a[c]) ? std::min(std::max(a[c], 0.f), 1.f) : 0.f;
+  const int n = static_cast<int>(mesh->positions.size());
+  std::vector<Eigen::Vector3i> kept;
+  kept.reserve(mesh->triangles.size());
+  for (const auto& t : mesh->triangles) {
+    bool ok = true;
+    for (int c = 0; c < 3; ++c) ok = ok && t[c] >= 0 && t[c] < n;
+    if (!ok) throw InputError(name, "triangle index out of range");
+    if (t[0] == t[1] || t[1] == t[2] || t[0] == t[2]) continue;
+    const Eigen::Vector3f& a = mesh->positions[t[0]];
+    const Eigen::Vector3f& b = mesh->positions[t[1]];
+    const Eigen::Vector3f& c = mesh->positions[t[2]];
+    if (!a.allFinite() || !b.allFinite() || !c.allFinite()) continue;
+    const double area2 = (b - a).cast<double>().cross((c - a).cast<double>()).norm();
+    const double scale = std::max({(b - a).norm(), (c - a).norm(), (c - b).norm()});
+    if (!(area2 > 1e-12 * scale * scale)) continue;
+    kept.push_back(t);
+  }
+  const int removed = static_cast<int>(mesh->triangles.size() - kept.size());
+  mesh->triangles.swap(kept);
+  if (mesh->triangles.empty()) throw InputError(name, "mesh has no non-degenerate triangles");
+  bool normals_ok = mesh->normals.size() == mesh->positions.size();
+  if (normals_ok) {
+    for (auto& nrm : mesh->normals) {
+      const float len = nrm.norm();
+      if (!std::isfinite(len) || len < 1e-6f) { normals_ok = false; break; }
+      nrm /= len;
+    }
+  }
+  if (!normals_ok) ComputeVertexNormals(mesh);
+  return removed;
+}
+
+void MeshBounds(const Mesh& mesh, Eigen::Vector3f* lo, Eigen::Vector3f* hi) {
+  *lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
+  *hi = Eigen::Vector3f::Constant(-std::numeric_limits<float>::max());
+  for (const auto& t : mesh.triangles)
+    for (int c = 0; c < 3; ++c) {
+      *lo = lo->cwiseMin(mesh.positions[t[c]]);
+      *hi = hi->cwiseMax(mesh.positions[t[c]]);
+    }
+}
+
+}  // namespace lp

@@ -1,0 +1,45 @@
+#pragma once
+/// Triangle mesh with per-vertex linear albedo: the scene geometry the estimator traces.
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace lp {
+
+struct Mesh {
+  std::vector<Eigen::Vector3f> positions;  ///< metres, world frame
+  std::vector<Eigen::Vector3f> normals;    ///< unit, per vertex; empty = computed on load
+  std::vector<Eigen::Vector3f> albedo;     ///< linear RGB in [0, 1], per vertex
+  std::vector<Eigen::Vector3i> triangles;  ///< vertex indices
+
+  /// Appends another mesh (indices shifted).
+  void Append(const Mesh& other);
+};
+
+/// Reads an ASCII or binary PLY (scene-bundle format: x y z, optional nx ny nz,
+/// red green blue as sRGB-encoded uchar, faces as vertex_indices lists; polygons
+/// are fanned into triangles). Colours are decoded to linear albedo; a mesh without
+/// colours gets albedo 0.5. Throws InputError naming the file on any problem.
+Mesh ReadPly(const std::filesystem::path& path);
+
+/// Parses PLY bytes (what ReadPly does after reading the file); `name` is used in errors.
+Mesh ParsePly(const std::string& bytes, const std::string& name);
+
+/// Writes a binary little-endian PLY with normals and sRGB-encoded colours, atomically.
+void WritePly(const std::filesystem::path& path, const Mesh& mesh);
+
+/// Fills `normals` with area-weighted vertex normals (used when the file has none).
+void ComputeVertexNormals(Mesh* mesh);
+
+/// Validates indices and values; removes degenerate (zero-area or repeated-index)
+/// triangles and returns how many were removed. Throws InputError (with `name`)
+/// if nothing usable remains.
+int SanitizeMesh(Mesh* mesh, const std::string& name);
+
+/// Axis-aligned bounds of the vertices used by triangles.
+void MeshBounds(const Mesh& mesh, Eigen::Vector3f* lo, Eigen::Vector3f* hi);
+
+}  // namespace lp

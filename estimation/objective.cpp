@@ -1,0 +1,139 @@
+#include "estimation/objective.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/error.h"
+#include "common/parallel.h"
+
+namespace lp {
+
+LinearProblem MakeLinearProblem(const TransportMatrix& A, const std::vector<double>& y) {
+  LP_CHECK(y.size() == 3 * A.rows(), "observation size " << y.size() << " vs rows " << A.rows());
+  LinearProblem p;
+  const std::vector<int> counts = A.ColumnCounts();
+  std::vector<int> compact(A.cells, -1);
+  for (int j = 0; j < A.cells; ++j)
+    if (counts[j] > 0) {
+      compact[j] = static_cast<int>(p.cell_of.size());
+      p.cell_of.push_back(j);
+    }
+  p.unknown_cells = static_cast<int>(p.cell_of.size());
+  p.row_start = A.row_start;
+  p.col.resize(A.col.size());
+  for (std::size_t k = 0; k < A.col.size(); ++k) p.col[k] = compact[A.col[k]];
+  p.val = A.val;
+  p.y = y;
+  // Transpose (CSC).
+  p.col_start.assign(p.unknown_cells + 1, 0);
+  for (int c : p.col) ++p.col_start[c + 1];
+  for (int j = 0; j < p.unknown_cells; ++j) p.col_start[j + 1] += p.col_start[j];
+  p.col_row.resize(p.col.size());
+  p.col_val.resize(p.col.size());
+  std::vector<std::int64_t> fill(p.col_start.begin(), p.col_start.end() - 1);
+  for (std::size_t r = 0; r + 1 < p.row_start.size(); ++r)
+    for (std::int64_t k = p.row_start[r]; k < p.row_start[r + 1]; ++k) {
+      const std::int64_t dst = fill[p.col[k]]++;
+      p.col_row[dst] = static_cast<int>(r);
+      p.col_val[dst] = p.val[k];
+    }
+  return p;
+}
+
+void LinearProblem::Multiply(const std::vector<double>& lambda, std::vector<double>* out) const {
+  out->assign(3 * rows(), 0.0);
+  ParallelForChunks(0, rows(), 512, [&](std::size_t b, std::size_t e) {
+    for (std::size_t r = b; r < e; ++r) {
+      double s0 = 0, s1 = 0, s2 = 0;
+      for (std::int64_t k = row_start[r]; k < row_start[r + 1]; ++k) {
+        const double* l = &lambda[3 * col[k]];
+        s0 += val[k][0] * l[0];
+        s1 += val[k][1] * l[1];
+        s2 += val[k][2] * l[2];
+      }
+      (*out)[3 * r] = s0;
+      (*out)[3 * r + 1] = s1;
+      (*out)[3 * r + 2] = s2;
+    }
+  });
+}
+
+void LinearProblem::MultiplyTransposed(const std::vector<double>& v, std::vector<double>* out) const {
+  out->assign(3 * static_cast<std::size_t>(unknown_cells), 0.0);
+  ParallelForChunks(0, unknown_cells, 16, [&](std::size_t b, std::size_t e) {
+    for (std::size_t j = b; j < e; ++j) {
+      double s0 = 0, s1 = 0, s2 = 0;
+      for (std::int64_t k = col_start[j]; k < col_start[j + 1]; ++k) {
+        const double* x = &v[3 * col_row[k]];
+        s0 += col_val[k][0] * x[0];
+        s1 += col_val[k][1] * x[1];
+        s2 += col_val[k][2] * x[2];
+      }
+      (*out)[3 * j] = s0;
+      (*out)[3 * j + 1] = s1;
+      (*out)[3 * j + 2] = s2;
+    }
+  });
+}
+
+Objective::Objective(const LinearProblem& problem, const ObjectiveParams& params) : p_(problem), params_(params) {
+  if (!(params.sigma > 0) || !std::isfinite(params.sigma)) throw InputError("--sigma must be positive and finite");
+  if (!(params.alpha >= 0) || !std::isfinite(params.alpha)) throw InputError("--alpha must be >= 0 and finite");
+  if (!(params.beta >= 0) || !std::isfinite(params.beta)) throw InputError("--beta must be >= 0 and finite");
+  std::vector<double> aty;
+  p_.MultiplyTransposed(p_.y, &aty);
+  for (double v : aty) kkt_scale_ = std::max(kkt_scale_, std::abs(v));
+}
+
+double Objective::Value(const std::vector<double>& lambda, std::vector<double>* residual) const {
+  std::vector<double> local;
+  std::vector<double>& r = residual ? *residual : local;
+  p_.Multiply(lambda, &r);
+  const double s2 = params_.sigma * params_.sigma;
+  double data = 0;
+  for (std::size_t i = 0; i < r.size(); ++i) {
+    r[i] = p_.y[i] - r[i];
+    data += 0.5 * s2 * std::log1p(r[i] * r[i] / s2);
+  }
+  double penalty = 0;
+  if (params_.alpha > 0)
+    for (int j = 0; j < p_.unknown_cells; ++j)
+      penalty += params_.alpha * std::log1p(params_.beta * (lambda[3 * j] + lambda[3 * j + 1] + lambda[3 * j + 2]));
+  return data + penalty;
+}
+
+double Objective::ValueAndGradient(const std::vector<double>& lambda, std::vector<double>* gradient) const {
+  std::vector<double> r;
+  const double e = Value(lambda, &r);
+  const double s2 = params_.sigma * params_.sigma;
+  for (double& v : r) v = v / (1 + v * v / s2);  // psi(r)
+  p_.MultiplyTransposed(r, gradient);
+  for (int j = 0; j < p_.unknown_cells; ++j) {
+    const double pen = params_.alpha * params_.beta /
+                       (1 + params_.beta * (lambda[3 * j] + lambda[3 * j + 1] + lambda[3 * j + 2]));
+    for (int c = 0; c < 3; ++c) (*gradient)[3 * j + c] = -(*gradient)[3 * j + c] + pen;
+  }
+  return e;
+}
+
+double Objective::Rmse(const std::vector<double>& lambda) const {
+  std::vector<double> r;
+  Value(lambda, &r);
+  double s = 0;
+  for (double v : r) s += v * v;
+  return r.empty() ? 0.0 : std::sqrt(s / r.size());
+}
+
+double Objective::KktViolation(const std::vector<double>& lambda) const {
+  std::vector<double> g;
+  ValueAndGradient(lambda, &g);
+  double worst = 0;
+  for (std::size_t i = 0; i < g.size(); ++i) {
+    // Natural residual |P(lambda - g) - lambda|: |g| where lambda is well inside, max(0, -g) at 0.
+    const double v = std::abs(std::max(0.0, lambda[i] - g[i]) - lambda[i]);
+    worst = std::max(worst, v);
+  }
+  return worst / kkt_scale_;
+}
+
+}  // namespace lp

@@ -1,0 +1,68 @@
+#pragma once
+/// The estimation objective (paper Eq. 10-13) on a fixed light-transport matrix:
+///   E(lambda) = sum_{p,c} rho_sigma(y_pc - (A lambda)_pc) + sum_j alpha*log(1 + beta*sum_c lambda_jc),
+///   rho_sigma(r) = sigma^2/2 * log(1 + r^2/sigma^2)  (Cauchy),  lambda >= 0.
+/// All quantities are in normalized units (observations divided by their mean).
+#include <array>
+#include <cstdint>
+#include <vector>
+
+#include "estimation/transport.h"
+
+namespace lp {
+
+struct ObjectiveParams {
+  double sigma = 0.5;  ///< Cauchy scale (normalized intensity units)
+  double alpha = 0.1;  ///< activation penalty weight
+  double beta = 1.0;   ///< activation penalty sharpness
+};
+
+/// A with the unreachable columns removed, in row (CSR) and column (CSC) form,
+/// plus the observations. Unknowns are lambda[3*j + c] for compact cell j.
+struct LinearProblem {
+  int unknown_cells = 0;
+  std::vector<int> cell_of;             ///< compact index -> environment cell
+  std::vector<std::int64_t> row_start;  ///< CSR
+  std::vector<int> col;
+  std::vector<std::array<float, 3>> val;
+  std::vector<std::int64_t> col_start;  ///< CSC
+  std::vector<int> col_row;
+  std::vector<std::array<float, 3>> col_val;
+  std::vector<double> y;  ///< 3*rows observations
+
+  std::size_t rows() const { return row_start.empty() ? 0 : row_start.size() - 1; }
+  /// out = A * lambda (3*rows).
+  void Multiply(const std::vector<double>& lambda, std::vector<double>* out) const;
+  /// out[3j+c] = sum_p A_pjc * v_pc.
+  void MultiplyTransposed(const std::vector<double>& v, std::vector<double>* out) const;
+};
+
+/// Builds the problem from A and the observation of each row (3 per row), keeping
+/// only the cells with at least one entry.
+LinearProblem MakeLinearProblem(const TransportMatrix& A, const std::vector<double>& y);
+
+class Objective {
+ public:
+  Objective(const LinearProblem& problem, const ObjectiveParams& params);
+  /// E(lambda); `residual` (optional) receives y - A lambda.
+  double Value(const std::vector<double>& lambda, std::vector<double>* residual = nullptr) const;
+  /// E and its gradient dE/dlambda (analytical, Eq. 13).
+  double ValueAndGradient(const std::vector<double>& lambda, std::vector<double>* gradient) const;
+  /// Root mean square of the residual y - A lambda over all rows and channels.
+  double Rmse(const std::vector<double>& lambda) const;
+  /// Largest violation of the KKT conditions at lambda (>= 0), as the natural residual
+  /// |max(0, lambda - g) - lambda| (= |g| where lambda > 0 and g small, max(0, -g) where
+  /// lambda = 0), relative to max(1, max|A^T y|).
+  double KktViolation(const std::vector<double>& lambda) const;
+
+  const LinearProblem& problem() const { return p_; }
+  const ObjectiveParams& params() const { return params_; }
+  int unknowns() const { return 3 * p_.unknown_cells; }
+
+ private:
+  const LinearProblem& p_;
+  ObjectiveParams params_;
+  double kkt_scale_ = 1;
+};
+
+}  // namespace lp

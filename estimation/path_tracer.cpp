@@ -1,0 +1,261 @@
+#include "estimation/path_tracer.h"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+
+#include "common/color.h"
+#include "common/error.h"
+#include "common/parallel.h"
+#include "common/rng.h"
+#include "common/timer.h"
+#include "estimation/sampling.h"
+
+namespace lp {
+
+CellSampler::CellSampler(const EnvMap& env, const std::vector<double>& lambda,
+                         const std::vector<std::uint8_t>& reachable, double floor) {
+  const int L = env.size();
+  std::vector<double> w(L, 0.0), area(L, 0.0);
+  double wsum = 0, asum = 0;
+  for (int j = 0; j < L; ++j) {
+    if (!reachable.empty() && !reachable[j]) continue;
+    area[j] = env.solid_angle(j);
+    asum += area[j];
+    if (!lambda.empty()) {
+      const double lum = Luminance(lambda[3 * j], lambda[3 * j + 1], lambda[3 * j + 2]);
+      w[j] = std::isfinite(lum) && lum > 0 ? lum * area[j] : 0.0;
+      wsum += w[j];
+    }
+  }
+  LP_CHECK(asum > 0, "no reachable cell to sample");
+  const double eps = wsum > 0 ? std::clamp(floor, 0.0, 1.0) : 1.0;
+  prob_.resize(L);
+  cdf_.resize(L);
+  double acc = 0;
+  for (int j = 0; j < L; ++j) {
+    prob_[j] = (wsum > 0 ? (1 - eps) * w[j] / wsum : 0.0) + eps * area[j] / asum;
+    acc += prob_[j];
+    cdf_[j] = acc;
+  }
+  for (int j = 0; j < L; ++j) {
+    prob_[j] /= acc;
+    cdf_[j] /= acc;
+  }
+}
+
+int CellSampler::Sample(double u) const {
+  const auto it = std::upper_bound(cdf_.begin(), cdf_.end(), u);
+  int j = static_cast<int>(std::min<std::ptrdiff_t>(it - cdf_.begin(), cdf_.size() - 1));
+  while (j > 0 && prob_[j] == 0) --j;  // guard against rounding at the end of the CDF
+  return j;
+}
+
+namespace {
+
+struct Counters {
+  std::int64_t paths = 0, rays = 0, roulette = 0, negligible = 0, max_bounces = 0;
+};
+
+/// One camera sample of pixel (x, y): calls sink(cell, rgb weight) for every
+/// contribution; the pixel value is sum(weight * lambda_cell) / spp.
+template <class Sink>
+void TracePath(const RayTracer& scene, const EnvMap& env, const CellSampler& sampler, const Camera& cam, int x,
+               int y, Rng& rng, const TracerOptions& opt, Counters& cnt, Sink&& sink) {
+  ++cnt.paths;
+  Eigen::Vector3d origin = cam.center();
+  Eigen::Vector3d dir = cam.RayDirection(x + rng.Uniform() - 0.5, y + rng.Uniform() - 0.5);
+  Eigen::Vector3d T(1, 1, 1);
+  SurfacePoint hit;
+  ++cnt.rays;
+  if (!scene.Intersect(origin, dir, &hit)) {
+    sink(env.Lookup(dir), T);  // the camera sees the sky directly
+    return;
+  }
+  const double eps = scene.epsilon();
+  for (int bounce = 0;; ++bounce) {
+    const Eigen::Vector3d& n = hit.shading;
+    const Eigen::Vector3d rho = hit.albedo;
+    const Eigen::Vector3d off = hit.position + hit.geometric * (4 * eps);
+    // 1. Next-event estimation towards a cell.
+    {
+      const double u0 = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
+      const int j = sampler.Sample(u0);
+      const Eigen::Vector3d w = env.SampleInCell(j, u1, u2);
+      const double cos_s = n.dot(w);
+      if (cos_s > 0 && hit.geometric.dot(w) > 0) {
+        ++cnt.rays;
+        if (!scene.Occluded(off, w)) {
+          const double pdf_nee = sampler.Probability(j) / env.solid_angle(j);
+          const double pdf_bsdf = cos_s * kInvPi;
+          const double mis = PowerHeuristic(pdf_nee, pdf_bsdf);
+          sink(j, T.cwiseProduct(rho) * (kInvPi * cos_s * mis / pdf_nee));
+        }
+      }
+    }
+    // 2. BSDF sampling: cosine-weighted, throughput *= albedo.
+    const Eigen::Vector3d w = SampleCosine(n, rng.Uniform(), rng.Uniform());
+    T = T.cwiseProduct(rho);
+    if (hit.geometric.dot(w) <= 0) return;  // shading normal points past the geometry: absorbed
+    ++cnt.rays;
+    SurfacePoint next;
+    if (!scene.Intersect(off, w, &next)) {
+      const int j = env.Lookup(w);
+      const double pdf_nee = sampler.Probability(j) / env.solid_angle(j);
+      const double pdf_bsdf = n.dot(w) * kInvPi;
+      sink(j, T * PowerHeuristic(pdf_bsdf, pdf_nee));
+      return;
+    }
+    if (bounce + 1 >= opt.bounces) {
+      ++cnt.max_bounces;
+      return;
+    }
+    const double tmax = T.maxCoeff();
+    if (tmax < opt.min_throughput) {
+      ++cnt.negligible;
+      return;
+    }
+    if (bounce + 1 >= opt.roulette_after) {
+      const double p = std::min(0.95, tmax);
+      if (rng.Uniform() >= p) {
+        ++cnt.roulette;
+        return;
+      }
+      T /= p;
+    }
+    hit = next;
+  }
+}
+
+struct PixelRef {
+  int view;
+  int pixel;
+};
+
+std::vector<PixelRef> PixelsToTrace(const std::vector<View>& views, bool all_pixels) {
+  std::vector<PixelRef> out;
+  for (int v = 0; v < static_cast<int>(views.size()); ++v) {
+    const int n = views[v].camera.width * views[v].camera.height;
+    for (int p = 0; p < n; ++p)
+      if (all_pixels || (!views[v].valid.empty() && views[v].valid[p])) out.push_back({v, p});
+  }
+  return out;
+}
+
+/// Runs `per_pixel(index, pixel, rng, counters)` over pixels in parallel, with per-pixel seeds.
+template <class F>
+void ForEachPixel(const std::vector<PixelRef>& pixels, const TracerOptions& opt, TraceStats* stats, F&& per_pixel) {
+  std::atomic<std::int64_t> paths{0}, rays{0}, roulette{0}, negligible{0}, max_bounces{0};
+  ParallelForChunks(0, pixels.size(), 64, [&](std::size_t b, std::size_t e) {
+    Counters cnt;
+    for (std::size_t i = b; i < e; ++i) per_pixel(i, pixels[i], cnt);
+    paths += cnt.paths;
+    rays += cnt.rays;
+    roulette += cnt.roulette;
+    negligible += cnt.negligible;
+    max_bounces += cnt.max_bounces;
+  });
+  if (stats) {
+    stats->paths += paths;
+    stats->rays += rays;
+    stats->stopped_roulette += roulette;
+    stats->stopped_negligible += negligible;
+    stats->stopped_max_bounces += max_bounces;
+  }
+}
+
+void CheckOptions(const TracerOptions& o) {
+  if (o.spp < 1) throw InputError("--spp must be at least 1");
+  if (o.bounces < 1) throw InputError("--bounces must be at least 1");
+}
+
+}  // namespace
+
+TransportMatrix TraceTransport(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
+                               const CellSampler& sampler, const TracerOptions& opt, TraceStats* stats) {
+  CheckOptions(opt);
+  Stopwatch sw;
+  const std::vector<PixelRef> pixels = PixelsToTrace(views, false);
+  std::vector<std::vector<std::pair<int, std::array<float, 3>>>> rows(pixels.size());
+  ForEachPixel(pixels, opt, stats, [&](std::size_t i, const PixelRef& px, Counters& cnt) {
+    const Camera& cam = views[px.view].camera;
+    const int x = px.pixel % cam.width, y = px.pixel / cam.width;
+    std::vector<std::pair<int, Eigen::Vector3d>> entries;
+    for (int s = 0; s < opt.spp; ++s) {
+      Rng rng(opt.seed, px.view, px.pixel, s);
+      TracePath(scene, env, sampler, cam, x, y, rng, opt, cnt,
+                [&](int j, const Eigen::Vector3d& wgt) { entries.emplace_back(j, wgt); });
+    }
+    std::stable_sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    auto& row = rows[i];
+    const double inv = 1.0 / opt.spp;
+    for (std::size_t k = 0; k < entries.size();) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      const int j = entries[k].first;
+      for (; k < entries.size() && entries[k].first == j; ++k) sum += entries[k].second;
+      sum *= inv;
+      if (sum.maxCoeff() > 0)
+        row.push_back({j, {static_cast<float>(sum[0]), static_cast<float>(sum[1]), static_cast<float>(sum[2])}});
+    }
+  });
+  TransportMatrix A;
+  A.cells = env.size();
+  A.samples = opt.spp;
+  A.row_view.reserve(pixels.size());
+  A.row_pixel.reserve(pixels.size());
+  A.row_start.reserve(pixels.size() + 1);
+  A.row_start.push_back(0);
+  std::size_t nnz = 0;
+  for (const auto& r : rows) nnz += r.size();
+  A.col.reserve(nnz);
+  A.val.reserve(nnz);
+  for (std::size_t i = 0; i < pixels.size(); ++i) {
+    A.row_view.push_back(pixels[i].view);
+    A.row_pixel.push_back(pixels[i].pixel);
+    for (const auto& [j, v] : rows[i]) {
+      A.col.push_back(j);
+      A.val.push_back(v);
+    }
+    A.row_start.push_back(static_cast<std::int64_t>(A.col.size()));
+    std::vector<std::pair<int, std::array<float, 3>>>().swap(rows[i]);
+  }
+  if (stats) {
+    stats->pixels_traced += static_cast<std::int64_t>(pixels.size());
+    std::int64_t total = 0;
+    for (const View& v : views) total += static_cast<std::int64_t>(v.camera.width) * v.camera.height;
+    stats->pixels_skipped += total - static_cast<std::int64_t>(pixels.size());
+    stats->seconds += sw.Seconds();
+  }
+  return A;
+}
+
+std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
+                                        const std::vector<double>& lambda, const CellSampler& sampler,
+                                        const TracerOptions& opt, bool all_pixels, TraceStats* stats) {
+  CheckOptions(opt);
+  LP_CHECK(lambda.size() == 3 * static_cast<std::size_t>(env.size()), "lambda size");
+  Stopwatch sw;
+  std::vector<ImageRGB> out;
+  for (const View& v : views) out.emplace_back(v.camera.width, v.camera.height);
+  const std::vector<PixelRef> pixels = PixelsToTrace(views, all_pixels);
+  ForEachPixel(pixels, opt, stats, [&](std::size_t, const PixelRef& px, Counters& cnt) {
+    const Camera& cam = views[px.view].camera;
+    const int x = px.pixel % cam.width, y = px.pixel / cam.width;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (int s = 0; s < opt.spp; ++s) {
+      Rng rng(opt.seed, px.view, px.pixel, s);
+      TracePath(scene, env, sampler, cam, x, y, rng, opt, cnt, [&](int j, const Eigen::Vector3d& wgt) {
+        sum += wgt.cwiseProduct(Eigen::Vector3d(lambda[3 * j], lambda[3 * j + 1], lambda[3 * j + 2]));
+      });
+    }
+    float* p = out[px.view].at(x, y);
+    for (int c = 0; c < 3; ++c) p[c] = static_cast<float>(sum[c] / opt.spp);
+  });
+  if (stats) {
+    stats->pixels_traced += static_cast<std::int64_t>(pixels.size());
+    stats->seconds += sw.Seconds();
+  }
+  return out;
+}
+
+}  // namespace lp

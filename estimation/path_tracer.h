@@ -1,0 +1,64 @@
+#pragma once
+/// Monte Carlo estimation of the light-transport matrix A for an environment map
+/// of discrete cells, and the relighting render with the same paths.
+#include <cstdint>
+#include <vector>
+
+#include "common/image.h"
+#include "estimation/envmap.h"
+#include "estimation/ray_tracer.h"
+#include "estimation/scene_bundle.h"
+#include "estimation/transport.h"
+
+namespace lp {
+
+struct TracerOptions {
+  int spp = 64;                  ///< camera samples per pixel (sub-pixel jitter)
+  int bounces = 3;               ///< surface interactions per path (1 = direct light only)
+  int roulette_after = 2;        ///< Russian roulette from this bounce on
+  double nee_floor = 0.2;        ///< epsilon: share of NEE samples spread by solid angle
+  double min_throughput = 1e-4;  ///< paths whose throughput falls below this stop (negligible)
+  std::uint64_t seed = 1;
+};
+
+/// What the tracer left out or did, for the report.
+struct TraceStats {
+  std::int64_t pixels_traced = 0;
+  std::int64_t pixels_skipped = 0;  ///< masked or invalid: not traced
+  std::int64_t paths = 0;
+  std::int64_t rays = 0;
+  std::int64_t stopped_roulette = 0;
+  std::int64_t stopped_negligible = 0;
+  std::int64_t stopped_max_bounces = 0;
+  double seconds = 0;
+};
+
+/// NEE importance over cells: q_j = (1-eps)*w_j/sum(w) + eps*Omega_j/Omega_reach, with
+/// w_j = luminance(lambda_j)*Omega_j; cells with `reachable[j] == 0` get q_j = 0.
+/// `lambda` may be empty (uniform by solid angle).
+class CellSampler {
+ public:
+  CellSampler(const EnvMap& env, const std::vector<double>& lambda, const std::vector<std::uint8_t>& reachable,
+              double floor);
+  int Sample(double u) const;
+  /// Probability of choosing cell j.
+  double Probability(int j) const { return prob_[j]; }
+
+ private:
+  std::vector<double> prob_, cdf_;
+};
+
+/// Traces every valid pixel of every view and returns A (rows in view, pixel order).
+TransportMatrix TraceTransport(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
+                               const CellSampler& sampler, const TracerOptions& options,
+                               TraceStats* stats = nullptr);
+
+/// Renders each view under per-cell radiance `lambda` (3*env.size()) with exactly
+/// the paths TraceTransport would trace with the same sampler and options; pixels
+/// that are not valid are traced too when `all_pixels` is set (else left 0).
+std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
+                                        const std::vector<double>& lambda, const CellSampler& sampler,
+                                        const TracerOptions& options, bool all_pixels,
+                                        TraceStats* stats = nullptr);
+
+}  // namespace lp

@@ -1,0 +1,304 @@
+// PLY reader/writer for the scene-bundle mesh (hand-written: small, fuzzed, no PCL here).
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <sstream>
+
+#include "common/atomic_file.h"
+#include "common/color.h"
+#include "common/error.h"
+#include "estimation/mesh.h"
+
+namespace lp {
+namespace {
+
+enum class Type { kInt8, kUInt8, kInt16, kUInt16, kInt32, kUInt32, kFloat32, kFloat64, kInvalid };
+
+Type ParseType(const std::string& s) {
+  if (s == "char" || s == "int8") return Type::kInt8;
+  if (s == "uchar" || s == "uint8") return Type::kUInt8;
+  if (s == "short" || s == "int16") return Type::kInt16;
+  if (s == "ushort" || s == "uint16") return Type::kUInt16;
+  if (s == "int" || s == "int32") return Type::kInt32;
+  if (s == "uint" || s == "uint32") return Type::kUInt32;
+  if (s == "float" || s == "float32") return Type::kFloat32;
+  if (s == "double" || s == "float64") return Type::kFloat64;
+  return Type::kInvalid;
+}
+
+int TypeSize(Type t) {
+  switch (t) {
+    case Type::kInt8: case Type::kUInt8: return 1;
+    case Type::kInt16: case Type::kUInt16: return 2;
+    case Type::kInt32: case Type::kUInt32: case Type::kFloat32: return 4;
+    case Type::kFloat64: return 8;
+    default: return 0;
+  }
+}
+
+struct Property {
+  std::string name;
+  Type type = Type::kInvalid;
+  bool is_list = false;
+  Type count_type = Type::kInvalid;
+};
+
+struct Element {
+  std::string name;
+  std::size_t count = 0;
+  std::vector<Property> props;
+};
+
+enum class Format { kAscii, kBinaryLE, kBinaryBE };
+
+class Reader {
+ public:
+  Reader(const std::string& bytes, std::size_t pos, Format fmt, const std::string& name)
+      : b_(bytes), pos_(pos), fmt_(fmt), name_(name) {}
+
+  double Read(Type t) {
+    if (fmt_ == Format::kAscii) return ReadAscii();
+    const int n = TypeSize(t);
+    if (pos_ + n > b_.size()) Fail("file is truncated");
+    unsigned char buf[8];
+    std::memcpy(buf, b_.data() + pos_, n);
+    pos_ += n;
+    if (fmt_ == Format::kBinaryBE) std::reverse(buf, buf + n);
+    switch (t) {
+      case Type::kInt8: { std::int8_t v; std::memcpy(&v, buf, 1); return v; }
+      case Type::kUInt8: return buf[0];
+      case Type::kInt16: { std::int16_t v; std::memcpy(&v, buf, 2); return v; }
+      case Type::kUInt16: { std::uint16_t v; std::memcpy(&v, buf, 2); return v; }
+      case Type::kInt32: { std::int32_t v; std::memcpy(&v, buf, 4); return v; }
+      case Type::kUInt32: { std::uint32_t v; std::memcpy(&v, buf, 4); return v; }
+      case Type::kFloat32: { float v; std::memcpy(&v, buf, 4); return v; }
+      case Type::kFloat64: { double v; std::memcpy(&v, buf, 8); return v; }
+      default: Fail("invalid property type");
+    }
+  }
+  [[noreturn]] void Fail(const std::string& what) const { throw InputError(name_, what); }
+  std::size_t remaining() const { return b_.size() - pos_; }
+
+ private:
+  double ReadAscii() {
+    while (pos_ < b_.size() && std::isspace(static_cast<unsigned char>(b_[pos_]))) ++pos_;
+    if (pos_ >= b_.size()) Fail("file is truncated");
+    std::size_t end = pos_;
+    while (end < b_.size() && !std::isspace(static_cast<unsigned char>(b_[end]))) ++end;
+    const std::string tok = b_.substr(pos_, std::min<std::size_t>(end - pos_, 64));
+    pos_ = end;
+    char* stop = nullptr;
+    const double v = std::strtod(tok.c_str(), &stop);
+    if (stop == tok.c_str() || *stop != '\0') Fail("bad number '" + tok + "'");
+    return v;
+  }
+
+  const std::string& b_;
+  std::size_t pos_;
+  Format fmt_;
+  std::string name_;
+};
+
+}  // namespace
+
+Mesh ParsePly(const std::string& bytes, const std::string& name) {
+  auto fail = [&](const std::string& what) -> void { throw InputError(name, what); };
+  if (bytes.compare(0, 4, "ply\n") != 0 && bytes.compare(0, 5, "ply\r\n") != 0)
+    fail("not a PLY file (missing 'ply' magic)");
+  const std::size_t header_end = bytes.find("end_header");
+  if (header_end == std::string::npos) fail("PLY header has no end_header");
+  std::size_t data_start = bytes.find('\n', header_end);
+  if (data_start == std::string::npos) fail("PLY header is not terminated by a newline");
+  ++data_start;
+
+  std::istringstream header(bytes.substr(0, header_end));
+  std::string line;
+  std::getline(header, line);
+  Format fmt = Format::kAscii;
+  bool have_format = false;
+  std::vector<Element> elements;
+  while (std::getline(header, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream ls(line);
+    std::string kw;
+    ls >> kw;
+    if (kw.empty() || kw == "comment" || kw == "obj_info") continue;
+    if (kw == "format") {
+      std::string f;
+      ls >> f;
+      if (f == "ascii") fmt = Format::kAscii;
+      else if (f == "binary_little_endian") fmt = Format::kBinaryLE;
+      else if (f == "binary_big_endian") fmt = Format::kBinaryBE;
+      else fail("unknown PLY format '" + f + "'");
+      have_format = true;
+    } else if (kw == "element") {
+      Element e;
+      long long count = -1;
+      ls >> e.name >> count;
+      if (!ls || count < 0) fail("bad element line '" + line + "'");
+      e.count = static_cast<std::size_t>(count);
+      elements.push_back(e);
+    } else if (kw == "property") {
+      if (elements.empty()) fail("property before any element");
+      Property p;
+      std::string t;
+      ls >> t;
+      if (t == "list") {
+        std::string ct, it;
+        ls >> ct >> it >> p.name;
+        p.is_list = true;
+        p.count_type = ParseType(ct);
+        p.type = ParseType(it);
+        if (p.count_type == Type::kInvalid || p.type == Type::kInvalid || p.count_type == Type::kFloat32 ||
+            p.count_type == Type::kFloat64)
+          fail("bad list property '" + line + "'");
+      } else {
+        p.type = ParseType(t);
+        ls >> p.name;
+        if (p.type == Type::kInvalid) fail("unknown property type '" + t + "'");
+      }
+      elements.back().props.push_back(p);
+    } else {
+      fail("unknown header keyword '" + kw + "'");
+    }
+  }
+  if (!have_format) fail("PLY header has no format line");
+
+  Mesh mesh;
+  Reader r(bytes, data_start, fmt, name);
+  bool have_vertices = false, have_faces = false;
+  for (const Element& e : elements) {
+    // Every item takes at least one byte (binary) or two (ASCII): reject absurd counts early.
+    std::size_t min_item = 0;
+    for (const Property& p : e.props) min_item += p.is_list ? TypeSize(p.count_type) : TypeSize(p.type);
+    if (fmt == Format::kAscii) min_item = 2 * e.props.size();
+    if (min_item > 0 && e.count > r.remaining() / min_item) fail("element '" + e.name + "' count exceeds file size");
+    const bool is_vertex = e.name == "vertex";
+    const bool is_face = e.name == "face";
+    int ix = -1, iy = -1, iz = -1, inx = -1, iny = -1, inz = -1, ir = -1, ig = -1, ib = -1, iface = -1;
+    for (int i = 0; i < static_cast<int>(e.props.size()); ++i) {
+      const std::string& n = e.props[i].name;
+      if (e.props[i].is_list) {
+        if (is_face && (n == "vertex_indices" || n == "vertex_index")) iface = i;
+        continue;
+      }
+      if (n == "x") ix = i; else if (n == "y") iy = i; else if (n == "z") iz = i;
+      else if (n == "nx") inx = i; else if (n == "ny") iny = i; else if (n == "nz") inz = i;
+      else if (n == "red" || n == "r" || n == "diffuse_red") ir = i;
+      else if (n == "green" || n == "g" || n == "diffuse_green") ig = i;
+      else if (n == "blue" || n == "b" || n == "diffuse_blue") ib = i;
+    }
+    if (is_vertex) {
+      if (ix < 0 || iy < 0 || iz < 0) fail("vertex element lacks x, y, z");
+      have_vertices = true;
+      const bool has_n = inx >= 0 && iny >= 0 && inz >= 0;
+      const bool has_c = ir >= 0 && ig >= 0 && ib >= 0;
+      mesh.positions.reserve(e.count);
+      if (has_n) mesh.normals.reserve(e.count);
+      mesh.albedo.reserve(e.count);
+      std::vector<double> vals(e.props.size());
+      for (std::size_t k = 0; k < e.count; ++k) {
+        for (std::size_t i = 0; i < e.props.size(); ++i) {
+          const Property& p = e.props[i];
+          if (p.is_list) {
+            const double n = r.Read(p.count_type);
+            if (n < 0 || n > 1e6) fail("bad list length in vertex element");
+            for (int j = 0; j < static_cast<int>(n); ++j) r.Read(p.type);
+            vals[i] = 0;
+          } else {
+            vals[i] = r.Read(p.type);
+          }
+        }
+        mesh.positions.emplace_back(vals[ix], vals[iy], vals[iz]);
+        if (has_n) mesh.normals.emplace_back(vals[inx], vals[iny], vals[inz]);
+        if (has_c) {
+          // uchar colours are 0..255 sRGB; float colours are taken as sRGB in [0, 1].
+          const double scale = TypeSize(e.props[ir].type) == 1 ? 255.0 : 1.0;
+          Eigen::Vector3f a;
+          for (int c = 0; c < 3; ++c) {
+            const double v = vals[c == 0 ? ir : c == 1 ? ig : ib] / scale;
+            a[c] = SrgbToLinear(static_cast<float>(std::clamp(std::isfinite(v) ? v : 0.0, 0.0, 1.0)));
+          }
+          mesh.albedo.push_back(a);
+        } else {
+          mesh.albedo.emplace_back(0.5f, 0.5f, 0.5f);
+        }
+      }
+    } else if (is_face) {
+      if (iface < 0) fail("face element lacks vertex_indices");
+      have_faces = true;
+      for (std::size_t k = 0; k < e.count; ++k) {
+        for (std::size_t i = 0; i < e.props.size(); ++i) {
+          const Property& p = e.props[i];
+          if (!p.is_list) {
+            r.Read(p.type);
+            continue;
+          }
+          const double n = r.Read(p.count_type);
+          if (!(n >= 0 && n <= 1024)) fail("bad face vertex count");
+          std::vector<int> idx(static_cast<int>(n));
+          for (int j = 0; j < static_cast<int>(n); ++j) {
+            const double v = r.Read(p.type);
+            if (!(v >= 0 && v < 2147483647.0)) fail("bad vertex index in face " + std::to_string(k));
+            idx[j] = static_cast<int>(v);
+          }
+          if (static_cast<int>(i) != iface) continue;
+          for (int j = 1; j + 1 < static_cast<int>(n); ++j) mesh.triangles.emplace_back(idx[0], idx[j], idx[j + 1]);
+        }
+      }
+    } else {
+      // Skip other elements.
+      for (std::size_t k = 0; k < e.count; ++k)
+        for (const Property& p : e.props) {
+          if (p.is_list) {
+            const double n = r.Read(p.count_type);
+            if (!(n >= 0 && n <= 1e6)) fail("bad list length in element '" + e.name + "'");
+            for (int j = 0; j < static_cast<int>(n); ++j) r.Read(p.type);
+          } else {
+            r.Read(p.type);
+          }
+        }
+    }
+  }
+  if (!have_vertices) fail("PLY has no vertex element");
+  if (!have_faces) fail("PLY has no face element (a triangle mesh is required)");
+  for (const auto& t : mesh.triangles)
+    for (int c = 0; c < 3; ++c)
+      if (t[c] >= static_cast<int>(mesh.positions.size()))
+        fail("face refers to vertex " + std::to_string(t[c]) + " but there are only " +
+             std::to_string(mesh.positions.size()));
+  return mesh;
+}
+
+Mesh ReadPly(const std::filesystem::path& path) { return ParsePly(ReadTextFile(path), path.string()); }
+
+void WritePly(const std::filesystem::path& path, const Mesh& mesh) {
+  LP_CHECK(mesh.normals.empty() || mesh.normals.size() == mesh.positions.size(), "normals size");
+  LP_CHECK(mesh.albedo.size() == mesh.positions.size(), "albedo size");
+  std::ostringstream os;
+  os << "ply\nformat binary_little_endian 1.0\ncomment lightprobe mesh (colours sRGB-encoded)\n"
+     << "element vertex " << mesh.positions.size() << "\n"
+     << "property float x\nproperty float y\nproperty float z\n";
+  if (!mesh.normals.empty()) os << "property float nx\nproperty float ny\nproperty float nz\n";
+  os << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+     << "element face " << mesh.triangles.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
+  std::string data = os.str();
+  auto put = [&](const void* p, std::size_t n) { data.append(static_cast<const char*>(p), n); };
+  for (std::size_t i = 0; i < mesh.positions.size(); ++i) {
+    put(mesh.positions[i].data(), 12);
+    if (!mesh.normals.empty()) put(mesh.normals[i].data(), 12);
+    for (int c = 0; c < 3; ++c) {
+      const auto u = static_cast<unsigned char>(std::lround(255.f * LinearToSrgb(mesh.albedo[i][c])));
+      put(&u, 1);
+    }
+  }
+  for (const auto& t : mesh.triangles) {
+    const unsigned char three = 3;
+    put(&three, 1);
+    put(t.data(), 12);
+  }
+  WriteTextAtomically(path, data);
+}
+
+}  // namespace lp

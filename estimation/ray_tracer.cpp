@@ -1,0 +1,112 @@
+#include "estimation/ray_tracer.h"
+
+#include <cmath>
+#include <limits>
+
+#include <embree3/rtcore.h>
+
+#include "common/error.h"
+
+namespace lp {
+
+struct RayTracer::Impl {
+  RTCDevice device = nullptr;
+  RTCScene scene = nullptr;
+  ~Impl() {
+    if (scene) rtcReleaseScene(scene);
+    if (device) rtcReleaseDevice(device);
+  }
+};
+
+RayTracer::RayTracer(Mesh mesh) : impl_(std::make_unique<Impl>()), mesh_(std::move(mesh)) {
+  LP_CHECK(!mesh_.triangles.empty(), "empty mesh");
+  LP_CHECK(mesh_.normals.size() == mesh_.positions.size(), "mesh lacks normals (call SanitizeMesh)");
+  Eigen::Vector3f lo, hi;
+  MeshBounds(mesh_, &lo, &hi);
+  center_ = (0.5f * (lo + hi)).cast<double>();
+  radius_ = std::max(1e-9, 0.5 * (hi - lo).cast<double>().norm());
+  epsilon_ = 1e-5 * radius_;
+
+  impl_->device = rtcNewDevice("threads=1");  // callers parallelize; Embree's own pool only builds
+  LP_CHECK(impl_->device, "rtcNewDevice failed: " << rtcGetDeviceError(nullptr));
+  impl_->scene = rtcNewScene(impl_->device);
+  rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
+  rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
+  RTCGeometry geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                        3 * sizeof(float), mesh_.positions.size()));
+  for (std::size_t i = 0; i < mesh_.positions.size(); ++i)
+    for (int c = 0; c < 3; ++c) v[3 * i + c] = mesh_.positions[i][c];
+  auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                             3 * sizeof(unsigned), mesh_.triangles.size()));
+  for (std::size_t i = 0; i < mesh_.triangles.size(); ++i)
+    for (int c = 0; c < 3; ++c) idx[3 * i + c] = static_cast<unsigned>(mesh_.triangles[i][c]);
+  rtcCommitGeometry(geom);
+  rtcAttachGeometry(impl_->scene, geom);
+  rtcReleaseGeometry(geom);
+  rtcCommitScene(impl_->scene);
+  LP_CHECK(rtcGetDeviceError(impl_->device) == RTC_ERROR_NONE, "Embree BVH build failed");
+}
+
+RayTracer::~RayTracer() = default;
+
+bool RayTracer::Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, SurfacePoint* hit,
+                          double tmax) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh;
+  rh.ray.org_x = static_cast<float>(o.x());
+  rh.ray.org_y = static_cast<float>(o.y());
+  rh.ray.org_z = static_cast<float>(o.z());
+  rh.ray.dir_x = static_cast<float>(d.x());
+  rh.ray.dir_y = static_cast<float>(d.y());
+  rh.ray.dir_z = static_cast<float>(d.z());
+  rh.ray.tnear = static_cast<float>(epsilon_);
+  rh.ray.tfar = static_cast<float>(std::min(tmax, 1e30));
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.ray.flags = 0;
+  rh.ray.time = 0;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  rtcIntersect1(impl_->scene, &ctx, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+  const int prim = static_cast<int>(rh.hit.primID);
+  const Eigen::Vector3i& t = mesh_.triangles[prim];
+  const double u = rh.hit.u, v = rh.hit.v, w = 1 - u - v;
+  hit->triangle = prim;
+  hit->distance = rh.ray.tfar;
+  hit->position = o + d * static_cast<double>(rh.ray.tfar);
+  const Eigen::Vector3d p0 = mesh_.positions[t[0]].cast<double>();
+  Eigen::Vector3d ng = (mesh_.positions[t[1]].cast<double>() - p0).cross(mesh_.positions[t[2]].cast<double>() - p0);
+  ng.normalize();
+  if (ng.dot(d) > 0) ng = -ng;
+  Eigen::Vector3d ns = (w * mesh_.normals[t[0]] + u * mesh_.normals[t[1]] + v * mesh_.normals[t[2]]).cast<double>();
+  const double len = ns.norm();
+  ns = len > 1e-12 ? Eigen::Vector3d(ns / len) : ng;
+  if (ns.dot(ng) < 0) ns = -ns;  // flipped or inconsistent normals: shade the side that is seen
+  hit->geometric = ng;
+  hit->shading = ns;
+  hit->albedo = (w * mesh_.albedo[t[0]] + u * mesh_.albedo[t[1]] + v * mesh_.albedo[t[2]]).cast<double>();
+  return true;
+}
+
+bool RayTracer::Occluded(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double tmax) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRay ray;
+  ray.org_x = static_cast<float>(o.x());
+  ray.org_y = static_cast<float>(o.y());
+  ray.org_z = static_cast<float>(o.z());
+  ray.dir_x = static_cast<float>(d.x());
+  ray.dir_y = static_cast<float>(d.y());
+  ray.dir_z = static_cast<float>(d.z());
+  ray.tnear = static_cast<float>(epsilon_);
+  ray.tfar = static_cast<float>(std::min(tmax, 1e30));
+  ray.mask = 0xFFFFFFFFu;
+  ray.flags = 0;
+  ray.time = 0;
+  rtcOccluded1(impl_->scene, &ctx, &ray);
+  return ray.tfar < 0;
+}
+
+}  // namespace lp

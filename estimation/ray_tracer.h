@@ -1,0 +1,52 @@
+#pragma once
+/// Ray queries against the scene mesh. Embree 3 stays inside ray_tracer.cpp
+/// (the one file that would absorb the Embree 3 -> 4 API change).
+#include <memory>
+
+#include <Eigen/Core>
+
+#include "estimation/mesh.h"
+
+namespace lp {
+
+/// A shading point on the mesh.
+struct SurfacePoint {
+  Eigen::Vector3d position;   ///< world, metres
+  Eigen::Vector3d geometric;  ///< unit geometric normal, facing the incoming ray
+  Eigen::Vector3d shading;    ///< unit interpolated normal, same side as `geometric`
+  Eigen::Vector3d albedo;     ///< linear RGB, interpolated
+  double distance = 0;        ///< along the ray
+  int triangle = -1;
+};
+
+class RayTracer {
+ public:
+  /// Builds the BVH over a sanitized mesh (see SanitizeMesh); keeps a copy of it.
+  explicit RayTracer(Mesh mesh);
+  ~RayTracer();
+  RayTracer(const RayTracer&) = delete;
+  RayTracer& operator=(const RayTracer&) = delete;
+
+  /// Closest hit along origin + t*dir, t in (epsilon, tmax); `dir` unit length.
+  bool Intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, SurfacePoint* hit,
+                 double tmax = 1e30) const;
+  /// True if anything lies along origin + t*dir, t in (epsilon, tmax).
+  bool Occluded(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double tmax = 1e30) const;
+
+  /// Ray offset used to leave a surface, proportional to the scene size.
+  double epsilon() const { return epsilon_; }
+  const Mesh& mesh() const { return mesh_; }
+  /// Centre and radius of the bounding sphere of the mesh's bounding box.
+  Eigen::Vector3d center() const { return center_; }
+  double radius() const { return radius_; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  Mesh mesh_;
+  double epsilon_ = 1e-4;
+  Eigen::Vector3d center_;
+  double radius_ = 1;
+};
+
+}  // namespace lp

@@ -1,0 +1,67 @@
+#pragma once
+/// The scene bundle (docs/formats.md): the on-disk contract between
+/// reconstruction and estimation. Readers accept exactly the documented format;
+/// the writer writes exactly it.
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/image.h"
+#include "estimation/mesh.h"
+
+namespace lp {
+
+/// Pinhole camera, OpenCV convention (x right, y down, z forward); pixel centres at
+/// integer coordinates: u = fx*X/Z + cx, v = fy*Y/Z + cy.
+struct Camera {
+  int width = 0, height = 0;
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+  Eigen::Matrix4d world_from_camera = Eigen::Matrix4d::Identity();
+
+  Eigen::Vector3d center() const { return world_from_camera.block<3, 1>(0, 3); }
+  /// Unit world direction of the ray through image point (u, v) (pixel units).
+  Eigen::Vector3d RayDirection(double u, double v) const;
+  /// Projects a world point; returns false if behind the camera.
+  bool Project(const Eigen::Vector3d& world, double* u, double* v) const;
+};
+
+/// One reference image with its camera. `valid` marks pixels that are inside the
+/// mask and finite and non-negative in every channel.
+struct View {
+  Camera camera;
+  ImageRGB image;               ///< linear RGB
+  std::vector<std::uint8_t> valid;  ///< width*height, 1 = use
+  std::string image_file, mask_file;  ///< as named in scene.json (relative)
+  int masked_out = 0;   ///< pixels excluded by the mask
+  int non_finite = 0;   ///< pixels excluded for NaN/Inf
+  int negative = 0;     ///< pixels excluded for negative values
+};
+
+struct SceneBundle {
+  std::filesystem::path dir;
+  std::string mesh_file = "mesh.ply";
+  Mesh mesh;
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  std::vector<View> views;
+  int degenerate_triangles_removed = 0;
+  std::optional<std::string> truth_json;  ///< raw text of truth.json when present
+};
+
+/// Reads `dir/scene.json` and everything it names. Throws InputError naming the
+/// offending file and problem (missing files, malformed JSON, size mismatches,
+/// a view with no usable pixel, an empty or degenerate mesh).
+SceneBundle LoadSceneBundle(const std::filesystem::path& dir);
+
+/// Parses scene.json text into a bundle skeleton (no files read); `name` is used
+/// in errors. Exposed for tests and fuzzing.
+SceneBundle ParseSceneJson(const std::string& text, const std::string& name);
+
+/// Writes a bundle (scene.json, mesh.ply, view<k>.exr, mask<k>.png, truth.json
+/// when set) into `dir`, atomically as a whole: it is built in a sibling
+/// temporary directory and renamed into place, replacing an existing bundle.
+void WriteSceneBundle(const std::filesystem::path& dir, const SceneBundle& bundle);
+
+}  // namespace lp

@@ -1,0 +1,271 @@
+#include "estimation/synth.h"
+
+#include <cmath>
+#include <map>
+
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+
+#include "common/color.h"
+#include "common/error.h"
+#include "common/parallel.h"
+#include "common/rng.h"
+#include "estimation/ray_tracer.h"
+#include "estimation/sampling.h"
+
+namespace lp {
+namespace fs = std::filesystem;
+using Eigen::Vector3d;
+using Eigen::Vector3f;
+
+Vector3d SphereLight::Radiance() const { return rgb_power / (4 * kPi * kPi * radius * radius); }
+
+namespace {
+
+Vector3f Srgb(int r, int g, int b) { return {SrgbToLinear(r / 255.f), SrgbToLinear(g / 255.f), SrgbToLinear(b / 255.f)}; }
+
+/// Quad p0, p0+u, p0+u+v, p0+v with normal u x v, subdivided n x n.
+Mesh Quad(const Vector3f& p0, const Vector3f& u, const Vector3f& v, const Vector3f& albedo, int n = 4) {
+  Mesh m;
+  const Vector3f nrm = u.cross(v).normalized();
+  for (int i = 0; i <= n; ++i)
+    for (int j = 0; j <= n; ++j) {
+      m.positions.push_back(p0 + u * (float(i) / n) + v * (float(j) / n));
+      m.normals.push_back(nrm);
+      m.albedo.push_back(albedo);
+    }
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      const int a = i * (n + 1) + j, b = (i + 1) * (n + 1) + j, c = (i + 1) * (n + 1) + j + 1, d = i * (n + 1) + j + 1;
+      m.triangles.emplace_back(a, b, c);
+      m.triangles.emplace_back(a, c, d);
+    }
+  return m;
+}
+
+/// Axis-aligned box standing on z = 0 (outward normals).
+Mesh Box(const Vector3f& lo, const Vector3f& hi, const Vector3f& albedo) {
+  const Vector3f d = hi - lo;
+  const Vector3f X(d.x(), 0, 0), Y(0, d.y(), 0), Z(0, 0, d.z());
+  Mesh m;
+  m.Append(Quad(lo, Y, X, albedo, 1));                        // bottom (-z)
+  m.Append(Quad(lo + Z, X, Y, albedo, 1));                    // top (+z)
+  m.Append(Quad(lo, X, Z, albedo, 1));                        // -y
+  m.Append(Quad(lo + Y, Z, X, albedo, 1));                    // +y
+  m.Append(Quad(lo, Z, Y, albedo, 1));                        // -x
+  m.Append(Quad(lo + X, Y, Z, albedo, 1));                    // +x
+  return m;
+}
+
+Mesh Sphere(const Vector3f& c, float r, const Vector3f& albedo, int rings = 24, int segments = 48) {
+  Mesh m;
+  for (int i = 0; i <= rings; ++i) {
+    const double th = kPi * i / rings;
+    for (int j = 0; j <= segments; ++j) {
+      const double ph = 2 * kPi * j / segments;
+      const Vector3f n(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th));
+      m.positions.push_back(c + r * n);
+      m.normals.push_back(n);
+      m.albedo.push_back(albedo);
+    }
+  }
+  for (int i = 0; i < rings; ++i)
+    for (int j = 0; j < segments; ++j) {
+      const int a = i * (segments + 1) + j, b = a + segments + 1;
+      if (i > 0) m.triangles.emplace_back(a, b, a + 1);
+      if (i < rings - 1) m.triangles.emplace_back(a + 1, b, b + 1);
+    }
+  return m;
+}
+
+/// Room corner: floor and two walls, two boxes and a sphere, varied albedos. Up = +z.
+Mesh RoomCorner() {
+  Mesh m;
+  m.Append(Quad({0, 0, 0}, {3, 0, 0}, {0, 3, 0}, Srgb(180, 170, 160), 8));  // floor (+z)
+  m.Append(Quad({0, 0, 0}, {0, 0, 2.2f}, {3, 0, 0}, Srgb(200, 200, 205), 8));  // wall y = 0 (+y)
+  m.Append(Quad({0, 0, 0}, {0, 3, 0}, {0, 0, 2.2f}, Srgb(190, 175, 140), 8));  // wall x = 0 (+x)
+  m.Append(Box({0.5f, 1.2f, 0}, {1.0f, 1.7f, 0.5f}, Srgb(160, 60, 50)));
+  m.Append(Box({1.3f, 0.4f, 0}, {1.7f, 0.8f, 0.8f}, Srgb(60, 110, 170)));
+  m.Append(Sphere({1.5f, 1.5f, 0.35f}, 0.35f, Srgb(210, 210, 210)));
+  return m;
+}
+
+Camera LookAt(const Vector3d& eye, const Vector3d& target, const Vector3d& up, int w, int h, double hfov_deg) {
+  Camera c;
+  c.width = w;
+  c.height = h;
+  c.fx = c.fy = 0.5 * w / std::tan(0.5 * hfov_deg * kPi / 180);
+  c.cx = 0.5 * (w - 1);
+  c.cy = 0.5 * (h - 1);
+  const Vector3d z = (target - eye).normalized();
+  const Vector3d x = z.cross(up).normalized();  // right
+  const Vector3d y = z.cross(x);                // down
+  c.world_from_camera.setIdentity();
+  c.world_from_camera.block<3, 1>(0, 0) = x;
+  c.world_from_camera.block<3, 1>(0, 1) = y;
+  c.world_from_camera.block<3, 1>(0, 2) = z;
+  c.world_from_camera.block<3, 1>(0, 3) = eye;
+  return c;
+}
+
+Vector3d Direction(double azimuth_deg, double elevation_deg) {
+  const double a = azimuth_deg * kPi / 180, e = elevation_deg * kPi / 180;
+  return {std::cos(e) * std::cos(a), std::cos(e) * std::sin(a), std::sin(e)};
+}
+
+/// Light of given colour at `distance` from `center` along `dir`, with power set so the
+/// irradiance it gives at the centre (facing it) is `irradiance`.
+SphereLight LightAt(const Vector3d& center, const Vector3d& dir, double distance, double radius,
+                    const Vector3d& colour, double irradiance) {
+  SphereLight l;
+  l.position = center + distance * dir.normalized();
+  l.radius = radius;
+  l.rgb_power = colour * irradiance * 4 * kPi * distance * distance;
+  return l;
+}
+
+/// Sphere-light direct lighting at `x`; returns T * sum over lights of rho/pi cos L / pdf.
+Vector3d DirectFromSpheres(const RayTracer& scene, const SurfacePoint& hit, const Vector3d& off,
+                           const std::vector<SphereLight>& lights, Rng& rng) {
+  Vector3d sum = Vector3d::Zero();
+  for (const SphereLight& l : lights) {
+    const Vector3d to = l.position - hit.position;
+    const double d2 = to.squaredNorm(), r2 = l.radius * l.radius;
+    if (d2 <= r2) continue;
+    const double d = std::sqrt(d2);
+    const double cos_max = std::sqrt(1 - r2 / d2);
+    const Vector3d w = SampleCone(to / d, cos_max, rng.Uniform(), rng.Uniform());
+    const double cos_s = hit.shading.dot(w);
+    if (cos_s <= 0 || hit.geometric.dot(w) <= 0) continue;
+    const double b = w.dot(to);
+    const double t = b - std::sqrt(std::max(0.0, r2 - (d2 - b * b)));
+    if (scene.Occluded(off, w, t)) continue;
+    const double pdf = 1.0 / (2 * kPi * (1 - cos_max));
+    sum += hit.albedo.cwiseProduct(l.Radiance()) * (kInvPi * cos_s / pdf);
+  }
+  return sum;
+}
+
+}  // namespace
+
+std::vector<ImageRGB> RenderSphereLights(const Mesh& mesh, const std::vector<View>& views,
+                                         const std::vector<SphereLight>& lights, const SynthOptions& o) {
+  RayTracer scene(mesh);
+  std::vector<ImageRGB> out;
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    const Camera& cam = views[v].camera;
+    ImageRGB img(cam.width, cam.height);
+    ParallelFor(0, img.pixels(), [&](std::size_t p) {
+      const int x = static_cast<int>(p % cam.width), y = static_cast<int>(p / cam.width);
+      Vector3d acc = Vector3d::Zero();
+      for (int s = 0; s < o.spp; ++s) {
+        Rng rng(o.seed, v, p, s);
+        Vector3d dir = cam.RayDirection(x + rng.Uniform() - 0.5, y + rng.Uniform() - 0.5);
+        SurfacePoint hit;
+        if (!scene.Intersect(cam.center(), dir, &hit)) continue;  // lights are not seen directly
+        Vector3d T(1, 1, 1);
+        for (int bounce = 0; bounce < o.bounces; ++bounce) {
+          const Vector3d off = hit.position + hit.geometric * (4 * scene.epsilon());
+          acc += T.cwiseProduct(DirectFromSpheres(scene, hit, off, lights, rng));
+          const Vector3d w = SampleCosine(hit.shading, rng.Uniform(), rng.Uniform());
+          T = T.cwiseProduct(hit.albedo);
+          if (hit.geometric.dot(w) <= 0) break;
+          SurfacePoint next;
+          if (!scene.Intersect(off, w, &next)) break;
+          if (bounce >= 1) {
+            const double q = std::min(0.95, T.maxCoeff());
+            if (rng.Uniform() >= q) break;
+            T /= q;
+          }
+          hit = next;
+        }
+      }
+      float* px = img.at(x, y);
+      for (int c = 0; c < 3; ++c) px[c] = static_cast<float>(acc[c] / o.spp);
+    });
+    out.push_back(std::move(img));
+  }
+  return out;
+}
+
+std::vector<std::pair<std::string, std::string>> SynthSceneList() {
+  return {{"one-light", "room corner with boxes and a sphere, one spherical light 8 m away"},
+          {"two-light", "the same room, a warm key light and a cool fill light"},
+          {"near-light", "the same room, one small light 0.6 m from the scene centre (far-light model under stress)"},
+          {"frag115", "the real reconstructed mesh shared/data/mesh/frag_115.ply under one spherical light"}};
+}
+
+SceneBundle MakeSynthScene(const std::string& name, const SynthOptions& o, const fs::path& data_dir) {
+  if (o.width < 8 || o.height < 8 || o.width > 4096 || o.height > 4096) throw InputError("synth: bad image size");
+  SceneBundle b;
+  std::vector<SphereLight> lights;
+  Vector3d center;
+  Camera cam;
+  if (name == "one-light" || name == "two-light" || name == "near-light") {
+    b.mesh = RoomCorner();
+    b.up = Vector3d::UnitZ();
+    center = Vector3d(1.1, 1.1, 0.5);
+    cam = LookAt({3.3, 2.9, 1.7}, {0.9, 0.9, 0.45}, b.up, o.width, o.height, 60);
+    if (name == "one-light") {
+      lights.push_back(LightAt(center, Direction(30, 50), 8, 0.4, {1.0, 0.95, 0.85}, 3.0));
+    } else if (name == "two-light") {
+      lights.push_back(LightAt(center, Direction(15, 45), 8, 0.4, {1.0, 0.85, 0.65}, 2.5));
+      lights.push_back(LightAt(center, Direction(80, 30), 8, 0.4, {0.55, 0.7, 1.0}, 1.2));
+    } else {
+      lights.push_back(LightAt(center, Direction(40, 55), 0.6, 0.05, {1.0, 0.95, 0.85}, 1.0));
+    }
+  } else if (name == "frag115") {
+    const fs::path ply = data_dir / "frag_115.ply";
+    b.mesh = ReadPly(ply);
+    SanitizeMesh(&b.mesh, ply.string());
+    // The fragment is in its first camera's frame (OpenCV: y down), so up is -y.
+    b.up = -Vector3d::UnitY();
+    Eigen::Vector3f lo, hi;
+    MeshBounds(b.mesh, &lo, &hi);
+    center = (0.5f * (lo + hi)).cast<double>();
+    const double extent = (hi - lo).cast<double>().norm();
+    cam = LookAt(Vector3d(center.x(), center.y() - 0.15 * extent, lo.z() - 0.35 * extent), center, b.up, o.width,
+                 o.height, 60);
+    const Vector3d dir = (-Vector3d::UnitY() * 1.2 + Vector3d(0.4, 0, -0.6)).normalized();
+    lights.push_back(LightAt(center, dir, 4 * extent, 0.05 * extent, {1.0, 0.95, 0.85}, 3.0));
+  } else {
+    std::string names;
+    for (const auto& [n, d] : SynthSceneList()) names += (names.empty() ? "" : ", ") + n;
+    throw InputError("unknown synthetic scene '" + name + "' (available: " + names + ")");
+  }
+  SanitizeMesh(&b.mesh, name);
+  View view;
+  view.camera = cam;
+  b.views.push_back(view);
+  std::vector<ImageRGB> images = RenderSphereLights(b.mesh, b.views, lights, o);
+  // Mask: pixels whose centre ray hits the geometry (as a reconstruction would give).
+  RayTracer scene(b.mesh);
+  for (std::size_t v = 0; v < b.views.size(); ++v) {
+    View& vw = b.views[v];
+    vw.image = std::move(images[v]);
+    vw.valid.assign(vw.image.pixels(), 0);
+    for (int y = 0; y < cam.height; ++y)
+      for (int x = 0; x < cam.width; ++x) {
+        SurfacePoint hit;
+        vw.valid[static_cast<std::size_t>(y) * cam.width + x] =
+            scene.Intersect(vw.camera.center(), vw.camera.RayDirection(x, y), &hit) ? 1 : 0;
+      }
+  }
+  nlohmann::json t;
+  t["scene"] = name;
+  t["scene_center"] = {center.x(), center.y(), center.z()};
+  t["lights"] = nlohmann::json::array();
+  for (const SphereLight& l : lights) {
+    const Vector3d d = (l.position - center).normalized();
+    t["lights"].push_back({{"type", "sphere"},
+                           {"position", {l.position.x(), l.position.y(), l.position.z()}},
+                           {"radius", l.radius},
+                           {"rgb_power", {l.rgb_power.x(), l.rgb_power.y(), l.rgb_power.z()}},
+                           {"distance", (l.position - center).norm()},
+                           {"direction", {d.x(), d.y(), d.z()}}});
+  }
+  b.truth_json = t.dump(2) + "\n";
+  return b;
+}
+
+}  // namespace lp

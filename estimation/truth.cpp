@@ -1,0 +1,89 @@
+#include "estimation/truth.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include "common/color.h"
+#include "common/error.h"
+
+namespace lp {
+using nlohmann::json;
+
+double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const double c = std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0);
+  return std::acos(c) * 180.0 / 3.14159265358979323846;
+}
+
+std::vector<TruthLight> ParseTruthLights(const std::string& text, const std::string& name) {
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const json::exception& e) {
+    throw InputError(name, std::string("malformed JSON: ") + e.what());
+  }
+  if (!j.is_object() || !j.contains("lights") || !j["lights"].is_array())
+    throw InputError(name, "expected an object with a \"lights\" array");
+  std::vector<TruthLight> out;
+  for (const json& l : j["lights"]) {
+    if (!l.is_object() || !l.contains("direction")) continue;  // e.g. a map without a dominant direction
+    TruthLight t;
+    t.type = l.value("type", "");
+    const json& d = l["direction"];
+    if (!d.is_array() || d.size() != 3 || !d[0].is_number() || !d[1].is_number() || !d[2].is_number())
+      throw InputError(name, "light \"direction\" must be 3 numbers");
+    t.direction = Eigen::Vector3d(d[0].get<double>(), d[1].get<double>(), d[2].get<double>());
+    if (!t.direction.allFinite() || t.direction.norm() == 0) throw InputError(name, "light direction is not finite");
+    t.direction.normalize();
+    const char* keys[] = {"rgb_power", "rgb", "rgb_radiance"};
+    for (const char* k : keys)
+      if (l.contains(k) && l[k].is_array() && l[k].size() == 3 && l[k][0].is_number())
+        t.weight = Luminance(l[k][0].get<double>(), l[k][1].get<double>(), l[k][2].get<double>());
+    if (l.contains("weight") && l["weight"].is_number()) t.weight = l["weight"].get<double>();
+    out.push_back(t);
+  }
+  return out;
+}
+
+std::vector<Eigen::Vector3d> DominantDirections(const EnvMap& env, const std::vector<double>& lambda, int count,
+                                                double separation_deg) {
+  const int L = env.size();
+  std::vector<double> power(L);
+  for (int j = 0; j < L; ++j)
+    power[j] = std::max(0.0, Luminance(lambda[3 * j], lambda[3 * j + 1], lambda[3 * j + 2])) * env.solid_angle(j);
+  std::vector<Eigen::Vector3d> out;
+  for (int k = 0; k < count; ++k) {
+    int best = -1;
+    for (int j = 0; j < L; ++j) {
+      bool far = true;
+      for (const auto& d : out) far = far && AngleDeg(env.direction(j), d) >= separation_deg;
+      if (far && power[j] > 0 && (best < 0 || power[j] > power[best])) best = j;
+    }
+    if (best < 0) break;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (int j = 0; j < L; ++j)
+      if (AngleDeg(env.direction(j), env.direction(best)) <= separation_deg / 2) sum += power[j] * env.direction(j);
+    out.push_back(sum.norm() > 0 ? Eigen::Vector3d(sum.normalized()) : env.direction(best));
+  }
+  return out;
+}
+
+double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lambda,
+                               const std::vector<TruthLight>& truth) {
+  if (truth.empty()) return std::nan("");
+  std::vector<TruthLight> sorted = truth;
+  std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.weight > b.weight; });
+  const int n = std::min<int>(2, static_cast<int>(sorted.size()));
+  const auto est = DominantDirections(env, lambda, n);
+  if (est.empty()) return 180.0;
+  double sum = 0;
+  for (int i = 0; i < n; ++i) {
+    double best = 180;
+    for (const auto& d : est) best = std::min(best, AngleDeg(d, sorted[i].direction));
+    sum += best;
+  }
+  return sum / n;
+}
+
+}  // namespace lp

@@ -1,0 +1,36 @@
+#pragma once
+/// Ground truth (truth.json) for evaluation only, and the lighting error measures.
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "estimation/envmap.h"
+
+namespace lp {
+
+/// A light of the ground truth: its unit direction from the scene centre and its
+/// luminous weight (used to rank lights as "dominant").
+struct TruthLight {
+  std::string type;  ///< "sphere", "sun" or "environment"
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitZ();
+  double weight = 1;
+};
+
+/// Parses truth.json text (`name` for errors); throws InputError when malformed.
+std::vector<TruthLight> ParseTruthLights(const std::string& text, const std::string& name);
+
+/// Up to `count` dominant directions of an estimate: the cells of highest power
+/// (luminance x solid angle) at least `separation_deg` apart, each refined by the
+/// power-weighted mean direction of the cells within half that angle.
+std::vector<Eigen::Vector3d> DominantDirections(const EnvMap& env, const std::vector<double>& lambda, int count,
+                                                double separation_deg = 30);
+
+/// Mean angle (degrees) between each truth light (the strongest min(k, 2) with a
+/// direction) and the nearest of the estimate's dominant directions.
+double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lambda,
+                               const std::vector<TruthLight>& truth);
+
+double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
+
+}  // namespace lp
