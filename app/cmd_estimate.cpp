@@ -38,6 +38,8 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
   cmd.add_option("--sigma", o->objective.sigma, "Cauchy scale, relative to the mean pixel value")
       ->capture_default_str();
   cmd.add_option("--max-rounds", o->max_rounds, "sequential Monte Carlo rounds at most")->capture_default_str();
+  cmd.add_option("--render-spp", o->render_spp, "samples per pixel of the final relit render (0 = --spp)")
+      ->capture_default_str();
   cmd.add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
   cmd.add_option("--seed", o->tracer.seed, "random seed (same seed => same result for any thread count)")
       ->capture_default_str();
@@ -114,13 +116,19 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
     }
     WriteHeatmapPng(out / ("error_view" + std::to_string(k) + ".png"), img.width, img.height, err, 0.25f * white);
     const int n = static_cast<int>(std::count(v.valid.begin(), v.valid.end(), 1));
+    double mean_obs = 0;
+    for (std::size_t i = 0; i < v.valid.size(); ++i)
+      if (v.valid[i]) mean_obs += (v.image.data[3 * i] + v.image.data[3 * i + 1] + v.image.data[3 * i + 2]) / 3.0;
+    mean_obs = n > 0 ? mean_obs / n : 0.0;
+    const double render_rmse = n > 0 ? std::sqrt(se / (3.0 * n)) : 0.0;
     views.push_back({{"render", name + ".exr"},
                      {"error_image", "error_view" + std::to_string(k) + ".png"},
                      {"valid_pixels", n},
                      {"masked_out", v.masked_out},
                      {"non_finite", v.non_finite},
                      {"negative", v.negative},
-                     {"render_rmse", n > 0 ? std::sqrt(se / (3.0 * n)) : 0.0}});
+                     {"render_rmse", render_rmse},
+                     {"render_relative_rmse", mean_obs > 0 ? render_rmse / mean_obs : 0.0}});
   }
 
   int left_out = 0;

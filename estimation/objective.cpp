@@ -30,12 +30,14 @@ LinearProblem MakeLinearProblem(const TransportMatrix& A, const std::vector<doub
   for (int j = 0; j < p.unknown_cells; ++j) p.col_start[j + 1] += p.col_start[j];
   p.col_row.resize(p.col.size());
   p.col_val.resize(p.col.size());
+  p.col_pos.resize(p.col.size());
   std::vector<std::int64_t> fill(p.col_start.begin(), p.col_start.end() - 1);
   for (std::size_t r = 0; r + 1 < p.row_start.size(); ++r)
     for (std::int64_t k = p.row_start[r]; k < p.row_start[r + 1]; ++k) {
       const std::int64_t dst = fill[p.col[k]]++;
       p.col_row[dst] = static_cast<int>(r);
       p.col_val[dst] = p.val[k];
+      p.col_pos[dst] = k;
     }
   return p;
 }

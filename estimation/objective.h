@@ -13,7 +13,7 @@ namespace lp {
 
 struct ObjectiveParams {
   double sigma = 0.5;  ///< Cauchy scale (normalized intensity units)
-  double alpha = 0.1;  ///< activation penalty weight
+  double alpha = 0.3;  ///< activation penalty weight
   double beta = 1.0;   ///< activation penalty sharpness
 };
 
@@ -28,6 +28,7 @@ struct LinearProblem {
   std::vector<std::int64_t> col_start;  ///< CSC
   std::vector<int> col_row;
   std::vector<std::array<float, 3>> col_val;
+  std::vector<std::int64_t> col_pos;    ///< CSR position of each CSC entry
   std::vector<double> y;  ///< 3*rows observations
 
   std::size_t rows() const { return row_start.empty() ? 0 : row_start.size() - 1; }

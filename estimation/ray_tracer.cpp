@@ -27,7 +27,8 @@ RayTracer::RayTracer(Mesh mesh) : impl_(std::make_unique<Impl>()), mesh_(std::mo
   radius_ = std::max(1e-9, 0.5 * (hi - lo).cast<double>().norm());
   epsilon_ = 1e-5 * radius_;
 
-  impl_->device = rtcNewDevice("threads=1");  // callers parallelize; Embree's own pool only builds
+  // No "threads=N" here: with the TBB tasking system that would cap the whole process.
+  impl_->device = rtcNewDevice(nullptr);
   LP_CHECK(impl_->device, "rtcNewDevice failed: " << rtcGetDeviceError(nullptr));
   impl_->scene = rtcNewScene(impl_->device);
   rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);

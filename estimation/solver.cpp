@@ -146,20 +146,20 @@ void Report(const SolverOptions& o, int it, double e, const Objective& obj, cons
   o.on_iteration(info);
 }
 
-/// G_c = A_c^T W_c A_c (upper and lower filled), for the 3 channels, column-major L x L.
-void BuildNormalMatrices(const LinearProblem& p, const std::vector<double>& w, std::vector<double> G[3]) {
+/// G_c = A_c^T A_c for the 3 channels, column-major L x L. Column j gathers the
+/// rows touching cell j (upper triangle, i >= j), so the sum order is fixed: the
+/// result does not depend on the thread count. Then mirrored.
+void BuildNormalMatrices(const LinearProblem& p, std::vector<double> G[3]) {
   const int L = p.unknown_cells;
   for (int c = 0; c < 3; ++c) G[c].assign(static_cast<std::size_t>(L) * L, 0.0);
-  // Column j of G (= row j, symmetric) gathers the rows touching cell j: deterministic per j.
   ParallelFor(0, L, [&](std::size_t j) {
     double* g0 = &G[0][j * L];
     double* g1 = &G[1][j * L];
     double* g2 = &G[2][j * L];
     for (std::int64_t k = p.col_start[j]; k < p.col_start[j + 1]; ++k) {
       const int r = p.col_row[k];
-      const double a0 = p.col_val[k][0] * w[3 * r], a1 = p.col_val[k][1] * w[3 * r + 1],
-                   a2 = p.col_val[k][2] * w[3 * r + 2];
-      for (std::int64_t q = p.row_start[r]; q < p.row_start[r + 1]; ++q) {
+      const double a0 = p.col_val[k][0], a1 = p.col_val[k][1], a2 = p.col_val[k][2];
+      for (std::int64_t q = p.col_pos[k]; q < p.row_start[r + 1]; ++q) {
         const int i = p.col[q];
         g0[i] += a0 * p.val[q][0];
         g1[i] += a1 * p.val[q][1];
@@ -167,8 +167,17 @@ void BuildNormalMatrices(const LinearProblem& p, const std::vector<double>& w, s
       }
     }
   });
+  for (int c = 0; c < 3; ++c)
+    for (int j = 0; j < L; ++j)
+      for (int i = j + 1; i < L; ++i)
+        G[c][static_cast<std::size_t>(i) * L + j] = G[c][static_cast<std::size_t>(j) * L + i];
 }
 
+/// Majorize-minimize. The Cauchy loss has curvature rho'' <= 1, so around the current
+/// residual r0 it is majorized by rho(r0) + psi(r0)(r - r0) + (r - r0)^2 / 2; the concave
+/// log penalty by its tangent c_j = alpha*beta / (1 + beta*sum_c lambda_jc). The
+/// majorizer is a non-negative QP per channel whose matrix G = A^T A does not depend
+/// on lambda: it is built once, and each step costs one pass over A plus a small NNQP.
 SolveResult SolveMM(const Objective& obj, std::vector<double> lambda, const SolverOptions& o) {
   Stopwatch sw;
   const LinearProblem& p = obj.problem();
@@ -176,41 +185,41 @@ SolveResult SolveMM(const Objective& obj, std::vector<double> lambda, const Solv
   const int L = p.unknown_cells;
   const double s2 = prm.sigma * prm.sigma;
   SolveResult res;
+  std::vector<double> G[3];
+  BuildNormalMatrices(p, G);
+  double mu[3];
+  for (int c = 0; c < 3; ++c) {
+    double trace = 0;
+    for (int j = 0; j < L; ++j) trace += G[c][static_cast<std::size_t>(j) * L + j];
+    // Proximal term mu/2 |x - lambda|^2 keeps G positive definite; it is >= 0 and 0 at the
+    // current point, so the step still majorizes E.
+    mu[c] = 1e-10 * trace / std::max(1, L) + 1e-300;
+    for (int j = 0; j < L; ++j) G[c][static_cast<std::size_t>(j) * L + j] += mu[c];
+  }
   std::vector<double> r;
   double e = obj.Value(lambda, &r);
-  std::vector<double> G[3], w(r.size()), wy(r.size()), b;
-  std::vector<double> gc, bc(L), xc(L);
+  std::vector<double> atpsi, bc(L), xc(L), next(lambda.size()), r_next;
   for (int it = 1; it <= o.max_iterations; ++it) {
-    // Majorizers at the current lambda: IRLS weights and the tangent of the log penalty.
-    for (std::size_t i = 0; i < r.size(); ++i) {
-      w[i] = 1.0 / (1.0 + r[i] * r[i] / s2);
-      wy[i] = w[i] * p.y[i];
-    }
-    BuildNormalMatrices(p, w, G);
-    p.MultiplyTransposed(wy, &b);
-    std::vector<double> next(lambda.size());
+    for (double& v : r) v = v / (1 + v * v / s2);  // psi(r0)
+    p.MultiplyTransposed(r, &atpsi);
     for (int c = 0; c < 3; ++c) {
-      double trace = 0;
-      for (int j = 0; j < L; ++j) trace += G[c][static_cast<std::size_t>(j) * L + j];
-      // Proximal term mu/2 |x - lambda|^2: keeps G positive definite and the step a majorizer.
-      const double mu = 1e-10 * std::max(trace, 1e-300) / std::max(1, L) + 1e-300;
-      gc = G[c];
+      Eigen::Map<const Eigen::MatrixXd> Gm(G[c].data(), L, L);
+      Eigen::VectorXd x0(L);
+      for (int j = 0; j < L; ++j) x0[j] = lambda[3 * j + c];
+      const Eigen::VectorXd gx = Gm * x0;  // includes mu * x0 (the proximal centre)
       for (int j = 0; j < L; ++j) {
-        const double lam_sum = lambda[3 * j] + lambda[3 * j + 1] + lambda[3 * j + 2];
-        const double cost = prm.alpha * prm.beta / (1 + prm.beta * lam_sum);
-        gc[static_cast<std::size_t>(j) * L + j] += mu;
-        bc[j] = b[3 * j + c] - cost + mu * lambda[3 * j + c];
-        xc[j] = lambda[3 * j + c];
+        const double cost = prm.alpha * prm.beta / (1 + prm.beta * (lambda[3 * j] + lambda[3 * j + 1] + lambda[3 * j + 2]));
+        bc[j] = gx[j] + atpsi[3 * j + c] - cost;
+        xc[j] = x0[j];
       }
-      SolveNnqp(gc, bc, L, &xc);
+      SolveNnqp(G[c], bc, L, &xc);
       for (int j = 0; j < L; ++j) next[3 * j + c] = xc[j];
     }
-    std::vector<double> r_next;
     const double e_next = obj.Value(next, &r_next);
     res.iterations = it;
     if (!(e_next <= e)) {
-      // Rounding can make a converged step look like a tiny increase: keep the old point and stop.
-      if (e_next > e * (1 + 1e-12) + 1e-300) res.objective_increased = std::isfinite(e_next) && e_next > e * (1 + 1e-9);
+      // A converged step can look like a rounding-level increase: keep the old point and stop.
+      res.objective_increased = !(e_next <= e * (1 + 1e-9) + 1e-300);
       res.converged = true;
       Report(o, it, e, obj, lambda);
       break;

@@ -9,7 +9,7 @@
 namespace lp {
 
 enum class SolverKind {
-  kFast,      ///< majorize-minimize: IRLS + reweighted l1, NNQP on G = A^T W A per step
+  kFast,      ///< majorize-minimize: quadratic majorizer + reweighted l1, NNQP on G = A^T A
   kGradient,  ///< the paper's projected gradient descent with backtracking
 };
 /// "fast" or "gradient"; throws InputError on anything else.

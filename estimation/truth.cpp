@@ -52,18 +52,26 @@ std::vector<Eigen::Vector3d> DominantDirections(const EnvMap& env, const std::ve
   std::vector<double> power(L);
   for (int j = 0; j < L; ++j)
     power[j] = std::max(0.0, Luminance(lambda[3 * j], lambda[3 * j + 1], lambda[3 * j + 2])) * env.solid_angle(j);
+  // Power gathered in a window of half the separation around each cell.
+  const double window = std::cos(separation_deg / 2 * 3.14159265358979323846 / 180);
+  std::vector<double> gathered(L, 0.0);
+  for (int j = 0; j < L; ++j) {
+    if (power[j] <= 0) continue;
+    for (int i = 0; i < L; ++i)
+      if (env.direction(i).dot(env.direction(j)) >= window) gathered[i] += power[j];
+  }
   std::vector<Eigen::Vector3d> out;
   for (int k = 0; k < count; ++k) {
     int best = -1;
     for (int j = 0; j < L; ++j) {
       bool far = true;
       for (const auto& d : out) far = far && AngleDeg(env.direction(j), d) >= separation_deg;
-      if (far && power[j] > 0 && (best < 0 || power[j] > power[best])) best = j;
+      if (far && gathered[j] > 0 && (best < 0 || gathered[j] > gathered[best])) best = j;
     }
     if (best < 0) break;
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     for (int j = 0; j < L; ++j)
-      if (AngleDeg(env.direction(j), env.direction(best)) <= separation_deg / 2) sum += power[j] * env.direction(j);
+      if (env.direction(j).dot(env.direction(best)) >= window) sum += power[j] * env.direction(j);
     out.push_back(sum.norm() > 0 ? Eigen::Vector3d(sum.normalized()) : env.direction(best));
   }
   return out;

@@ -20,9 +20,10 @@ struct TruthLight {
 /// Parses truth.json text (`name` for errors); throws InputError when malformed.
 std::vector<TruthLight> ParseTruthLights(const std::string& text, const std::string& name);
 
-/// Up to `count` dominant directions of an estimate: the cells of highest power
-/// (luminance x solid angle) at least `separation_deg` apart, each refined by the
-/// power-weighted mean direction of the cells within half that angle.
+/// Up to `count` dominant directions of an estimate: the centres of the windows
+/// (half `separation_deg` wide) that gather the most power (luminance x solid angle),
+/// at least `separation_deg` apart, each refined to the power-weighted mean direction
+/// of its window.
 std::vector<Eigen::Vector3d> DominantDirections(const EnvMap& env, const std::vector<double>& lambda, int count,
                                                 double separation_deg = 30);
 
