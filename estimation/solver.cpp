@@ -198,6 +198,7 @@ SolveResult SolveMM(const Objective& obj, std::vector<double> lambda, const Solv
   }
   std::vector<double> r;
   double e = obj.Value(lambda, &r);
+  const double e0 = e;
   std::vector<double> atpsi, bc(L), xc(L), next(lambda.size()), r_next;
   for (int it = 1; it <= o.max_iterations; ++it) {
     for (double& v : r) v = v / (1 + v * v / s2);  // psi(r0)
@@ -219,7 +220,7 @@ SolveResult SolveMM(const Objective& obj, std::vector<double> lambda, const Solv
     res.iterations = it;
     if (!(e_next <= e)) {
       // A converged step can look like a rounding-level increase: keep the old point and stop.
-      res.objective_increased = !(e_next <= e * (1 + 1e-9) + 1e-300);
+      res.objective_increased = !(e_next <= e + 1e-9 * std::abs(e) + 1e-12 * std::abs(e0));
       res.converged = true;
       Report(o, it, e, obj, lambda);
       break;

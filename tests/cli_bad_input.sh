@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Bad input gets one clear line naming the file and a non-zero exit, never a crash.
+set -u
+exe="$1"
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail=0
+expect() {  # expect <pattern> <command...>
+  local pattern="$1"; shift
+  "$@" >"$tmp/out" 2>"$tmp/err"
+  local rc=$?
+  local lines
+  lines=$(wc -l <"$tmp/err")
+  if [ "$rc" -ne 2 ] || ! grep -q -- "$pattern" "$tmp/err" || [ "$lines" -ne 1 ]; then
+    echo "FAIL: $* -> rc=$rc, stderr:"; cat "$tmp/err"; fail=1
+  else
+    echo "ok: $(cat "$tmp/err")"
+  fi
+}
+expect "scene directory not found" "$exe" estimate "$tmp/nope" --out "$tmp/o" --quiet
+mkdir -p "$tmp/s" && echo '{"views": [' >"$tmp/s/scene.json"
+expect "scene.json: malformed JSON" "$exe" estimate "$tmp/s" --out "$tmp/o" --quiet
+echo '{"views": [{"image": "v.exr", "width": 4, "height": 4, "fx": 1, "fy": 1, "cx": 1, "cy": 1, "world_from_camera": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]}]}' >"$tmp/s/scene.json"
+expect "mesh.ply: file not found" "$exe" estimate "$tmp/s" --out "$tmp/o" --quiet
+printf 'ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n0 0 0\n1 0 0\n2 0 0\n3 0 1 2\n' >"$tmp/s/mesh.ply"
+expect "mesh.ply: mesh has no non-degenerate triangles" "$exe" estimate "$tmp/s" --out "$tmp/o" --quiet
+expect "unknown solver" "$exe" estimate "$tmp/s" --out "$tmp/o" --solver newton --quiet
+expect "unknown synthetic scene" "$exe" synth nope --out "$tmp/x"
+expect "exactly one of --envmap or --uniform" "$exe" render "$tmp/s" --out "$tmp/o"
+[ ! -e "$tmp/o/report.json" ] || { echo "FAIL: output written on error"; fail=1; }
+exit $fail

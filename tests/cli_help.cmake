@@ -1,0 +1,6 @@
+foreach(sub "" estimate render synth bench)
+  execute_process(COMMAND ${EXE} ${sub} --help RESULT_VARIABLE rc OUTPUT_VARIABLE out)
+  if(NOT rc EQUAL 0 OR NOT out MATCHES "Usage")
+    message(FATAL_ERROR "lightprobe ${sub} --help failed (${rc}): ${out}")
+  endif()
+endforeach()

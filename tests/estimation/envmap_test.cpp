@@ -1,0 +1,73 @@
+#include "estimation/envmap.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "common/rng.h"
+
+namespace lp {
+namespace {
+
+TEST(EnvMap, TwentyOneRingsGive522Directions) {
+  EXPECT_EQ(EnvMap(21, Eigen::Vector3d::UnitZ()).size(), 522);
+}
+
+class EnvMapRings : public ::testing::TestWithParam<int> {};
+
+TEST_P(EnvMapRings, SolidAnglesSumTo4PiAndLookupIsConsistent) {
+  const EnvMap env(GetParam(), Eigen::Vector3d(0.3, -1, 0.2));
+  double sum = 0;
+  for (int j = 0; j < env.size(); ++j) {
+    EXPECT_GT(env.solid_angle(j), 0);
+    sum += env.solid_angle(j);
+    EXPECT_EQ(env.Lookup(env.direction(j)), j) << "cell centre " << j;
+    EXPECT_NEAR(env.direction(j).norm(), 1, 1e-12);
+  }
+  EXPECT_NEAR(sum, 4 * 3.14159265358979323846, 1e-9);
+  Rng rng(3);
+  for (int j = 0; j < env.size(); ++j)
+    for (int s = 0; s < 8; ++s) {
+      const double u1 = 0.001 + 0.998 * rng.Uniform(), u2 = 0.001 + 0.998 * rng.Uniform();
+      EXPECT_EQ(env.Lookup(env.SampleInCell(j, u1, u2)), j);
+    }
+}
+
+TEST_P(EnvMapRings, CellsAreNearestInPolarAngleAndSpacingIsRingSpacing) {
+  const int R = GetParam();
+  const EnvMap env(R, Eigen::Vector3d::UnitZ());
+  const double dtheta = 3.14159265358979323846 / (R - 1);
+  // Points within a ring are spaced at most the inter-ring spacing.
+  for (int i = 1; i + 1 < R; ++i) {
+    const double spacing = 2 * 3.14159265358979323846 * std::sin(i * dtheta) / env.ring_size(i);
+    EXPECT_LE(spacing, dtheta + 1e-12);
+    EXPECT_GT(spacing, dtheta * 0.5);
+  }
+  EXPECT_EQ(env.ring_size(0), 1);
+  EXPECT_EQ(env.ring_size(R - 1), 1);
+}
+
+INSTANTIATE_TEST_SUITE_P(Rings, EnvMapRings, ::testing::Values(9, 15, 21, 31, 61));
+
+TEST(EnvMap, EquirectRoundTripOfPiecewiseConstantMap) {
+  const EnvMap env(15, Eigen::Vector3d::UnitZ());
+  std::vector<double> rgb(3 * env.size());
+  for (int j = 0; j < env.size(); ++j)
+    for (int c = 0; c < 3; ++c) rgb[3 * j + c] = j + 0.25 * c;
+  // A fine equirect of the map integrates back to the same cell values (up to edge pixels).
+  const ImageRGB img = env.ToEquirect(rgb, 512);
+  const std::vector<double> back = env.FromEquirect(img, 16);
+  int close = 0;
+  for (int j = 0; j < env.size(); ++j) close += std::abs(back[3 * j] - rgb[3 * j]) < 0.5;
+  EXPECT_GE(close, env.size() * 9 / 10);
+}
+
+TEST(EnvMap, UpAxisIsThePole) {
+  const EnvMap env(21, Eigen::Vector3d(0, 0, 2));
+  EXPECT_NEAR(env.direction(0).z(), 1, 1e-12);
+  EXPECT_NEAR(env.direction(env.size() - 1).z(), -1, 1e-12);
+  EXPECT_EQ(env.Lookup(Eigen::Vector3d(0, 0, 5)), 0);
+}
+
+}  // namespace
+}  // namespace lp

@@ -1,0 +1,73 @@
+// End to end on synthetic scenes lit by spherical area lights (not the env-map model).
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "common/color.h"
+#include "estimation/estimator.h"
+#include "estimation/synth.h"
+
+namespace lp {
+namespace {
+
+double RelativeRmse(const ImageRGB& a, const View& v) {
+  double se = 0, sum = 0;
+  int n = 0;
+  for (std::size_t i = 0; i < v.valid.size(); ++i) {
+    if (!v.valid[i]) continue;
+    for (int c = 0; c < 3; ++c) {
+      const double d = a.data[3 * i + c] - v.image.data[3 * i + c];
+      se += d * d;
+      sum += v.image.data[3 * i + c];
+    }
+    ++n;
+  }
+  return std::sqrt(se / (3.0 * n)) / (sum / (3.0 * n));
+}
+
+TEST(EstimateEndToEnd, OneLightDirectionAndRelighting) {
+  SynthOptions so;
+  so.width = 80;
+  so.height = 60;
+  so.spp = 1024;  // a low-noise reference
+  const SceneBundle b = MakeSynthScene("one-light", so, "");
+  EstimateOptions eo;
+  eo.render_spp = 512;
+  const EstimateResult r = Estimate(b, eo);
+  ASSERT_FALSE(std::isnan(r.final_angular_error_deg));
+  EXPECT_LT(r.final_angular_error_deg, 10.0);
+  EXPECT_LT(RelativeRmse(r.renders[0], b.views[0]), 0.05);
+  EXPECT_FALSE(r.objective_increased);
+  for (double v : r.lambda) ASSERT_TRUE(std::isfinite(v) && v >= 0);
+  // Directions below the floor that no path reaches are left out.
+  int left_out = 0;
+  for (auto v : r.left_out) left_out += v;
+  EXPECT_GT(left_out, 0);
+  // The log has one row per solver iteration, time increasing.
+  ASSERT_FALSE(r.convergence.empty());
+  for (std::size_t i = 1; i < r.convergence.size(); ++i)
+    EXPECT_GE(r.convergence[i].wall_seconds, r.convergence[i - 1].wall_seconds);
+}
+
+TEST(EstimateEndToEnd, ImageScaledBy1000ScalesTheEstimate) {
+  SynthOptions so;
+  so.width = 48;
+  so.height = 36;
+  so.spp = 64;
+  SceneBundle b = MakeSynthScene("one-light", so, "");
+  EstimateOptions eo;
+  eo.render = false;
+  eo.max_rounds = 2;
+  const EstimateResult r1 = Estimate(b, eo);
+  for (float& v : b.views[0].image.data) v *= 1000.f;
+  const EstimateResult r2 = Estimate(b, eo);
+  double num = 0, den = 0;
+  for (std::size_t i = 0; i < r1.lambda.size(); ++i) {
+    num += std::pow(r2.lambda[i] - 1000 * r1.lambda[i], 2);
+    den += std::pow(1000 * r1.lambda[i], 2);
+  }
+  EXPECT_LT(std::sqrt(num / den), 1e-6);
+}
+
+}  // namespace
+}  // namespace lp

@@ -1,0 +1,184 @@
+// Scene-bundle and PLY input: round trips, and clear errors on bad input.
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+
+#include "common/atomic_file.h"
+#include "common/error.h"
+#include "common/image_io.h"
+#include "estimation/estimator.h"
+#include "estimation/scene_bundle.h"
+#include "tests/test_util.h"
+
+namespace lp {
+namespace {
+namespace fs = std::filesystem;
+
+fs::path TempDir(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("lp_io_test_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+SceneBundle SmallBundle() {
+  SceneBundle b;
+  b.mesh = test::Plane(4, 0.5);
+  View v = test::BlankView(test::LookAt({0, 0, 2}, {0, 0, 0}, 16, 12, 40));
+  for (std::size_t i = 0; i < v.image.data.size(); ++i) v.image.data[i] = 0.25f;
+  b.views.push_back(v);
+  return b;
+}
+
+std::string ErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Bundle, RoundTrip) {
+  const fs::path d = TempDir("rt") / "scene";
+  SceneBundle b = SmallBundle();
+  b.views[0].valid[3] = 0;
+  WriteSceneBundle(d, b);
+  const SceneBundle r = LoadSceneBundle(d);
+  ASSERT_EQ(r.views.size(), 1u);
+  EXPECT_EQ(r.views[0].camera.width, 16);
+  EXPECT_EQ(r.views[0].masked_out, 1);
+  EXPECT_NEAR(r.views[0].image.data[0], 0.25f, 1e-6);
+  EXPECT_EQ(r.mesh.triangles.size(), 2u);
+  EXPECT_NEAR(r.mesh.albedo[0].x(), 0.5f, 0.01f);  // through 8-bit sRGB
+  EXPECT_TRUE((r.views[0].camera.world_from_camera - b.views[0].camera.world_from_camera).norm() < 1e-12);
+}
+
+TEST(Bundle, ClearErrorsNameTheFile) {
+  const fs::path d = TempDir("err") / "scene";
+  EXPECT_NE(ErrorOf([&] { LoadSceneBundle(d); }).find("not found"), std::string::npos);
+  WriteSceneBundle(d, SmallBundle());
+  // Malformed JSON.
+  WriteTextAtomically(d / "scene.json", "{\"views\": [");
+  EXPECT_NE(ErrorOf([&] { LoadSceneBundle(d); }).find("scene.json: malformed JSON"), std::string::npos);
+  // Size mismatch.
+  WriteSceneBundle(d, SmallBundle());
+  std::string json = ReadTextFile(d / "scene.json");
+  json.replace(json.find("\"width\": 16"), 11, "\"width\": 17");
+  WriteTextAtomically(d / "scene.json", json);
+  EXPECT_NE(ErrorOf([&] { LoadSceneBundle(d); }).find("view0.exr: image is 16x12 but scene.json says 17x12"),
+            std::string::npos);
+  // Missing mesh.
+  WriteSceneBundle(d, SmallBundle());
+  fs::remove(d / "mesh.ply");
+  EXPECT_NE(ErrorOf([&] { LoadSceneBundle(d); }).find("mesh.ply: file not found"), std::string::npos);
+  // Corrupt image.
+  WriteSceneBundle(d, SmallBundle());
+  WriteTextAtomically(d / "view0.exr", "not an exr");
+  EXPECT_NE(ErrorOf([&] { LoadSceneBundle(d); }).find("view0.exr: cannot decode"), std::string::npos);
+}
+
+TEST(Bundle, NonFiniteAndNegativePixelsAreMaskedAndCounted) {
+  const fs::path d = TempDir("nan") / "scene";
+  SceneBundle b = SmallBundle();
+  b.views[0].image.data[0] = std::nanf("");
+  b.views[0].image.data[4] = std::numeric_limits<float>::infinity();
+  b.views[0].image.data[8] = -1.f;
+  WriteSceneBundle(d, b);
+  const SceneBundle r = LoadSceneBundle(d);
+  EXPECT_EQ(r.views[0].non_finite, 2);
+  EXPECT_EQ(r.views[0].negative, 1);
+  EXPECT_EQ(r.views[0].valid[0], 0);
+  EXPECT_EQ(r.views[0].valid[1], 0);
+  EXPECT_EQ(r.views[0].valid[2], 0);
+  EXPECT_EQ(r.views[0].valid[3], 1);
+}
+
+TEST(Bundle, EverythingMaskedIsAClearError) {
+  const fs::path d = TempDir("mask") / "scene";
+  SceneBundle b = SmallBundle();
+  std::fill(b.views[0].valid.begin(), b.views[0].valid.end(), 0);
+  WriteSceneBundle(d, b);
+  const SceneBundle r = LoadSceneBundle(d);
+  EXPECT_NE(ErrorOf([&] { Estimate(r, EstimateOptions()); }).find("every pixel of every view is masked"),
+            std::string::npos);
+}
+
+TEST(Ply, DegenerateAndEmptyMeshes) {
+  Mesh m = test::Plane(1, 0.5);
+  m.triangles.push_back({0, 0, 1});  // repeated index
+  m.positions.push_back({5, 5, 5});
+  m.normals.push_back({0, 0, 1});
+  m.albedo.push_back({1, 1, 1});
+  m.triangles.push_back({0, 1, 4});  // fine
+  m.positions.push_back({0, 0, 0});
+  m.normals.push_back({0, 0, 1});
+  m.albedo.push_back({1, 1, 1});
+  m.triangles.push_back({0, 5, 0});  // repeated
+  EXPECT_EQ(SanitizeMesh(&m, "m"), 2);
+  Mesh flat;
+  flat.positions = {{0, 0, 0}, {1, 0, 0}, {2, 0, 0}};
+  flat.triangles = {{0, 1, 2}};
+  EXPECT_NE(ErrorOf([&] { SanitizeMesh(&flat, "flat.ply"); }).find("flat.ply: mesh has no non-degenerate"),
+            std::string::npos);
+  EXPECT_NE(ErrorOf([&] { ParsePly("ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\n"
+                                   "property float z\nelement face 0\nproperty list uchar int vertex_indices\n"
+                                   "end_header\n",
+                                   "empty.ply");
+                          Mesh e = ParsePly("ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty "
+                                            "float y\nproperty float z\nelement face 0\nproperty list uchar int "
+                                            "vertex_indices\nend_header\n",
+                                            "empty.ply");
+                          SanitizeMesh(&e, "empty.ply"); })
+                .find("empty.ply: mesh has no vertices"),
+            std::string::npos);
+}
+
+TEST(Ply, AsciiAndBinaryAgreeAndBadFilesAreRejected) {
+  const std::string ascii =
+      "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+      "property uchar red\nproperty uchar green\nproperty uchar blue\nelement face 1\n"
+      "property list uchar int vertex_indices\nend_header\n0 0 0 255 0 0\n1 0 0 0 255 0\n0 1 0 0 0 255\n3 0 1 2\n";
+  const Mesh a = ParsePly(ascii, "a.ply");
+  ASSERT_EQ(a.positions.size(), 3u);
+  EXPECT_FLOAT_EQ(a.albedo[0].x(), 1.f);
+  const fs::path d = TempDir("ply");
+  Mesh withn = a;
+  ComputeVertexNormals(&withn);
+  WritePly(d / "b.ply", withn);
+  const Mesh b = ReadPly(d / "b.ply");
+  EXPECT_EQ(b.positions, a.positions);
+  EXPECT_EQ(b.triangles, a.triangles);
+  EXPECT_THROW(ParsePly("PLY junk", "x.ply"), InputError);
+  EXPECT_THROW(ParsePly(ascii.substr(0, ascii.size() - 8), "trunc.ply"), InputError);
+  std::string bad_index = ascii;
+  bad_index.replace(bad_index.rfind("3 0 1 2"), 7, "3 0 1 9");
+  EXPECT_THROW(ParsePly(bad_index, "idx.ply"), InputError);
+  EXPECT_THROW(ParsePly("ply\nformat binary_little_endian 1.0\nelement vertex 1000000000\nproperty float x\n"
+                        "property float y\nproperty float z\nend_header\n",
+                        "huge.ply"),
+               InputError);
+}
+
+TEST(Ply, ReadsTheRealFragment) {
+  const fs::path ply = fs::path(LIGHTPROBE_SOURCE_DIR) / ".." / "shared" / "data" / "mesh" / "frag_115.ply";
+  if (!fs::exists(ply)) GTEST_SKIP() << "shared data not present";
+  Mesh m = ReadPly(ply);
+  EXPECT_EQ(m.positions.size(), 64365u);
+  EXPECT_EQ(m.triangles.size(), 127229u);
+  EXPECT_GE(SanitizeMesh(&m, ply.string()), 0);
+}
+
+TEST(AtomicWrite, FailedWriteLeavesTheOldFile) {
+  const fs::path d = TempDir("atomic");
+  WriteTextAtomically(d / "r.txt", "old");
+  EXPECT_THROW(WriteAtomically(d / "r.txt", [](const fs::path&) { throw InputError("boom"); }), InputError);
+  EXPECT_EQ(ReadTextFile(d / "r.txt"), "old");
+  int leftovers = 0;
+  for (const auto& e : fs::directory_iterator(d)) leftovers += e.path().filename() != "r.txt";
+  EXPECT_EQ(leftovers, 0);
+}
+
+}  // namespace
+}  // namespace lp

@@ -1,0 +1,75 @@
+#include "tests/test_util.h"
+
+#include <cmath>
+
+namespace lp::test {
+
+Mesh Plane(double size, double rho) {
+  Mesh m;
+  const float h = static_cast<float>(size / 2);
+  m.positions = {{-h, -h, 0}, {h, -h, 0}, {h, h, 0}, {-h, h, 0}};
+  m.normals.assign(4, Eigen::Vector3f(0, 0, 1));
+  m.albedo.assign(4, Eigen::Vector3f::Constant(static_cast<float>(rho)));
+  m.triangles = {{0, 1, 2}, {0, 2, 3}};
+  return m;
+}
+
+Mesh Square(double cx, double cy, double z, double half, double rho) {
+  Mesh m;
+  const float x0 = cx - half, x1 = cx + half, y0 = cy - half, y1 = cy + half, zz = z;
+  m.positions = {{x0, y0, zz}, {x1, y0, zz}, {x1, y1, zz}, {x0, y1, zz}};
+  m.normals.assign(4, Eigen::Vector3f(0, 0, -1));
+  m.albedo.assign(4, Eigen::Vector3f::Constant(static_cast<float>(rho)));
+  m.triangles = {{0, 2, 1}, {0, 3, 2}};
+  return m;
+}
+
+Mesh Ball(double radius, double rho, int rings, int segments) {
+  Mesh m;
+  const double pi = 3.14159265358979323846;
+  for (int i = 0; i <= rings; ++i)
+    for (int j = 0; j <= segments; ++j) {
+      const double th = pi * i / rings, ph = 2 * pi * j / segments;
+      const Eigen::Vector3f n(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th));
+      m.positions.push_back(static_cast<float>(radius) * n);
+      m.normals.push_back(n);
+      m.albedo.push_back(Eigen::Vector3f::Constant(static_cast<float>(rho)));
+    }
+  for (int i = 0; i < rings; ++i)
+    for (int j = 0; j < segments; ++j) {
+      const int a = i * (segments + 1) + j, b = a + segments + 1;
+      if (i > 0) m.triangles.emplace_back(a, b, a + 1);
+      if (i < rings - 1) m.triangles.emplace_back(a + 1, b, b + 1);
+    }
+  return m;
+}
+
+Camera LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, int w, int h, double hfov_deg) {
+  Camera c;
+  c.width = w;
+  c.height = h;
+  c.fx = c.fy = 0.5 * w / std::tan(0.5 * hfov_deg * 3.14159265358979323846 / 180);
+  c.cx = 0.5 * (w - 1);
+  c.cy = 0.5 * (h - 1);
+  const Eigen::Vector3d z = (target - eye).normalized();
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  if (std::abs(z.dot(up)) > 0.99) up = Eigen::Vector3d::UnitY();
+  const Eigen::Vector3d x = z.cross(up).normalized();
+  const Eigen::Vector3d y = z.cross(x);
+  c.world_from_camera.setIdentity();
+  c.world_from_camera.block<3, 1>(0, 0) = x;
+  c.world_from_camera.block<3, 1>(0, 1) = y;
+  c.world_from_camera.block<3, 1>(0, 2) = z;
+  c.world_from_camera.block<3, 1>(0, 3) = eye;
+  return c;
+}
+
+View BlankView(const Camera& cam) {
+  View v;
+  v.camera = cam;
+  v.image = ImageRGB(cam.width, cam.height);
+  v.valid.assign(v.image.pixels(), 1);
+  return v;
+}
+
+}  // namespace lp::test

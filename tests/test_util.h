@@ -1,0 +1,22 @@
+#pragma once
+// Small scenes built in code for closed-form tests.
+#include <vector>
+
+#include "estimation/scene_bundle.h"
+
+namespace lp::test {
+
+/// Square in the plane z = 0 (normal +z), side `size`, centred at the origin, albedo rho.
+Mesh Plane(double size, double rho);
+/// Axis-aligned horizontal square at height z facing down and up (two-sided occluder).
+Mesh Square(double cx, double cy, double z, double half, double rho);
+/// UV sphere, outward normals.
+Mesh Ball(double radius, double rho, int rings = 32, int segments = 64);
+
+/// A camera at `eye` looking at `target`, world up +z.
+Camera LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, int w, int h, double hfov_deg);
+
+/// A view with every pixel valid and a zero image.
+View BlankView(const Camera& cam);
+
+}  // namespace lp::test
