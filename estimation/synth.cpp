@@ -207,10 +207,10 @@ SceneBundle MakeSynthScene(const std::string& name, const SynthOptions& o, const
     center = Vector3d(1.1, 1.1, 0.5);
     cam = LookAt({3.3, 2.9, 1.7}, {0.9, 0.9, 0.45}, b.up, o.width, o.height, 60);
     if (name == "one-light") {
-      lights.push_back(LightAt(center, Direction(30, 50), 20, 1.0, {1.0, 0.95, 0.85}, 3.0));
+      lights.push_back(LightAt(center, Direction(30, 50), 20, 2.0, {1.0, 0.95, 0.85}, 3.0));
     } else if (name == "two-light") {
-      lights.push_back(LightAt(center, Direction(15, 45), 20, 1.0, {1.0, 0.85, 0.65}, 2.5));
-      lights.push_back(LightAt(center, Direction(80, 30), 20, 1.0, {0.55, 0.7, 1.0}, 1.2));
+      lights.push_back(LightAt(center, Direction(15, 45), 20, 2.0, {1.0, 0.85, 0.65}, 2.5));
+      lights.push_back(LightAt(center, Direction(80, 30), 20, 2.0, {0.55, 0.7, 1.0}, 1.2));
     } else {
       lights.push_back(LightAt(center, Direction(40, 55), 0.6, 0.05, {1.0, 0.95, 0.85}, 1.0));
     }
