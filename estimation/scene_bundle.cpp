@@ -18,6 +18,27 @@ Eigen::Vector3d Camera::RayDirection(double u, double v) const {
   return (world_from_camera.block<3, 3>(0, 0) * d_cam).normalized();
 }
 
+Camera Camera::LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, const Eigen::Vector3d& up_in, int w,
+                      int h, double hfov_deg) {
+  Camera c;
+  c.width = w;
+  c.height = h;
+  c.fx = c.fy = 0.5 * w / std::tan(0.5 * hfov_deg * 3.14159265358979323846 / 180);
+  c.cx = 0.5 * (w - 1);
+  c.cy = 0.5 * (h - 1);
+  const Eigen::Vector3d z = (target - eye).normalized();
+  Eigen::Vector3d up = up_in.normalized();
+  if (std::abs(z.dot(up)) > 0.99) up = std::abs(z.y()) < 0.9 ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitX();
+  const Eigen::Vector3d x = z.cross(up).normalized();  // right
+  const Eigen::Vector3d y = z.cross(x);                // down
+  c.world_from_camera.setIdentity();
+  c.world_from_camera.block<3, 1>(0, 0) = x;
+  c.world_from_camera.block<3, 1>(0, 1) = y;
+  c.world_from_camera.block<3, 1>(0, 2) = z;
+  c.world_from_camera.block<3, 1>(0, 3) = eye;
+  return c;
+}
+
 bool Camera::Project(const Eigen::Vector3d& world, double* u, double* v) const {
   const Eigen::Matrix3d R = world_from_camera.block<3, 3>(0, 0);
   const Eigen::Vector3d p = R.transpose() * (world - center());

@@ -24,6 +24,10 @@ struct Camera {
   Eigen::Vector3d center() const { return world_from_camera.block<3, 1>(0, 3); }
   /// Unit world direction of the ray through image point (u, v) (pixel units).
   Eigen::Vector3d RayDirection(double u, double v) const;
+  /// Camera at `eye` looking at `target` with image up along world `up` (another axis
+  /// is used if the view is parallel to it); centred principal point, square pixels.
+  static Camera LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, const Eigen::Vector3d& up, int w,
+                       int h, double hfov_deg);
   /// Projects a world point; returns false if behind the camera.
   bool Project(const Eigen::Vector3d& world, double* u, double* v) const;
 };

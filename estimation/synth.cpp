@@ -90,24 +90,6 @@ Mesh RoomCorner() {
   return m;
 }
 
-Camera LookAt(const Vector3d& eye, const Vector3d& target, const Vector3d& up, int w, int h, double hfov_deg) {
-  Camera c;
-  c.width = w;
-  c.height = h;
-  c.fx = c.fy = 0.5 * w / std::tan(0.5 * hfov_deg * kPi / 180);
-  c.cx = 0.5 * (w - 1);
-  c.cy = 0.5 * (h - 1);
-  const Vector3d z = (target - eye).normalized();
-  const Vector3d x = z.cross(up).normalized();  // right
-  const Vector3d y = z.cross(x);                // down
-  c.world_from_camera.setIdentity();
-  c.world_from_camera.block<3, 1>(0, 0) = x;
-  c.world_from_camera.block<3, 1>(0, 1) = y;
-  c.world_from_camera.block<3, 1>(0, 2) = z;
-  c.world_from_camera.block<3, 1>(0, 3) = eye;
-  return c;
-}
-
 Vector3d Direction(double azimuth_deg, double elevation_deg) {
   const double a = azimuth_deg * kPi / 180, e = elevation_deg * kPi / 180;
   return {std::cos(e) * std::cos(a), std::cos(e) * std::sin(a), std::sin(e)};
@@ -205,7 +187,7 @@ SceneBundle MakeSynthScene(const std::string& name, const SynthOptions& o, const
     b.mesh = RoomCorner();
     b.up = Vector3d::UnitZ();
     center = Vector3d(1.1, 1.1, 0.5);
-    cam = LookAt({3.3, 2.9, 1.7}, {0.9, 0.9, 0.45}, b.up, o.width, o.height, 60);
+    cam = Camera::LookAt({3.3, 2.9, 1.7}, {0.9, 0.9, 0.45}, b.up, o.width, o.height, 60);
     if (name == "one-light") {
       lights.push_back(LightAt(center, Direction(30, 50), 20, 2.0, {1.0, 0.95, 0.85}, 3.0));
     } else if (name == "two-light") {
@@ -224,7 +206,7 @@ SceneBundle MakeSynthScene(const std::string& name, const SynthOptions& o, const
     MeshBounds(b.mesh, &lo, &hi);
     center = (0.5f * (lo + hi)).cast<double>();
     const double extent = (hi - lo).cast<double>().norm();
-    cam = LookAt(Vector3d(center.x(), center.y() - 0.15 * extent, lo.z() - 0.35 * extent), center, b.up, o.width,
+    cam = Camera::LookAt(Vector3d(center.x(), center.y() - 0.15 * extent, lo.z() - 0.35 * extent), center, b.up, o.width,
                  o.height, 60);
     const Vector3d dir = (-Vector3d::UnitY() * 1.2 + Vector3d(0.4, 0, -0.6)).normalized();
     lights.push_back(LightAt(center, dir, 4 * extent, 0.05 * extent, {1.0, 0.95, 0.85}, 3.0));

@@ -45,23 +45,7 @@ Mesh Ball(double radius, double rho, int rings, int segments) {
 }
 
 Camera LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, int w, int h, double hfov_deg) {
-  Camera c;
-  c.width = w;
-  c.height = h;
-  c.fx = c.fy = 0.5 * w / std::tan(0.5 * hfov_deg * 3.14159265358979323846 / 180);
-  c.cx = 0.5 * (w - 1);
-  c.cy = 0.5 * (h - 1);
-  const Eigen::Vector3d z = (target - eye).normalized();
-  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
-  if (std::abs(z.dot(up)) > 0.99) up = Eigen::Vector3d::UnitY();
-  const Eigen::Vector3d x = z.cross(up).normalized();
-  const Eigen::Vector3d y = z.cross(x);
-  c.world_from_camera.setIdentity();
-  c.world_from_camera.block<3, 1>(0, 0) = x;
-  c.world_from_camera.block<3, 1>(0, 1) = y;
-  c.world_from_camera.block<3, 1>(0, 2) = z;
-  c.world_from_camera.block<3, 1>(0, 3) = eye;
-  return c;
+  return Camera::LookAt(eye, target, Eigen::Vector3d::UnitZ(), w, h, hfov_deg);
 }
 
 View BlankView(const Camera& cam) {
