@@ -45,16 +45,12 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
       ->capture_default_str();
 }
 
-namespace {
-
 std::string Num(double v) {
   if (std::isnan(v)) return "";
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.9g", v);
   return buf;
 }
-
-}  // namespace
 
 void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle, const EstimateOptions& o,
                           const EstimateResult& r, double command_seconds) {

@@ -25,6 +25,9 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
 void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle, const EstimateOptions& options,
                           const EstimateResult& result, double command_seconds);
 
+/// A number for CSV files: %.9g, empty for NaN.
+std::string Num(double v);
+
 /// Where shared/data lives (LIGHTPROBE_DATA, else ../shared/data next to the source tree).
 std::string DefaultDataDir();
 

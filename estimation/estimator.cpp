@@ -105,8 +105,8 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
       row.round = round;
       row.iteration = it.iteration;
       row.objective = it.objective;
-      row.relative_rmse = it.rmse;
-      row.photometric_rmse = it.rmse * mean;
+      row.relative_rmse = it.Rmse();
+      row.photometric_rmse = row.relative_rmse * mean;
       if (!truth.empty()) row.angular_error_deg = DominantAngularErrorDeg(env, scatter(*it.lambda), truth);
       res.convergence.push_back(row);
       if (opt.solver_options.on_iteration) opt.solver_options.on_iteration(it);

@@ -87,29 +87,74 @@ Objective::Objective(const LinearProblem& problem, const ObjectiveParams& params
   for (double v : aty) kkt_scale_ = std::max(kkt_scale_, std::abs(v));
 }
 
-double Objective::Value(const std::vector<double>& lambda, std::vector<double>* residual) const {
-  std::vector<double> local;
-  std::vector<double>& r = residual ? *residual : local;
-  p_.Multiply(lambda, &r);
-  const double s2 = params_.sigma * params_.sigma;
-  double data = 0;
-  for (std::size_t i = 0; i < r.size(); ++i) {
-    r[i] = p_.y[i] - r[i];
-    data += 0.5 * s2 * std::log1p(r[i] * r[i] / s2);
-  }
+double Objective::Penalty(const std::vector<double>& lambda) const {
   double penalty = 0;
   if (params_.alpha > 0)
     for (int j = 0; j < p_.unknown_cells; ++j)
       penalty += params_.alpha * std::log1p(params_.beta * (lambda[3 * j] + lambda[3 * j + 1] + lambda[3 * j + 2]));
-  return data + penalty;
+  return penalty;
 }
 
-double Objective::ValueAndGradient(const std::vector<double>& lambda, std::vector<double>* gradient) const {
-  std::vector<double> r;
-  const double e = Value(lambda, &r);
+double Objective::DataPass(const std::vector<double>& lambda, std::vector<double>* residual,
+                           std::vector<double>* adjoint) const {
+  const std::size_t rows = p_.rows();
+  const std::size_t L3 = 3 * static_cast<std::size_t>(p_.unknown_cells);
   const double s2 = params_.sigma * params_.sigma;
-  for (double& v : r) v = v / (1 + v * v / s2);  // psi(r)
-  p_.MultiplyTransposed(r, gradient);
+  // Fixed chunks (independent of the thread count), each with its own partial sums,
+  // reduced in chunk order: the result is bit-identical for any number of threads.
+  const std::size_t chunks = std::max<std::size_t>(1, std::min<std::size_t>(64, (rows + 511) / 512));
+  const std::size_t per = (rows + chunks - 1) / chunks;
+  std::vector<double> data(chunks, 0.0);
+  std::vector<double> partial(adjoint ? chunks * L3 : 0, 0.0);
+  if (residual) residual->resize(3 * rows);
+  ParallelFor(0, chunks, [&](std::size_t c) {
+    const std::size_t b = c * per, e = std::min(rows, b + per);
+    double* acc = adjoint ? &partial[c * L3] : nullptr;
+    double sum = 0;
+    for (std::size_t r = b; r < e; ++r) {
+      double a0 = 0, a1 = 0, a2 = 0;
+      for (std::int64_t k = p_.row_start[r]; k < p_.row_start[r + 1]; ++k) {
+        const double* l = &lambda[3 * p_.col[k]];
+        a0 += p_.val[k][0] * l[0];
+        a1 += p_.val[k][1] * l[1];
+        a2 += p_.val[k][2] * l[2];
+      }
+      const double r0 = p_.y[3 * r] - a0, r1 = p_.y[3 * r + 1] - a1, r2 = p_.y[3 * r + 2] - a2;
+      if (residual) {
+        (*residual)[3 * r] = r0;
+        (*residual)[3 * r + 1] = r1;
+        (*residual)[3 * r + 2] = r2;
+      }
+      sum += 0.5 * s2 * (std::log1p(r0 * r0 / s2) + std::log1p(r1 * r1 / s2) + std::log1p(r2 * r2 / s2));
+      if (acc) {
+        const double p0 = r0 / (1 + r0 * r0 / s2), p1 = r1 / (1 + r1 * r1 / s2), p2 = r2 / (1 + r2 * r2 / s2);
+        for (std::int64_t k = p_.row_start[r]; k < p_.row_start[r + 1]; ++k) {
+          double* a = acc + 3 * p_.col[k];
+          a[0] += p_.val[k][0] * p0;
+          a[1] += p_.val[k][1] * p1;
+          a[2] += p_.val[k][2] * p2;
+        }
+      }
+    }
+    data[c] = sum;
+  });
+  double total = 0;
+  for (double d : data) total += d;
+  if (adjoint) {
+    adjoint->assign(L3, 0.0);
+    for (std::size_t c = 0; c < chunks; ++c)
+      for (std::size_t i = 0; i < L3; ++i) (*adjoint)[i] += partial[c * L3 + i];
+  }
+  return total;
+}
+
+double Objective::Value(const std::vector<double>& lambda, std::vector<double>* residual) const {
+  return DataPass(lambda, residual, nullptr) + Penalty(lambda);
+}
+
+double Objective::ValueAndGradient(const std::vector<double>& lambda, std::vector<double>* gradient,
+                                   std::vector<double>* residual) const {
+  const double e = DataPass(lambda, residual, gradient) + Penalty(lambda);
   for (int j = 0; j < p_.unknown_cells; ++j) {
     const double pen = params_.alpha * params_.beta /
                        (1 + params_.beta * (lambda[3 * j] + lambda[3 * j + 1] + lambda[3 * j + 2]));

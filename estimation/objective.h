@@ -48,7 +48,15 @@ class Objective {
   /// E(lambda); `residual` (optional) receives y - A lambda.
   double Value(const std::vector<double>& lambda, std::vector<double>* residual = nullptr) const;
   /// E and its gradient dE/dlambda (analytical, Eq. 13).
-  double ValueAndGradient(const std::vector<double>& lambda, std::vector<double>* gradient) const;
+  /// `residual` (optional) receives y - A lambda.
+  double ValueAndGradient(const std::vector<double>& lambda, std::vector<double>* gradient,
+                          std::vector<double>* residual = nullptr) const;
+  /// One pass over A: the data term sum rho(y - A lambda); `residual` (optional)
+  /// receives y - A lambda, `adjoint` (optional) A^T psi(y - A lambda), psi = rho'.
+  double DataPass(const std::vector<double>& lambda, std::vector<double>* residual,
+                  std::vector<double>* adjoint) const;
+  /// The activation penalty sum_j alpha*log(1 + beta*sum_c lambda_jc).
+  double Penalty(const std::vector<double>& lambda) const;
   /// Root mean square of the residual y - A lambda over all rows and channels.
   double Rmse(const std::vector<double>& lambda) const;
   /// Largest violation of the KKT conditions at lambda (>= 0), as the natural residual

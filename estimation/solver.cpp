@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
@@ -24,146 +25,186 @@ const char* ToString(SolverKind kind) { return kind == SolverKind::kFast ? "fast
 // ---------------------------------------------------------------------------------------------
 // NNQP: min 0.5 x'Gx - b'x, x >= 0.
 
-int SolveNnqp(const std::vector<double>& G, const std::vector<double>& b, int n, std::vector<double>* xp) {
-  std::vector<double>& x = *xp;
-  if (n == 0) return 0;
-  LP_CHECK(static_cast<int>(x.size()) == n, "x size");
-  Eigen::Map<const Eigen::MatrixXd> Gm(G.data(), n, n);
-  Eigen::Map<const Eigen::VectorXd> bm(b.data(), n);
-  Eigen::Map<Eigen::VectorXd> xm(x.data(), n);
-  for (int i = 0; i < n; ++i)
-    if (!(x[i] > 0)) x[i] = 0;  // also clears NaN
-  double bscale = 0, dscale = 0;
-  for (int i = 0; i < n; ++i) {
-    bscale = std::max(bscale, std::abs(b[i]));
-    dscale = std::max(dscale, Gm(i, i));
-  }
-  if (bscale == 0) {
-    std::fill(x.begin(), x.end(), 0.0);
-    return 0;
-  }
-  // 1. Projected coordinate descent to find the support cheaply.
-  Eigen::VectorXd g = Gm * xm - bm;
-  for (int sweep = 0; sweep < 30; ++sweep) {
-    double change = 0, xmax = 0;
+/// Solves NNQPs that share one matrix G, caching the Cholesky factor of the last
+/// passive set: successive solves of an MM run mostly keep their support.
+class NnqpSolver {
+ public:
+  NnqpSolver(const double* G, int n) : G_(G, n, n), n_(n) {}
+
+  /// Warm-started from x. `exact` = false: coordinate descent sweeps only (an
+  /// approximate minimizer, enough for a candidate that is checked afterwards).
+  int Solve(const double* bp, double* xp, bool exact = true) {
+    const int n = n_;
+    if (n == 0) return 0;
+    Eigen::Map<const Eigen::VectorXd> b(bp, n);
+    Eigen::Map<Eigen::VectorXd> x(xp, n);
+    for (int i = 0; i < n; ++i)
+      if (!(x[i] > 0)) x[i] = 0;  // also clears NaN
+    double bscale = 0, dscale = 0;
     for (int i = 0; i < n; ++i) {
-      const double d = Gm(i, i);
-      if (!(d > 0)) continue;
-      const double xi = std::max(0.0, x[i] - g[i] / d);
-      const double delta = xi - x[i];
-      if (delta != 0) {
-        g += delta * Gm.col(i);
-        x[i] = xi;
-        change = std::max(change, std::abs(delta));
+      bscale = std::max(bscale, std::abs(b[i]));
+      dscale = std::max(dscale, G_(i, i));
+    }
+    if (bscale == 0) {
+      x.setZero();
+      return 0;
+    }
+    // 1. Projected coordinate descent to find the support cheaply.
+    Eigen::VectorXd g = G_ * x - b;
+    for (int sweep = 0; sweep < 30; ++sweep) {
+      double change = 0, xmax = 0;
+      for (int i = 0; i < n; ++i) {
+        const double d = G_(i, i);
+        if (!(d > 0)) continue;
+        const double xi = std::max(0.0, x[i] - g[i] / d);
+        const double delta = xi - x[i];
+        if (delta != 0) {
+          g += delta * G_.col(i);
+          x[i] = xi;
+          change = std::max(change, std::abs(delta));
+        }
+        xmax = std::max(xmax, x[i]);
       }
-      xmax = std::max(xmax, x[i]);
+      if (change <= 1e-6 * xmax) break;
+      if (!exact && sweep >= 4) break;
     }
-    if (change <= 1e-6 * xmax) break;
-  }
-  // 2. Active set (Lawson-Hanson on the Gram form), warm-started from the support.
-  const double tol = 1e-12 * std::max(bscale, dscale);
-  std::vector<char> passive(n, 0);
-  for (int i = 0; i < n; ++i) passive[i] = x[i] > 0;
-  int iterations = 0;
-  const int max_iterations = 3 * n + 50;
-  std::vector<int> P;
-  Eigen::VectorXd z;
-  auto solve_passive = [&]() {
-    P.clear();
-    for (int i = 0; i < n; ++i)
-      if (passive[i]) P.push_back(i);
-    const int m = static_cast<int>(P.size());
-    Eigen::MatrixXd Gp(m, m);
-    Eigen::VectorXd bp(m);
-    for (int a = 0; a < m; ++a) {
-      bp[a] = b[P[a]];
-      for (int c = 0; c < m; ++c) Gp(a, c) = Gm(P[a], P[c]);
-    }
-    Eigen::LLT<Eigen::MatrixXd> llt(Gp);
-    if (llt.info() == Eigen::Success) {
-      z = llt.solve(bp);
-    } else {
-      z = Gp.ldlt().solve(bp);
-    }
-    for (int a = 0; a < m; ++a)
-      if (!std::isfinite(z[a])) z[a] = 0;
-  };
-  while (iterations++ < max_iterations) {
-    // Inner loop: move towards the unconstrained minimizer on the passive set, staying feasible.
-    for (int inner = 0; inner <= n; ++inner) {
-      solve_passive();
-      double step = 1;
-      int blocking = -1;
-      for (std::size_t a = 0; a < P.size(); ++a)
-        if (z[a] <= 0) {
-          const double xi = x[P[a]];
-          const double ratio = xi - z[a] > 0 ? xi / (xi - z[a]) : 0.0;
-          if (blocking < 0 || ratio < step) {
-            step = ratio;
-            blocking = P[a];
+    if (!exact) return 0;
+    // 2. Active set (Lawson-Hanson on the Gram form), warm-started from the support.
+    const double tol = 1e-12 * std::max(bscale, dscale);
+    std::vector<char> passive(n, 0);
+    for (int i = 0; i < n; ++i) passive[i] = x[i] > 0;
+    int iterations = 0;
+    const int max_iterations = 3 * n + 50;
+    while (iterations++ < max_iterations) {
+      // Inner loop: move towards the unconstrained minimizer on the passive set, staying feasible.
+      for (int inner = 0; inner <= n; ++inner) {
+        SolvePassive(passive, b);
+        double step = 1;
+        int blocking = -1;
+        for (std::size_t a = 0; a < P_.size(); ++a)
+          if (z_[a] <= 0) {
+            const double xi = x[P_[a]];
+            const double ratio = xi - z_[a] > 0 ? xi / (xi - z_[a]) : 0.0;
+            if (blocking < 0 || ratio < step) {
+              step = ratio;
+              blocking = P_[a];
+            }
           }
+        if (blocking < 0) {  // unconstrained minimizer is feasible
+          for (std::size_t a = 0; a < P_.size(); ++a) x[P_[a]] = z_[a];
+          break;
         }
-      if (blocking < 0) {  // unconstrained minimizer is feasible
-        for (std::size_t a = 0; a < P.size(); ++a) x[P[a]] = z[a];
-        break;
+        step = std::clamp(step, 0.0, 1.0);
+        for (std::size_t a = 0; a < P_.size(); ++a) x[P_[a]] += step * (z_[a] - x[P_[a]]);
+        x[blocking] = 0;  // the blocking variable leaves exactly
+        for (std::size_t a = 0; a < P_.size(); ++a)
+          if (x[P_[a]] <= 0) {
+            x[P_[a]] = 0;
+            passive[P_[a]] = 0;
+          }
+        passive[blocking] = 0;
       }
-      step = std::clamp(step, 0.0, 1.0);
-      for (std::size_t a = 0; a < P.size(); ++a) x[P[a]] += step * (z[a] - x[P[a]]);
-      x[blocking] = 0;  // the blocking variable leaves exactly
-      for (std::size_t a = 0; a < P.size(); ++a)
-        if (x[P[a]] <= 0) {
-          x[P[a]] = 0;
-          passive[P[a]] = 0;
+      // Optimality: the most negative gradient among the active (zero) variables.
+      g = G_ * x - b;
+      int add = -1;
+      double most = -tol;
+      for (int i = 0; i < n; ++i)
+        if (!passive[i] && g[i] < most) {
+          most = g[i];
+          add = i;
         }
-      passive[blocking] = 0;
+      if (add < 0) break;
+      passive[add] = 1;
     }
-    // Optimality: the most negative gradient among the active (zero) variables.
-    g = Gm * xm - bm;
-    int add = -1;
-    double most = -tol;
     for (int i = 0; i < n; ++i)
-      if (!passive[i] && g[i] < most) {
-        most = g[i];
-        add = i;
-      }
-    if (add < 0) break;
-    passive[add] = 1;
+      if (!(x[i] > 0)) x[i] = 0;
+    return iterations;
   }
-  for (int i = 0; i < n; ++i)
-    if (!(x[i] > 0)) x[i] = 0;
-  return iterations;
+
+ private:
+  /// z_ = G_PP^{-1} b_P for the passive set P_ (factor reused when P is unchanged).
+  void SolvePassive(const std::vector<char>& passive, const Eigen::Map<const Eigen::VectorXd>& b) {
+    P_.clear();
+    for (int i = 0; i < n_; ++i)
+      if (passive[i]) P_.push_back(i);
+    const int m = static_cast<int>(P_.size());
+    Eigen::VectorXd bp(m);
+    for (int a = 0; a < m; ++a) bp[a] = b[P_[a]];
+    if (P_ != cached_P_) {
+      Eigen::MatrixXd Gp(m, m);
+      for (int c = 0; c < m; ++c)
+        for (int a = 0; a < m; ++a) Gp(a, c) = G_(P_[a], P_[c]);
+      llt_.compute(Gp);
+      use_ldlt_ = llt_.info() != Eigen::Success;
+      if (use_ldlt_) ldlt_.compute(Gp);
+      cached_P_ = P_;
+    }
+    z_ = use_ldlt_ ? Eigen::VectorXd(ldlt_.solve(bp)) : Eigen::VectorXd(llt_.solve(bp));
+    for (int a = 0; a < m; ++a)
+      if (!std::isfinite(z_[a])) z_[a] = 0;
+  }
+
+  Eigen::Map<const Eigen::MatrixXd> G_;
+  int n_;
+  std::vector<int> P_, cached_P_{-1};
+  Eigen::LLT<Eigen::MatrixXd> llt_;
+  Eigen::LDLT<Eigen::MatrixXd> ldlt_;
+  bool use_ldlt_ = false;
+  Eigen::VectorXd z_;
+};
+
+int SolveNnqp(const std::vector<double>& G, const std::vector<double>& b, int n, std::vector<double>* x) {
+  LP_CHECK(static_cast<int>(x->size()) == n && static_cast<int>(b.size()) == n, "NNQP sizes");
+  NnqpSolver solver(G.data(), n);
+  return solver.Solve(b.data(), x->data());
+}
+
+double IterationInfo::Rmse() const {
+  if (!residual || residual->empty()) return 0;
+  double s = 0;
+  for (double v : *residual) s += v * v;
+  return std::sqrt(s / residual->size());
 }
 
 namespace {
 
-void Report(const SolverOptions& o, int it, double e, const Objective& obj, const std::vector<double>& lambda) {
+void Report(const SolverOptions& o, int it, double e, const std::vector<double>& lambda,
+            const std::vector<double>& residual) {
   if (!o.on_iteration) return;
   IterationInfo info;
   info.iteration = it;
   info.objective = e;
-  info.rmse = obj.Rmse(lambda);
   info.lambda = &lambda;
+  info.residual = &residual;
   o.on_iteration(info);
 }
 
 /// G_c = A_c^T A_c for the 3 channels, column-major L x L. Column j gathers the
-/// rows touching cell j (upper triangle, i >= j), so the sum order is fixed: the
-/// result does not depend on the thread count. Then mirrored.
+/// rows touching cell j (upper triangle, i >= j) into one interleaved buffer (the 3
+/// channels of an entry share a cache line), so the sum order is fixed: the result
+/// does not depend on the thread count. Then split and mirrored.
 void BuildNormalMatrices(const LinearProblem& p, std::vector<double> G[3]) {
   const int L = p.unknown_cells;
   for (int c = 0; c < 3; ++c) G[c].assign(static_cast<std::size_t>(L) * L, 0.0);
-  ParallelFor(0, L, [&](std::size_t j) {
-    double* g0 = &G[0][j * L];
-    double* g1 = &G[1][j * L];
-    double* g2 = &G[2][j * L];
-    for (std::int64_t k = p.col_start[j]; k < p.col_start[j + 1]; ++k) {
-      const int r = p.col_row[k];
-      const double a0 = p.col_val[k][0], a1 = p.col_val[k][1], a2 = p.col_val[k][2];
-      for (std::int64_t q = p.col_pos[k]; q < p.row_start[r + 1]; ++q) {
-        const int i = p.col[q];
-        g0[i] += a0 * p.val[q][0];
-        g1[i] += a1 * p.val[q][1];
-        g2[i] += a2 * p.val[q][2];
+  ParallelForChunks(0, L, 8, [&](std::size_t jb, std::size_t je) {
+    std::vector<double> acc(3 * static_cast<std::size_t>(L));
+    for (std::size_t j = jb; j < je; ++j) {
+      std::fill(acc.begin() + 3 * j, acc.end(), 0.0);
+      for (std::int64_t k = p.col_start[j]; k < p.col_start[j + 1]; ++k) {
+        const int r = p.col_row[k];
+        const double a0 = p.col_val[k][0], a1 = p.col_val[k][1], a2 = p.col_val[k][2];
+        const std::int64_t end = p.row_start[r + 1];
+        for (std::int64_t q = p.col_pos[k]; q < end; ++q) {
+          double* g = &acc[3 * static_cast<std::size_t>(p.col[q])];
+          const float* v = p.val[q].data();
+          g[0] += a0 * v[0];
+          g[1] += a1 * v[1];
+          g[2] += a2 * v[2];
+        }
+      }
+      for (int c = 0; c < 3; ++c) {
+        double* col = &G[c][j * L];
+        for (int i = static_cast<int>(j); i < L; ++i) col[i] = acc[3 * static_cast<std::size_t>(i) + c];
       }
     }
   });
@@ -174,85 +215,188 @@ void BuildNormalMatrices(const LinearProblem& p, std::vector<double> G[3]) {
 }
 
 /// Majorize-minimize. The Cauchy loss has curvature rho'' <= 1, so around the current
-/// residual r0 it is majorized by rho(r0) + psi(r0)(r - r0) + (r - r0)^2 / 2; the concave
-/// log penalty by its tangent c_j = alpha*beta / (1 + beta*sum_c lambda_jc). The
-/// majorizer is a non-negative QP per channel whose matrix G = A^T A does not depend
-/// on lambda: it is built once, and each step costs one pass over A plus a small NNQP.
-SolveResult SolveMM(const Objective& obj, std::vector<double> lambda, const SolverOptions& o) {
-  Stopwatch sw;
-  const LinearProblem& p = obj.problem();
-  const ObjectiveParams& prm = obj.params();
-  const int L = p.unknown_cells;
-  const double s2 = prm.sigma * prm.sigma;
-  SolveResult res;
-  std::vector<double> G[3];
-  BuildNormalMatrices(p, G);
-  double mu[3];
-  for (int c = 0; c < 3; ++c) {
-    double trace = 0;
-    for (int j = 0; j < L; ++j) trace += G[c][static_cast<std::size_t>(j) * L + j];
-    // Proximal term mu/2 |x - lambda|^2 keeps G positive definite; it is >= 0 and 0 at the
-    // current point, so the step still majorizes E.
-    mu[c] = 1e-10 * trace / std::max(1, L) + 1e-300;
-    for (int j = 0; j < L; ++j) G[c][static_cast<std::size_t>(j) * L + j] += mu[c];
-  }
-  std::vector<double> r;
-  double e = obj.Value(lambda, &r);
-  const double e0 = e;
-  std::vector<double> atpsi, bc(L), xc(L), next(lambda.size()), r_next;
-  for (int it = 1; it <= o.max_iterations; ++it) {
-    for (double& v : r) v = v / (1 + v * v / s2);  // psi(r0)
-    p.MultiplyTransposed(r, &atpsi);
+/// point lambda_k the data term is majorized by a quadratic with the constant matrix
+/// G = A^T A (plus a tiny proximal term mu*I that keeps it positive definite):
+///   M(x) = E(lambda_k) - h'(x - lambda_k) + 1/2 (x - lambda_k)' G (x - lambda_k) + P(x) - P(lambda_k),
+/// h = A^T psi(y - A lambda_k), with the log penalty P kept exact. G is built once per solve;
+/// each outer step costs one pass over A (residual, E and h together) and then works in
+/// the L-dimensional space only: M is minimized by reweighted l1 (P majorized by its
+/// tangent, a non-negative QP per channel), each inner step lowering M. E(next) <= M(next)
+/// <= M(lambda_k) = E(lambda_k), so E never increases.
+/// Once progress slows (a step gains < 1 % of E), each outer step also tries a
+/// continuation on the penalty weight (alpha/256, /64, /16, /4, then alpha; a few QPs in
+/// L-space) and keeps whichever candidate has the lower M: reweighted l1 at full weight
+/// zeroes cells early and tends to stop in poorer local minima of this non-convex E.
+/// Early steps use approximate QPs (coordinate descent) and an over-relaxed step along
+/// the MM direction, accepted only when E falls.
+class MajorizeMinimize {
+ public:
+  MajorizeMinimize(const Objective& obj) : obj_(obj), p_(obj.problem()), prm_(obj.params()), L_(p_.unknown_cells) {
+    BuildNormalMatrices(p_, G_);
     for (int c = 0; c < 3; ++c) {
-      Eigen::Map<const Eigen::MatrixXd> Gm(G[c].data(), L, L);
-      Eigen::VectorXd x0(L);
-      for (int j = 0; j < L; ++j) x0[j] = lambda[3 * j + c];
-      const Eigen::VectorXd gx = Gm * x0;  // includes mu * x0 (the proximal centre)
-      for (int j = 0; j < L; ++j) {
-        const double cost = prm.alpha * prm.beta / (1 + prm.beta * (lambda[3 * j] + lambda[3 * j + 1] + lambda[3 * j + 2]));
-        bc[j] = gx[j] + atpsi[3 * j + c] - cost;
-        xc[j] = x0[j];
-      }
-      SolveNnqp(G[c], bc, L, &xc);
-      for (int j = 0; j < L; ++j) next[3 * j + c] = xc[j];
+      double trace = 0;
+      for (int j = 0; j < L_; ++j) trace += G_[c][static_cast<std::size_t>(j) * L_ + j];
+      const double mu = 1e-10 * trace / std::max(1, L_) + 1e-300;
+      for (int j = 0; j < L_; ++j) G_[c][static_cast<std::size_t>(j) * L_ + j] += mu;
+      qp_[c] = std::make_unique<NnqpSolver>(G_[c].data(), L_);
     }
-    const double e_next = obj.Value(next, &r_next);
-    res.iterations = it;
-    if (!(e_next <= e)) {
-      // A converged step can look like a rounding-level increase: keep the old point and stop.
-      res.objective_increased = !(e_next <= e + 1e-9 * std::abs(e) + 1e-12 * std::abs(e0));
-      res.converged = true;
-      Report(o, it, e, obj, lambda);
-      break;
-    }
-    const double decrease = e - e_next;
-    lambda.swap(next);
-    r.swap(r_next);
-    e = e_next;
-    Report(o, it, e, obj, lambda);
-    if (decrease <= o.relative_tolerance * std::abs(e)) {
-      res.converged = true;
-      break;
-    }
-    if (sw.Seconds() > o.max_seconds) break;
   }
-  res.lambda = std::move(lambda);
-  res.objective = e;
-  res.kkt_violation = obj.KktViolation(res.lambda);
-  return res;
+
+  SolveResult Run(std::vector<double> lambda, const SolverOptions& o) {
+    Stopwatch sw;
+    SolveResult res;
+    std::vector<double> r, h, r_next, h_next;
+    double e = obj_.DataPass(lambda, &r, &h) + obj_.Penalty(lambda);
+    double last_decrease = HUGE_VAL;
+    for (int it = 1; it <= o.max_iterations; ++it) {
+      SetCentre(lambda, h);
+      // Far from convergence the support still moves: approximate QPs are enough there
+      // (M is checked either way); exact ones take over when progress slows.
+      const bool settling = last_decrease < 1e-2 * std::abs(e);
+      std::vector<double> next = InnerMinimize(lambda, 1.0, settling ? 20 : 3, settling);
+      if (!settling && next == lambda) next = InnerMinimize(lambda, 1.0);
+      if (prm_.alpha > 0 && settling) {
+        std::vector<double> cont = lambda;
+        for (int m = 8; m >= 1; m -= 2) cont = InnerMinimize(cont, std::ldexp(1.0, -m), 1);
+        cont = InnerMinimize(cont, 1.0, 20, false);
+        if (Majorizer(cont) < Majorizer(next)) next.swap(cont);
+      }
+      double e_next = obj_.DataPass(next, &r_next, &h_next) + obj_.Penalty(next);
+      // Over-relaxation: the unit-curvature majorizer is loose where residuals are large
+      // (early on), so try longer steps along the MM direction while E keeps falling.
+      if (e_next < e) {
+        std::vector<double> longer(next.size()), r_long, h_long;
+        for (double t = 2; t <= 64; t *= 2) {
+          for (std::size_t i = 0; i < next.size(); ++i)
+            longer[i] = std::max(0.0, lambda[i] + t * (next[i] - lambda[i]));
+          const double e_long = obj_.DataPass(longer, &r_long, &h_long) + obj_.Penalty(longer);
+          if (!(e_long < e_next)) break;
+          next = longer;
+          r_next.swap(r_long);
+          h_next.swap(h_long);
+          e_next = e_long;
+        }
+      }
+      res.iterations = it;
+      if (!(e_next <= e)) {
+        // A converged step can look like a rounding-level increase: keep the old point and stop.
+        res.objective_increased = !(e_next <= e + 1e-9 * std::abs(e));
+        res.converged = true;
+        Report(o, it, e, lambda, r);
+        break;
+      }
+      const double decrease = e - e_next;
+      last_decrease = decrease;
+      lambda.swap(next);
+      r.swap(r_next);
+      h.swap(h_next);
+      e = e_next;
+      Report(o, it, e, lambda, r);
+      if (decrease <= o.relative_tolerance * std::abs(e)) {
+        res.converged = true;
+        break;
+      }
+      if (sw.Seconds() > o.max_seconds) break;
+    }
+    res.lambda = std::move(lambda);
+    res.objective = e;
+    res.kkt_violation = obj_.KktViolation(res.lambda);
+    return res;
+  }
+
+ private:
+  /// Fixes the expansion point lambda_k and h = A^T psi there.
+  void SetCentre(const std::vector<double>& lambda, const std::vector<double>& h) {
+    centre_ = lambda;
+    for (int c = 0; c < 3; ++c) {
+      Eigen::Map<const Eigen::MatrixXd> Gm(G_[c].data(), L_, L_);
+      Eigen::VectorXd x0(L_);
+      for (int j = 0; j < L_; ++j) x0[j] = lambda[3 * j + c];
+      const Eigen::VectorXd gx = Gm * x0;
+      b0_[c].resize(L_);
+      for (int j = 0; j < L_; ++j) b0_[c][j] = gx[j] + h[3 * j + c];
+    }
+    penalty_centre_ = obj_.Penalty(lambda);
+    h_ = h;
+  }
+
+  /// M(x) - E(lambda_k), computed in L-space.
+  double Majorizer(const std::vector<double>& x) const {
+    double m = 0;
+    Eigen::VectorXd d(L_);
+    for (int c = 0; c < 3; ++c) {
+      Eigen::Map<const Eigen::MatrixXd> Gm(G_[c].data(), L_, L_);
+      for (int j = 0; j < L_; ++j) d[j] = x[3 * j + c] - centre_[3 * j + c];
+      m += 0.5 * d.dot(Gm * d);
+      for (int j = 0; j < L_; ++j) m -= h_[3 * j + c] * d[j];
+    }
+    return m + obj_.Penalty(x) - penalty_centre_;
+  }
+
+  /// Reweighted l1 on M with the penalty weight scaled by `weight`, from x; at most
+  /// `max_steps` QPs, stopping when M no longer decreases.
+  std::vector<double> InnerMinimize(std::vector<double> x, double weight, int max_steps = 20, bool exact = true) {
+    double m = weight == 1.0 ? Majorizer(x) : 0;
+    std::vector<double> trial(x.size());
+    std::vector<double> bc(L_), xc(L_);
+    for (int step = 0; step < max_steps; ++step) {
+      for (int c = 0; c < 3; ++c) {
+        for (int j = 0; j < L_; ++j) {
+          const double cost = weight * prm_.alpha * prm_.beta / (1 + prm_.beta * (x[3 * j] + x[3 * j + 1] + x[3 * j + 2]));
+          bc[j] = b0_[c][j] - cost;
+          xc[j] = x[3 * j + c];
+        }
+        qp_[c]->Solve(bc.data(), xc.data(), exact && weight == 1.0);
+        for (int j = 0; j < L_; ++j) trial[3 * j + c] = xc[j];
+      }
+      if (weight != 1.0) {  // continuation stage: no monotonicity to keep
+        x.swap(trial);
+        continue;
+      }
+      const double m_trial = Majorizer(trial);
+      if (!(m_trial < m)) break;
+      const double gain = m - m_trial;
+      x.swap(trial);
+      m = m_trial;
+      if (gain <= 1e-13 * (1 + std::abs(m))) break;
+      if (prm_.alpha == 0) break;  // no penalty to reweight: one QP minimizes M
+    }
+    return x;
+  }
+
+  const Objective& obj_;
+  const LinearProblem& p_;
+  const ObjectiveParams& prm_;
+  const int L_;
+  std::vector<double> G_[3];
+  std::unique_ptr<NnqpSolver> qp_[3];
+  std::vector<double> centre_, h_, b0_[3];
+  double penalty_centre_ = 0;
+};
+
+SolveResult SolveMM(const Objective& obj, std::vector<double> lambda, const SolverOptions& o) {
+  MajorizeMinimize mm(obj);
+  return mm.Run(std::move(lambda), o);
 }
 
 SolveResult SolveGradient(const Objective& obj, std::vector<double> lambda, const SolverOptions& o) {
   Stopwatch sw;
   SolveResult res;
-  std::vector<double> g, trial(lambda.size()), g_trial;
-  double e = obj.ValueAndGradient(lambda, &g);
-  // Initial step from the diagonal scale of A^T A (a safe guess; backtracking corrects it).
+  std::vector<double> g, trial(lambda.size()), g_trial, r, r_trial;
+  double e = obj.ValueAndGradient(lambda, &g, &r);
+  // Initial step 1 / max_j (A^T A)_jj: the Hessian's scale along one coordinate, a natural
+  // first guess that backtracking corrects (the Lipschitz constant can be larger).
   const LinearProblem& p = obj.problem();
   double diag = 0;
-  for (std::size_t k = 0; k < p.val.size(); ++k)
-    diag = std::max(diag, static_cast<double>(p.val[k][0]) * p.val[k][0] * (p.col_start[p.col[k] + 1] - p.col_start[p.col[k]]));
-  double t = diag > 0 ? 1.0 / diag : 1.0;
+  for (int j = 0; j < p.unknown_cells; ++j)
+    for (int c = 0; c < 3; ++c) {
+      double sum = 0;
+      for (std::int64_t k = p.col_start[j]; k < p.col_start[j + 1]; ++k)
+        sum += static_cast<double>(p.col_val[k][c]) * p.col_val[k][c];
+      diag = std::max(diag, sum);
+    }
+  const double t0 = diag > 0 ? 1.0 / diag : 1.0;
+  double t = t0;
   double gscale = 1;
   {
     std::vector<double> aty;
@@ -277,7 +421,7 @@ SolveResult SolveGradient(const Objective& obj, std::vector<double> lambda, cons
         trial[i] = std::max(0.0, lambda[i] - t * g[i]);
         decrease_model += g[i] * (lambda[i] - trial[i]);
       }
-      e_trial = obj.ValueAndGradient(trial, &g_trial);
+      e_trial = obj.ValueAndGradient(trial, &g_trial, &r_trial);
       if (e_trial <= e - 1e-4 * decrease_model) {
         accepted = true;
         break;
@@ -287,14 +431,17 @@ SolveResult SolveGradient(const Objective& obj, std::vector<double> lambda, cons
     res.iterations = it;
     if (!accepted) {
       res.converged = true;  // no decrease possible at machine precision
-      Report(o, it, e, obj, lambda);
+      Report(o, it, e, lambda, r);
       break;
     }
     lambda.swap(trial);
     g.swap(g_trial);
+    r.swap(r_trial);
     e = e_trial;
-    t *= 2;  // let the step grow again
-    Report(o, it, e, obj, lambda);
+    // The paper's backtracking (Nocedal & Wright, Alg. 3.1) starts every iteration from the
+    // same initial step; the adaptive variant starts from twice the last accepted one.
+    t = o.adaptive_step ? 2 * t : t0;
+    Report(o, it, e, lambda, r);
     if (sw.Seconds() > o.max_seconds) break;
   }
   res.lambda = std::move(lambda);

@@ -20,8 +20,10 @@ const char* ToString(SolverKind kind);
 struct IterationInfo {
   int iteration = 0;
   double objective = 0;
-  double rmse = 0;                 ///< photometric RMSE (normalized units)
   const std::vector<double>* lambda = nullptr;
+  const std::vector<double>* residual = nullptr;  ///< y - A lambda at this iterate
+  /// Photometric RMSE (normalized units) from the residual: O(rows), no pass over A.
+  double Rmse() const;
 };
 
 struct SolverOptions {
@@ -29,6 +31,9 @@ struct SolverOptions {
   double relative_tolerance = 1e-9; ///< MM: stop when the relative decrease of E is below this
   double gradient_tolerance = 1e-6; ///< PGD: stop when |projected gradient|_inf (relative) is below this
   double max_seconds = 1e30;        ///< wall-clock cap
+  /// PGD only: start each line search from twice the last accepted step instead of the
+  /// paper's fixed initial step (a stronger baseline, reported beside the paper's).
+  bool adaptive_step = false;
   std::function<void(const IterationInfo&)> on_iteration;  ///< called after every iteration
 };
 
