@@ -37,6 +37,10 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
   cmd.add_option("--beta", o->objective.beta, "activation penalty sharpness")->capture_default_str();
   cmd.add_option("--sigma", o->objective.sigma, "Cauchy scale, relative to the mean pixel value")
       ->capture_default_str();
+  cmd.add_option("--nee-floor", o->tracer.nee_floor,
+                 "share of next-event samples spread over all reachable cells (the rest follow the estimate)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1.0));
   cmd.add_option("--max-rounds", o->max_rounds, "sequential Monte Carlo rounds at most")->capture_default_str();
   cmd.add_option("--render-spp", o->render_spp, "samples per pixel of the final relit render (0 = --spp)")
       ->capture_default_str();
@@ -133,7 +137,7 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
   for (const auto& ri : r.rounds)
     rounds.push_back({{"round", ri.round}, {"trace_seconds", ri.trace_seconds}, {"solve_seconds", ri.solve_seconds},
                       {"solver_iterations", ri.solver_iterations}, {"objective", ri.objective},
-                      {"change", ri.change}, {"kkt_violation", ri.kkt_violation}, {"nonzeros", ri.nonzeros},
+                      {"change", ri.change}, {"image_change", ri.image_change}, {"kkt_violation", ri.kkt_violation}, {"nonzeros", ri.nonzeros},
                       {"unknown_cells", ri.unknown_cells}});
   json dominant = json::array();
   for (const auto& d : r.dominant) dominant.push_back({d.x(), d.y(), d.z()});

@@ -22,7 +22,8 @@ struct EstimateOptions {
   SolverKind solver = SolverKind::kFast;
   SolverOptions solver_options;
   int max_rounds = 4;
-  /// Stop when |lambda_k - lambda_{k-1}| / |lambda_k| falls below this (2 %).
+  /// Stop when the rendered estimate changes by less than this between rounds:
+  /// |A (lambda_k - lambda_{k-1})| / |A lambda_k| < 2 % (over the observed pixels).
   double change_threshold = 0.02;
   /// Average A over rounds, weighted by sample counts (all rounds are unbiased).
   bool combine_rounds = true;
@@ -50,7 +51,9 @@ struct RoundInfo {
   int round = 0;
   double trace_seconds = 0, solve_seconds = 0;
   int solver_iterations = 0;
-  double objective = 0, change = 0, kkt_violation = 0;
+  double objective = 0, kkt_violation = 0;
+  double change = 0;        ///< |lambda_k - lambda_{k-1}| / |lambda_k|
+  double image_change = 0;  ///< |A (lambda_k - lambda_{k-1})| / |A lambda_k|: the stopping test
   std::int64_t nonzeros = 0;
   int unknown_cells = 0;
 };

@@ -13,7 +13,7 @@ namespace lp {
 
 struct ObjectiveParams {
   double sigma = 0.5;  ///< Cauchy scale (normalized intensity units)
-  double alpha = 0.3;  ///< activation penalty weight
+  double alpha = 3.0;  ///< activation penalty weight (normalized units: observations / their mean)
   double beta = 1.0;   ///< activation penalty sharpness
 };
 

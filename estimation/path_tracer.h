@@ -13,10 +13,10 @@
 namespace lp {
 
 struct TracerOptions {
-  int spp = 64;                  ///< camera samples per pixel (sub-pixel jitter)
+  int spp = 96;                  ///< camera samples per pixel (sub-pixel jitter)
   int bounces = 3;               ///< surface interactions per path (1 = direct light only)
   int roulette_after = 2;        ///< Russian roulette from this bounce on
-  double nee_floor = 0.2;        ///< epsilon: share of NEE samples spread by solid angle
+  double nee_floor = 0.05;       ///< epsilon: share of NEE samples spread by solid angle
   double min_throughput = 1e-4;  ///< paths whose throughput falls below this stop (negligible)
   std::uint64_t seed = 1;
 };

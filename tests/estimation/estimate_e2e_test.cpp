@@ -26,16 +26,17 @@ double RelativeRmse(const ImageRGB& a, const View& v) {
 }
 
 TEST(EstimateEndToEnd, OneLightDirectionAndRelighting) {
-  // The bundled demo: 160x120, reference rendered at 1024 samples per pixel.
+  // The bundled demo: 160x120, reference rendered at 256 samples per pixel, light 200 m away.
   const SceneBundle b = LoadSceneBundle(std::string(LIGHTPROBE_SOURCE_DIR) + "/assets/demo");
   EstimateOptions eo;
   eo.render_spp = 512;
   const EstimateResult r = Estimate(b, eo);
   ASSERT_FALSE(std::isnan(r.final_angular_error_deg));
   EXPECT_LT(r.final_angular_error_deg, 10.0);
-  // The target is 5 %; measured 5.6-5.8 % (docs/benchmarks.md). Asserted at what
-  // the method reaches today so that a regression fails; see the open item in docs.
-  EXPECT_LT(RelativeRmse(r.renders[0], b.views[0]), 0.065);
+  // Re-render relative RMSE below 5 % (the target). Measured 4.7 %, of which ~3 %
+  // is the floor of the comparison itself (Monte Carlo noise of both images, cell
+  // discretization: the true light projected onto the cells re-renders at 3.3 %).
+  EXPECT_LT(RelativeRmse(r.renders[0], b.views[0]), 0.05);
   EXPECT_FALSE(r.objective_increased);
   for (double v : r.lambda) ASSERT_TRUE(std::isfinite(v) && v >= 0);
   // Directions below the floor that no path reaches are left out.
