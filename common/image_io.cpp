@@ -15,9 +15,11 @@ namespace lp {
 namespace fs = std::filesystem;
 namespace {
 
-// OpenCV reads the OpenEXR switch once, at first use of the codec registry.
+// OpenCV reads these once, at first use of the codec registry: OpenEXR on, and a cap
+// on the pixels a header may claim (64 Mpx: a corrupt header must not allocate GiBs).
 const bool kExrEnabled = [] {
   ::setenv("OPENCV_IO_ENABLE_OPENEXR", "1", 0);
+  ::setenv("OPENCV_IO_MAX_IMAGE_PIXELS", "67108864", 0);
   return true;
 }();
 
@@ -26,21 +28,26 @@ std::string Lower(std::string s) {
   return s;
 }
 
-cv::Mat ReadRaw(const fs::path& path, int flags) {
+cv::Mat DecodeRaw(const std::string& bytes, const std::string& name, int flags) {
   (void)kExrEnabled;
+  if (bytes.empty()) throw InputError(name, "empty file, expected an image");
+  cv::Mat m;
+  try {
+    const cv::Mat buf(1, static_cast<int>(bytes.size()), CV_8U, const_cast<char*>(bytes.data()));
+    m = cv::imdecode(buf, flags);
+  } catch (const cv::Exception& e) {
+    throw InputError(name, std::string("cannot decode image: ") + e.what());
+  }
+  if (m.empty()) throw InputError(name, "cannot decode image (unsupported or corrupt)");
+  if (m.dims != 2 || m.rows <= 0 || m.cols <= 0) throw InputError(name, "image has no pixels");
+  return m;
+}
+
+cv::Mat ReadRaw(const fs::path& path, int flags) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw InputError(path.string(), "file not found");
   if (fs::is_directory(path, ec)) throw InputError(path.string(), "is a directory, expected an image");
-  cv::Mat m;
-  try {
-    m = cv::imread(path.string(), flags);
-  } catch (const cv::Exception& e) {
-    throw InputError(path.string(), std::string("cannot decode image: ") + e.what());
-  }
-  if (m.empty()) throw InputError(path.string(), "cannot decode image (unsupported or corrupt)");
-  if (m.dims != 2 || m.rows <= 0 || m.cols <= 0)
-    throw InputError(path.string(), "image has no pixels");
-  return m;
+  return DecodeRaw(ReadTextFile(path), path.string(), flags);
 }
 
 ImageRGB FromMat(const cv::Mat& m, const fs::path& path, ImageEncoding* enc_out) {
@@ -123,9 +130,14 @@ ImageRGB ReadImageLinear(const fs::path& path, ImageEncoding* encoding) {
   return FromMat(ReadRaw(path, cv::IMREAD_UNCHANGED), path, encoding);
 }
 
-Mask ReadMask(const fs::path& path) {
-  cv::Mat m = ReadRaw(path, cv::IMREAD_UNCHANGED);
-  if (m.depth() != CV_8U) throw InputError(path.string(), "mask must be an 8-bit PNG");
+ImageRGB DecodeImageLinear(const std::string& bytes, const std::string& name, ImageEncoding* encoding) {
+  return FromMat(DecodeRaw(bytes, name, cv::IMREAD_UNCHANGED), name, encoding);
+}
+
+namespace {
+
+Mask MaskFromMat(const cv::Mat& m, const std::string& name) {
+  if (m.depth() != CV_8U) throw InputError(name, "mask must be an 8-bit PNG");
   Mask mask;
   mask.width = m.cols;
   mask.height = m.rows;
@@ -135,6 +147,14 @@ Mask ReadMask(const fs::path& path) {
     for (int x = 0; x < m.cols; ++x)
       mask.data[static_cast<std::size_t>(y) * m.cols + x] = m.ptr<unsigned char>(y)[x * ch];
   return mask;
+}
+
+}  // namespace
+
+Mask ReadMask(const fs::path& path) { return MaskFromMat(ReadRaw(path, cv::IMREAD_UNCHANGED), path.string()); }
+
+Mask DecodeMask(const std::string& bytes, const std::string& name) {
+  return MaskFromMat(DecodeRaw(bytes, name, cv::IMREAD_UNCHANGED), name);
 }
 
 ImageRGB ReadHdr(const fs::path& path) {

@@ -18,6 +18,10 @@ ImageRGB ReadImageLinear(const std::filesystem::path& path, ImageEncoding* encod
 
 /// Reads an 8-bit single-channel mask PNG (a colour PNG uses its first channel).
 Mask ReadMask(const std::filesystem::path& path);
+/// The same from the file's bytes (what the readers do after reading it); `name` is
+/// used in errors. The format is recognized from the content.
+ImageRGB DecodeImageLinear(const std::string& bytes, const std::string& name, ImageEncoding* encoding = nullptr);
+Mask DecodeMask(const std::string& bytes, const std::string& name);
 
 /// Reads a Radiance .hdr (RGBE) environment map as linear RGB.
 ImageRGB ReadHdr(const std::filesystem::path& path);
