@@ -122,7 +122,9 @@ Run AddBench(CLI::App& app) {
       row(size, "trace A once", trace_s, 0, NAN, std::to_string(A.nonzeros()) + " non-zeros");
       const LinearProblem problem = MakeLinearProblem(A, y);
       if (want("solvers")) {
-      const Objective obj(problem, o->objective);
+      ObjectiveParams params = o->objective;  // alpha per 19,200 observed pixels, as in Estimate
+      params.alpha *= problem.rows() / kAlphaReferencePixels;
+      const Objective obj(problem, params);
       // Each solver runs once to its own convergence (or the cap); the target is the
       // worst of their final objectives (+1e-6 relative), a value every one of them
       // reaches: the objective is non-convex and they can stop in different minima.

@@ -33,7 +33,9 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
       ->capture_default_str();
   cmd.add_option("--solver", *solver, "fast (majorize-minimize NNQP) or gradient (paper's projected GD)")
       ->capture_default_str();
-  cmd.add_option("--alpha", o->objective.alpha, "activation penalty weight")->capture_default_str();
+  cmd.add_option("--alpha", o->objective.alpha,
+                 "activation penalty weight, per 19200 observed pixels (scaled with the pixel count)")
+      ->capture_default_str();
   cmd.add_option("--beta", o->objective.beta, "activation penalty sharpness")->capture_default_str();
   cmd.add_option("--sigma", o->objective.sigma, "Cauchy scale, relative to the mean pixel value")
       ->capture_default_str();
@@ -145,7 +147,7 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
   rep["scene"] = fs::absolute(bundle.dir).lexically_normal().string();
   rep["settings"] = {{"rings", o.rings}, {"directions", env.size()}, {"spp", o.tracer.spp},
                      {"bounces", o.tracer.bounces}, {"solver", ToString(o.solver)},
-                     {"alpha", o.objective.alpha}, {"beta", o.objective.beta}, {"sigma", o.objective.sigma},
+                     {"alpha", o.objective.alpha}, {"alpha_effective", r.objective_params.alpha}, {"beta", o.objective.beta}, {"sigma", o.objective.sigma},
                      {"max_rounds", o.max_rounds}, {"change_threshold", o.change_threshold},
                      {"seed", o.tracer.seed}, {"threads", HardwareThreads()}, {"nee_floor", o.tracer.nee_floor},
                      {"min_throughput", o.tracer.min_throughput}, {"combine_rounds", o.combine_rounds}};

@@ -53,6 +53,12 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
   res.image_mean = mean;
   for (double& v : y) v /= mean;
 
+  // alpha is given per 19,200 observed pixels (one 160x120 view): the data term grows with
+  // the number of observations, and so must the penalty, or the balance between them
+  // (how many cells light the scene) would change with resolution and view count.
+  res.objective_params = opt.objective;
+  res.objective_params.alpha = opt.objective.alpha * res.observations / kAlphaReferencePixels;
+
   Stopwatch bvh;
   RayTracer scene(bundle.mesh);
   res.bvh_seconds = bvh.Seconds();
@@ -88,7 +94,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
       throw InputError((bundle.dir / "scene.json").string(),
                        "no sampled path reaches the environment (camera inside closed geometry?)");
 
-    Objective objective(problem, opt.objective);
+    Objective objective(problem, res.objective_params);
     std::vector<double> init(3 * problem.unknown_cells);
     for (int k = 0; k < problem.unknown_cells; ++k)
       for (int c = 0; c < 3; ++c) init[3 * k + c] = lambda[3 * problem.cell_of[k] + c];

@@ -15,6 +15,9 @@
 
 namespace lp {
 
+/// EstimateOptions::objective.alpha is per this many observed pixels (one 160x120 view).
+constexpr double kAlphaReferencePixels = 19200;
+
 struct EstimateOptions {
   int rings = 21;
   TracerOptions tracer;
@@ -28,7 +31,7 @@ struct EstimateOptions {
   /// Average A over rounds, weighted by sample counts (all rounds are unbiased).
   bool combine_rounds = true;
   /// Samples per pixel of the final relighting render (0 = tracer.spp).
-  int render_spp = 0;
+  int render_spp = 256;
   bool render = true;
   /// Wall-clock origin for the convergence log (seconds already spent before Estimate).
   double time_offset = 0;
@@ -74,6 +77,7 @@ struct EstimateResult {
   double kkt_violation = 0;
   bool objective_increased = false;
   std::vector<Eigen::Vector3d> dominant;
+  ObjectiveParams objective_params;  ///< as solved: alpha scaled to the observed pixel count
 };
 
 /// Runs the estimate on a loaded bundle. Throws InputError when nothing usable is
