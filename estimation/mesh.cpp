@@ -80,4 +80,25 @@ void MeshBounds(const Mesh& mesh, Eigen::Vector3f* lo, Eigen::Vector3f* hi) {
     }
 }
 
+Mesh UvSphere(const Eigen::Vector3f& c, float r, const Eigen::Vector3f& albedo, int rings, int segments) {
+  Mesh m;
+  for (int i = 0; i <= rings; ++i) {
+    const double th = 3.14159265358979323846 * i / rings;
+    for (int j = 0; j <= segments; ++j) {
+      const double ph = 2 * 3.14159265358979323846 * j / segments;
+      const Eigen::Vector3f n(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th));
+      m.positions.push_back(c + r * n);
+      m.normals.push_back(n);
+      m.albedo.push_back(albedo);
+    }
+  }
+  for (int i = 0; i < rings; ++i)
+    for (int j = 0; j < segments; ++j) {
+      const int a = i * (segments + 1) + j, b = a + segments + 1;
+      if (i > 0) m.triangles.emplace_back(a, b, a + 1);
+      if (i < rings - 1) m.triangles.emplace_back(a + 1, b, b + 1);
+    }
+  return m;
+}
+
 }  // namespace lp

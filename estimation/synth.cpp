@@ -57,26 +57,6 @@ Mesh Box(const Vector3f& lo, const Vector3f& hi, const Vector3f& albedo) {
   return m;
 }
 
-Mesh Sphere(const Vector3f& c, float r, const Vector3f& albedo, int rings = 24, int segments = 48) {
-  Mesh m;
-  for (int i = 0; i <= rings; ++i) {
-    const double th = kPi * i / rings;
-    for (int j = 0; j <= segments; ++j) {
-      const double ph = 2 * kPi * j / segments;
-      const Vector3f n(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th));
-      m.positions.push_back(c + r * n);
-      m.normals.push_back(n);
-      m.albedo.push_back(albedo);
-    }
-  }
-  for (int i = 0; i < rings; ++i)
-    for (int j = 0; j < segments; ++j) {
-      const int a = i * (segments + 1) + j, b = a + segments + 1;
-      if (i > 0) m.triangles.emplace_back(a, b, a + 1);
-      if (i < rings - 1) m.triangles.emplace_back(a + 1, b, b + 1);
-    }
-  return m;
-}
 
 /// Room corner: floor and two walls, two boxes and a sphere, varied albedos. Up = +z.
 Mesh RoomCorner() {
@@ -86,7 +66,7 @@ Mesh RoomCorner() {
   m.Append(Quad({0, 0, 0}, {0, 3, 0}, {0, 0, 2.2f}, Srgb(190, 175, 140), 8));  // wall x = 0 (+x)
   m.Append(Box({0.5f, 1.2f, 0}, {1.0f, 1.7f, 0.5f}, Srgb(160, 60, 50)));
   m.Append(Box({1.3f, 0.4f, 0}, {1.7f, 0.8f, 0.8f}, Srgb(60, 110, 170)));
-  m.Append(Sphere({1.5f, 1.5f, 0.35f}, 0.35f, Srgb(210, 210, 210)));
+  m.Append(UvSphere({1.5f, 1.5f, 0.35f}, 0.35f, Srgb(210, 210, 210)));
   return m;
 }
 

@@ -25,23 +25,8 @@ Mesh Square(double cx, double cy, double z, double half, double rho) {
 }
 
 Mesh Ball(double radius, double rho, int rings, int segments) {
-  Mesh m;
-  const double pi = 3.14159265358979323846;
-  for (int i = 0; i <= rings; ++i)
-    for (int j = 0; j <= segments; ++j) {
-      const double th = pi * i / rings, ph = 2 * pi * j / segments;
-      const Eigen::Vector3f n(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th));
-      m.positions.push_back(static_cast<float>(radius) * n);
-      m.normals.push_back(n);
-      m.albedo.push_back(Eigen::Vector3f::Constant(static_cast<float>(rho)));
-    }
-  for (int i = 0; i < rings; ++i)
-    for (int j = 0; j < segments; ++j) {
-      const int a = i * (segments + 1) + j, b = a + segments + 1;
-      if (i > 0) m.triangles.emplace_back(a, b, a + 1);
-      if (i < rings - 1) m.triangles.emplace_back(a + 1, b, b + 1);
-    }
-  return m;
+  return UvSphere(Eigen::Vector3f::Zero(), static_cast<float>(radius), Eigen::Vector3f::Constant(static_cast<float>(rho)),
+                  rings, segments);
 }
 
 Camera LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, int w, int h, double hfov_deg) {
