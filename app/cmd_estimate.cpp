@@ -129,6 +129,7 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
                      {"masked_out", v.masked_out},
                      {"non_finite", v.non_finite},
                      {"negative", v.negative},
+                     {"saturated", v.saturated},
                      {"render_rmse", render_rmse},
                      {"render_relative_rmse", mean_obs > 0 ? render_rmse / mean_obs : 0.0}});
   }
@@ -201,8 +202,8 @@ Run AddEstimate(CLI::App& app) {
     if (!*quiet) {
       for (std::size_t k = 0; k < bundle.views.size(); ++k) {
         const View& v = bundle.views[k];
-        std::fprintf(stderr, "  view %zu: %dx%d, %d pixels masked out, %d non-finite, %d negative\n", k,
-                     v.camera.width, v.camera.height, v.masked_out, v.non_finite, v.negative);
+        std::fprintf(stderr, "  view %zu: %dx%d, %d pixels masked out, %d non-finite, %d negative, %d saturated\n",
+                     k, v.camera.width, v.camera.height, v.masked_out, v.non_finite, v.negative, v.saturated);
       }
       std::fprintf(stderr, "  mesh: %zu vertices, %zu triangles (%d degenerate removed)\n",
                    bundle.mesh.positions.size(), bundle.mesh.triangles.size(), bundle.degenerate_triangles_removed);

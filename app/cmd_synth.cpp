@@ -25,7 +25,9 @@ Run AddSynth(CLI::App& app) {
   cmd->add_option("--height", o->height, "image height")->capture_default_str();
   cmd->add_option("--spp", o->spp, "samples per pixel of the reference image")->capture_default_str();
   cmd->add_option("--seed", o->seed, "random seed")->capture_default_str();
-  cmd->add_option("--data", *data, "shared data directory (for frag115)")->capture_default_str();
+  cmd->add_option("--held-out", o->held_out_views, "extra views from another viewpoint (0 or 1), not for fitting")
+      ->capture_default_str();
+  cmd->add_option("--data", *data, "shared data directory (mesh/ for frag115, hdri/ for env-*)")->capture_default_str();
   cmd->add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
   return [=] {
     if (*list) {

@@ -94,7 +94,11 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
       throw InputError((bundle.dir / "scene.json").string(),
                        "no sampled path reaches the environment (camera inside closed geometry?)");
 
-    Objective objective(problem, res.objective_params);
+    ObjectiveParams params = res.objective_params;
+    params.cell_weight.resize(problem.unknown_cells);
+    for (int k = 0; k < problem.unknown_cells; ++k)
+      params.cell_weight[k] = env.solid_angle(problem.cell_of[k]) / kAlphaReferenceSolidAngle;
+    Objective objective(problem, params);
     std::vector<double> init(3 * problem.unknown_cells);
     for (int k = 0; k < problem.unknown_cells; ++k)
       for (int c = 0; c < 3; ++c) init[3 * k + c] = lambda[3 * problem.cell_of[k] + c];
@@ -146,6 +150,9 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
       info.image_change = nn > 0 ? std::sqrt(dn / nn) : 0.0;
     }
     lambda.swap(next);
+    info.lambda = lambda;
+    for (double& v : info.lambda) v *= mean;
+    info.end_seconds = now();
     res.kkt_violation = sr.kkt_violation;
     res.rounds.push_back(info);
     progress("round " + std::to_string(round) + ": " + ToString(opt.solver) + " solver, " +

@@ -15,8 +15,11 @@
 
 namespace lp {
 
-/// EstimateOptions::objective.alpha is per this many observed pixels (one 160x120 view).
+/// EstimateOptions::objective.alpha is per this many observed pixels (one 160x120 view),
 constexpr double kAlphaReferencePixels = 19200;
+/// and per cell of this solid angle (the mean cell of 21 rings, 4 pi / 522): a cell of
+/// solid angle Omega_j is penalized with alpha * Omega_j / kAlphaReferenceSolidAngle.
+constexpr double kAlphaReferenceSolidAngle = 4 * 3.14159265358979323846 / 522;
 
 struct EstimateOptions {
   int rings = 21;
@@ -59,6 +62,8 @@ struct RoundInfo {
   double image_change = 0;  ///< |A (lambda_k - lambda_{k-1})| / |A lambda_k|: the stopping test
   std::int64_t nonzeros = 0;
   int unknown_cells = 0;
+  double end_seconds = 0;      ///< wall clock at the end of the round (with time_offset)
+  std::vector<double> lambda;  ///< the estimate after this round (3 * cells, image units)
 };
 
 struct EstimateResult {

@@ -19,14 +19,14 @@ struct Mesh {
   void Append(const Mesh& other);
 };
 
-/// Reads an ASCII or binary PLY (scene-bundle format: x y z, optional nx ny nz,
-/// red green blue as sRGB-encoded uchar, faces as vertex_indices lists; polygons
-/// are fanned into triangles). Colours are decoded to linear albedo; a mesh without
-/// colours gets albedo 0.5. Throws InputError naming the file on any problem.
 /// A UV sphere (rings x segments) with outward normals and one albedo.
 Mesh UvSphere(const Eigen::Vector3f& centre, float radius, const Eigen::Vector3f& albedo, int rings = 24,
               int segments = 48);
 
+/// Reads an ASCII or binary PLY (scene-bundle format: x y z, optional nx ny nz,
+/// red green blue as sRGB-encoded uchar, faces as vertex_indices lists; polygons
+/// are fanned into triangles). Colours are decoded to linear albedo; a mesh without
+/// colours gets albedo 0.5. Throws InputError naming the file on any problem.
 Mesh ReadPly(const std::filesystem::path& path);
 
 /// Parses PLY bytes (what ReadPly does after reading the file); `name` is used in errors.

@@ -82,6 +82,10 @@ Objective::Objective(const LinearProblem& problem, const ObjectiveParams& params
   if (!(params.sigma > 0) || !std::isfinite(params.sigma)) throw InputError("--sigma must be positive and finite");
   if (!(params.alpha >= 0) || !std::isfinite(params.alpha)) throw InputError("--alpha must be >= 0 and finite");
   if (!(params.beta >= 0) || !std::isfinite(params.beta)) throw InputError("--beta must be >= 0 and finite");
+  if (!params.cell_weight.empty()) {
+    LP_CHECK(static_cast<int>(params.cell_weight.size()) == problem.unknown_cells, "one weight per unknown cell");
+    for (double w : params.cell_weight) LP_CHECK(w >= 0 && std::isfinite(w), "cell weights must be finite, >= 0");
+  }
   std::vector<double> aty;
   p_.MultiplyTransposed(p_.y, &aty);
   for (double v : aty) kkt_scale_ = std::max(kkt_scale_, std::abs(v));
@@ -91,7 +95,7 @@ double Objective::Penalty(const std::vector<double>& lambda) const {
   double penalty = 0;
   if (params_.alpha > 0)
     for (int j = 0; j < p_.unknown_cells; ++j)
-      penalty += params_.alpha * std::log1p(params_.beta * (lambda[3 * j] + lambda[3 * j + 1] + lambda[3 * j + 2]));
+      penalty += Alpha(j) * std::log1p(params_.beta * (lambda[3 * j] + lambda[3 * j + 1] + lambda[3 * j + 2]));
   return penalty;
 }
 
@@ -156,7 +160,7 @@ double Objective::ValueAndGradient(const std::vector<double>& lambda, std::vecto
                                    std::vector<double>* residual) const {
   const double e = DataPass(lambda, residual, gradient) + Penalty(lambda);
   for (int j = 0; j < p_.unknown_cells; ++j) {
-    const double pen = params_.alpha * params_.beta /
+    const double pen = Alpha(j) * params_.beta /
                        (1 + params_.beta * (lambda[3 * j] + lambda[3 * j + 1] + lambda[3 * j + 2]));
     for (int c = 0; c < 3; ++c) (*gradient)[3 * j + c] = -(*gradient)[3 * j + c] + pen;
   }

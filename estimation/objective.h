@@ -1,6 +1,6 @@
 #pragma once
 /// The estimation objective (paper Eq. 10-13) on a fixed light-transport matrix:
-///   E(lambda) = sum_{p,c} rho_sigma(y_pc - (A lambda)_pc) + sum_j alpha*log(1 + beta*sum_c lambda_jc),
+///   E(lambda) = sum_{p,c} rho_sigma(y_pc - (A lambda)_pc) + sum_j alpha_j*log(1 + beta*sum_c lambda_jc),
 ///   rho_sigma(r) = sigma^2/2 * log(1 + r^2/sigma^2)  (Cauchy),  lambda >= 0.
 /// All quantities are in normalized units (observations divided by their mean).
 #include <array>
@@ -15,6 +15,10 @@ struct ObjectiveParams {
   double sigma = 0.5;  ///< Cauchy scale (normalized intensity units)
   double alpha = 3.0;  ///< activation penalty weight (normalized units: observations / their mean)
   double beta = 1.0;   ///< activation penalty sharpness
+  /// Per unknown cell (compact index): a multiplier of alpha for that cell; empty = 1.
+  /// The estimator passes each cell's solid angle over a reference one, so the penalty
+  /// approximates an integral over the sphere and does not change with the ring count.
+  std::vector<double> cell_weight;
 };
 
 /// A with the unreachable columns removed, in row (CSR) and column (CSC) form,
@@ -55,8 +59,10 @@ class Objective {
   /// receives y - A lambda, `adjoint` (optional) A^T psi(y - A lambda), psi = rho'.
   double DataPass(const std::vector<double>& lambda, std::vector<double>* residual,
                   std::vector<double>* adjoint) const;
-  /// The activation penalty sum_j alpha*log(1 + beta*sum_c lambda_jc).
+  /// The activation penalty sum_j alpha_j*log(1 + beta*sum_c lambda_jc).
   double Penalty(const std::vector<double>& lambda) const;
+  /// alpha_j: alpha times the cell's weight.
+  double Alpha(int j) const { return params_.cell_weight.empty() ? params_.alpha : params_.alpha * params_.cell_weight[j]; }
   /// Root mean square of the residual y - A lambda over all rows and channels.
   double Rmse(const std::vector<double>& lambda) const;
   /// Largest violation of the KKT conditions at lambda (>= 0), as the natural residual

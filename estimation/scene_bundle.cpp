@@ -92,6 +92,12 @@ SceneBundle ParseSceneJson(const std::string& text, const std::string& name) {
     View view;
     if (!v.contains("image") || !v["image"].is_string()) throw InputError(name, where + " lacks \"image\"");
     view.image_file = v["image"].get<std::string>();
+    if (v.contains("saturation")) {
+      if (!v["saturation"].is_number() || !(v["saturation"].get<double>() > 0) ||
+          !std::isfinite(v["saturation"].get<double>()))
+        throw InputError(name, where + " \"saturation\" must be a positive number");
+      view.saturation = v["saturation"].get<double>();
+    }
     if (v.contains("mask")) {
       if (!v["mask"].is_string()) throw InputError(name, where + " \"mask\" must be a string");
       view.mask_file = v["mask"].get<std::string>();
@@ -127,6 +133,25 @@ SceneBundle ParseSceneJson(const std::string& text, const std::string& name) {
   return b;
 }
 
+void MarkUnusablePixels(View* view) {
+  View& v = *view;
+  if (v.valid.size() != v.image.pixels()) v.valid.assign(v.image.pixels(), 1);
+  for (std::size_t i = 0; i < v.image.pixels(); ++i) {
+    if (!v.valid[i]) continue;
+    const float* p = &v.image.data[3 * i];
+    if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) {
+      v.valid[i] = 0;
+      ++v.non_finite;
+    } else if (p[0] < 0 || p[1] < 0 || p[2] < 0) {
+      v.valid[i] = 0;
+      ++v.negative;
+    } else if (p[0] >= v.saturation || p[1] >= v.saturation || p[2] >= v.saturation) {
+      v.valid[i] = 0;
+      ++v.saturated;
+    }
+  }
+}
+
 SceneBundle LoadSceneBundle(const fs::path& dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw InputError(dir.string(), "scene directory not found");
@@ -138,7 +163,10 @@ SceneBundle LoadSceneBundle(const fs::path& dir) {
   b.degenerate_triangles_removed = SanitizeMesh(&b.mesh, mesh_path.string());
   for (View& v : b.views) {
     const fs::path ip = dir / v.image_file;
-    v.image = ReadImageLinear(ip);
+    ImageEncoding encoding = ImageEncoding::kLinearFloat;
+    v.image = ReadImageLinear(ip, &encoding);
+    // An integer image is clipped at its top code unless scene.json says otherwise.
+    if (!std::isfinite(v.saturation) && encoding != ImageEncoding::kLinearFloat) v.saturation = 1.0;
     if (v.image.width != v.camera.width || v.image.height != v.camera.height)
       throw InputError(ip.string(), "image is " + std::to_string(v.image.width) + "x" +
                                         std::to_string(v.image.height) + " but scene.json says " +
@@ -152,12 +180,7 @@ SceneBundle LoadSceneBundle(const fs::path& dir) {
       for (std::size_t i = 0; i < m.data.size(); ++i)
         if (!m.data[i]) { v.valid[i] = 0; ++v.masked_out; }
     }
-    for (std::size_t i = 0; i < v.image.pixels(); ++i) {
-      if (!v.valid[i]) continue;
-      const float* p = &v.image.data[3 * i];
-      if (!std::isfinite(p[0]) || !std::isfinite(p[1]) || !std::isfinite(p[2])) { v.valid[i] = 0; ++v.non_finite; }
-      else if (p[0] < 0 || p[1] < 0 || p[2] < 0) { v.valid[i] = 0; ++v.negative; }
-    }
+    MarkUnusablePixels(&v);
   }
   const fs::path truth = dir / "truth.json";
   if (fs::exists(truth, ec)) b.truth_json = ReadTextFile(truth);
@@ -190,6 +213,7 @@ void WriteSceneBundle(const fs::path& dir, const SceneBundle& bundle) {
         for (std::size_t i = 0; i < v.valid.size(); ++i) m.data[i] = v.valid[i] ? 255 : 0;
         WriteMask(tmp / jv["mask"].get<std::string>(), m);
       }
+      if (std::isfinite(v.saturation)) jv["saturation"] = v.saturation;
       jv["width"] = c.width;
       jv["height"] = c.height;
       jv["fx"] = c.fx; jv["fy"] = c.fy; jv["cx"] = c.cx; jv["cy"] = c.cy;

@@ -3,6 +3,7 @@
 /// reconstruction and estimation. Readers accept exactly the documented format;
 /// the writer writes exactly it.
 #include <filesystem>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -39,10 +40,18 @@ struct View {
   ImageRGB image;               ///< linear RGB
   std::vector<std::uint8_t> valid;  ///< width*height, 1 = use
   std::string image_file, mask_file;  ///< as named in scene.json (relative)
+  /// Pixels with any channel at or above this are clipped by the camera and not used
+  /// (scene.json "saturation"; an 8-bit or 16-bit PNG defaults to its top code, 1.0).
+  double saturation = std::numeric_limits<double>::infinity();
   int masked_out = 0;   ///< pixels excluded by the mask
   int non_finite = 0;   ///< pixels excluded for NaN/Inf
   int negative = 0;     ///< pixels excluded for negative values
+  int saturated = 0;    ///< pixels excluded for reaching `saturation`
 };
+
+/// Clears `valid` for the pixels of `view` that are non-finite, negative or saturated (in
+/// any channel) and adds them to the counts; pixels already invalid are not counted again.
+void MarkUnusablePixels(View* view);
 
 struct SceneBundle {
   std::filesystem::path dir;

@@ -25,11 +25,50 @@ const char* ToString(SolverKind kind) { return kind == SolverKind::kFast ? "fast
 // ---------------------------------------------------------------------------------------------
 // NNQP: min 0.5 x'Gx - b'x, x >= 0.
 
+/// G x for a column-major dense G, touching only the columns where x is non-zero: the
+/// estimates are sparse (the penalty turns most cells off), so this is far cheaper than
+/// the dense product when there are thousands of cells.
+template <typename Mat, typename Vec>
+Eigen::VectorXd SparseTimes(const Mat& G, const Vec& x) {
+  Eigen::VectorXd out = Eigen::VectorXd::Zero(G.rows());
+  for (Eigen::Index j = 0; j < x.size(); ++j)
+    if (x[j] != 0) out.noalias() += x[j] * G.col(j);
+  return out;
+}
+
 /// Solves NNQPs that share one matrix G, caching the Cholesky factor of the last
 /// passive set: successive solves of an MM run mostly keep their support.
 class NnqpSolver {
  public:
-  NnqpSolver(const double* G, int n) : G_(G, n, n), n_(n) {}
+  /// Largest support solved exactly by the active-set phase.
+  static constexpr int kMaxExactSupport = 256;
+
+  NnqpSolver(const double* G, int n) : G_(G, n, n), n_(n) {
+    // With thousands of cells most pairs share no path and G is mostly zeros: keep each
+    // column's non-zero rows so coordinate updates cost O(non-zeros), not O(n).
+    if (n < 256) return;
+    std::size_t nnz = 0;
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i) nnz += G_(i, j) != 0;
+    if (nnz > static_cast<std::size_t>(n) * n / 4) return;
+    nonzero_rows_.resize(n);
+    for (int j = 0; j < n; ++j)
+      for (int i = 0; i < n; ++i)
+        if (G_(i, j) != 0) nonzero_rows_[j].push_back(i);
+  }
+
+  /// G x, touching only the non-zeros of x (and of G when it is sparse).
+  template <typename Vec>
+  Eigen::VectorXd Times(const Vec& x) const {
+    if (nonzero_rows_.empty()) return SparseTimes(G_, x);
+    Eigen::VectorXd out = Eigen::VectorXd::Zero(n_);
+    for (int j = 0; j < n_; ++j) {
+      if (x[j] == 0) continue;
+      const double* col = G_.data() + static_cast<std::size_t>(j) * n_;
+      for (int r : nonzero_rows_[j]) out[r] += x[j] * col[r];
+    }
+    return out;
+  }
 
   /// Warm-started from x. `exact` = false: coordinate descent sweeps only (an
   /// approximate minimizer, enough for a candidate that is checked afterwards).
@@ -50,8 +89,16 @@ class NnqpSolver {
       return 0;
     }
     // 1. Projected coordinate descent to find the support cheaply.
-    Eigen::VectorXd g = G_ * x - b;
-    for (int sweep = 0; sweep < 30; ++sweep) {
+    Eigen::VectorXd g = Times(x) - b;
+    int support = 0;
+    for (int i = 0; i < n; ++i) support += x[i] > 0;
+    // A wide support (thousands of near-collinear cells, e.g. 61 rings at 4 spp) would make
+    // the active-set phase cost O(support^3) per factorization: descend to a tight tolerance
+    // instead (each sweep O(n^2), never increasing the quadratic).
+    const bool wide = exact && support > kMaxExactSupport;
+    const int sweeps = wide ? 2000 : 30;
+    const double stop = wide ? 1e-10 : 1e-6;
+    for (int sweep = 0; sweep < sweeps; ++sweep) {
       double change = 0, xmax = 0;
       for (int i = 0; i < n; ++i) {
         const double d = G_(i, i);
@@ -59,16 +106,26 @@ class NnqpSolver {
         const double xi = std::max(0.0, x[i] - g[i] / d);
         const double delta = xi - x[i];
         if (delta != 0) {
-          g += delta * G_.col(i);
+          if (nonzero_rows_.empty()) {
+            g += delta * G_.col(i);
+          } else {
+            const double* col = G_.data() + static_cast<std::size_t>(i) * n;
+            for (int r : nonzero_rows_[i]) g[r] += delta * col[r];
+          }
           x[i] = xi;
           change = std::max(change, std::abs(delta));
         }
         xmax = std::max(xmax, x[i]);
       }
-      if (change <= 1e-6 * xmax) break;
+      if (change <= stop * xmax) break;
       if (!exact && sweep >= 4) break;
+      if (exact && !wide && sweep == 29) {  // the support grew wide while descending
+        support = 0;
+        for (int i = 0; i < n; ++i) support += x[i] > 0;
+        if (support > kMaxExactSupport) return Solve(bp, xp, exact);
+      }
     }
-    if (!exact) return 0;
+    if (!exact || wide) return 0;
     // 2. Active set (Lawson-Hanson on the Gram form), warm-started from the support.
     const double tol = 1e-12 * std::max(bscale, dscale);
     std::vector<char> passive(n, 0);
@@ -105,7 +162,7 @@ class NnqpSolver {
         passive[blocking] = 0;
       }
       // Optimality: the most negative gradient among the active (zero) variables.
-      g = G_ * x - b;
+      g = Times(x) - b;
       int add = -1;
       double most = -tol;
       for (int i = 0; i < n; ++i)
@@ -146,6 +203,7 @@ class NnqpSolver {
 
   Eigen::Map<const Eigen::MatrixXd> G_;
   int n_;
+  std::vector<std::vector<int>> nonzero_rows_;  ///< per column, when G is sparse
   std::vector<int> P_, cached_P_{-1};
   Eigen::LLT<Eigen::MatrixXd> llt_;
   Eigen::LDLT<Eigen::MatrixXd> ldlt_;
@@ -312,7 +370,7 @@ class MajorizeMinimize {
       Eigen::Map<const Eigen::MatrixXd> Gm(G_[c].data(), L_, L_);
       Eigen::VectorXd x0(L_);
       for (int j = 0; j < L_; ++j) x0[j] = lambda[3 * j + c];
-      const Eigen::VectorXd gx = Gm * x0;
+      const Eigen::VectorXd gx = qp_[c]->Times(x0);
       b0_[c].resize(L_);
       for (int j = 0; j < L_; ++j) b0_[c][j] = gx[j] + h[3 * j + c];
     }
@@ -327,7 +385,7 @@ class MajorizeMinimize {
     for (int c = 0; c < 3; ++c) {
       Eigen::Map<const Eigen::MatrixXd> Gm(G_[c].data(), L_, L_);
       for (int j = 0; j < L_; ++j) d[j] = x[3 * j + c] - centre_[3 * j + c];
-      m += 0.5 * d.dot(Gm * d);
+      m += 0.5 * d.dot(qp_[c]->Times(d));
       for (int j = 0; j < L_; ++j) m -= h_[3 * j + c] * d[j];
     }
     return m + obj_.Penalty(x) - penalty_centre_;
@@ -342,7 +400,7 @@ class MajorizeMinimize {
     for (int step = 0; step < max_steps; ++step) {
       for (int c = 0; c < 3; ++c) {
         for (int j = 0; j < L_; ++j) {
-          const double cost = weight * prm_.alpha * prm_.beta / (1 + prm_.beta * (x[3 * j] + x[3 * j + 1] + x[3 * j + 2]));
+          const double cost = weight * obj_.Alpha(j) * prm_.beta / (1 + prm_.beta * (x[3 * j] + x[3 * j + 1] + x[3 * j + 2]));
           bc[j] = b0_[c][j] - cost;
           xc[j] = x[3 * j + c];
         }

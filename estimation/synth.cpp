@@ -10,8 +10,11 @@
 #include "common/error.h"
 #include "common/parallel.h"
 #include "common/rng.h"
+#include "common/image_io.h"
+#include "estimation/path_tracer.h"
 #include "estimation/ray_tracer.h"
 #include "estimation/sampling.h"
+#include "estimation/truth.h"
 
 namespace lp {
 namespace fs = std::filesystem;
@@ -111,8 +114,9 @@ Vector3d DirectFromSpheres(const RayTracer& scene, const SurfacePoint& hit, cons
 }  // namespace
 
 std::vector<ImageRGB> RenderSphereLights(const Mesh& mesh, const std::vector<View>& views,
-                                         const std::vector<SphereLight>& lights, const SynthOptions& o) {
+                                         const SynthLighting& lighting, const SynthOptions& o) {
   RayTracer scene(mesh);
+  const std::vector<SphereLight>& lights = lighting.lights;
   std::vector<ImageRGB> out;
   for (std::size_t v = 0; v < views.size(); ++v) {
     const Camera& cam = views[v].camera;
@@ -133,7 +137,11 @@ std::vector<ImageRGB> RenderSphereLights(const Mesh& mesh, const std::vector<Vie
           T = T.cwiseProduct(hit.albedo);
           if (hit.geometric.dot(w) <= 0) break;
           SurfacePoint next;
-          if (!scene.Intersect(off, w, &next)) break;
+          if (!scene.Intersect(off, w, &next)) {
+            // Escaped: the sky (BSDF-sampled; the sphere lights are reached by NEE only).
+            if (lighting.sky) acc += T.cwiseProduct(lighting.sky(w));
+            break;
+          }
           if (bounce >= 1) {
             const double q = std::min(0.95, T.maxCoeff());
             if (rng.Uniform() >= q) break;
@@ -154,20 +162,82 @@ std::vector<std::pair<std::string, std::string>> SynthSceneList() {
   return {{"one-light", "room corner with boxes and a sphere, one spherical light 200 m away (5.7 degrees)"},
           {"two-light", "the same room, a warm key light and a cool fill light"},
           {"near-light", "the same room, one small light 0.6 m from the scene centre (far-light model under stress)"},
+          {"sun-and-sky", "the same room under a 0.53-degree sun and a sky giving 1/1000 of its irradiance"},
+          {"env-studio", "the same room lit by the real HDR map studio_small_03 (small bright softboxes)"},
+          {"env-sunset", "the same room lit by the real HDR map venice_sunset (low sun, bright sky)"},
           {"frag115", "the real reconstructed mesh shared/data/mesh/frag_115.ply under one spherical light"}};
 }
 
+std::vector<double> TrueCellRadiance(const SynthLighting& lighting, const EnvMap& env) {
+  if (!lighting.far) return {};
+  std::vector<double> out(3 * env.size(), 0.0);
+  if (lighting.equirect.pixels() > 0) out = env.FromEquirect(lighting.equirect, 256);
+  if (lighting.sky) {
+    const int s = 12;
+    for (int j = 0; j < env.size(); ++j) {
+      Vector3d sum = Vector3d::Zero();
+      for (int a = 0; a < s; ++a)
+        for (int b = 0; b < s; ++b) sum += lighting.sky(env.SampleInCell(j, (a + 0.5) / s, (b + 0.5) / s));
+      for (int c = 0; c < 3; ++c) out[3 * j + c] += sum[c] / (s * s);
+    }
+  }
+  for (const SphereLight& l : lighting.lights) {
+    // All of the light's power lands in the cell of its centre direction (lights here are
+    // far smaller than a cell): radiance times the solid angle it subtends, over the cell's.
+    const Vector3d to = l.position - lighting.center;
+    const double d = to.norm();
+    const double omega = 2 * kPi * (1 - std::sqrt(std::max(0.0, 1 - l.radius * l.radius / (d * d))));
+    const int j = env.Lookup(to);
+    const Vector3d L = l.Radiance();
+    for (int c = 0; c < 3; ++c) out[3 * j + c] += L[c] * omega / env.solid_angle(j);
+  }
+  return out;
+}
+
+namespace {
+
+/// A smooth sky above the horizon (brighter towards the zenith, slightly blue), scaled so
+/// its irradiance on a surface facing up is `irradiance`.
+std::function<Vector3d(const Vector3d&)> Sky(const Vector3d& up, double irradiance) {
+  // L(theta) = L0 (1 + 2 cos theta) / 3: E = 2 pi L0 (1/2 + 2/3) / 3 = 7 pi L0 / 9.
+  const double L0 = irradiance * 9 / (7 * kPi);
+  const Vector3d tint(0.8, 0.9, 1.2);
+  return [=](const Vector3d& w) -> Vector3d {
+    const double c = up.dot(w.normalized());
+    if (c <= 0) return Vector3d::Zero();
+    return tint * (L0 * (1 + 2 * c) / 3);
+  };
+}
+
+/// The fitted view and, when asked, a held-out one (another viewpoint of the same scene).
+std::vector<Camera> RoomCameras(const SynthOptions& o, const Vector3d& up) {
+  std::vector<Camera> c = {Camera::LookAt({3.3, 2.9, 1.7}, {0.9, 0.9, 0.45}, up, o.width, o.height, 60)};
+  if (o.held_out_views > 0) c.push_back(Camera::LookAt({1.1, 3.7, 1.4}, {1.2, 0.9, 0.4}, up, o.width, o.height, 60));
+  return c;
+}
+
+}  // namespace
+
 SceneBundle MakeSynthScene(const std::string& name, const SynthOptions& o, const fs::path& data_dir) {
+  return MakeSynth(name, o, data_dir).bundle;
+}
+
+SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::path& data_dir) {
   if (o.width < 8 || o.height < 8 || o.width > 4096 || o.height > 4096) throw InputError("synth: bad image size");
-  SceneBundle b;
-  std::vector<SphereLight> lights;
-  Vector3d center;
-  Camera cam;
-  if (name == "one-light" || name == "two-light" || name == "near-light") {
+  if (o.held_out_views < 0 || o.held_out_views > 1) throw InputError("synth: held-out views must be 0 or 1");
+  SynthScene scene_out;
+  SceneBundle& b = scene_out.bundle;
+  SynthLighting& lighting = scene_out.lighting;
+  std::vector<SphereLight>& lights = lighting.lights;
+  Vector3d& center = lighting.center;
+  std::vector<Camera> cams;
+  const bool room = name == "one-light" || name == "two-light" || name == "near-light" || name == "sun-and-sky" ||
+                    name == "env-studio" || name == "env-sunset";
+  if (room) {
     b.mesh = RoomCorner();
     b.up = Vector3d::UnitZ();
     center = Vector3d(1.1, 1.1, 0.5);
-    cam = Camera::LookAt({3.3, 2.9, 1.7}, {0.9, 0.9, 0.45}, b.up, o.width, o.height, 60);
+    cams = RoomCameras(o, b.up);
     if (name == "one-light") {
       // Far (200 m, 20 m radius: 5.7 degrees): the light's distance varies by < 1.5 % over
       // the room, so the environment-map model holds; near-light stresses it instead.
@@ -175,11 +245,21 @@ SceneBundle MakeSynthScene(const std::string& name, const SynthOptions& o, const
     } else if (name == "two-light") {
       lights.push_back(LightAt(center, Direction(15, 45), 200, 20.0, {1.0, 0.85, 0.65}, 2.5));
       lights.push_back(LightAt(center, Direction(80, 30), 200, 20.0, {0.55, 0.7, 1.0}, 1.2));
-    } else {
+    } else if (name == "near-light") {
       lights.push_back(LightAt(center, Direction(40, 55), 0.6, 0.05, {1.0, 0.95, 0.85}, 1.0));
+      lighting.far = false;
+    } else if (name == "sun-and-sky") {
+      // The sun: 0.53 degrees across, 10 km away (parallel over the room); irradiance 3
+      // facing it, the sky 1000x less on a surface facing up.
+      lights.push_back(LightAt(center, Direction(35, 40), 1e4, 1e4 * std::tan(0.265 * kPi / 180), {1.0, 0.97, 0.9},
+                               3.0));
+      lighting.sky = Sky(b.up, 3.0 / 1000);
+    } else {
+      const fs::path hdr = data_dir / "hdri" / (name == "env-studio" ? "studio_small_03_1k.hdr" : "venice_sunset_1k.hdr");
+      lighting.equirect = ReadHdr(hdr);
     }
   } else if (name == "frag115") {
-    const fs::path ply = data_dir / "frag_115.ply";
+    const fs::path ply = data_dir / "mesh" / "frag_115.ply";
     b.mesh = ReadPly(ply);
     SanitizeMesh(&b.mesh, ply.string());
     // The fragment is in its first camera's frame (OpenCV: y down), so up is -y.
@@ -188,24 +268,60 @@ SceneBundle MakeSynthScene(const std::string& name, const SynthOptions& o, const
     MeshBounds(b.mesh, &lo, &hi);
     center = (0.5f * (lo + hi)).cast<double>();
     const double extent = (hi - lo).cast<double>().norm();
-    cam = Camera::LookAt(Vector3d(center.x(), center.y() - 0.15 * extent, lo.z() - 0.35 * extent), center, b.up, o.width,
-                 o.height, 60);
+    cams.push_back(Camera::LookAt(Vector3d(center.x(), center.y() - 0.15 * extent, lo.z() - 0.35 * extent), center,
+                                  b.up, o.width, o.height, 60));
+    if (o.held_out_views > 0)
+      cams.push_back(Camera::LookAt(
+          Vector3d(center.x() + 0.3 * extent, center.y() - 0.2 * extent, lo.z() - 0.3 * extent), center, b.up,
+          o.width, o.height, 60));
     const Vector3d dir = (-Vector3d::UnitY() * 1.2 + Vector3d(0.4, 0, -0.6)).normalized();
-    lights.push_back(LightAt(center, dir, 4 * extent, 0.05 * extent, {1.0, 0.95, 0.85}, 3.0));
+    // 50 extents away (0.7 degrees across): far, so the environment-map model holds.
+    lights.push_back(LightAt(center, dir, 50 * extent, 0.6 * extent, {1.0, 0.95, 0.85}, 3.0));
   } else {
     std::string names;
     for (const auto& [n, d] : SynthSceneList()) names += (names.empty() ? "" : ", ") + n;
     throw InputError("unknown synthetic scene '" + name + "' (available: " + names + ")");
   }
   SanitizeMesh(&b.mesh, name);
-  View view;
-  view.camera = cam;
-  b.views.push_back(view);
-  std::vector<ImageRGB> images = RenderSphereLights(b.mesh, b.views, lights, o);
-  // Mask: pixels whose centre ray hits the geometry (as a reconstruction would give).
+  for (const Camera& cam : cams) {
+    View view;
+    view.camera = cam;
+    b.views.push_back(view);
+  }
   RayTracer scene(b.mesh);
+  std::vector<ImageRGB> images;
+  nlohmann::json t;
+  t["scene"] = name;
+  t["scene_center"] = {center.x(), center.y(), center.z()};
+  t["lights"] = nlohmann::json::array();
+  if (lighting.equirect.pixels() > 0) {
+    // A measured map has no analytic sampler here: it is integrated over a fine grid (91
+    // rings, ~2 degree cells, 20x finer than the estimator's default) and rendered by the
+    // path tracer with importance sampling by cell power.
+    const EnvMap fine(91, b.up);
+    const std::vector<double> L = fine.FromEquirect(lighting.equirect, 64);
+    TracerOptions to;
+    to.spp = o.spp;
+    to.bounces = o.bounces;
+    to.seed = o.seed;
+    to.min_throughput = 0;
+    const CellSampler sampler(fine, L, {}, 0.05);
+    images = RenderEnvironment(scene, fine, b.views, L, sampler, to, true);
+    for (const Vector3d& d : DominantDirections(fine, L, 2)) {
+      double power = 0;
+      for (int j = 0; j < fine.size(); ++j)
+        if (AngleDeg(fine.direction(j), d) < 15)
+          power += Luminance(L[3 * j], L[3 * j + 1], L[3 * j + 2]) * fine.solid_angle(j);
+      t["lights"].push_back({{"type", "environment"}, {"direction", {d.x(), d.y(), d.z()}}, {"weight", power}});
+    }
+    t["environment_map"] = name == "env-studio" ? "studio_small_03_1k.hdr" : "venice_sunset_1k.hdr";
+  } else {
+    images = RenderSphereLights(b.mesh, b.views, lighting, o);
+  }
+  // Mask: pixels whose centre ray hits the geometry (as a reconstruction would give).
   for (std::size_t v = 0; v < b.views.size(); ++v) {
     View& vw = b.views[v];
+    const Camera& cam = vw.camera;
     vw.image = std::move(images[v]);
     vw.valid.assign(vw.image.pixels(), 0);
     for (int y = 0; y < cam.height; ++y)
@@ -215,21 +331,19 @@ SceneBundle MakeSynthScene(const std::string& name, const SynthOptions& o, const
             scene.Intersect(vw.camera.center(), vw.camera.RayDirection(x, y), &hit) ? 1 : 0;
       }
   }
-  nlohmann::json t;
-  t["scene"] = name;
-  t["scene_center"] = {center.x(), center.y(), center.z()};
-  t["lights"] = nlohmann::json::array();
   for (const SphereLight& l : lights) {
     const Vector3d d = (l.position - center).normalized();
-    t["lights"].push_back({{"type", "sphere"},
+    t["lights"].push_back({{"type", name == "sun-and-sky" ? "sun" : "sphere"},
                            {"position", {l.position.x(), l.position.y(), l.position.z()}},
                            {"radius", l.radius},
                            {"rgb_power", {l.rgb_power.x(), l.rgb_power.y(), l.rgb_power.z()}},
                            {"distance", (l.position - center).norm()},
                            {"direction", {d.x(), d.y(), d.z()}}});
   }
+  if (lighting.sky) t["sky"] = {{"irradiance_up", 3.0 / 1000}, {"model", "(1 + 2 cos theta) / 3 above the horizon"}};
+  if (o.held_out_views > 0) t["held_out_views"] = o.held_out_views;
   b.truth_json = t.dump(2) + "\n";
-  return b;
+  return scene_out;
 }
 
 }  // namespace lp

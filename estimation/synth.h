@@ -3,11 +3,13 @@
 /// procedural geometry lit by spherical area lights (deliberately not the
 /// environment-map model), rendered by a path tracer with area-light support.
 #include <filesystem>
+#include <functional>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
+#include "estimation/envmap.h"
 #include "estimation/scene_bundle.h"
 
 namespace lp {
@@ -26,18 +28,47 @@ struct SynthOptions {
   int spp = 256;  ///< samples per pixel of the reference image
   int bounces = 4;
   std::uint64_t seed = 7;
+  /// Extra views from another viewpoint (0 or 1), appended after the fitted view: for
+  /// measuring relighting on a view the fit did not use.
+  int held_out_views = 0;
+};
+
+/// The true lighting of a synthetic scene, for evaluation (never read by the estimator).
+struct SynthLighting {
+  std::vector<SphereLight> lights;
+  /// Radiance arriving from the open sky along a world direction (none when empty); rendered
+  /// by BSDF sampling, it must be smooth.
+  std::function<Eigen::Vector3d(const Eigen::Vector3d&)> sky;
+  /// A measured HDR environment map in the EnvMap equirect convention around the scene's up
+  /// (empty when the scene is not lit by one).
+  ImageRGB equirect;
+  Eigen::Vector3d center = Eigen::Vector3d::Zero();  ///< where directions are measured from
+  /// False when the lights are so close that no environment map reproduces them (near-light).
+  bool far = true;
+};
+
+struct SynthScene {
+  SceneBundle bundle;
+  SynthLighting lighting;
 };
 
 /// Names of the built-in scenes with a one-line description each.
 std::vector<std::pair<std::string, std::string>> SynthSceneList();
 
 /// Builds and renders scene `name` (throws InputError for an unknown name).
-/// `data_dir` is where the real mesh for "frag115" is found (shared/data/mesh).
+/// `data_dir` is shared/data: the real mesh for "frag115" is read from data_dir/mesh,
+/// the HDR maps of the env-* scenes from data_dir/hdri.
+SynthScene MakeSynth(const std::string& name, const SynthOptions& options, const std::filesystem::path& data_dir);
 SceneBundle MakeSynthScene(const std::string& name, const SynthOptions& options,
                            const std::filesystem::path& data_dir);
 
-/// Renders `views` of `mesh` lit by `lights` (reference images; every pixel).
+/// The true lighting integrated over each cell of `env`: mean radiance per cell (3 per
+/// cell), as seen from the scene centre. Empty when the lighting is not far (near-light).
+std::vector<double> TrueCellRadiance(const SynthLighting& lighting, const EnvMap& env);
+
+/// Renders `views` of `mesh` lit by `lights` and the sky (reference images; every pixel).
+/// An equirect map in `lighting` is not used here (see MakeSynth).
 std::vector<ImageRGB> RenderSphereLights(const Mesh& mesh, const std::vector<View>& views,
-                                         const std::vector<SphereLight>& lights, const SynthOptions& options);
+                                         const SynthLighting& lighting, const SynthOptions& options);
 
 }  // namespace lp

@@ -94,4 +94,38 @@ double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lam
   return sum / n;
 }
 
+double RelativeImageRmse(const ImageRGB& image, const ImageRGB& reference, const std::vector<std::uint8_t>& valid) {
+  LP_CHECK(image.width == reference.width && image.height == reference.height, "image size mismatch");
+  double se = 0, sum = 0;
+  std::int64_t n = 0;
+  for (std::size_t p = 0; p < valid.size(); ++p) {
+    if (!valid[p]) continue;
+    for (int c = 0; c < 3; ++c) {
+      const double d = double(image.data[3 * p + c]) - reference.data[3 * p + c];
+      se += d * d;
+      sum += reference.data[3 * p + c];
+    }
+    n += 3;
+  }
+  if (n == 0 || !(sum > 0)) return std::nan("");
+  return std::sqrt(se / n) / (sum / n);
+}
+
+double EnvMapRelativeError(const EnvMap& env, const std::vector<double>& lambda, const std::vector<double>& truth,
+                           const std::vector<std::uint8_t>& left_out) {
+  if (truth.empty()) return std::nan("");
+  LP_CHECK(lambda.size() == truth.size() && truth.size() == 3 * static_cast<std::size_t>(env.size()),
+           "map size mismatch");
+  double num = 0, den = 0;
+  for (int j = 0; j < env.size(); ++j) {
+    if (!left_out.empty() && left_out[j]) continue;
+    for (int c = 0; c < 3; ++c) {
+      const double d = lambda[3 * j + c] - truth[3 * j + c];
+      num += env.solid_angle(j) * d * d;
+      den += env.solid_angle(j) * truth[3 * j + c] * truth[3 * j + c];
+    }
+  }
+  return den > 0 ? std::sqrt(num / den) : std::nan("");
+}
+
 }  // namespace lp

@@ -1,5 +1,6 @@
 #pragma once
 /// Ground truth (truth.json) for evaluation only, and the lighting error measures.
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -33,5 +34,15 @@ double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lam
                                const std::vector<TruthLight>& truth);
 
 double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
+
+/// Relative RMSE of `image` against a view's reference over its valid pixels:
+/// sqrt(mean squared difference) / mean reference value. NaN without valid pixels.
+double RelativeImageRmse(const ImageRGB& image, const ImageRGB& reference, const std::vector<std::uint8_t>& valid);
+
+/// Relative error of an estimated map against the true per-cell radiance (both 3 per cell):
+/// sqrt(sum_j Omega_j |l_j - t_j|^2 / sum_j Omega_j |t_j|^2) over the cells not left out
+/// (cells no path reached are unobservable; `left_out` may be empty). NaN if `truth` is empty.
+double EnvMapRelativeError(const EnvMap& env, const std::vector<double>& lambda, const std::vector<double>& truth,
+                           const std::vector<std::uint8_t>& left_out);
 
 }  // namespace lp

@@ -12,8 +12,11 @@ namespace {
 TEST(Objective, GradientMatchesCentralFiniteDifferences) {
   const auto rp = test::MakeRandomProblem(120, 20, 0.3, 0.2, 11);
   const LinearProblem p = MakeLinearProblem(rp.A, rp.y);
-  for (const ObjectiveParams prm : {ObjectiveParams{0.3, 0.5, 2.0}, ObjectiveParams{5.0, 0.0, 1.0},
-                                    ObjectiveParams{0.05, 2.0, 0.1}}) {
+  // The last case weights the penalty per cell (as the estimator does by solid angle).
+  std::vector<double> weights(p.unknown_cells);
+  for (int j = 0; j < p.unknown_cells; ++j) weights[j] = 0.3 + 0.1 * j;
+  for (const ObjectiveParams& prm : {ObjectiveParams{0.3, 0.5, 2.0, {}}, ObjectiveParams{5.0, 0.0, 1.0, {}},
+                                    ObjectiveParams{0.05, 2.0, 0.1, {}}, ObjectiveParams{2.0, 0.5, 1.5, weights}}) {
     const Objective obj(p, prm);
     std::vector<double> lambda(obj.unknowns());
     for (std::size_t i = 0; i < lambda.size(); ++i) lambda[i] = 0.2 + 0.05 * (i % 7);

@@ -35,7 +35,7 @@ void ExpectSane(const LoggedRun& run) {
 TEST(Solver, BothSolversReachTheSameObjective) {
   const auto rp = test::MakeRandomProblem(300, 30, 0.25, 0.05, 21);
   const LinearProblem p = MakeLinearProblem(rp.A, rp.y);
-  const Objective obj(p, ObjectiveParams{0.5, 0.01, 1.0});
+  const Objective obj(p, ObjectiveParams{0.5, 0.01, 1.0, {}});
   SolverOptions o;
   o.max_iterations = 500;
   o.relative_tolerance = 1e-14;
@@ -52,7 +52,7 @@ TEST(Solver, BothSolversReachTheSameObjective) {
 TEST(Solver, RecoversTheSparseAnswerWithoutNoise) {
   const auto rp = test::MakeRandomProblem(300, 30, 0.25, 0.0, 8);
   const LinearProblem p = MakeLinearProblem(rp.A, rp.y);
-  const Objective obj(p, ObjectiveParams{1.0, 0.0, 1.0});
+  const Objective obj(p, ObjectiveParams{1.0, 0.0, 1.0, {}});
   SolverOptions o;
   o.relative_tolerance = 1e-15;
   const LoggedRun fast = SolveLogged(SolverKind::kFast, obj, o);

@@ -61,7 +61,9 @@ TEST(Transport, CellBelowTheHorizonGivesExactlyZero) {
   const TransportMatrix A = TraceTransport(scene, env, views, CellSampler(env, {}, {}, 0.2), opt);
   const std::vector<int> counts = A.ColumnCounts();
   for (int j = 0; j < env.size(); ++j)
-    if (env.direction(j).z() < -0.2) EXPECT_EQ(counts[j], 0) << "cell " << j;
+    if (env.direction(j).z() < -0.2) {
+      EXPECT_EQ(counts[j], 0) << "cell " << j;
+    }
 }
 
 TEST(Transport, WhiteFurnaceConvexAlbedoOneIsUniform) {

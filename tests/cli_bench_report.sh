@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# bench-report end to end on a small run: report.md, a PNG and a CSV per plot, the table.
+set -eu
+exe="$1"
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+"$exe" bench-report --quick --sizes 40x30 --scenes one-light sun-and-sky --synth-spp 16 --eval-spp 8 \
+  --out "$out" >/dev/null
+for m in fitted_rmse relit_error light_angle envmap_error; do
+  for ext in png csv; do [ -s "$out/${m}_40x30.$ext" ] || { echo "missing ${m}_40x30.$ext"; exit 1; }; done
+  head -c 8 "$out/${m}_40x30.png" | od -An -tx1 | grep -q "89 50 4e 47 0d 0a 1a 0a" || { echo "${m}: not a PNG"; exit 1; }
+  head -1 "$out/${m}_40x30.csv" | grep -q "^scene,size,curve,setting,round,iteration,seconds,value" || exit 1
+  grep -q "(${m}_40x30.png)" "$out/report.md" || { echo "report.md does not embed ${m}"; exit 1; }
+done
+# Every method has rows in the CSV behind plot (a), and the table has a row per scene.
+for c in '"fast"' '"paper PGD"' '"FD Jacobian (extrapolated)"' '"fast: spp"' '"fast: rings"' '"fast: bounces"'; do
+  grep -q "$c" "$out/fitted_rmse_40x30.csv" || { echo "no $c in fitted_rmse_40x30.csv"; exit 1; }
+done
+for s in one-light sun-and-sky; do grep -q "^| $s | 40x30 |" "$out/report.md" || { echo "no table row for $s"; exit 1; }; done
+echo "bench-report ok"
