@@ -21,6 +21,23 @@ struct ImageRGB {
   const float* at(int x, int y) const { return &data[3 * (static_cast<std::size_t>(y) * width + x)]; }
 };
 
+/// 8-bit RGB as a camera or a file delivers it (sRGB-encoded), row-major, interleaved.
+/// Only at the edges of the pipeline: calibration turns it into linear ImageRGB.
+struct ImageRgb8 {
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint8_t> data;  ///< 3 * width * height
+  std::size_t pixels() const { return static_cast<std::size_t>(width) * height; }
+};
+
+/// Depth in millimetres, row-major; 0 = no measurement.
+struct DepthImage {
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint16_t> data;  ///< width * height
+  std::size_t pixels() const { return static_cast<std::size_t>(width) * height; }
+};
+
 /// Single-channel 8-bit mask; non-zero = use the pixel.
 struct Mask {
   int width = 0;

@@ -6,6 +6,7 @@
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include "common/atomic_file.h"
 #include "common/color.h"
@@ -189,6 +190,56 @@ void WritePng8(const fs::path& path, int width, int height, const std::vector<un
       for (int c = 0; c < 3; ++c)
         m.ptr<unsigned char>(y)[3 * x + (2 - c)] = rgb[3 * (static_cast<std::size_t>(y) * width + x) + c];
   WriteMat(path, m);
+}
+
+ImageRgb8 ReadRgb8(const fs::path& path) {
+  const cv::Mat m = ReadRaw(path, cv::IMREAD_UNCHANGED);
+  if (m.depth() != CV_8U) throw InputError(path.string(), "expected an 8-bit colour image");
+  cv::Mat rgb;
+  switch (m.channels()) {
+    case 1: cv::cvtColor(m, rgb, cv::COLOR_GRAY2RGB); break;
+    case 3: cv::cvtColor(m, rgb, cv::COLOR_BGR2RGB); break;
+    case 4: cv::cvtColor(m, rgb, cv::COLOR_BGRA2RGB); break;
+    default: throw InputError(path.string(), "unsupported channel count " + std::to_string(m.channels()));
+  }
+  ImageRgb8 out;
+  out.width = rgb.cols;
+  out.height = rgb.rows;
+  out.data.resize(out.pixels() * 3);
+  for (int y = 0; y < rgb.rows; ++y)
+    std::copy_n(rgb.ptr<std::uint8_t>(y), 3 * rgb.cols, &out.data[3 * static_cast<std::size_t>(y) * rgb.cols]);
+  return out;
+}
+
+DepthImage ReadDepth16(const fs::path& path, double to_millimetres) {
+  const cv::Mat m = ReadRaw(path, cv::IMREAD_ANYDEPTH | cv::IMREAD_ANYCOLOR);
+  if (m.depth() != CV_16U || m.channels() != 1)
+    throw InputError(path.string(), "expected a 16-bit single-channel depth image");
+  DepthImage out;
+  out.width = m.cols;
+  out.height = m.rows;
+  out.data.resize(out.pixels());
+  for (int y = 0; y < m.rows; ++y) {
+    const std::uint16_t* row = m.ptr<std::uint16_t>(y);
+    for (int x = 0; x < m.cols; ++x) {
+      const double mm = std::round(row[x] * to_millimetres);
+      out.data[static_cast<std::size_t>(y) * m.cols + x] = mm > 0 && mm <= 65535 ? static_cast<std::uint16_t>(mm) : 0;
+    }
+  }
+  return out;
+}
+
+void WriteRgb8Png(const fs::path& path, const ImageRgb8& image) {
+  LP_CHECK(image.data.size() == image.pixels() * 3, "size mismatch");
+  cv::Mat rgb(image.height, image.width, CV_8UC3, const_cast<std::uint8_t*>(image.data.data())), bgr;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  WriteMat(path, bgr);
+}
+
+void WriteDepth16Png(const fs::path& path, const DepthImage& image) {
+  LP_CHECK(image.data.size() == image.pixels(), "size mismatch");
+  cv::Mat m(image.height, image.width, CV_16UC1, const_cast<std::uint16_t*>(image.data.data()));
+  WriteMat(path, m.clone());
 }
 
 void WriteMask(const fs::path& path, const Mask& mask) {

@@ -23,6 +23,17 @@ Mask ReadMask(const std::filesystem::path& path);
 ImageRGB DecodeImageLinear(const std::string& bytes, const std::string& name, ImageEncoding* encoding = nullptr);
 Mask DecodeMask(const std::string& bytes, const std::string& name);
 
+/// Reads an 8-bit colour image (PNG, JPEG, PPM; grey is expanded, alpha dropped) as it is
+/// stored: sRGB-encoded RGB. Throws InputError for other depths.
+ImageRgb8 ReadRgb8(const std::filesystem::path& path);
+/// Reads a 16-bit single-channel depth image (PNG or PGM) and multiplies each value by
+/// `to_millimetres` (1 for millimetre files, 0.2 for TUM's 5000-per-metre files),
+/// rounding; values that do not fit in uint16 become 0 (invalid).
+DepthImage ReadDepth16(const std::filesystem::path& path, double to_millimetres = 1.0);
+/// Writers for the same (PNG, atomically).
+void WriteRgb8Png(const std::filesystem::path& path, const ImageRgb8& image);
+void WriteDepth16Png(const std::filesystem::path& path, const DepthImage& image);
+
 /// Reads a Radiance .hdr (RGBE) environment map as linear RGB.
 ImageRGB ReadHdr(const std::filesystem::path& path);
 

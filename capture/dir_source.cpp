@@ -1,0 +1,316 @@
+// Directories of RGB-D frames: TUM RGB-D, Redwood / Open3D and joinMap (slambook) layouts.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+
+#include "capture/frame_source.h"
+#include "common/atomic_file.h"
+#include "common/error.h"
+#include "common/image_io.h"
+
+namespace lp {
+namespace fs = std::filesystem;
+
+const char* ToString(SourceStatus s) {
+  switch (s) {
+    case SourceStatus::kFrame: return "frame";
+    case SourceStatus::kEnd: return "end of stream";
+    case SourceStatus::kTimeout: return "timeout";
+    case SourceStatus::kDeviceLost: return "device lost";
+  }
+  return "?";
+}
+
+namespace {
+
+struct Entry {
+  fs::path color, depth;
+  double color_time = 0, depth_time = 0;
+  std::optional<Eigen::Matrix4d> pose;
+};
+
+/// Non-comment, non-empty lines of a text file, split on whitespace.
+std::vector<std::vector<std::string>> ReadTable(const fs::path& path) {
+  std::istringstream in(ReadTextFile(path));
+  std::vector<std::vector<std::string>> rows;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const auto first = line.find_first_not_of(" \t");
+    if (first == std::string::npos || line[first] == '#') continue;
+    std::istringstream ls(line);
+    std::vector<std::string> cols;
+    for (std::string c; ls >> c;) cols.push_back(c);
+    rows.push_back(cols);
+  }
+  return rows;
+}
+
+double ParseNumber(const std::string& s, const fs::path& file, std::size_t line) {
+  try {
+    std::size_t used = 0;
+    const double v = std::stod(s, &used);
+    if (used == s.size() && std::isfinite(v)) return v;
+  } catch (const std::exception&) {
+  }
+  throw InputError(file.string(), "line " + std::to_string(line) + ": '" + s + "' is not a number");
+}
+
+std::optional<Intrinsics> IntrinsicsJson(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return std::nullopt;
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(ReadTextFile(path));
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(path.string(), std::string("malformed JSON: ") + e.what());
+  }
+  Intrinsics k;
+  auto num = [&](const nlohmann::json& v) {
+    if (!v.is_number()) throw InputError(path.string(), "intrinsics must be numbers");
+    return v.get<double>();
+  };
+  if (j.contains("intrinsic_matrix")) {  // Open3D: 3x3 column-major, plus width/height
+    const auto& m = j["intrinsic_matrix"];
+    if (!m.is_array() || m.size() != 9) throw InputError(path.string(), "\"intrinsic_matrix\" must have 9 numbers");
+    k.fx = num(m[0]);
+    k.fy = num(m[4]);
+    k.cx = num(m[6]);
+    k.cy = num(m[7]);
+  } else {
+    for (const char* key : {"fx", "fy", "cx", "cy"})
+      if (!j.contains(key)) throw InputError(path.string(), std::string("missing \"") + key + "\"");
+    k.fx = num(j["fx"]);
+    k.fy = num(j["fy"]);
+    k.cx = num(j["cx"]);
+    k.cy = num(j["cy"]);
+  }
+  if (j.contains("width")) k.width = static_cast<int>(num(j["width"]));
+  if (j.contains("height")) k.height = static_cast<int>(num(j["height"]));
+  if (!(k.fx > 0) || !(k.fy > 0)) throw InputError(path.string(), "focal lengths must be positive");
+  return k;
+}
+
+Intrinsics PrimeSenseDefault() { return {640, 480, 525.0, 525.0, 319.5, 239.5}; }
+
+void RequireFile(const fs::path& p, const fs::path& index) {
+  std::error_code ec;
+  if (!fs::is_regular_file(p, ec)) throw InputError(index.string(), "names a missing file: " + p.string());
+}
+
+std::vector<Entry> LoadTum(const fs::path& dir) {
+  std::vector<Entry> out;
+  const fs::path assoc = dir / "associations.txt";
+  std::error_code ec;
+  if (fs::exists(assoc, ec)) {
+    std::size_t line = 0;
+    for (const auto& r : ReadTable(assoc)) {
+      ++line;
+      if (r.size() < 4) throw InputError(assoc.string(), "line " + std::to_string(line) + ": expected 4 columns");
+      Entry e;
+      e.color_time = ParseNumber(r[0], assoc, line);
+      e.color = dir / r[1];
+      e.depth_time = ParseNumber(r[2], assoc, line);
+      e.depth = dir / r[3];
+      out.push_back(e);
+    }
+    return out;
+  }
+  auto read_list = [&](const fs::path& f) {
+    std::vector<std::pair<double, fs::path>> v;
+    std::size_t line = 0;
+    for (const auto& r : ReadTable(f)) {
+      ++line;
+      if (r.size() < 2) throw InputError(f.string(), "line " + std::to_string(line) + ": expected 'timestamp path'");
+      v.emplace_back(ParseNumber(r[0], f, line), dir / r[1]);
+    }
+    return v;
+  };
+  const auto rgb = read_list(dir / "rgb.txt");
+  const auto depth = read_list(dir / "depth.txt");
+  // Pair each depth frame with the colour frame nearest in time (TUM's associate.py, 20 ms).
+  for (const auto& [t, d] : depth) {
+    double best = 0.02;
+    const std::pair<double, fs::path>* match = nullptr;
+    for (const auto& c : rgb)
+      if (std::abs(c.first - t) < best) {
+        best = std::abs(c.first - t);
+        match = &c;
+      }
+    if (!match) continue;
+    Entry e;
+    e.depth = d;
+    e.depth_time = t;
+    e.color = match->second;
+    e.color_time = match->first;
+    out.push_back(e);
+  }
+  return out;
+}
+
+std::vector<fs::path> SortedFiles(const fs::path& dir) {
+  std::vector<fs::path> v;
+  for (const auto& f : fs::directory_iterator(dir))
+    if (f.is_regular_file()) v.push_back(f.path());
+  std::sort(v.begin(), v.end(), [](const fs::path& a, const fs::path& b) {
+    // Numeric names sort by number (1.png, 2.png, 10.png), others by name.
+    const std::string sa = a.stem().string(), sb = b.stem().string();
+    const bool na = !sa.empty() && std::all_of(sa.begin(), sa.end(), ::isdigit);
+    const bool nb = !sb.empty() && std::all_of(sb.begin(), sb.end(), ::isdigit);
+    if (na && nb && sa.size() != sb.size()) return sa.size() < sb.size();
+    return sa < sb;
+  });
+  return v;
+}
+
+/// Open3D's trajectory.log: "i j n" then a 4x4 world_from_camera, per frame.
+std::vector<Eigen::Matrix4d> ReadTrajectoryLog(const fs::path& path) {
+  const auto rows = ReadTable(path);
+  std::vector<Eigen::Matrix4d> poses;
+  if (rows.size() % 5 != 0)
+    throw InputError(path.string(), "expected a 3-number header and 4 rows of 4 numbers per frame");
+  for (std::size_t i = 0; i < rows.size(); i += 5) {
+    if (rows[i].size() != 3)
+      throw InputError(path.string(), "expected a 3-number header and 4 rows of 4 numbers per frame");
+    Eigen::Matrix4d m;
+    for (int r = 0; r < 4; ++r) {
+      if (rows[i + 1 + r].size() != 4) throw InputError(path.string(), "a pose row must have 4 numbers");
+      for (int c = 0; c < 4; ++c) m(r, c) = ParseNumber(rows[i + 1 + r][c], path, i + 2 + r);
+    }
+    poses.push_back(m);
+  }
+  return poses;
+}
+
+/// slambook's pose.txt: "tx ty tz qx qy qz qw" per frame (world_from_camera).
+std::vector<Eigen::Matrix4d> ReadPoseTxt(const fs::path& path) {
+  std::vector<Eigen::Matrix4d> poses;
+  std::size_t line = 0;
+  for (const auto& r : ReadTable(path)) {
+    ++line;
+    if (r.size() != 7) throw InputError(path.string(), "line " + std::to_string(line) + ": expected 7 numbers");
+    double v[7];
+    for (int k = 0; k < 7; ++k) v[k] = ParseNumber(r[k], path, line);
+    Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);
+    if (q.norm() < 1e-9) throw InputError(path.string(), "line " + std::to_string(line) + ": zero quaternion");
+    Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+    m.block<3, 3>(0, 0) = q.normalized().toRotationMatrix();
+    m.block<3, 1>(0, 3) = Eigen::Vector3d(v[0], v[1], v[2]);
+    poses.push_back(m);
+  }
+  return poses;
+}
+
+class DirectorySource : public FrameSource {
+ public:
+  DirectorySource(const fs::path& dir, const DirectorySourceOptions& o) : dir_(dir), options_(o) {
+    std::error_code ec;
+    if (!fs::is_directory(dir, ec)) throw InputError(dir.string(), "frame directory not found");
+    fs::path index;
+    if (fs::exists(dir / "rgb.txt", ec) || fs::exists(dir / "associations.txt", ec)) {
+      layout_ = "TUM RGB-D";
+      index = fs::exists(dir / "associations.txt", ec) ? dir / "associations.txt" : dir / "depth.txt";
+      entries_ = LoadTum(dir);
+      depth_scale_ = 1000.0 / 5000.0;
+      intrinsics_ = PrimeSenseDefault();
+    } else if (fs::is_directory(dir / "color", ec) && fs::is_directory(dir / "depth", ec)) {
+      const auto colors = SortedFiles(dir / "color"), depths = SortedFiles(dir / "depth");
+      if (colors.size() != depths.size())
+        throw InputError(dir.string(), std::to_string(colors.size()) + " colour but " + std::to_string(depths.size()) +
+                                           " depth images");
+      for (std::size_t i = 0; i < colors.size(); ++i) entries_.push_back({colors[i], depths[i], i / 30.0, i / 30.0, {}});
+      intrinsics_ = PrimeSenseDefault();
+      std::vector<Eigen::Matrix4d> poses;
+      if (fs::exists(dir / "pose.txt", ec)) {
+        layout_ = "joinMap";
+        index = dir / "pose.txt";
+        poses = ReadPoseTxt(index);
+      } else {
+        layout_ = "Redwood";
+        index = dir / "color";
+        if (fs::exists(dir / "trajectory.log", ec)) poses = ReadTrajectoryLog(dir / "trajectory.log");
+        for (const fs::path& cam : {dir / "camera_primesense.json", dir.parent_path() / "camera_primesense.json",
+                                    dir / "camera.json", dir.parent_path() / "camera.json"})
+          if (auto k = IntrinsicsJson(cam)) {
+            intrinsics_ = *k;
+            break;
+          }
+      }
+      if (!poses.empty()) {
+        if (poses.size() != entries_.size())
+          throw InputError(index.string(), std::to_string(poses.size()) + " poses for " +
+                                               std::to_string(entries_.size()) + " frames");
+        for (std::size_t i = 0; i < poses.size(); ++i) entries_[i].pose = poses[i];
+      }
+    } else {
+      throw InputError(dir.string(),
+                       "unknown frame directory layout (expected TUM rgb.txt/depth.txt, or color/ and depth/)");
+    }
+    if (auto k = IntrinsicsJson(dir / "intrinsics.json")) intrinsics_ = *k;
+    if (entries_.empty()) throw InputError(dir.string(), "no frames");
+    for (const Entry& e : entries_) {
+      RequireFile(e.color, index);
+      RequireFile(e.depth, index);
+    }
+  }
+
+  std::string Describe() const override {
+    return layout_ + " directory " + dir_.string() + ", " + std::to_string(entries_.size()) + " frames";
+  }
+  std::optional<std::int64_t> FrameCount() const override { return static_cast<std::int64_t>(entries_.size()); }
+
+  SourceStatus Next(RgbdFrame* frame, double) override {
+    if (next_ >= entries_.size()) {
+      if (!options_.loop) return SourceStatus::kEnd;
+      next_ = 0;
+    }
+    const Entry& e = entries_[next_];
+    RgbdFrame f;
+    f.index = produced_++;
+    f.color = ReadRgb8(e.color);
+    f.depth = ReadDepth16(e.depth, depth_scale_);
+    if (f.color.width != f.depth.width || f.color.height != f.depth.height)
+      throw InputError(e.depth.string(), "depth is " + std::to_string(f.depth.width) + "x" +
+                                             std::to_string(f.depth.height) + " but colour is " +
+                                             std::to_string(f.color.width) + "x" + std::to_string(f.color.height));
+    Intrinsics k = intrinsics_;
+    if (k.width == 0 || k.width != f.color.width) {  // scale the default to the image size
+      const double s = k.width > 0 ? static_cast<double>(f.color.width) / k.width : 1.0;
+      k = {f.color.width, f.color.height, k.fx * s, k.fy * s, (k.cx + 0.5) * s - 0.5, (k.cy + 0.5) * s - 0.5};
+    }
+    f.depth_intrinsics = f.color_intrinsics = k;
+    f.registered = true;  // these datasets store depth registered to colour
+    f.color_timestamp = e.color_time;
+    f.depth_timestamp = e.depth_time;
+    f.world_from_camera = e.pose;
+    *frame = std::move(f);
+    ++next_;
+    return SourceStatus::kFrame;
+  }
+
+  void Rewind() override { next_ = 0; }
+
+ private:
+  fs::path dir_;
+  DirectorySourceOptions options_;
+  std::string layout_;
+  std::vector<Entry> entries_;
+  double depth_scale_ = 1.0;  // file units to millimetres
+  Intrinsics intrinsics_;
+  std::size_t next_ = 0;
+  std::int64_t produced_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<FrameSource> OpenDirectorySource(const std::string& dir, const DirectorySourceOptions& options) {
+  return std::make_unique<DirectorySource>(dir, options);
+}
+
+}  // namespace lp

@@ -1,0 +1,56 @@
+#pragma once
+/// Where RGB-D frames come from: a device, a recording, a directory, a renderer. Every
+/// source yields owned RgbdFrames through the same interface, so everything after the
+/// source is the same code for live and offline work.
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "capture/frame.h"
+
+namespace lp {
+
+/// What Next() produced. Per-frame events are statuses, not exceptions.
+enum class SourceStatus {
+  kFrame,       ///< a frame was written
+  kEnd,         ///< no more frames (end of a file or directory, not looping)
+  kTimeout,     ///< nothing arrived in time (a live device may still deliver later)
+  kDeviceLost,  ///< the device went away (unplugged); frames already delivered are intact
+};
+const char* ToString(SourceStatus s);
+
+class FrameSource {
+ public:
+  virtual ~FrameSource() = default;
+  /// One line for logs and the UI ("TUM directory /data/fr1_desk, 595 frames").
+  virtual std::string Describe() const = 0;
+  /// Number of frames when known (files, directories).
+  virtual std::optional<std::int64_t> FrameCount() const { return std::nullopt; }
+  /// Waits at most `timeout_seconds` for the next frame.
+  virtual SourceStatus Next(RgbdFrame* frame, double timeout_seconds = 1.0) = 0;
+  /// Back to the first frame (files and directories; a device throws InputError).
+  virtual void Rewind() = 0;
+};
+
+struct DirectorySourceOptions {
+  bool loop = false;  ///< start again after the last frame instead of kEnd
+};
+
+/// A directory of RGB-D frames, recognized by its layout:
+/// - TUM RGB-D: `rgb.txt` and `depth.txt` ("timestamp path" lines, '#' comments), paired by
+///   `associations.txt` ("t_rgb rgb_path t_depth depth_path") when present, else by nearest
+///   timestamp (within 20 ms); depth is 5000 per metre. Intrinsics: TUM's default
+///   (525, 525, 319.5, 239.5) unless `intrinsics.json` is present.
+/// - Redwood / Open3D: `color/` and `depth/` (millimetres) paired by sorted name, optional
+///   `trajectory.log` (poses); intrinsics from `camera_primesense.json` or `camera.json` in
+///   the directory or its parent ("intrinsic_matrix", column-major), else the PrimeSense
+///   default.
+/// - joinMap (slambook): `color/N.png`, `depth/N.pgm` (millimetres), `pose.txt`
+///   ("tx ty tz qx qy qz qw" per frame); intrinsics from `intrinsics.json` if present.
+/// `intrinsics.json` (any layout): {"fx":..,"fy":..,"cx":..,"cy":..}. Throws InputError
+/// naming the file for a missing directory, an unknown layout, or an index naming a
+/// missing file (checked when the source opens, before any frame is delivered).
+std::unique_ptr<FrameSource> OpenDirectorySource(const std::string& dir, const DirectorySourceOptions& options = {});
+
+}  // namespace lp
