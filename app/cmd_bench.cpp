@@ -124,6 +124,9 @@ Run AddBench(CLI::App& app) {
       if (want("solvers")) {
       ObjectiveParams params = o->objective;  // alpha per 19,200 observed pixels, as in Estimate
       params.alpha *= problem.rows() / kAlphaReferencePixels;
+      params.cell_weight.resize(problem.unknown_cells);  // per solid angle, as in Estimate
+      for (int k = 0; k < problem.unknown_cells; ++k)
+        params.cell_weight[k] = env.solid_angle(problem.cell_of[k]) / kAlphaReferenceSolidAngle;
       const Objective obj(problem, params);
       // Each solver runs once to its own convergence (or the cap); the target is the
       // worst of their final objectives (+1e-6 relative), a value every one of them
