@@ -19,6 +19,7 @@ Run AddSynth(CLI::App& app);
 Run AddBench(CLI::App& app);
 Run AddBenchReport(CLI::App& app);
 Run AddDevices(CLI::App& app);
+Run AddRecord(CLI::App& app);
 
 /// Registers the estimator options shared by estimate and bench.
 void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, int* threads);

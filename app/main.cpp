@@ -15,7 +15,8 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", "lightprobe 0.1.0");
   std::map<std::string, lp::app::Run> runs;
   for (auto add : {&lp::app::AddEstimate, &lp::app::AddRender, &lp::app::AddSynth, &lp::app::AddBench,
-                   &lp::app::AddBenchReport, &lp::app::AddDevices}) {
+                   &lp::app::AddBenchReport, &lp::app::AddDevices,
+                   &lp::app::AddRecord}) {
     const std::size_t before = app.get_subcommands([](CLI::App*) { return true; }).size();
     lp::app::Run r = add(app);
     const auto subs = app.get_subcommands([](CLI::App*) { return true; });
