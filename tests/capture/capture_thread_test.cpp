@@ -1,0 +1,83 @@
+// The capture thread: frames flow to the consumer, the end of a source closes the queue,
+// Stop() returns promptly, and a source that fails ends the thread with its message.
+#include <chrono>
+#include <filesystem>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include "capture/capture_thread.h"
+#include "common/error.h"
+
+namespace lp {
+namespace {
+namespace fs = std::filesystem;
+
+const fs::path kRedwood = fs::path(LIGHTPROBE_SOURCE_DIR) / ".." / "shared" / "data" / "rgbd" / "redwood_open3d" / "RGBD";
+
+TEST(CaptureThread, AFiniteSourceEndsAndClosesTheQueue) {
+  if (!fs::exists(kRedwood)) GTEST_SKIP() << "shared data not present";
+  auto queue = std::make_shared<FrameQueue>(16);
+  CaptureThread t(OpenDirectorySource(kRedwood.string()), queue);
+  int n = 0;
+  while (auto f = queue->Pop(10.0)) {
+    EXPECT_EQ(f->index, n);
+    ++n;
+  }
+  EXPECT_EQ(n, 5);
+  t.Stop();
+  const CaptureStats s = t.stats();
+  EXPECT_FALSE(s.running);
+  EXPECT_EQ(s.last_status, SourceStatus::kEnd);
+  EXPECT_EQ(s.captured, 5);
+  EXPECT_EQ(s.queue.dropped, 0);
+}
+
+TEST(CaptureThread, StopWithASlowConsumerIsPromptAndCountsDrops) {
+  if (!fs::exists(kRedwood)) GTEST_SKIP() << "shared data not present";
+  auto queue = std::make_shared<FrameQueue>(2);
+  DirectorySourceOptions o;
+  o.loop = true;  // never ends by itself
+  auto t = std::make_unique<CaptureThread>(OpenDirectorySource(kRedwood.string(), o), queue);
+  for (int i = 0; i < 3; ++i) {
+    ASSERT_TRUE(queue->Pop(10.0));
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));  // slower than the source
+  }
+  const auto start = std::chrono::steady_clock::now();
+  t->Stop();
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 2.0);
+  const CaptureStats s = t->stats();
+  EXPECT_FALSE(s.running);
+  EXPECT_GT(s.queue.dropped, 0);
+  EXPECT_EQ(s.queue.pushed, s.captured);
+  EXPECT_TRUE(queue->closed());
+  t.reset();  // destroying a stopped thread is fine
+}
+
+/// A source that delivers three frames and then fails, as a broken file would.
+class FailingSource : public FrameSource {
+ public:
+  std::string Describe() const override { return "failing"; }
+  SourceStatus Next(RgbdFrame* f, double) override {
+    if (n_ == 3) throw InputError("frame 3: cannot decode image");
+    f->index = n_++;
+    return SourceStatus::kFrame;
+  }
+  void Rewind() override { n_ = 0; }
+
+ private:
+  int n_ = 0;
+};
+
+TEST(CaptureThread, ASourceThatThrowsEndsTheThreadWithItsMessage) {
+  auto queue = std::make_shared<FrameQueue>(8);
+  CaptureThread t(std::make_unique<FailingSource>(), queue);
+  int n = 0;
+  while (queue->Pop(10.0)) ++n;
+  EXPECT_EQ(n, 3);
+  t.Stop();
+  EXPECT_NE(t.stats().error.find("cannot decode"), std::string::npos);
+}
+
+}  // namespace
+}  // namespace lp
