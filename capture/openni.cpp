@@ -3,7 +3,9 @@
 
 #include <OpenNI.h>
 
+#include <atomic>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -49,6 +51,19 @@ void StopStreams(openni::VideoStream& depth, openni::VideoStream& color) {
   std::this_thread::sleep_for(std::chrono::milliseconds(150));
   depth.destroy();
   color.destroy();
+}
+
+/// OpenNI2's Recorder deadlocks when it is stopped while a frame arrives (the recorder's
+/// lock and the stream's are taken in opposite orders): stop the streams first, let the
+/// frames in flight land, then stop and destroy the recorder.
+void FinishRecording(openni::Recorder& recorder, openni::VideoStream& depth, openni::VideoStream& color) {
+  if (depth.isValid()) depth.stop();
+  if (color.isValid()) color.stop();
+  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  if (recorder.isValid()) {
+    recorder.stop();
+    recorder.destroy();
+  }
 }
 
 void OpenDevice(openni::Device* device, const std::string& uri) {
@@ -149,10 +164,9 @@ RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
       (ready == 0 ? result.depth_frames : result.color_frames)++;
     }
     result.seconds = elapsed();
-    recorder.stop();
-    recorder.destroy();
+    FinishRecording(recorder, depth, color);
   } catch (...) {
-    recorder.destroy();
+    FinishRecording(recorder, depth, color);
     StopStreams(depth, color);
     device.close();
     fs::remove(tmp, ec);
@@ -167,45 +181,52 @@ RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
 
 namespace {
 
-class OniFileSource : public FrameSource {
- public:
-  OniFileSource(const std::string& path, const OniPlaybackOptions& o) : path_(path), options_(o) {
-    ValidateOniFile(path);
-    InitOpenNi();
-    Open();
+/// What both OpenNI2 sources share: a device with a depth and a colour stream, frames
+/// paired by timestamp (within half a frame period), copied into owned RgbdFrames.
+class OpenNiStreams {
+ protected:
+  /// Reads one frame of `s`, waiting at most timeout_ms.
+  bool Read(openni::VideoStream& s, openni::VideoFrameRef* f, int timeout_ms) {
+    openni::VideoStream* p = &s;
+    int ready = -1;
+    if (openni::OpenNI::waitForAnyStream(&p, 1, &ready, timeout_ms) != openni::STATUS_OK) return false;
+    return s.readFrame(f) == openni::STATUS_OK;
   }
-  ~OniFileSource() override { Close(); }
-
-  std::string Describe() const override {
-    return ".oni file " + path_ + ", " + std::to_string(count_) + " frames";
-  }
-  std::optional<std::int64_t> FrameCount() const override { return count_; }
-
-  SourceStatus Next(RgbdFrame* out, double timeout_seconds) override {
-    // No end-of-file signal in OpenNI2's playback: stop on the recorded frame counts.
-    if (depth_read_ >= depth_count_ || color_read_ >= color_count_) {
-      if (!options_.loop) return SourceStatus::kEnd;
-      Rewind();
+  /// Reads a depth and a colour frame taken at the same time: the older one is read again
+  /// until their timestamps are within half a frame period (a stream that dropped a frame
+  /// skips ahead to its partner). `budget` limits the extra reads (end of a recording).
+  bool ReadPair(openni::VideoFrameRef* d, openni::VideoFrameRef* c, int timeout_ms, int* depth_reads,
+                int* color_reads, int depth_budget, int color_budget) {
+    if (!Read(depth_, d, timeout_ms)) return false;
+    ++*depth_reads;
+    if (!Read(color_, c, timeout_ms)) return false;
+    ++*color_reads;
+    const int fps = std::max(1, depth_.getVideoMode().getFps());
+    const long long half = 500000 / fps;  // microseconds
+    for (int guard = 0; guard < 64; ++guard) {
+      const long long dt = static_cast<long long>(c->getTimestamp()) - static_cast<long long>(d->getTimestamp());
+      if (dt > half && *depth_reads < depth_budget) {
+        if (!Read(depth_, d, timeout_ms)) return false;
+        ++*depth_reads;
+      } else if (-dt > half && *color_reads < color_budget) {
+        if (!Read(color_, c, timeout_ms)) return false;
+        ++*color_reads;
+      } else {
+        break;
+      }
     }
-    const int timeout_ms = static_cast<int>(timeout_seconds * 1000);
-    openni::VideoFrameRef d, c;
-    if (!Read(depth_, &d, timeout_ms, &depth_read_) || !Read(color_, &c, timeout_ms, &color_read_))
-      return SourceStatus::kTimeout;
-    // Pair by frame index: a stream that dropped frames skips ahead to its partner.
-    while (d.getFrameIndex() < c.getFrameIndex() && depth_read_ < depth_count_)
-      if (!Read(depth_, &d, timeout_ms, &depth_read_)) return SourceStatus::kTimeout;
-    while (c.getFrameIndex() < d.getFrameIndex() && color_read_ < color_count_)
-      if (!Read(color_, &c, timeout_ms, &color_read_)) return SourceStatus::kTimeout;
+    return true;
+  }
+  RgbdFrame ToFrame(const openni::VideoFrameRef& d, const openni::VideoFrameRef& c, std::int64_t index) {
     RgbdFrame f;
-    f.index = produced_++;
+    f.index = index;
     f.depth.width = d.getWidth();
     f.depth.height = d.getHeight();
     f.depth.data.resize(f.depth.pixels());
-    const auto* dp = static_cast<const std::uint16_t*>(d.getData());
+    const auto* dp = static_cast<const char*>(d.getData());
     for (int y = 0; y < f.depth.height; ++y)
       std::memcpy(&f.depth.data[static_cast<std::size_t>(y) * f.depth.width],
-                  reinterpret_cast<const char*>(dp) + static_cast<std::size_t>(y) * d.getStrideInBytes(),
-                  sizeof(std::uint16_t) * f.depth.width);
+                  dp + static_cast<std::size_t>(y) * d.getStrideInBytes(), sizeof(std::uint16_t) * f.depth.width);
     f.color.width = c.getWidth();
     f.color.height = c.getHeight();
     f.color.data.resize(f.color.pixels() * 3);
@@ -215,22 +236,68 @@ class OniFileSource : public FrameSource {
                   cp + static_cast<std::size_t>(y) * c.getStrideInBytes(), 3 * static_cast<std::size_t>(f.color.width));
     f.depth_timestamp = d.getTimestamp() * 1e-6;
     f.color_timestamp = c.getTimestamp() * 1e-6;
-    f.depth_intrinsics = Intrinsics_(depth_, f.depth.width, f.depth.height);
-    f.color_intrinsics = Intrinsics_(color_, f.color.width, f.color.height);
+    f.depth_intrinsics = FromFov(depth_, f.depth.width, f.depth.height);
+    f.color_intrinsics = FromFov(color_, f.color.width, f.color.height);
     f.registered = device_.getImageRegistrationMode() == openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR;
-    *out = std::move(f);
+    return f;
+  }
+  /// OpenNI2 reports fields of view, not a principal point: centred, square-ish pixels.
+  static Intrinsics FromFov(openni::VideoStream& s, int w, int h) {
+    Intrinsics k;
+    k.width = w;
+    k.height = h;
+    const double hfov = s.getHorizontalFieldOfView(), vfov = s.getVerticalFieldOfView();
+    k.fx = hfov > 0 ? 0.5 * w / std::tan(0.5 * hfov) : 0;
+    k.fy = vfov > 0 ? 0.5 * h / std::tan(0.5 * vfov) : k.fx;
+    k.cx = 0.5 * w - 0.5;
+    k.cy = 0.5 * h - 0.5;
+    return k;
+  }
+  void CloseDevice() {
+    StopStreams(depth_, color_);
+    device_.close();
+  }
+
+  openni::Device device_;
+  openni::VideoStream depth_, color_;
+};
+
+class OniFileSource : public FrameSource, private OpenNiStreams {
+ public:
+  OniFileSource(const std::string& path, const OniPlaybackOptions& o) : path_(path), options_(o) {
+    ValidateOniFile(path);
+    InitOpenNi();
+    Open();
+  }
+  ~OniFileSource() override { CloseDevice(); }
+
+  std::string Describe() const override { return ".oni file " + path_ + ", " + std::to_string(count_) + " frames"; }
+  std::optional<std::int64_t> FrameCount() const override { return count_; }
+
+  SourceStatus Next(RgbdFrame* out, double timeout_seconds) override {
+    // No end-of-file signal in OpenNI2's playback: stop on the recorded frame counts.
+    if (depth_read_ >= depth_count_ || color_read_ >= color_count_) {
+      if (!options_.loop) return SourceStatus::kEnd;
+      Rewind();
+    }
+    openni::VideoFrameRef d, c;
+    if (!ReadPair(&d, &c, static_cast<int>(timeout_seconds * 1000), &depth_read_, &color_read_, depth_count_,
+                  color_count_))
+      return SourceStatus::kTimeout;
+    *out = ToFrame(d, c, produced_++);
     return SourceStatus::kFrame;
   }
 
   /// OpenNI2's seek crashes: rewind by reopening the file.
   void Rewind() override {
-    Close();
+    CloseDevice();
     Open();
   }
 
  private:
   void Open() {
-    if (device_.open(path_.c_str()) != openni::STATUS_OK) throw InputError(path_, "OpenNI2 cannot open it: " + OpenNiError());
+    if (device_.open(path_.c_str()) != openni::STATUS_OK)
+      throw InputError(path_, "OpenNI2 cannot open it: " + OpenNiError());
     openni::PlaybackControl* pc = device_.getPlaybackControl();
     if (!pc) throw InputError(path_, "not a recording");
     pc->setSpeed(options_.real_time ? 1.0f : -1.0f);  // -1: manual, one frame per read, none lost
@@ -249,42 +316,116 @@ class OniFileSource : public FrameSource {
     color_.start();
     depth_read_ = color_read_ = 0;
   }
-  void Close() {
-    StopStreams(depth_, color_);
-    device_.close();
-  }
-  bool Read(openni::VideoStream& s, openni::VideoFrameRef* f, int timeout_ms, int* counter) {
-    openni::VideoStream* p = &s;
-    int ready = -1;
-    if (openni::OpenNI::waitForAnyStream(&p, 1, &ready, timeout_ms) != openni::STATUS_OK) return false;
-    if (s.readFrame(f) != openni::STATUS_OK) return false;
-    ++*counter;
-    return true;
-  }
-  static Intrinsics Intrinsics_(openni::VideoStream& s, int w, int h) {
-    Intrinsics k;
-    k.width = w;
-    k.height = h;
-    const double hfov = s.getHorizontalFieldOfView(), vfov = s.getVerticalFieldOfView();
-    k.fx = hfov > 0 ? 0.5 * w / std::tan(0.5 * hfov) : 0;
-    k.fy = vfov > 0 ? 0.5 * h / std::tan(0.5 * vfov) : k.fx;
-    k.cx = 0.5 * w - 0.5;
-    k.cy = 0.5 * h - 0.5;
-    return k;
-  }
 
   std::string path_;
   OniPlaybackOptions options_;
-  openni::Device device_;
-  openni::VideoStream depth_, color_;
   int depth_count_ = 0, color_count_ = 0, depth_read_ = 0, color_read_ = 0;
   std::int64_t count_ = 0, produced_ = 0;
+};
+
+/// Sets a stream to the mode with this size and pixel format, at `fps` or the nearest.
+void SelectMode(openni::VideoStream& s, int w, int h, int fps, openni::PixelFormat format, const char* what) {
+  const openni::Array<openni::VideoMode>& modes = s.getSensorInfo().getSupportedVideoModes();
+  int best = -1;
+  std::string available;
+  for (int i = 0; i < modes.getSize(); ++i) {
+    const openni::VideoMode& m = modes[i];
+    available += (available.empty() ? "" : ", ") + std::to_string(m.getResolutionX()) + "x" +
+                 std::to_string(m.getResolutionY()) + "@" + std::to_string(m.getFps());
+    if (m.getResolutionX() != w || m.getResolutionY() != h || m.getPixelFormat() != format) continue;
+    if (best < 0 || std::abs(m.getFps() - fps) < std::abs(modes[best].getFps() - fps)) best = i;
+  }
+  if (best < 0)
+    throw InputError(std::string("the ") + what + " stream has no " + std::to_string(w) + "x" + std::to_string(h) +
+                     " mode in the needed format (available: " + available + ")");
+  if (s.setVideoMode(modes[best]) != openni::STATUS_OK)
+    throw InputError(std::string("cannot set the ") + what + " mode: " + OpenNiError());
+}
+
+class DeviceSource : public FrameSource, private OpenNiStreams, private openni::OpenNI::DeviceDisconnectedListener {
+ public:
+  DeviceSource(const OpenNiDeviceOptions& o, CameraControls* applied) : options_(o) {
+    InitOpenNi();
+    OpenDevice(&device_, o.uri);
+    uri_ = device_.getDeviceInfo().getUri();
+    openni::OpenNI::addDeviceDisconnectedListener(this);
+    try {
+      if (depth_.create(device_, openni::SENSOR_DEPTH) != openni::STATUS_OK ||
+          color_.create(device_, openni::SENSOR_COLOR) != openni::STATUS_OK)
+        throw InputError(uri_, "the device needs a depth and a colour stream: " + OpenNiError());
+      SelectMode(depth_, o.width, o.height, o.fps, openni::PIXEL_FORMAT_DEPTH_1_MM, "depth");
+      SelectMode(color_, o.width, o.height, o.fps, openni::PIXEL_FORMAT_RGB888, "colour");
+      if (o.register_depth && device_.isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR))
+        device_.setImageRegistrationMode(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR);
+      if (o.sync) device_.setDepthColorSyncEnabled(true);
+      if (depth_.start() != openni::STATUS_OK || color_.start() != openni::STATUS_OK)
+        throw InputError(uri_, "cannot start the streams: " + OpenNiError());
+      // Exposure settings made before the streams start are ignored by some devices:
+      // apply them now, then read back what the device actually uses.
+      if (openni::CameraSettings* cs = color_.getCameraSettings()) {
+        if (o.lock_exposure) {
+          cs->setAutoExposureEnabled(false);
+          cs->setAutoWhiteBalanceEnabled(false);
+        }
+        if (o.exposure >= 0) cs->setExposure(o.exposure);
+        if (o.gain >= 0) cs->setGain(o.gain);
+        controls_.auto_exposure = cs->getAutoExposureEnabled();
+        controls_.auto_white_balance = cs->getAutoWhiteBalanceEnabled();
+        controls_.exposure = cs->getExposure();
+        controls_.gain = cs->getGain();
+        controls_.camera_settings = true;
+      }
+      controls_.registered = device_.getImageRegistrationMode() == openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR;
+      if (o.lock_exposure && controls_.camera_settings && (controls_.auto_exposure || controls_.auto_white_balance))
+        throw InputError(uri_, "the camera did not lock its exposure / white balance (read back still automatic)");
+      if (o.exposure >= 0 && controls_.camera_settings && controls_.exposure != o.exposure)
+        throw InputError(uri_, "the camera ignored exposure " + std::to_string(o.exposure) + " (reads back " +
+                                   std::to_string(controls_.exposure) + ")");
+    } catch (...) {
+      openni::OpenNI::removeDeviceDisconnectedListener(this);
+      CloseDevice();
+      throw;
+    }
+    if (applied) *applied = controls_;
+  }
+  ~DeviceSource() override {
+    openni::OpenNI::removeDeviceDisconnectedListener(this);
+    CloseDevice();
+  }
+
+  std::string Describe() const override { return "OpenNI2 device " + uri_; }
+
+  SourceStatus Next(RgbdFrame* out, double timeout_seconds) override {
+    if (lost_) return SourceStatus::kDeviceLost;
+    openni::VideoFrameRef d, c;
+    int dr = 0, cr = 0;
+    if (!ReadPair(&d, &c, static_cast<int>(timeout_seconds * 1000), &dr, &cr, 1 << 30, 1 << 30))
+      return lost_ ? SourceStatus::kDeviceLost : SourceStatus::kTimeout;
+    *out = ToFrame(d, c, produced_++);
+    return SourceStatus::kFrame;
+  }
+  void Rewind() override { throw InputError(uri_, "a live device cannot rewind"); }
+
+ private:
+  void onDeviceDisconnected(const openni::DeviceInfo* info) override {
+    if (info && uri_ == info->getUri()) lost_ = true;
+  }
+
+  OpenNiDeviceOptions options_;
+  std::string uri_;
+  CameraControls controls_;
+  std::atomic<bool> lost_{false};
+  std::int64_t produced_ = 0;
 };
 
 }  // namespace
 
 std::unique_ptr<FrameSource> OpenOniFile(const std::string& path, const OniPlaybackOptions& options) {
   return std::make_unique<OniFileSource>(path, options);
+}
+
+std::unique_ptr<FrameSource> OpenOpenNiDevice(const OpenNiDeviceOptions& options, CameraControls* applied) {
+  return std::make_unique<DeviceSource>(options, applied);
 }
 
 }  // namespace lp

@@ -41,6 +41,32 @@ struct OniPlaybackOptions {
 /// InputError for a missing, empty, truncated or malformed file before OpenNI2 reads it.
 std::unique_ptr<FrameSource> OpenOniFile(const std::string& path, const OniPlaybackOptions& options = {});
 
+struct OpenNiDeviceOptions {
+  std::string uri;  ///< "" = the first device; lpsynth://DIR = the project's synthetic device
+  int width = 640, height = 480, fps = 30;  ///< both streams (Xtion: 640x480 or 320x240 at 30 Hz)
+  bool register_depth = true;  ///< hardware depth-to-colour registration when the device has it
+  bool sync = true;            ///< depth/colour frame sync
+  /// Photometric work needs a fixed exposure: auto exposure and auto white balance off,
+  /// and exposure / gain set when >= 0 (device units). Applied after the streams start
+  /// (set before, some devices ignore them) and read back; a device that does not take
+  /// them is an error.
+  bool lock_exposure = true;
+  int exposure = -1, gain = -1;
+};
+
+/// What the device reports after the settings were applied.
+struct CameraControls {
+  bool camera_settings = false;  ///< the colour stream has exposure controls at all
+  bool auto_exposure = true, auto_white_balance = true;
+  int exposure = -1, gain = -1;
+  bool registered = false;
+};
+
+/// A live OpenNI2 device as a FrameSource: depth + colour paired by timestamp, kTimeout
+/// when nothing arrives in time, kDeviceLost once the device is unplugged. Throws
+/// InputError (with the reason from the USB scan) when no device opens.
+std::unique_ptr<FrameSource> OpenOpenNiDevice(const OpenNiDeviceOptions& options, CameraControls* applied = nullptr);
+
 /// Checks the structure of a `.oni` file (header and record chain) without OpenNI2;
 /// throws InputError naming the file and the first problem.
 void ValidateOniFile(const std::string& path);

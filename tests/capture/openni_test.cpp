@@ -146,6 +146,61 @@ TEST_F(OpenNi, UnpluggedMidStreamIsAClearErrorAndKeepsTheOldFile) {
   EXPECT_EQ(s, "previous recording");
 }
 
+TEST_F(OpenNi, LiveDeviceLocksExposureReadsBackAndPairsFrames) {
+  OpenNiDeviceOptions o;
+  o.uri = uri_;
+  o.width = kW;
+  o.height = kH;
+  o.exposure = 42;
+  o.gain = 7;
+  CameraControls applied;
+  auto src = OpenOpenNiDevice(o, &applied);
+  EXPECT_TRUE(applied.camera_settings);
+  EXPECT_FALSE(applied.auto_exposure);
+  EXPECT_FALSE(applied.auto_white_balance);
+  EXPECT_EQ(applied.exposure, 42);
+  EXPECT_EQ(applied.gain, 7);
+  EXPECT_TRUE(applied.registered);
+  RgbdFrame f;
+  for (int n = 0; n < 5; ++n) {
+    ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame);
+    const int i = Which(f.depth);
+    ASSERT_GE(i, 0);
+    EXPECT_EQ(f.color.data, ServedColor(i).data) << "depth and colour of different frames";
+    EXPECT_TRUE(f.registered);
+    EXPECT_NEAR(f.depth_timestamp, f.color_timestamp, 1e-9);
+  }
+  EXPECT_THROW(src->Rewind(), InputError);
+}
+
+TEST_F(OpenNi, LiveDeviceUnpluggedReportsDeviceLost) {
+  OpenNiDeviceOptions o;
+  o.uri = uri_ + "?unplug_after=3";
+  o.width = kW;
+  o.height = kH;
+  auto src = OpenOpenNiDevice(o);
+  RgbdFrame f;
+  int frames = 0;
+  SourceStatus s = SourceStatus::kFrame;
+  for (int k = 0; k < 20 && s != SourceStatus::kDeviceLost; ++k) {
+    s = src->Next(&f, 0.5);
+    frames += s == SourceStatus::kFrame;
+  }
+  EXPECT_EQ(s, SourceStatus::kDeviceLost);
+  EXPECT_LE(frames, 3);
+}
+
+TEST_F(OpenNi, AModeTheDeviceDoesNotHaveIsAClearError) {
+  OpenNiDeviceOptions o;
+  o.uri = uri_;  // 64x48 frames; asks for 640x480
+  try {
+    OpenOpenNiDevice(o);
+    FAIL() << "expected an InputError";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("64x48@30"), std::string::npos) << e.what();
+  }
+}
+
 TEST(OpenNiDevice, NoCameraSaysWhy) {
   RecordOptions ro;  // the first real device: there is none here
   try {
