@@ -2,12 +2,16 @@
 // scene, and the finite-difference Jacobian baseline. Prints a Markdown table.
 #include <sys/resource.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
 
 #include "app/commands.h"
+#include "capture/capture_thread.h"
+#include "capture/openni.h"
 #include "common/atomic_file.h"
 #include "common/parallel.h"
 #include "common/timer.h"
@@ -54,6 +58,53 @@ SolverTiming TimeSolver(SolverKind kind, const Objective& obj, double cap_second
   return t;
 }
 
+/// Records a VGA .oni through OpenNI2 from the Redwood frames (served by the project's
+/// driver), then replays it as fast as possible, directly and through the capture thread.
+template <typename Row>
+void ReplayBench(const fs::path& out, const Row& row) {
+  const fs::path frames = fs::path(DefaultDataDir()) / "rgbd" / "redwood_open3d" / "RGBD";
+  if (!fs::exists(frames)) throw InputError(frames.string(), "replay benchmark: frames not found");
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  const fs::path oni = out / "replay_vga.oni";
+  RecordOptions ro;
+  ro.uri = "lpsynth://" + frames.string() + "?fps=30";
+  ro.frames = 150;
+  const RecordResult rec = RecordOni(oni.string(), ro);
+  char note[256];
+  std::snprintf(note, sizeof note, "%d depth + %d colour frames, 640x480, %.1f MiB", rec.depth_frames,
+                rec.color_frames, fs::file_size(oni) / 1048576.0);
+  row("640x480", "record .oni through OpenNI2 (30 fps source)", rec.seconds, 0, NAN, note);
+  {
+    auto src = OpenOniFile(oni.string());
+    RgbdFrame f;
+    int n = 0;
+    Stopwatch sw;
+    while (src->Next(&f, 2.0) == SourceStatus::kFrame) ++n;
+    const double s = sw.Seconds();
+    std::snprintf(note, sizeof note, "%d frame pairs, %.0f frames/s", n, n / s);
+    row("640x480", "replay .oni as fast as possible", s, 0, NAN, note);
+  }
+  {
+    auto queue = std::make_shared<FrameQueue>(4);
+    Stopwatch sw;
+    CaptureThread t(OpenOniFile(oni.string()), queue);
+    std::vector<double> latency;
+    while (auto f = queue->Pop(5.0)) {
+      const double now = std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+      latency.push_back(now - f->queued_at);
+    }
+    const double s = sw.Seconds();
+    std::sort(latency.begin(), latency.end());
+    const double median = latency.empty() ? NAN : latency[latency.size() / 2];
+    const double p99 = latency.empty() ? NAN : latency[latency.size() * 99 / 100];
+    std::snprintf(note, sizeof note, "%zu frames, %.0f frames/s; queue latency median %.3f ms, 99th %.3f ms, %lld dropped",
+                  latency.size(), latency.size() / s, 1e3 * median, 1e3 * p99,
+                  static_cast<long long>(t.stats().queue.dropped));
+    row("640x480", "replay through the capture thread and queue", s, 0, NAN, note);
+  }
+}
+
 }  // namespace
 
 Run AddBench(CLI::App& app) {
@@ -65,9 +116,9 @@ Run AddBench(CLI::App& app) {
   auto solver = std::make_shared<std::string>("fast");
   auto threads = std::make_shared<int>(0);
   auto parts = std::make_shared<std::vector<std::string>>(std::vector<std::string>{"estimate", "solvers", "fd"});
-  cmd->add_option("--parts", *parts, "which parts to run: estimate (full estimates), solvers (same A), fd")
+  cmd->add_option("--parts", *parts, "which parts to run: estimate (full estimates), solvers (same A), fd, replay (.oni throughput)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"estimate", "solvers", "fd"}));
+      ->check(CLI::IsMember({"estimate", "solvers", "fd", "replay"}));
   cmd->add_option("--out", *out, "directory for bench.csv and bench.md")->capture_default_str();
   cmd->add_option("--sizes", *sizes, "image sizes WxH")->capture_default_str();
   cmd->add_option("--gradient-cap", *cap, "seconds the gradient solver may run per problem")->capture_default_str();
@@ -90,7 +141,9 @@ Run AddBench(CLI::App& app) {
       std::fputs(buf, stdout);
       std::fflush(stdout);
     };
+    if (want("replay")) ReplayBench(fs::path(*out), row);
     for (const std::string& size : *sizes) {
+      if (!want("estimate") && !want("solvers") && !want("fd")) break;
       SynthOptions so;
       if (std::sscanf(size.c_str(), "%dx%d", &so.width, &so.height) != 2) throw InputError("--sizes: bad size " + size);
       so.spp = 256;
@@ -182,7 +235,7 @@ Run AddBench(CLI::App& app) {
     }
     char mem[64];
     std::snprintf(mem, sizeof mem, "%.0f MiB (whole run)", PeakMemoryMiB());
-    row(sizes->back(), "peak memory (RSS)", 0, 0, NAN, mem);
+    row("all", "peak memory (RSS)", 0, 0, NAN, mem);
     WriteTextAtomically(fs::path(*out) / "bench.md", md.str());
     WriteTextAtomically(fs::path(*out) / "bench.csv", csv.str());
     WriteTextAtomically(fs::path(*out) / "solver_traces.csv", traces.str());

@@ -42,6 +42,7 @@ void CaptureThread::Run() {
     }
     if (status == SourceStatus::kTimeout) continue;
     if (status != SourceStatus::kFrame) break;
+    frame.queued_at = std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
     queue_->Push(std::move(frame));
     ++window_frames;
     const double dt = std::chrono::duration<double>(Clock::now() - window_start).count();

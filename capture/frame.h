@@ -27,6 +27,9 @@ struct RgbdFrame {
   bool registered = false;
   /// The true pose when the source knows it (synthetic frames, a trajectory file).
   std::optional<Eigen::Matrix4d> world_from_camera;
+  /// Host steady-clock seconds when the capture thread queued the frame (0 if never
+  /// queued): for measuring the latency to the consumer.
+  double queued_at = 0;
 };
 
 }  // namespace lp

@@ -150,10 +150,23 @@ RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
       throw InputError(out_file, "cannot attach the streams to the recorder: " + OpenNiError());
     if (depth.start() != openni::STATUS_OK || color.start() != openni::STATUS_OK)
       throw InputError(o.uri, "cannot start the streams: " + OpenNiError());
-    if (recorder.start() != openni::STATUS_OK) throw InputError(out_file, "cannot start recording: " + OpenNiError());
-    const auto t0 = std::chrono::steady_clock::now();
+    // OpenNI2's recordings keep each stream's timestamps relative to its own first recorded
+    // frame, so both streams must start recording with the same frame or replay pairs them
+    // one frame apart: start the recorder just after a depth and a colour frame with the same
+    // timestamp arrived (the next pair is a frame period away).
     openni::VideoStream* streams[2] = {&depth, &color};
     openni::VideoFrameRef frame;
+    {
+      std::uint64_t last[2] = {~0ull, ~1ull};
+      for (int k = 0; k < 60 && last[0] != last[1]; ++k) {
+        int ready = -1;
+        if (openni::OpenNI::waitForAnyStream(streams, 2, &ready, 2000) != openni::STATUS_OK)
+          throw InputError(o.uri, "the device delivers no frames: " + OpenNiError());
+        if (streams[ready]->readFrame(&frame) == openni::STATUS_OK) last[ready] = frame.getTimestamp();
+      }
+    }
+    if (recorder.start() != openni::STATUS_OK) throw InputError(out_file, "cannot start recording: " + OpenNiError());
+    const auto t0 = std::chrono::steady_clock::now();
     auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
     while (o.frames > 0 ? result.depth_frames < o.frames : elapsed() < o.seconds) {
       int ready = -1;
