@@ -1,14 +1,47 @@
 // `lightprobe synth`: synthetic scene bundles with ground truth.
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
 #include "app/commands.h"
+#include "capture/frame_source.h"
+#include "common/color.h"
+#include "common/image_io.h"
 #include "common/parallel.h"
 #include "common/timer.h"
 #include "estimation/synth.h"
 
 namespace lp::app {
 namespace fs = std::filesystem;
+
+namespace {
+
+/// The synthetic frames as a camera would deliver them: 8-bit sRGB colour (clipped at 1),
+/// depth in millimetres, registered, with the true pose.
+std::vector<RgbdFrame> ToCameraFrames(const std::vector<SynthFrame>& frames) {
+  std::vector<RgbdFrame> out;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const SynthFrame& s = frames[k];
+    RgbdFrame f;
+    f.index = static_cast<std::int64_t>(k);
+    f.color = {s.color.width, s.color.height, std::vector<std::uint8_t>(s.color.pixels() * 3)};
+    for (std::size_t i = 0; i < f.color.data.size(); ++i)
+      f.color.data[i] = static_cast<std::uint8_t>(std::lround(255 * LinearToSrgb(std::clamp(s.color.data[i], 0.f, 1.f))));
+    f.depth = {s.color.width, s.color.height, std::vector<std::uint16_t>(s.depth.size())};
+    for (std::size_t i = 0; i < s.depth.size(); ++i)
+      f.depth.data[i] = s.depth[i] > 0 && s.depth[i] < 65.535f ? static_cast<std::uint16_t>(std::lround(s.depth[i] * 1000)) : 0;
+    const Camera& c = s.camera;
+    f.color_intrinsics = f.depth_intrinsics = {c.width, c.height, c.fx, c.fy, c.cx, c.cy};
+    f.registered = true;
+    f.world_from_camera = c.world_from_camera;
+    f.depth_timestamp = f.color_timestamp = k / 30.0;
+    out.push_back(std::move(f));
+  }
+  return out;
+}
+
+}  // namespace
 
 Run AddSynth(CLI::App& app) {
   auto* cmd = app.add_subcommand("synth", "write a synthetic scene bundle with known lighting (truth.json)");
@@ -18,6 +51,10 @@ Run AddSynth(CLI::App& app) {
   auto o = std::make_shared<SynthOptions>();
   auto data = std::make_shared<std::string>(DefaultDataDir());
   auto threads = std::make_shared<int>(0);
+  auto frames = std::make_shared<int>(0);
+  cmd->add_option("--frames", *frames,
+                  "write N RGB-D frames along an arc (a Redwood-layout frame directory with trajectory.log) "
+                  "instead of a scene bundle");
   cmd->add_option("NAME", *name, "scene name (see --list)");
   cmd->add_option("--out", *out, "output scene directory");
   cmd->add_flag("--list", *list, "list the available scenes");
@@ -38,6 +75,12 @@ Run AddSynth(CLI::App& app) {
     if (out->empty()) throw InputError("synth: --out SCENE_DIR is required");
     ThreadLimit limit(*threads);
     Stopwatch sw;
+    if (*frames > 0) {
+      WriteFrameDirectory(*out, ToCameraFrames(RenderSynthFrames(*name, *o, *data, *frames)));
+      std::printf("wrote %d synthetic RGB-D frames of '%s' (%dx%d, %d spp) to %s in %.1f s\n", *frames, name->c_str(),
+                  o->width, o->height, o->spp, fs::absolute(*out).lexically_normal().c_str(), sw.Seconds());
+      return;
+    }
     SceneBundle b = MakeSynthScene(*name, *o, *data);
     WriteSceneBundle(*out, b);
     std::printf("wrote synthetic scene '%s' (%dx%d, %d spp) to %s in %.1f s\n", name->c_str(), o->width, o->height,

@@ -313,4 +313,43 @@ std::unique_ptr<FrameSource> OpenDirectorySource(const std::string& dir, const D
   return std::make_unique<DirectorySource>(dir, options);
 }
 
+void WriteFrameDirectory(const std::string& dir_name, const std::vector<RgbdFrame>& frames) {
+  const fs::path dir(dir_name);
+  if (frames.empty()) throw InputError(dir_name, "no frames to write");
+  const fs::path parent = dir.parent_path().empty() ? fs::path(".") : dir.parent_path();
+  const fs::path tmp = parent / ("." + dir.filename().string() + ".partial");
+  std::error_code ec;
+  fs::remove_all(tmp, ec);
+  fs::create_directories(tmp / "color", ec);
+  fs::create_directories(tmp / "depth", ec);
+  if (ec) throw InputError(dir_name, "cannot create: " + ec.message());
+  bool poses = true;
+  std::ostringstream log;
+  for (std::size_t k = 0; k < frames.size(); ++k) {
+    const RgbdFrame& f = frames[k];
+    if (f.color.width != frames[0].color.width || f.depth.width != f.color.width || f.depth.height != f.color.height)
+      throw InputError(dir_name, "frames must be registered and of one size");
+    char file[32];
+    std::snprintf(file, sizeof file, "%05zu.png", k);
+    WriteRgb8Png(tmp / "color" / file, f.color);
+    WriteDepth16Png(tmp / "depth" / file, f.depth);
+    poses = poses && f.world_from_camera.has_value();
+    if (!poses) continue;
+    log << k << ' ' << k << ' ' << k + 1 << '\n';
+    for (int r = 0; r < 4; ++r) {
+      char row[160];
+      const Eigen::Matrix4d& m = *f.world_from_camera;
+      std::snprintf(row, sizeof row, "%.17g %.17g %.17g %.17g\n", m(r, 0), m(r, 1), m(r, 2), m(r, 3));
+      log << row;
+    }
+  }
+  if (poses) WriteTextAtomically(tmp / "trajectory.log", log.str());
+  const Intrinsics& k0 = frames[0].color_intrinsics;
+  nlohmann::json j = {{"fx", k0.fx}, {"fy", k0.fy}, {"cx", k0.cx}, {"cy", k0.cy}, {"width", k0.width}, {"height", k0.height}};
+  WriteTextAtomically(tmp / "intrinsics.json", j.dump(2) + "\n");
+  fs::remove_all(dir, ec);
+  fs::rename(tmp, dir, ec);
+  if (ec) throw InputError(dir_name, "cannot move the frames into place: " + ec.message());
+}
+
 }  // namespace lp

@@ -6,6 +6,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "capture/frame.h"
 
@@ -52,5 +53,11 @@ struct DirectorySourceOptions {
 /// naming the file for a missing directory, an unknown layout, or an index naming a
 /// missing file (checked when the source opens, before any frame is delivered).
 std::unique_ptr<FrameSource> OpenDirectorySource(const std::string& dir, const DirectorySourceOptions& options = {});
+
+/// Writes frames as a Redwood-layout directory that OpenDirectorySource reads back exactly:
+/// color/NNNNN.png (8-bit), depth/NNNNN.png (16-bit mm), intrinsics.json (the first
+/// frame's colour intrinsics; frames must be registered and of one size) and
+/// trajectory.log when every frame has a pose. Built beside `dir` and renamed into place.
+void WriteFrameDirectory(const std::string& dir, const std::vector<RgbdFrame>& frames);
 
 }  // namespace lp

@@ -346,4 +346,42 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::p
   return scene_out;
 }
 
+std::vector<SynthFrame> RenderSynthFrames(const std::string& name, const SynthOptions& o, const fs::path& data_dir,
+                                          int frames) {
+  if (frames < 1 || frames > 10000) throw InputError("synth: --frames must be between 1 and 10000");
+  if (name.rfind("env-", 0) == 0) throw InputError("synth: frames of the HDR-map scenes are not supported yet");
+  SynthOptions first = o;
+  first.spp = 1;  // only the geometry, the lighting and the first camera are needed here
+  first.held_out_views = 0;
+  const SynthScene scene = MakeSynth(name, first, data_dir);
+  const Camera& c0 = scene.bundle.views[0].camera;
+  const Vector3d up = scene.bundle.up.normalized(), centre = scene.lighting.center;
+  std::vector<SynthFrame> out(frames);
+  std::vector<View> views(frames);
+  for (int k = 0; k < frames; ++k) {
+    const double angle = frames == 1 ? 0.0 : (-20.0 + 40.0 * k / (frames - 1)) * kPi / 180;
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(angle, up).toRotationMatrix();
+    Camera cam = c0;
+    cam.world_from_camera.block<3, 3>(0, 0) = R * c0.world_from_camera.block<3, 3>(0, 0);
+    cam.world_from_camera.block<3, 1>(0, 3) = centre + R * (c0.center() - centre);
+    views[k].camera = cam;
+    out[k].camera = cam;
+  }
+  std::vector<ImageRGB> colour = RenderSphereLights(scene.bundle.mesh, views, scene.lighting, o);
+  RayTracer tracer(scene.bundle.mesh);
+  for (int k = 0; k < frames; ++k) {
+    const Camera& cam = out[k].camera;
+    out[k].color = std::move(colour[k]);
+    out[k].depth.assign(static_cast<std::size_t>(cam.width) * cam.height, 0.f);
+    const Vector3d axis = cam.world_from_camera.block<3, 1>(0, 2);
+    ParallelFor(0, out[k].depth.size(), [&](std::size_t p) {
+      const int x = static_cast<int>(p % cam.width), y = static_cast<int>(p / cam.width);
+      SurfacePoint hit;
+      if (tracer.Intersect(cam.center(), cam.RayDirection(x, y), &hit))
+        out[k].depth[p] = static_cast<float>((hit.position - cam.center()).dot(axis));
+    });
+  }
+  return out;
+}
+
 }  // namespace lp

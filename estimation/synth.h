@@ -62,6 +62,20 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& options, const
 SceneBundle MakeSynthScene(const std::string& name, const SynthOptions& options,
                            const std::filesystem::path& data_dir);
 
+/// One RGB-D frame of a synthetic scene with its true camera.
+struct SynthFrame {
+  Camera camera;              ///< true pose and intrinsics
+  ImageRGB color;             ///< linear radiance
+  std::vector<float> depth;   ///< metres along the optical axis per pixel, 0 = nothing hit
+};
+
+/// RGB-D frames of scene `name` along an arc around its centre (the first view's camera
+/// turned about the up axis from -20 to +20 degrees): the capture stage's synthetic source
+/// (written as a frame directory by `lightprobe synth --frames`). Scenes lit by sphere
+/// lights and sky only; throws InputError for the HDR-map scenes.
+std::vector<SynthFrame> RenderSynthFrames(const std::string& name, const SynthOptions& options,
+                                          const std::filesystem::path& data_dir, int frames);
+
 /// The true lighting integrated over each cell of `env`: mean radiance per cell (3 per
 /// cell), as seen from the scene centre. Empty when the lighting is not far (near-light).
 std::vector<double> TrueCellRadiance(const SynthLighting& lighting, const EnvMap& env);
