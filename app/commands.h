@@ -20,6 +20,7 @@ Run AddBench(CLI::App& app);
 Run AddBenchReport(CLI::App& app);
 Run AddDevices(CLI::App& app);
 Run AddRecord(CLI::App& app);
+Run AddReplay(CLI::App& app);
 
 /// Registers the estimator options shared by estimate and bench.
 void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, int* threads);

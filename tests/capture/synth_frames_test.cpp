@@ -14,11 +14,16 @@ namespace lp {
 namespace {
 namespace fs = std::filesystem;
 
-TEST(SynthFrames, DepthIsTheDistanceAlongTheOpticalAxis) {
+SynthOptions Tiny(int w, int h) {
   SynthOptions o;
-  o.width = 48;
-  o.height = 36;
+  o.width = w;
+  o.height = h;
   o.spp = 4;
+  return o;
+}
+
+TEST(SynthFrames, DepthIsTheDistanceAlongTheOpticalAxis) {
+  const SynthOptions o = Tiny(48, 36);
   const auto frames = RenderSynthFrames("one-light", o, "", 3);
   ASSERT_EQ(frames.size(), 3u);
   for (const SynthFrame& f : frames) {
@@ -37,10 +42,7 @@ TEST(SynthFrames, DepthIsTheDistanceAlongTheOpticalAxis) {
 }
 
 TEST(SynthFrames, FrameDirectoryRoundTrip) {
-  SynthOptions o;
-  o.width = 40;
-  o.height = 30;
-  o.spp = 4;
+  const SynthOptions o = Tiny(40, 30);
   const auto synth = RenderSynthFrames("two-light", o, "", 2);
   std::vector<RgbdFrame> frames;
   for (const SynthFrame& s : synth) {
