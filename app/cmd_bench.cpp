@@ -107,6 +107,19 @@ void ReplayBench(const fs::path& out, const Row& row) {
 
 }  // namespace
 
+double SecondsPerCellRender(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
+                            const TracerOptions& tracer, int probes) {
+  const CellSampler uniform(env, {}, {}, tracer.nee_floor);
+  std::vector<double> lambda(3 * env.size());
+  Stopwatch sw;
+  for (int k = 0; k < probes; ++k) {
+    lambda.assign(lambda.size(), 0.0);
+    for (int c = 0; c < 3; ++c) lambda[3 * (k % env.size()) + c] = 1;
+    RenderEnvironment(scene, env, views, lambda, uniform, tracer, false);
+  }
+  return sw.Seconds() / probes;
+}
+
 Run AddBench(CLI::App& app) {
   auto* cmd = app.add_subcommand("bench", "time the solvers and the finite-difference baseline (synthetic one-light)");
   auto out = std::make_shared<std::string>("out/bench");
@@ -219,15 +232,7 @@ Run AddBench(CLI::App& app) {
       //    (common random numbers and frozen importance make it exact for a linear render).
       if (!want("fd")) continue;
       const int probes = 3;
-      Stopwatch fs_;
-      std::vector<double> lambda(3 * env.size(), 0.0);
-      CellSampler sampler(env, {}, {}, o->tracer.nee_floor);
-      for (int k = 0; k < probes; ++k) {
-        lambda.assign(lambda.size(), 0.0);
-        for (int c = 0; c < 3; ++c) lambda[3 * k + c] = 1;
-        RenderEnvironment(scene, env, b.views, lambda, sampler, o->tracer, false);
-      }
-      const double per_render = fs_.Seconds() / probes;
+      const double per_render = SecondsPerCellRender(scene, env, b.views, o->tracer, probes);
       char fd[160];
       std::snprintf(fd, sizeof fd, "%d renders x %.2f s (measured %d, extrapolated); %.0fx one trace of A",
                     env.size() + 1, per_render, probes, per_render * (env.size() + 1) / trace_s);

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <map>
 #include <memory>
 #include <sstream>
 
@@ -72,6 +73,8 @@ struct Case {
   View held_out;
   std::unique_ptr<RayTracer> tracer;
   std::vector<TruthLight> truth;
+  /// The true lighting integrated over the cells, per ring count (empty: not far / no map).
+  std::map<int, std::vector<double>> true_cells;
   double relit_floor = NAN;   ///< relit error of the true lighting projected on the default cells
   double render_seconds = 0;  ///< one render of the fitted view at the default settings (FD's unit)
   std::vector<Curve> curves;
@@ -101,7 +104,7 @@ Point Evaluate(const Case& c, const EnvMap& env, const std::vector<double>& lamb
   p.relit = RelitError(c, env, lambda, run, eval_spp);
   if (!c.truth.empty()) p.angle = DominantAngularErrorDeg(env, lambda, c.truth);
   const bool has_map = c.synth.lighting.equirect.pixels() > 0 || static_cast<bool>(c.synth.lighting.sky);
-  if (has_map) p.envmap = EnvMapRelativeError(env, lambda, TrueCellRadiance(c.synth.lighting, env), left_out);
+  if (has_map) p.envmap = EnvMapRelativeError(env, lambda, c.true_cells.at(env.rings()), left_out);
   return p;
 }
 
@@ -227,18 +230,13 @@ Run AddBenchReport(CLI::App& app) {
         c->fit.views.resize(1);
         c->tracer = std::make_unique<RayTracer>(c->fit.mesh);
         c->truth = ParseTruthLights(*c->fit.truth_json, scene + "/truth.json");
+        for (int r : rings) c->true_cells[r] = TrueCellRadiance(c->synth.lighting, EnvMap(r, c->fit.up));
         const EnvMap env(defaults.rings, c->fit.up);
-        const std::vector<double> true_cells = TrueCellRadiance(c->synth.lighting, env);
+        c->true_cells[defaults.rings] = TrueCellRadiance(c->synth.lighting, env);
+        const std::vector<double>& true_cells = c->true_cells[defaults.rings];
         if (!true_cells.empty()) c->relit_floor = RelitError(*c, env, true_cells, defaults.tracer, o->eval_spp);
-        {  // FD's unit of work: one render of the fitted view (same settings as a trace).
-          const CellSampler uniform(env, {}, {}, defaults.tracer.nee_floor);
-          std::vector<double> unit(3 * env.size(), 0.0);
-          unit[0] = unit[1] = unit[2] = 1;
-          const int probes = 2;
-          Stopwatch sw;
-          for (int k = 0; k < probes; ++k) RenderEnvironment(*c->tracer, env, c->fit.views, unit, uniform, defaults.tracer, false);
-          c->render_seconds = sw.Seconds() / probes;
-        }
+        // FD's unit of work: one render of the fitted view (same settings as a trace).
+        c->render_seconds = SecondsPerCellRender(*c->tracer, env, c->fit.views, defaults.tracer, 2);
         // Methods: every run forced through all sMC rounds so the rounds curve is complete.
         EstimateOptions fast = defaults;
         fast.max_rounds = o->quick ? 2 : 4;
@@ -298,9 +296,7 @@ Run AddBenchReport(CLI::App& app) {
           const EnvMap env9(9, c->fit.up);
           const CellSampler uniform(env9, {}, {}, defaults.tracer.nee_floor);
           std::vector<double> unit(3 * env9.size(), 0.0);
-          Stopwatch probe;
-          for (int k = 0; k < 2; ++k) RenderEnvironment(*c->tracer, env9, c->fit.views, unit, uniform, defaults.tracer, false);
-          const double per = probe.Seconds() / 2;
+          const double per = SecondsPerCellRender(*c->tracer, env9, c->fit.views, defaults.tracer, 2);
           Stopwatch all;
           for (int j = -1; j < env9.size(); ++j) {  // base render + one per cell
             std::fill(unit.begin(), unit.end(), 0.0);

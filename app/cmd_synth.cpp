@@ -6,7 +6,6 @@
 
 #include "app/commands.h"
 #include "capture/frame_source.h"
-#include "common/color.h"
 #include "common/image_io.h"
 #include "common/parallel.h"
 #include "common/timer.h"
@@ -25,9 +24,7 @@ std::vector<RgbdFrame> ToCameraFrames(const std::vector<SynthFrame>& frames) {
     const SynthFrame& s = frames[k];
     RgbdFrame f;
     f.index = static_cast<std::int64_t>(k);
-    f.color = {s.color.width, s.color.height, std::vector<std::uint8_t>(s.color.pixels() * 3)};
-    for (std::size_t i = 0; i < f.color.data.size(); ++i)
-      f.color.data[i] = static_cast<std::uint8_t>(std::lround(255 * LinearToSrgb(std::clamp(s.color.data[i], 0.f, 1.f))));
+    f.color = EncodeSrgb8(s.color);
     f.depth = {s.color.width, s.color.height, std::vector<std::uint16_t>(s.depth.size())};
     for (std::size_t i = 0; i < s.depth.size(); ++i)
       f.depth.data[i] = s.depth[i] > 0 && s.depth[i] < 65.535f ? static_cast<std::uint16_t>(std::lround(s.depth[i] * 1000)) : 0;

@@ -8,6 +8,7 @@
 
 #include "common/error.h"
 #include "estimation/estimator.h"
+#include "estimation/path_tracer.h"
 
 namespace lp::app {
 
@@ -28,6 +29,11 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
 /// Writes every output of an estimate into out_dir (atomically per file).
 void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle, const EstimateOptions& options,
                           const EstimateResult& result, double command_seconds);
+
+/// Seconds of one render of `views` with one cell lit (the finite-difference baseline's
+/// unit of work; the same paths as a trace of A), averaged over `probes` renders.
+double SecondsPerCellRender(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
+                            const TracerOptions& tracer, int probes);
 
 /// A number for CSV files: %.9g, empty for NaN.
 std::string Num(double v);

@@ -43,27 +43,32 @@ std::string OpenNiError() {
   return first == std::string::npos ? std::string() : e.substr(first);
 }
 
-/// Stops and destroys streams with the pause DummyDevice-like drivers need before
-/// destruction (they crash otherwise).
+/// Stops the streams and gives the frames in flight time to land: drivers like
+/// DummyDevice crash if their streams are destroyed right after stopping.
 void StopStreams(openni::VideoStream& depth, openni::VideoStream& color) {
   if (depth.isValid()) depth.stop();
   if (color.isValid()) color.stop();
   std::this_thread::sleep_for(std::chrono::milliseconds(150));
+}
+
+/// Stops (if not yet) and destroys the streams.
+void ReleaseStreams(openni::VideoStream& depth, openni::VideoStream& color) {
+  StopStreams(depth, color);
   depth.destroy();
   color.destroy();
 }
 
 /// OpenNI2's Recorder deadlocks when it is stopped while a frame arrives (the recorder's
-/// lock and the stream's are taken in opposite orders): stop the streams first, let the
-/// frames in flight land, then stop and destroy the recorder.
+/// lock and the stream's are taken in opposite orders): stop the streams first, then
+/// stop and destroy the recorder, then the streams.
 void FinishRecording(openni::Recorder& recorder, openni::VideoStream& depth, openni::VideoStream& color) {
-  if (depth.isValid()) depth.stop();
-  if (color.isValid()) color.stop();
-  std::this_thread::sleep_for(std::chrono::milliseconds(150));
+  StopStreams(depth, color);
   if (recorder.isValid()) {
     recorder.stop();
     recorder.destroy();
   }
+  depth.destroy();
+  color.destroy();
 }
 
 void OpenDevice(openni::Device* device, const std::string& uri) {
@@ -180,12 +185,10 @@ RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
     FinishRecording(recorder, depth, color);
   } catch (...) {
     FinishRecording(recorder, depth, color);
-    StopStreams(depth, color);
     device.close();
     fs::remove(tmp, ec);
     throw;
   }
-  StopStreams(depth, color);
   device.close();
   fs::rename(tmp, out, ec);
   if (ec) throw InputError(out_file, "cannot move the recording into place: " + ec.message());
@@ -267,7 +270,7 @@ class OpenNiStreams {
     return k;
   }
   void CloseDevice() {
-    StopStreams(depth_, color_);
+    ReleaseStreams(depth_, color_);
     device_.close();
   }
 

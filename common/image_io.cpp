@@ -166,20 +166,18 @@ ImageRGB ReadHdr(const fs::path& path) {
 
 void WriteExr(const fs::path& path, const ImageRGB& image) { WriteMat(path, ToMat(image)); }
 
-void WritePngSrgb(const fs::path& path, const ImageRGB& image, float exposure) {
-  cv::Mat m(image.height, image.width, CV_8UC3);
-  for (int y = 0; y < image.height; ++y) {
-    auto* row = m.ptr<unsigned char>(y);
-    for (int x = 0; x < image.width; ++x) {
-      const float* p = image.at(x, y);
-      for (int c = 0; c < 3; ++c) {
-        float v = p[c] * exposure;
-        if (!std::isfinite(v)) v = 0.f;
-        row[3 * x + (2 - c)] = static_cast<unsigned char>(std::lround(255.f * LinearToSrgb(v)));
-      }
-    }
+ImageRgb8 EncodeSrgb8(const ImageRGB& image, float exposure) {
+  ImageRgb8 out{image.width, image.height, std::vector<std::uint8_t>(image.data.size())};
+  for (std::size_t i = 0; i < image.data.size(); ++i) {
+    float v = image.data[i] * exposure;
+    if (!std::isfinite(v)) v = 0.f;
+    out.data[i] = static_cast<std::uint8_t>(std::lround(255.f * LinearToSrgb(v)));
   }
-  WriteMat(path, m);
+  return out;
+}
+
+void WritePngSrgb(const fs::path& path, const ImageRGB& image, float exposure) {
+  WriteRgb8Png(path, EncodeSrgb8(image, exposure));
 }
 
 void WritePng8(const fs::path& path, int width, int height, const std::vector<unsigned char>& rgb) {

@@ -39,6 +39,9 @@ ImageRGB ReadHdr(const std::filesystem::path& path);
 
 /// 32-bit float OpenEXR, linear.
 void WriteExr(const std::filesystem::path& path, const ImageRGB& image);
+/// Linear RGB to what an 8-bit camera stores: times `exposure`, clipped to [0, 1],
+/// sRGB-encoded (non-finite values become 0).
+ImageRgb8 EncodeSrgb8(const ImageRGB& image, float exposure = 1.f);
 /// 8-bit PNG, sRGB-encoded after multiplying by `exposure` (values clamped).
 void WritePngSrgb(const std::filesystem::path& path, const ImageRGB& image, float exposure = 1.f);
 /// 8-bit PNG with an explicit colour per pixel (already encoded, 0..255 RGB).

@@ -367,7 +367,6 @@ class MajorizeMinimize {
   void SetCentre(const std::vector<double>& lambda, const std::vector<double>& h) {
     centre_ = lambda;
     for (int c = 0; c < 3; ++c) {
-      Eigen::Map<const Eigen::MatrixXd> Gm(G_[c].data(), L_, L_);
       Eigen::VectorXd x0(L_);
       for (int j = 0; j < L_; ++j) x0[j] = lambda[3 * j + c];
       const Eigen::VectorXd gx = qp_[c]->Times(x0);
@@ -383,7 +382,6 @@ class MajorizeMinimize {
     double m = 0;
     Eigen::VectorXd d(L_);
     for (int c = 0; c < 3; ++c) {
-      Eigen::Map<const Eigen::MatrixXd> Gm(G_[c].data(), L_, L_);
       for (int j = 0; j < L_; ++j) d[j] = x[3 * j + c] - centre_[3 * j + c];
       m += 0.5 * d.dot(qp_[c]->Times(d));
       for (int j = 0; j < L_; ++j) m -= h_[3 * j + c] * d[j];
