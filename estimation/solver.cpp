@@ -25,17 +25,6 @@ const char* ToString(SolverKind kind) { return kind == SolverKind::kFast ? "fast
 // ---------------------------------------------------------------------------------------------
 // NNQP: min 0.5 x'Gx - b'x, x >= 0.
 
-/// G x for a column-major dense G, touching only the columns where x is non-zero: the
-/// estimates are sparse (the penalty turns most cells off), so this is far cheaper than
-/// the dense product when there are thousands of cells.
-template <typename Mat, typename Vec>
-Eigen::VectorXd SparseTimes(const Mat& G, const Vec& x) {
-  Eigen::VectorXd out = Eigen::VectorXd::Zero(G.rows());
-  for (Eigen::Index j = 0; j < x.size(); ++j)
-    if (x[j] != 0) out.noalias() += x[j] * G.col(j);
-  return out;
-}
-
 /// Solves NNQPs that share one matrix G, caching the Cholesky factor of the last
 /// passive set: successive solves of an MM run mostly keep their support.
 class NnqpSolver {
@@ -57,16 +46,13 @@ class NnqpSolver {
         if (G_(i, j) != 0) nonzero_rows_[j].push_back(i);
   }
 
-  /// G x, touching only the non-zeros of x (and of G when it is sparse).
+  /// G x, touching only the columns where x is non-zero: the estimates are sparse (the
+  /// penalty turns most cells off), so this is far cheaper than the dense product.
   template <typename Vec>
   Eigen::VectorXd Times(const Vec& x) const {
-    if (nonzero_rows_.empty()) return SparseTimes(G_, x);
     Eigen::VectorXd out = Eigen::VectorXd::Zero(n_);
-    for (int j = 0; j < n_; ++j) {
-      if (x[j] == 0) continue;
-      const double* col = G_.data() + static_cast<std::size_t>(j) * n_;
-      for (int r : nonzero_rows_[j]) out[r] += x[j] * col[r];
-    }
+    for (int j = 0; j < n_; ++j)
+      if (x[j] != 0) AddColumn(j, x[j], &out);
     return out;
   }
 
@@ -106,12 +92,7 @@ class NnqpSolver {
         const double xi = std::max(0.0, x[i] - g[i] / d);
         const double delta = xi - x[i];
         if (delta != 0) {
-          if (nonzero_rows_.empty()) {
-            g += delta * G_.col(i);
-          } else {
-            const double* col = G_.data() + static_cast<std::size_t>(i) * n;
-            for (int r : nonzero_rows_[i]) g[r] += delta * col[r];
-          }
+          AddColumn(i, delta, &g);
           x[i] = xi;
           change = std::max(change, std::abs(delta));
         }
@@ -179,6 +160,16 @@ class NnqpSolver {
   }
 
  private:
+  /// out += scale * G column j (only its non-zero rows when G is sparse).
+  void AddColumn(int j, double scale, Eigen::VectorXd* out) const {
+    if (nonzero_rows_.empty()) {
+      out->noalias() += scale * G_.col(j);
+      return;
+    }
+    const double* col = G_.data() + static_cast<std::size_t>(j) * n_;
+    for (int r : nonzero_rows_[j]) (*out)[r] += scale * col[r];
+  }
+
   /// z_ = G_PP^{-1} b_P for the passive set P_ (factor reused when P is unchanged).
   void SolvePassive(const std::vector<char>& passive, const Eigen::Map<const Eigen::VectorXd>& b) {
     P_.clear();
