@@ -77,7 +77,8 @@ struct Case {
   std::map<int, std::vector<double>> true_cells;
   double relit_floor = NAN;   ///< relit error of the true lighting projected on the default cells
   double render_seconds = 0;  ///< one render of the fitted view at the default settings (FD's unit)
-  std::vector<Curve> curves;
+  std::vector<Curve> curves;  ///< fast first
+  bool swept = false;         ///< the knobs were swept (the sMC-rounds knob is fast's rounds)
 };
 
 std::string Fmt(const char* f, double a, double b = 0, double c = 0) {
@@ -286,10 +287,7 @@ Run AddBenchReport(CLI::App& app) {
           sweep("spp", spps, defaults.tracer.spp, [](EstimateOptions* e, int v) { e->tracer.spp = v; });
           sweep("rings", rings, defaults.rings, [](EstimateOptions* e, int v) { e->rings = v; });
           sweep("bounces", bounces, defaults.tracer.bounces, [](EstimateOptions* e, int v) { e->tracer.bounces = v; });
-          Curve rounds;  // the forced run's rounds, as a knob
-          rounds.name = "fast: sMC rounds";
-          rounds.points = c->curves[0].points;
-          c->curves.push_back(rounds);
+          c->swept = true;
         }
         // The FD extrapolation checked once against a real FD Jacobian at 9 rings.
         if (fd_check.empty() && !o->quick) {
@@ -340,32 +338,33 @@ Run AddBenchReport(CLI::App& app) {
           p.y_label = m.y_label;
           if (m.field == &Point::relit && std::isfinite(c->relit_floor)) p.reference_y.push_back(c->relit_floor);
           bool any = false;
-          for (const Curve& cv : c->curves) {
-            const bool method = !cv.iterations.empty();
-            // Per round, the rounds knob is the fast curve itself: drawn once.
-            if (!m.per_iteration && cv.name == "fast: sMC rounds") continue;
+          auto add_series = [&](const std::string& name, const Curve& cv, bool per_iteration) {
             PlotSeries s;
-            s.label = cv.name;
-            if (method && m.per_iteration) {
+            s.label = name;
+            if (per_iteration) {
               s.markers = false;
               for (const IterPoint& it : cv.iterations) {
                 const double v = m.field == &Point::fitted ? it.fitted : it.angle;
                 s.x.push_back(it.seconds);
                 s.y.push_back(v);
-                csv << c->scene << ',' << size << ",\"" << cv.name << "\",," << it.round << ',' << it.iteration << ','
+                csv << c->scene << ',' << size << ",\"" << name << "\",," << it.round << ',' << it.iteration << ','
                     << Num(it.seconds) << ',' << Num(v) << '\n';
               }
             } else {
               for (const Point& pt : cv.points) {
                 s.x.push_back(pt.seconds);
                 s.y.push_back(pt.*(m.field));
-                csv << c->scene << ',' << size << ",\"" << cv.name << "\"," << pt.setting << ',' << pt.round << ",,"
+                csv << c->scene << ',' << size << ",\"" << name << "\"," << pt.setting << ',' << pt.round << ",,"
                     << Num(pt.seconds) << ',' << Num(pt.*(m.field)) << '\n';
               }
             }
             for (double v : s.y) any = any || std::isfinite(v);
             p.series.push_back(std::move(s));
-          }
+          };
+          for (const Curve& cv : c->curves) add_series(cv.name, cv, m.per_iteration && !cv.iterations.empty());
+          // The sMC-rounds knob is the fast run after each round: a series of its own where
+          // the fast run is drawn per iteration (per round it is the fast curve itself).
+          if (m.per_iteration && c->swept) add_series("fast: sMC rounds", c->curves.front(), false);
           if (any) panels.push_back(std::move(p));
         }
         if (panels.empty()) continue;
