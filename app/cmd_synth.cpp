@@ -6,6 +6,7 @@
 
 #include "app/commands.h"
 #include "capture/frame_source.h"
+#include "common/atomic_file.h"
 #include "common/image_io.h"
 #include "common/parallel.h"
 #include "common/timer.h"
@@ -50,7 +51,8 @@ Run AddSynth(CLI::App& app) {
   auto threads = std::make_shared<int>(0);
   auto frames = std::make_shared<int>(0);
   cmd->add_option("--frames", *frames,
-                  "write N RGB-D frames along an arc (a Redwood-layout frame directory with trajectory.log) "
+                  "write N RGB-D frames along an arc (a Redwood-layout frame directory with trajectory.log and "
+                  "truth.json) "
                   "instead of a scene bundle");
   cmd->add_option("NAME", *name, "scene name (see --list)");
   cmd->add_option("--out", *out, "output scene directory");
@@ -61,6 +63,8 @@ Run AddSynth(CLI::App& app) {
   cmd->add_option("--seed", o->seed, "random seed")->capture_default_str();
   cmd->add_option("--held-out", o->held_out_views, "extra views from another viewpoint (0 or 1), not for fitting")
       ->capture_default_str();
+  cmd->add_flag("--depth-noise", o->depth_noise,
+                "with --frames: structured-light depth noise and holes (Xtion-like; default exact depth)");
   cmd->add_option("--data", *data, "shared data directory (mesh/ for frag115, hdri/ for env-*)")->capture_default_str();
   cmd->add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
   return [=] {
@@ -73,7 +77,9 @@ Run AddSynth(CLI::App& app) {
     ThreadLimit limit(*threads);
     Stopwatch sw;
     if (*frames > 0) {
-      WriteFrameDirectory(*out, ToCameraFrames(RenderSynthFrames(*name, *o, *data, *frames)));
+      std::string truth;
+      WriteFrameDirectory(*out, ToCameraFrames(RenderSynthFrames(*name, *o, *data, *frames, &truth)));
+      if (!truth.empty()) WriteTextAtomically(fs::path(*out) / "truth.json", truth);
       std::printf("wrote %d synthetic RGB-D frames of '%s' (%dx%d, %d spp) to %s in %.1f s\n", *frames, name->c_str(),
                   o->width, o->height, o->spp, fs::absolute(*out).lexically_normal().c_str(), sw.Seconds());
       return;

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "capture/frame_source.h"
+#include "capture/trajectory.h"
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/image_io.h"
@@ -169,44 +170,6 @@ std::vector<fs::path> SortedFiles(const fs::path& dir) {
   return v;
 }
 
-/// Open3D's trajectory.log: "i j n" then a 4x4 world_from_camera, per frame.
-std::vector<Eigen::Matrix4d> ReadTrajectoryLog(const fs::path& path) {
-  const auto rows = ReadTable(path);
-  std::vector<Eigen::Matrix4d> poses;
-  if (rows.size() % 5 != 0)
-    throw InputError(path.string(), "expected a 3-number header and 4 rows of 4 numbers per frame");
-  for (std::size_t i = 0; i < rows.size(); i += 5) {
-    if (rows[i].size() != 3)
-      throw InputError(path.string(), "expected a 3-number header and 4 rows of 4 numbers per frame");
-    Eigen::Matrix4d m;
-    for (int r = 0; r < 4; ++r) {
-      if (rows[i + 1 + r].size() != 4) throw InputError(path.string(), "a pose row must have 4 numbers");
-      for (int c = 0; c < 4; ++c) m(r, c) = ParseNumber(rows[i + 1 + r][c], path, i + 2 + r);
-    }
-    poses.push_back(m);
-  }
-  return poses;
-}
-
-/// slambook's pose.txt: "tx ty tz qx qy qz qw" per frame (world_from_camera).
-std::vector<Eigen::Matrix4d> ReadPoseTxt(const fs::path& path) {
-  std::vector<Eigen::Matrix4d> poses;
-  std::size_t line = 0;
-  for (const auto& r : ReadTable(path)) {
-    ++line;
-    if (r.size() != 7) throw InputError(path.string(), "line " + std::to_string(line) + ": expected 7 numbers");
-    double v[7];
-    for (int k = 0; k < 7; ++k) v[k] = ParseNumber(r[k], path, line);
-    Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);
-    if (q.norm() < 1e-9) throw InputError(path.string(), "line " + std::to_string(line) + ": zero quaternion");
-    Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
-    m.block<3, 3>(0, 0) = q.normalized().toRotationMatrix();
-    m.block<3, 1>(0, 3) = Eigen::Vector3d(v[0], v[1], v[2]);
-    poses.push_back(m);
-  }
-  return poses;
-}
-
 class DirectorySource : public FrameSource {
  public:
   DirectorySource(const fs::path& dir, const DirectorySourceOptions& o) : dir_(dir), options_(o) {
@@ -308,6 +271,42 @@ class DirectorySource : public FrameSource {
 };
 
 }  // namespace
+
+std::vector<Eigen::Matrix4d> ReadTrajectoryLog(const fs::path& path) {
+  const auto rows = ReadTable(path);
+  std::vector<Eigen::Matrix4d> poses;
+  if (rows.size() % 5 != 0)
+    throw InputError(path.string(), "expected a 3-number header and 4 rows of 4 numbers per frame");
+  for (std::size_t i = 0; i < rows.size(); i += 5) {
+    if (rows[i].size() != 3)
+      throw InputError(path.string(), "expected a 3-number header and 4 rows of 4 numbers per frame");
+    Eigen::Matrix4d m;
+    for (int r = 0; r < 4; ++r) {
+      if (rows[i + 1 + r].size() != 4) throw InputError(path.string(), "a pose row must have 4 numbers");
+      for (int c = 0; c < 4; ++c) m(r, c) = ParseNumber(rows[i + 1 + r][c], path, i + 2 + r);
+    }
+    poses.push_back(m);
+  }
+  return poses;
+}
+
+std::vector<Eigen::Matrix4d> ReadPoseTxt(const fs::path& path) {
+  std::vector<Eigen::Matrix4d> poses;
+  std::size_t line = 0;
+  for (const auto& r : ReadTable(path)) {
+    ++line;
+    if (r.size() != 7) throw InputError(path.string(), "line " + std::to_string(line) + ": expected 7 numbers");
+    double v[7];
+    for (int k = 0; k < 7; ++k) v[k] = ParseNumber(r[k], path, line);
+    Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);
+    if (q.norm() < 1e-9) throw InputError(path.string(), "line " + std::to_string(line) + ": zero quaternion");
+    Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
+    m.block<3, 3>(0, 0) = q.normalized().toRotationMatrix();
+    m.block<3, 1>(0, 3) = Eigen::Vector3d(v[0], v[1], v[2]);
+    poses.push_back(m);
+  }
+  return poses;
+}
 
 std::unique_ptr<FrameSource> OpenDirectorySource(const std::string& dir, const DirectorySourceOptions& options) {
   return std::make_unique<DirectorySource>(dir, options);

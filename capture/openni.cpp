@@ -8,12 +8,25 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
 #include <thread>
 
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <nlohmann/json.hpp>
+
+extern char** environ;  // for posix_spawn
+
 #include "capture/usb_devices.h"
+#include "common/atomic_file.h"
 #include "common/error.h"
 
 namespace lp {
@@ -81,6 +94,56 @@ void OpenDevice(openni::Device* device, const std::string& uri) {
                             (OpenNiDriverFolder().empty() ? "none" : OpenNiDriverFolder()));
 }
 
+/// Sets a stream to the mode with this size and pixel format, at `fps` or the nearest.
+void SelectMode(openni::VideoStream& s, int w, int h, int fps, openni::PixelFormat format, const char* what) {
+  const openni::Array<openni::VideoMode>& modes = s.getSensorInfo().getSupportedVideoModes();
+  int best = -1;
+  std::string available;
+  for (int i = 0; i < modes.getSize(); ++i) {
+    const openni::VideoMode& m = modes[i];
+    available += (available.empty() ? "" : ", ") + std::to_string(m.getResolutionX()) + "x" +
+                 std::to_string(m.getResolutionY()) + "@" + std::to_string(m.getFps());
+    if (m.getResolutionX() != w || m.getResolutionY() != h || m.getPixelFormat() != format) continue;
+    if (best < 0 || std::abs(m.getFps() - fps) < std::abs(modes[best].getFps() - fps)) best = i;
+  }
+  if (best < 0)
+    throw InputError(std::string("the ") + what + " stream has no " + std::to_string(w) + "x" + std::to_string(h) +
+                     " mode in the needed format (available: " + available + ")");
+  if (s.setVideoMode(modes[best]) != openni::STATUS_OK)
+    throw InputError(std::string("cannot set the ") + what + " mode: " + OpenNiError());
+}
+
+/// Locks auto exposure / white balance and sets exposure / gain (when >= 0) on the colour
+/// stream, after the streams started (some devices ignore settings made before), then
+/// reads back what the device uses; a device that did not take them is an error.
+CameraControls ApplyCameraControls(openni::Device& device, openni::VideoStream& color, bool lock, int exposure,
+                                   int gain, const std::string& uri) {
+  CameraControls c;
+  if (openni::CameraSettings* cs = color.getCameraSettings()) {
+    if (lock) {
+      cs->setAutoExposureEnabled(false);
+      cs->setAutoWhiteBalanceEnabled(false);
+    }
+    if (exposure >= 0) cs->setExposure(exposure);
+    if (gain >= 0) cs->setGain(gain);
+    c.auto_exposure = cs->getAutoExposureEnabled();
+    c.auto_white_balance = cs->getAutoWhiteBalanceEnabled();
+    c.exposure = cs->getExposure();
+    c.gain = cs->getGain();
+    c.camera_settings = true;
+  }
+  c.registered = device.getImageRegistrationMode() == openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR;
+  if (lock && c.camera_settings && (c.auto_exposure || c.auto_white_balance))
+    throw InputError(uri, "the camera did not lock its exposure / white balance (read back still automatic)");
+  if (exposure >= 0 && c.camera_settings && c.exposure != exposure)
+    throw InputError(uri, "the camera ignored exposure " + std::to_string(exposure) + " (reads back " +
+                              std::to_string(c.exposure) + ")");
+  if (gain >= 0 && c.camera_settings && c.gain != gain)
+    throw InputError(uri, "the camera ignored gain " + std::to_string(gain) + " (reads back " +
+                              std::to_string(c.gain) + ")");
+  return c;
+}
+
 std::uint32_t U32(const unsigned char* p) { return p[0] | p[1] << 8 | p[2] << 16 | std::uint32_t(p[3]) << 24; }
 
 }  // namespace
@@ -93,7 +156,7 @@ std::string OpenNiDriverFolder() {
 #endif
 }
 
-void ValidateOniFile(const std::string& path) {
+int ValidateOniFile(const std::string& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw InputError(path, "file not found");
   const std::uint64_t size = fs::file_size(path, ec);
@@ -127,6 +190,7 @@ void ValidateOniFile(const std::string& path) {
     ++records;
   }
   if (frames == 0) throw InputError(path, ".oni file has no frames");
+  return frames;
 }
 
 RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
@@ -140,6 +204,16 @@ RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
   if (color.create(device, openni::SENSOR_COLOR) != openni::STATUS_OK) {
     depth.destroy();
     throw InputError(o.uri, "the device has no colour stream: " + OpenNiError());
+  }
+  try {
+    if (o.width > 0 && o.height > 0) {
+      SelectMode(depth, o.width, o.height, 30, openni::PIXEL_FORMAT_DEPTH_1_MM, "depth");
+      SelectMode(color, o.width, o.height, 30, openni::PIXEL_FORMAT_RGB888, "colour");
+    }
+  } catch (...) {
+    depth.destroy();
+    color.destroy();
+    throw;
   }
   if (device.isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR))
     device.setImageRegistrationMode(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR);
@@ -155,6 +229,7 @@ RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
       throw InputError(out_file, "cannot attach the streams to the recorder: " + OpenNiError());
     if (depth.start() != openni::STATUS_OK || color.start() != openni::STATUS_OK)
       throw InputError(o.uri, "cannot start the streams: " + OpenNiError());
+    result.controls = ApplyCameraControls(device, color, o.lock_exposure, o.exposure, o.gain, o.uri);
     // OpenNI2's recordings keep each stream's timestamps relative to its own first recorded
     // frame, so both streams must start recording with the same frame or replay pairs them
     // one frame apart: start the recorder just after a depth and a colour frame with the same
@@ -179,6 +254,7 @@ RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
         throw InputError(o.uri, "the device stopped delivering frames (unplugged?) after " +
                                     std::to_string(result.depth_frames) + " depth frames");
       if (streams[ready]->readFrame(&frame) != openni::STATUS_OK) continue;
+      if (ready == 0 && result.depth_frames == 0) result.first_depth_frame_index = frame.getFrameIndex();
       (ready == 0 ? result.depth_frames : result.color_frames)++;
     }
     result.seconds = elapsed();
@@ -189,11 +265,119 @@ RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
     fs::remove(tmp, ec);
     throw;
   }
+  nlohmann::json side;
+  side["format"] = "lightprobe-oni-side";
+  side["version"] = 1;
+  side["device_uri"] = device.getDeviceInfo().getUri();
+  side["device_name"] = device.getDeviceInfo().getName();
   device.close();
+  const CameraControls& c = result.controls;
+  side["registered"] = c.registered;
+  side["camera_settings"] = c.camera_settings;
+  side["auto_exposure"] = c.auto_exposure;
+  side["auto_white_balance"] = c.auto_white_balance;
+  side["exposure"] = c.exposure;
+  side["gain"] = c.gain;
+  side["lossy_color"] = o.lossy_color;
+  side["depth_frames"] = result.depth_frames;
+  side["color_frames"] = result.color_frames;
+  side["first_depth_frame_index"] = result.first_depth_frame_index;
+  // An old side file never describes the new recording: removed before the .oni moves in.
+  fs::remove(OniSideFile(out_file), ec);
   fs::rename(tmp, out, ec);
   if (ec) throw InputError(out_file, "cannot move the recording into place: " + ec.message());
+  WriteTextAtomically(OniSideFile(out_file), side.dump(2) + "\n");
   return result;
 }
+
+std::string OniSideFile(const std::string& oni_file) { return oni_file + ".json"; }
+
+namespace {
+
+/// The helper that plays a file in its own process: LIGHTPROBE_ONI_CHECK if set, else the
+/// one the build put in the OpenNI2 runtime folder.
+std::string OniCheckHelper() {
+  if (const char* env = std::getenv("LIGHTPROBE_ONI_CHECK")) return env;
+#ifdef LIGHTPROBE_OPENNI2_RUNTIME
+  return std::string(LIGHTPROBE_OPENNI2_RUNTIME) + "/lightprobe-oni-check";
+#else
+  return {};
+#endif
+}
+
+/// Plays `path` through once in a child process (the helper reads every frame with
+/// isolate off). A crash, a hang past the time limit or an error there is an InputError
+/// here; this process never hands OpenNI2 a file that broke it.
+void PlayInChild(const std::string& path, int frame_records) {
+  const std::string helper = OniCheckHelper();
+  std::error_code ec;
+  if (helper.empty() || !fs::exists(helper, ec)) {
+    static std::once_flag warned;
+    std::call_once(warned, [&] {
+      std::fprintf(stderr, "warning: %s not found; .oni playback is not isolated in a separate process\n",
+                   helper.empty() ? "lightprobe-oni-check" : helper.c_str());
+    });
+    return;
+  }
+  int pipe_fd[2];
+  if (pipe(pipe_fd) != 0) throw InputError(path, "cannot create a pipe for the playback check");
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
+  posix_spawn_file_actions_adddup2(&actions, pipe_fd[1], 2);
+  posix_spawn_file_actions_addclose(&actions, pipe_fd[0]);
+  std::string arg0 = helper, arg1 = path;
+  char* argv[] = {arg0.data(), arg1.data(), nullptr};
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, helper.c_str(), &actions, nullptr, argv, environ);
+  posix_spawn_file_actions_destroy(&actions);
+  close(pipe_fd[1]);
+  if (rc != 0) {
+    close(pipe_fd[0]);
+    throw InputError(path, "cannot start the playback check " + helper + ": " + std::strerror(rc));
+  }
+  // Generous: the helper decodes ~1000 VGA frames/s; a hang is what this limit catches.
+  const double limit = 30.0 + 0.05 * frame_records;
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string err;
+  int status = 0;
+  bool done = false, killed = false;
+  while (!done) {
+    pollfd p{pipe_fd[0], POLLIN, 0};
+    if (poll(&p, 1, 50) > 0) {
+      char buf[512];
+      const ssize_t n = read(pipe_fd[0], buf, sizeof buf);
+      if (n > 0 && err.size() < 4096) err.append(buf, static_cast<std::size_t>(n));
+    }
+    done = waitpid(pid, &status, WNOHANG) == pid;
+    if (!done && std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > limit) {
+      kill(pid, SIGKILL);
+      waitpid(pid, &status, 0);
+      done = killed = true;
+    }
+  }
+  for (char buf[512];;) {  // what the child wrote just before it exited
+    const ssize_t n = read(pipe_fd[0], buf, sizeof buf);
+    if (n <= 0 || err.size() >= 4096) break;
+    err.append(buf, static_cast<std::size_t>(n));
+  }
+  close(pipe_fd[0]);
+  if (killed)
+    throw InputError(path, "corrupt .oni file: OpenNI2 playback hung (checked in a separate process, stopped after " +
+                               std::to_string(static_cast<int>(limit)) + " s)");
+  if (WIFSIGNALED(status))
+    throw InputError(path, "corrupt .oni file: OpenNI2 crashed playing it (signal " +
+                               std::to_string(WTERMSIG(status)) + ", in a separate process)");
+  if (WIFEXITED(status) && WEXITSTATUS(status) != 0) {
+    // The helper's last line is the reason (it names the file).
+    while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
+    const auto nl = err.rfind('\n');
+    const std::string last = nl == std::string::npos ? err : err.substr(nl + 1);
+    throw InputError(last.empty() ? path + ": the playback check failed" : last);
+  }
+}
+
+}  // namespace
 
 namespace {
 
@@ -281,7 +465,9 @@ class OpenNiStreams {
 class OniFileSource : public FrameSource, private OpenNiStreams {
  public:
   OniFileSource(const std::string& path, const OniPlaybackOptions& o) : path_(path), options_(o) {
-    ValidateOniFile(path);
+    const int records = ValidateOniFile(path);
+    ReadSideFile();
+    if (o.isolate) PlayInChild(path, records);
     InitOpenNi();
     Open();
   }
@@ -301,6 +487,7 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
                   color_count_))
       return SourceStatus::kTimeout;
     *out = ToFrame(d, c, produced_++);
+    if (side_registered_) out->registered = *side_registered_;
     return SourceStatus::kFrame;
   }
 
@@ -333,30 +520,27 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
     depth_read_ = color_read_ = 0;
   }
 
+  void ReadSideFile() {
+    const std::string side = OniSideFile(path_);
+    std::error_code ec;
+    if (!fs::exists(side, ec)) return;
+    try {
+      const nlohmann::json j = nlohmann::json::parse(ReadTextFile(side));
+      if (j.value("format", "") != "lightprobe-oni-side") throw InputError(side, "not a lightprobe side file");
+      if (j.value("version", 0) != 1) throw InputError(side, "unsupported side file version");
+      side_registered_ = j.at("registered").get<bool>();
+    } catch (const nlohmann::json::exception& e) {
+      throw InputError(side, std::string("malformed side file: ") + e.what());
+    }
+  }
+
   std::string path_;
   OniPlaybackOptions options_;
+  std::optional<bool> side_registered_;
   int depth_count_ = 0, color_count_ = 0, depth_read_ = 0, color_read_ = 0;
   std::int64_t count_ = 0, produced_ = 0;
 };
 
-/// Sets a stream to the mode with this size and pixel format, at `fps` or the nearest.
-void SelectMode(openni::VideoStream& s, int w, int h, int fps, openni::PixelFormat format, const char* what) {
-  const openni::Array<openni::VideoMode>& modes = s.getSensorInfo().getSupportedVideoModes();
-  int best = -1;
-  std::string available;
-  for (int i = 0; i < modes.getSize(); ++i) {
-    const openni::VideoMode& m = modes[i];
-    available += (available.empty() ? "" : ", ") + std::to_string(m.getResolutionX()) + "x" +
-                 std::to_string(m.getResolutionY()) + "@" + std::to_string(m.getFps());
-    if (m.getResolutionX() != w || m.getResolutionY() != h || m.getPixelFormat() != format) continue;
-    if (best < 0 || std::abs(m.getFps() - fps) < std::abs(modes[best].getFps() - fps)) best = i;
-  }
-  if (best < 0)
-    throw InputError(std::string("the ") + what + " stream has no " + std::to_string(w) + "x" + std::to_string(h) +
-                     " mode in the needed format (available: " + available + ")");
-  if (s.setVideoMode(modes[best]) != openni::STATUS_OK)
-    throw InputError(std::string("cannot set the ") + what + " mode: " + OpenNiError());
-}
 
 class DeviceSource : public FrameSource, private OpenNiStreams, private openni::OpenNI::DeviceDisconnectedListener {
  public:
@@ -376,27 +560,7 @@ class DeviceSource : public FrameSource, private OpenNiStreams, private openni::
       if (o.sync) device_.setDepthColorSyncEnabled(true);
       if (depth_.start() != openni::STATUS_OK || color_.start() != openni::STATUS_OK)
         throw InputError(uri_, "cannot start the streams: " + OpenNiError());
-      // Exposure settings made before the streams start are ignored by some devices:
-      // apply them now, then read back what the device actually uses.
-      if (openni::CameraSettings* cs = color_.getCameraSettings()) {
-        if (o.lock_exposure) {
-          cs->setAutoExposureEnabled(false);
-          cs->setAutoWhiteBalanceEnabled(false);
-        }
-        if (o.exposure >= 0) cs->setExposure(o.exposure);
-        if (o.gain >= 0) cs->setGain(o.gain);
-        controls_.auto_exposure = cs->getAutoExposureEnabled();
-        controls_.auto_white_balance = cs->getAutoWhiteBalanceEnabled();
-        controls_.exposure = cs->getExposure();
-        controls_.gain = cs->getGain();
-        controls_.camera_settings = true;
-      }
-      controls_.registered = device_.getImageRegistrationMode() == openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR;
-      if (o.lock_exposure && controls_.camera_settings && (controls_.auto_exposure || controls_.auto_white_balance))
-        throw InputError(uri_, "the camera did not lock its exposure / white balance (read back still automatic)");
-      if (o.exposure >= 0 && controls_.camera_settings && controls_.exposure != o.exposure)
-        throw InputError(uri_, "the camera ignored exposure " + std::to_string(o.exposure) + " (reads back " +
-                                   std::to_string(controls_.exposure) + ")");
+      controls_ = ApplyCameraControls(device_, color_, o.lock_exposure, o.exposure, o.gain, uri_);
     } catch (...) {
       openni::OpenNI::removeDeviceDisconnectedListener(this);
       CloseDevice();

@@ -2,7 +2,9 @@
 /// OpenNI2 behind one wrapper (no OpenNI header here): live devices, `.oni` recordings
 /// and the Recorder. Debian's OpenNI2 2.2 has playback traps (dependencies.md) that this
 /// code works around: manual playback speed, frame counts instead of an end-of-file
-/// signal, seek by reopening, and files checked before OpenNI2 sees them.
+/// signal, seek by reopening, files checked before OpenNI2 sees them, and playback tried
+/// in a separate process first (OpenNI2 crashes on some corrupted records).
+
 #include <memory>
 #include <string>
 
@@ -14,31 +16,60 @@ namespace lp {
 /// synthetic driver next to Debian's); empty when the build has none.
 std::string OpenNiDriverFolder();
 
+/// What a colour camera reports after its controls were applied.
+struct CameraControls {
+  bool camera_settings = false;  ///< the colour stream has exposure controls at all
+  bool auto_exposure = true, auto_white_balance = true;
+  int exposure = -1, gain = -1;
+  bool registered = false;  ///< depth registered to colour (hardware registration on)
+};
+
 struct RecordOptions {
-  std::string uri;          ///< OpenNI2 device URI ("" = the first device, lpsynth://DIR = synthetic)
-  int frames = 30;          ///< depth frames to record (0 = use seconds)
-  double seconds = 0;       ///< or record for this long
-  bool lossy_color = false; ///< JPEG colour (smaller) instead of uncompressed
+  std::string uri;            ///< OpenNI2 device URI ("" = the first device, lpsynth://DIR = synthetic)
+  int frames = 30;            ///< depth frames to record (0 = use seconds)
+  double seconds = 0;         ///< or record for this long
+  bool lossy_color = false;   ///< JPEG colour (smaller) instead of uncompressed
+  int width = 0, height = 0;  ///< size of both streams; 0 = the device's current mode
+  /// As for a live source (OpenNiDeviceOptions): lock auto exposure / white balance and
+  /// set exposure / gain when >= 0, after the streams start, then read them back.
+  bool lock_exposure = true;
+  int exposure = -1, gain = -1;
 };
 
 struct RecordResult {
   int depth_frames = 0, color_frames = 0;
   double seconds = 0;
+  CameraControls controls;  ///< as read back from the device (also in the side file)
+  /// The device's frame index of the first recorded depth frame (a counter from 1 on the
+  /// PS1080 and the synthetic device, which serves directory frame (index - 1) mod N).
+  int first_depth_frame_index = -1;
 };
 
 /// Records depth (lossless) and colour from a device into `out_file` (.oni), written to a
-/// temporary name and renamed when complete. Throws InputError with the reason when no
-/// device opens (no camera on USB, no permission, no driver) or recording fails.
+/// temporary name and renamed when complete, after the side file OniSideFile(out_file):
+/// what an .oni cannot hold (registration, exposure, gain, device URI; JSON). Throws
+/// InputError with the reason when no device opens (no camera on USB, no permission, no
+/// driver) or recording fails; an existing file is then left as it was.
 RecordResult RecordOni(const std::string& out_file, const RecordOptions& options);
+
+/// `FILE.oni` -> `FILE.oni.json`, the side file of a recording.
+std::string OniSideFile(const std::string& oni_file);
 
 struct OniPlaybackOptions {
   bool real_time = false;  ///< play at the recorded rate; default: as fast as frames are read
   bool loop = false;
+  /// Play the whole file once in a separate process (lightprobe-oni-check) before this
+  /// process opens it: OpenNI2 crashes on some corrupted records that pass the structure
+  /// check, and a crash there becomes an InputError here. Costs one decode pass.
+  bool isolate = true;
 };
 
 /// Replays a `.oni` file through OpenNI2's OniFile driver. Depth and colour are paired by
-/// frame index (a stream that dropped frames skips ahead to its partner). Throws
-/// InputError for a missing, empty, truncated or malformed file before OpenNI2 reads it.
+/// frame index (a stream that dropped frames skips ahead to its partner). Frames are
+/// marked registered when the side file says the recording was (OpenNI2's recordings keep
+/// stream properties, not the device's registration mode); without a side file, as
+/// OpenNI2 reports. Throws InputError for a missing, empty, truncated or malformed file
+/// (or side file) before this process's OpenNI2 reads it.
 std::unique_ptr<FrameSource> OpenOniFile(const std::string& path, const OniPlaybackOptions& options = {});
 
 struct OpenNiDeviceOptions {
@@ -54,21 +85,14 @@ struct OpenNiDeviceOptions {
   int exposure = -1, gain = -1;
 };
 
-/// What the device reports after the settings were applied.
-struct CameraControls {
-  bool camera_settings = false;  ///< the colour stream has exposure controls at all
-  bool auto_exposure = true, auto_white_balance = true;
-  int exposure = -1, gain = -1;
-  bool registered = false;
-};
-
 /// A live OpenNI2 device as a FrameSource: depth + colour paired by timestamp, kTimeout
 /// when nothing arrives in time, kDeviceLost once the device is unplugged. Throws
 /// InputError (with the reason from the USB scan) when no device opens.
 std::unique_ptr<FrameSource> OpenOpenNiDevice(const OpenNiDeviceOptions& options, CameraControls* applied = nullptr);
 
 /// Checks the structure of a `.oni` file (header and record chain) without OpenNI2;
-/// throws InputError naming the file and the first problem.
-void ValidateOniFile(const std::string& path);
+/// throws InputError naming the file and the first problem. Returns the number of frame
+/// records (both streams).
+int ValidateOniFile(const std::string& path);
 
 }  // namespace lp

@@ -222,6 +222,33 @@ SceneBundle MakeSynthScene(const std::string& name, const SynthOptions& o, const
   return MakeSynth(name, o, data_dir).bundle;
 }
 
+namespace {
+
+/// Rings of the fine grid a measured HDR map is integrated over for rendering.
+constexpr int kFineRings = 91;
+
+/// Reference images of `views` under the true lighting: sphere lights and sky by
+/// RenderSphereLights; a measured map has no analytic sampler here, so it is integrated
+/// over a fine grid (91 rings, ~2 degree cells, 20x finer than the estimator's default)
+/// and rendered by the path tracer with importance sampling by cell power (that grid's
+/// radiance goes to `fine_radiance`).
+std::vector<ImageRGB> RenderReference(const RayTracer& scene, const Mesh& mesh, const Vector3d& up,
+                                      const std::vector<View>& views, const SynthLighting& lighting,
+                                      const SynthOptions& o, std::vector<double>* fine_radiance) {
+  if (lighting.equirect.pixels() == 0) return RenderSphereLights(mesh, views, lighting, o);
+  const EnvMap fine(kFineRings, up);
+  *fine_radiance = fine.FromEquirect(lighting.equirect, 64);
+  TracerOptions to;
+  to.spp = o.spp;
+  to.bounces = o.bounces;
+  to.seed = o.seed;
+  to.min_throughput = 0;
+  const CellSampler sampler(fine, *fine_radiance, {}, 0.05);
+  return RenderEnvironment(scene, fine, views, *fine_radiance, sampler, to, true);
+}
+
+}  // namespace
+
 SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::path& data_dir) {
   if (o.width < 8 || o.height < 8 || o.width > 4096 || o.height > 4096) throw InputError("synth: bad image size");
   if (o.held_out_views < 0 || o.held_out_views > 1) throw InputError("synth: held-out views must be 0 or 1");
@@ -294,19 +321,11 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::p
   t["scene"] = name;
   t["scene_center"] = {center.x(), center.y(), center.z()};
   t["lights"] = nlohmann::json::array();
+  std::vector<double> fine_radiance;
+  images = RenderReference(scene, b.mesh, b.up, b.views, lighting, o, &fine_radiance);
   if (lighting.equirect.pixels() > 0) {
-    // A measured map has no analytic sampler here: it is integrated over a fine grid (91
-    // rings, ~2 degree cells, 20x finer than the estimator's default) and rendered by the
-    // path tracer with importance sampling by cell power.
-    const EnvMap fine(91, b.up);
-    const std::vector<double> L = fine.FromEquirect(lighting.equirect, 64);
-    TracerOptions to;
-    to.spp = o.spp;
-    to.bounces = o.bounces;
-    to.seed = o.seed;
-    to.min_throughput = 0;
-    const CellSampler sampler(fine, L, {}, 0.05);
-    images = RenderEnvironment(scene, fine, b.views, L, sampler, to, true);
+    const EnvMap fine(kFineRings, b.up);
+    const std::vector<double>& L = fine_radiance;
     for (const Vector3d& d : DominantDirections(fine, L, 2)) {
       double power = 0;
       for (int j = 0; j < fine.size(); ++j)
@@ -315,8 +334,6 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::p
       t["lights"].push_back({{"type", "environment"}, {"direction", {d.x(), d.y(), d.z()}}, {"weight", power}});
     }
     t["environment_map"] = name == "env-studio" ? "studio_small_03_1k.hdr" : "venice_sunset_1k.hdr";
-  } else {
-    images = RenderSphereLights(b.mesh, b.views, lighting, o);
   }
   // Mask: pixels whose centre ray hits the geometry (as a reconstruction would give).
   for (std::size_t v = 0; v < b.views.size(); ++v) {
@@ -347,13 +364,13 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::p
 }
 
 std::vector<SynthFrame> RenderSynthFrames(const std::string& name, const SynthOptions& o, const fs::path& data_dir,
-                                          int frames) {
+                                          int frames, std::string* truth_json) {
   if (frames < 1 || frames > 10000) throw InputError("synth: --frames must be between 1 and 10000");
-  if (name.rfind("env-", 0) == 0) throw InputError("synth: frames of the HDR-map scenes are not supported yet");
   SynthOptions first = o;
   first.spp = 1;  // only the geometry, the lighting and the first camera are needed here
   first.held_out_views = 0;
   const SynthScene scene = MakeSynth(name, first, data_dir);
+  if (truth_json) *truth_json = scene.bundle.truth_json.value_or("");
   const Camera& c0 = scene.bundle.views[0].camera;
   const Vector3d up = scene.bundle.up.normalized(), centre = scene.lighting.center;
   std::vector<SynthFrame> out(frames);
@@ -367,19 +384,44 @@ std::vector<SynthFrame> RenderSynthFrames(const std::string& name, const SynthOp
     views[k].camera = cam;
     out[k].camera = cam;
   }
-  std::vector<ImageRGB> colour = RenderSphereLights(scene.bundle.mesh, views, scene.lighting, o);
   RayTracer tracer(scene.bundle.mesh);
+  std::vector<double> fine_radiance;
+  std::vector<ImageRGB> colour = RenderReference(tracer, scene.bundle.mesh, up, views, scene.lighting, o, &fine_radiance);
   for (int k = 0; k < frames; ++k) {
     const Camera& cam = out[k].camera;
     out[k].color = std::move(colour[k]);
     out[k].depth.assign(static_cast<std::size_t>(cam.width) * cam.height, 0.f);
     const Vector3d axis = cam.world_from_camera.block<3, 1>(0, 2);
-    ParallelFor(0, out[k].depth.size(), [&](std::size_t p) {
+    std::vector<float>& depth = out[k].depth;
+    ParallelFor(0, depth.size(), [&](std::size_t p) {
       const int x = static_cast<int>(p % cam.width), y = static_cast<int>(p / cam.width);
       SurfacePoint hit;
-      if (tracer.Intersect(cam.center(), cam.RayDirection(x, y), &hit))
-        out[k].depth[p] = static_cast<float>((hit.position - cam.center()).dot(axis));
+      const Vector3d dir = cam.RayDirection(x, y);
+      if (!tracer.Intersect(cam.center(), dir, &hit)) return;
+      const double z = (hit.position - cam.center()).dot(axis);
+      depth[p] = static_cast<float>(z);
+      if (!o.depth_noise) return;
+      Rng rng(o.seed, 0x5e45, static_cast<std::uint64_t>(k), p);
+      if (std::abs(hit.geometric.dot(dir)) < 0.2 || rng.Uniform() < 0.005) {
+        depth[p] = 0;
+        return;
+      }
+      const double sigma = 0.0012 + 0.0019 * (z - 0.4) * (z - 0.4);
+      const double u1 = std::max(rng.Uniform(), 1e-12), u2 = rng.Uniform();
+      depth[p] = static_cast<float>(z + sigma * std::sqrt(-2 * std::log(u1)) * std::cos(2 * kPi * u2));
     });
+    if (o.depth_noise) {  // structured light loses depth along jumps (shadowed / mixed pixels)
+      const std::vector<float> d0 = depth;
+      for (int y = 1; y + 1 < cam.height; ++y)
+        for (int x = 1; x + 1 < cam.width; ++x) {
+          const std::size_t p = static_cast<std::size_t>(y) * cam.width + x;
+          const float z = d0[p];
+          bool edge = false;
+          for (const std::size_t q : {p - 1, p + 1, p - cam.width, p + cam.width})
+            edge = edge || (z > 0 && d0[q] > 0 && std::abs(d0[q] - z) > 0.03f * z) || (z > 0 && d0[q] == 0);
+          if (edge && Rng(o.seed, 0xed9e, static_cast<std::uint64_t>(k), p).Uniform() < 0.5) depth[p] = 0;
+        }
+    }
   }
   return out;
 }

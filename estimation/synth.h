@@ -31,6 +31,11 @@ struct SynthOptions {
   /// Extra views from another viewpoint (0 or 1), appended after the fitted view: for
   /// measuring relighting on a view the fit did not use.
   int held_out_views = 0;
+  /// RenderSynthFrames only: depth as a structured-light sensor (Xtion / Kinect v1) gives
+  /// it (Nguyen et al. 2012): Gaussian axial noise sigma(z) = 1.2 mm + 1.9 mm (z - 0.4 m)^2,
+  /// holes where the surface is seen at grazing angles (|cos| < 0.2), on half the pixels at
+  /// depth discontinuities and on 0.5 % of pixels at random.
+  bool depth_noise = false;
 };
 
 /// The true lighting of a synthetic scene, for evaluation (never read by the estimator).
@@ -71,10 +76,12 @@ struct SynthFrame {
 
 /// RGB-D frames of scene `name` along an arc around its centre (the first view's camera
 /// turned about the up axis from -20 to +20 degrees): the capture stage's synthetic source
-/// (written as a frame directory by `lightprobe synth --frames`). Scenes lit by sphere
-/// lights and sky only; throws InputError for the HDR-map scenes.
+/// (written as a frame directory by `lightprobe synth --frames`). Every scene, the HDR-map
+/// ones included (rendered from the map integrated over a fine grid, as MakeSynth does).
+/// `truth_json`, when given, receives the scene's truth.json text (as in its bundle).
 std::vector<SynthFrame> RenderSynthFrames(const std::string& name, const SynthOptions& options,
-                                          const std::filesystem::path& data_dir, int frames);
+                                          const std::filesystem::path& data_dir, int frames,
+                                          std::string* truth_json = nullptr);
 
 /// The true lighting integrated over each cell of `env`: mean radiance per cell (3 per
 /// cell), as seen from the scene centre. Empty when the lighting is not far (near-light).

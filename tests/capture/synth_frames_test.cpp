@@ -2,6 +2,7 @@
 // directory written by capture/ reads back exactly (poses, intrinsics, depth, colour).
 #include <unistd.h>
 
+#include <cmath>
 #include <filesystem>
 
 #include <gtest/gtest.h>
@@ -38,7 +39,57 @@ TEST(SynthFrames, DepthIsTheDistanceAlongTheOpticalAxis) {
   // The arc turns about the up axis: same height, different positions.
   EXPECT_NEAR(frames[0].camera.center().z(), frames[2].camera.center().z(), 1e-9);
   EXPECT_GT((frames[0].camera.center() - frames[2].camera.center()).norm(), 0.5);
-  EXPECT_THROW(RenderSynthFrames("env-studio", o, "", 2), InputError);
+  EXPECT_THROW(RenderSynthFrames("env-studio", o, "", 2), InputError);  // its HDR map is not in ""
+}
+
+// Sensor-like depth: noise of the stated size about the exact depth, and holes.
+TEST(SynthFrames, DepthNoiseHasTheStatedSizeAndHoles) {
+  SynthOptions o = Tiny(80, 60);
+  const auto exact = RenderSynthFrames("one-light", o, "", 2);
+  o.depth_noise = true;
+  const auto noisy = RenderSynthFrames("one-light", o, "", 2);
+  double sum2 = 0, n = 0, holes = 0, covered = 0;
+  for (std::size_t k = 0; k < exact.size(); ++k)
+    for (std::size_t p = 0; p < exact[k].depth.size(); ++p) {
+      const double z = exact[k].depth[p], zn = noisy[k].depth[p];
+      if (z <= 0) {
+        EXPECT_EQ(zn, 0);
+        continue;
+      }
+      ++covered;
+      if (zn == 0) {
+        ++holes;
+        continue;
+      }
+      const double sigma = 0.0012 + 0.0019 * (z - 0.4) * (z - 0.4);
+      sum2 += (zn - z) * (zn - z) / (sigma * sigma);
+      ++n;
+    }
+  ASSERT_GT(n, 1000);
+  EXPECT_NEAR(std::sqrt(sum2 / n), 1.0, 0.1) << "normalized depth error should be a unit Gaussian";
+  EXPECT_GT(holes / covered, 0.005);
+  EXPECT_LT(holes / covered, 0.2);
+}
+
+// The HDR-map scenes have frames too: the middle of a 1-frame arc is the bundle's first
+// view, rendered the same way (map integrated over a fine grid, same seed).
+TEST(SynthFrames, HdrMapSceneFramesMatchTheBundleRender) {
+  const fs::path data = fs::path(LIGHTPROBE_SOURCE_DIR) / ".." / "shared" / "data";
+  const SynthOptions o = Tiny(32, 24);
+  const auto frames = RenderSynthFrames("env-sunset", o, data, 1);
+  const SynthScene scene = MakeSynth("env-sunset", o, data);
+  ASSERT_EQ(frames.size(), 1u);
+  const ImageRGB& a = frames[0].color;
+  const ImageRGB& b = scene.bundle.views[0].image;
+  ASSERT_EQ(a.data.size(), b.data.size());
+  double sum = 0, diff = 0;
+  for (std::size_t i = 0; i < a.data.size(); ++i) {
+    ASSERT_TRUE(std::isfinite(a.data[i]));
+    sum += b.data[i];
+    diff += std::abs(a.data[i] - b.data[i]);
+  }
+  EXPECT_GT(sum, 0);
+  EXPECT_LT(diff / sum, 1e-6);
 }
 
 TEST(SynthFrames, FrameDirectoryRoundTrip) {

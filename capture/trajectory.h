@@ -1,0 +1,18 @@
+#pragma once
+/// Camera trajectories as the RGB-D datasets store them (world_from_camera per frame).
+
+#include <filesystem>
+#include <vector>
+
+#include <Eigen/Core>
+
+namespace lp {
+
+/// Open3D / Redwood `trajectory.log`: per frame a line "i j n", then the 4x4
+/// world_from_camera in 4 rows. Throws InputError naming the file and line when malformed.
+std::vector<Eigen::Matrix4d> ReadTrajectoryLog(const std::filesystem::path& path);
+
+/// slambook's `pose.txt`: "tx ty tz qx qy qz qw" per line (world_from_camera).
+std::vector<Eigen::Matrix4d> ReadPoseTxt(const std::filesystem::path& path);
+
+}  // namespace lp
