@@ -35,8 +35,7 @@ Run AddReplay(CLI::App& app) {
     }
     std::printf("%s\n", src->Describe().c_str());
     RgbdFrame f;
-    for (int k = 0; k < *start; ++k)  // OpenNI2's seek crashes: skip frames instead
-      if (src->Next(&f, 5.0) != SourceStatus::kFrame) throw InputError(*source, "--start is past the end");
+    if (*start > 0) src->Seek(*start);  // OpenNI2's seek crashes: the source skips frames instead
     std::vector<RgbdFrame> kept;
     Stopwatch sw;
     int n = 0;

@@ -4,8 +4,8 @@
 
 namespace lp {
 
-CaptureThread::CaptureThread(std::unique_ptr<FrameSource> source, std::shared_ptr<FrameQueue> queue)
-    : source_(std::move(source)), queue_(std::move(queue)) {
+CaptureThread::CaptureThread(std::unique_ptr<FrameSource> source, std::shared_ptr<FrameQueue> queue, bool hold_at_end)
+    : source_(std::move(source)), queue_(std::move(queue)), hold_at_end_(hold_at_end) {
   stats_.running = true;
   thread_ = std::thread([this] { Run(); });
 }
@@ -14,7 +14,18 @@ CaptureThread::~CaptureThread() { Stop(); }
 
 void CaptureThread::Stop() {
   stop_ = true;
+  wake_.notify_all();
   if (thread_.joinable()) thread_.join();
+}
+
+void CaptureThread::Pause(bool paused) {
+  paused_ = paused;
+  wake_.notify_all();
+}
+
+void CaptureThread::Seek(std::int64_t frame) {
+  seek_to_ = frame;
+  wake_.notify_all();
 }
 
 CaptureStats CaptureThread::stats() const {
@@ -30,36 +41,63 @@ void CaptureThread::Run() {
   std::int64_t window_frames = 0;
   SourceStatus status = SourceStatus::kFrame;
   std::string error;
+  bool source_paused = false, at_end = false;
+  auto publish = [&](auto&& update) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    update(stats_);
+  };
   while (!stop_) {
-    RgbdFrame frame;
     try {
+      // Controls from other threads, applied here: the source belongs to this thread.
+      if (const std::int64_t target = seek_to_.exchange(-1); target >= 0) {
+        source_->Seek(target);
+        at_end = false;
+        publish([&](CaptureStats& s) { s.position = target; });
+      }
+      const bool pause = paused_ || at_end;
+      if (pause != source_paused) {
+        source_->SetPaused(pause);
+        source_paused = pause;
+        publish([&](CaptureStats& s) { s.paused = pause; });
+      }
+      if (pause) {
+        std::unique_lock<std::mutex> lock(wake_mutex_);
+        wake_.wait_for(lock, std::chrono::milliseconds(50));
+        continue;
+      }
+      RgbdFrame frame;
       // Short timeouts so Stop() is honoured promptly even when a device goes quiet.
       status = source_->Next(&frame, 0.2);
+      if (status == SourceStatus::kTimeout) continue;
+      if (status == SourceStatus::kEnd && hold_at_end_) {
+        at_end = true;
+        continue;
+      }
+      if (status != SourceStatus::kFrame) break;
+      frame.queued_at = std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
+      queue_->Push(std::move(frame));
     } catch (const std::exception& e) {
       error = e.what();
       status = SourceStatus::kEnd;
       break;
     }
-    if (status == SourceStatus::kTimeout) continue;
-    if (status != SourceStatus::kFrame) break;
-    frame.queued_at = std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
-    queue_->Push(std::move(frame));
     ++window_frames;
     const double dt = std::chrono::duration<double>(Clock::now() - window_start).count();
-    std::lock_guard<std::mutex> lock(mutex_);
-    ++stats_.captured;
-    if (dt >= 1.0) {
-      stats_.fps = window_frames / dt;
-      window_frames = 0;
-      window_start = Clock::now();
-    }
+    publish([&](CaptureStats& s) {
+      ++s.captured;
+      ++s.position;
+      if (dt >= 1.0) {
+        s.fps = window_frames / dt;
+        window_frames = 0;
+        window_start = Clock::now();
+      }
+    });
   }
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    stats_.running = false;
-    stats_.last_status = status;
-    stats_.error = error;
-  }
+  publish([&](CaptureStats& s) {
+    s.running = false;
+    s.last_status = status;
+    s.error = error;
+  });
   queue_->Close();
 }
 

@@ -4,6 +4,7 @@
 /// the device goes away, or Stop() is called. Counters and the last status are readable
 /// from any thread (for the UI).
 #include <atomic>
+#include <condition_variable>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -19,6 +20,10 @@ struct CaptureStats {
   QueueCounters queue;             ///< pushed / dropped / popped
   double fps = 0;                  ///< frames per second over the last second or so
   bool running = false;
+  bool paused = false;
+  /// The source's frame the next read delivers: frames read since the start or the last
+  /// seek, plus the seek target (a looping source keeps counting).
+  std::int64_t position = 0;
   SourceStatus last_status = SourceStatus::kFrame;  ///< why it stopped, once stopped
   std::string error;               ///< an exception's message if the source threw
 };
@@ -26,8 +31,10 @@ struct CaptureStats {
 class CaptureThread {
  public:
   /// Starts reading `source` into `queue` at once. The queue is closed when the thread
-  /// ends, so a consumer waiting in Pop() wakes up.
-  CaptureThread(std::unique_ptr<FrameSource> source, std::shared_ptr<FrameQueue> queue);
+  /// ends, so a consumer waiting in Pop() wakes up. With `hold_at_end` the thread does not
+  /// end with the source: it pauses at the end and waits for a Seek() or Stop() (a
+  /// viewer's play/pause/seek bar).
+  CaptureThread(std::unique_ptr<FrameSource> source, std::shared_ptr<FrameQueue> queue, bool hold_at_end = false);
   /// Stops and joins.
   ~CaptureThread();
   CaptureThread(const CaptureThread&) = delete;
@@ -35,6 +42,11 @@ class CaptureThread {
 
   /// Asks the thread to stop after the frame it is reading and waits for it.
   void Stop();
+  /// Pause / resume reading (the source's clock is held: FrameSource::SetPaused).
+  void Pause(bool paused);
+  /// The next frame queued is the source's frame `frame`; applied on the capture thread
+  /// (works while paused). A seek the source refuses ends the thread with the error.
+  void Seek(std::int64_t frame);
   CaptureStats stats() const;
 
  private:
@@ -42,7 +54,11 @@ class CaptureThread {
 
   std::unique_ptr<FrameSource> source_;
   std::shared_ptr<FrameQueue> queue_;
-  std::atomic<bool> stop_{false};
+  std::atomic<bool> stop_{false}, paused_{false};
+  std::atomic<std::int64_t> seek_to_{-1};
+  bool hold_at_end_ = false;
+  std::mutex wake_mutex_;
+  std::condition_variable wake_;
   mutable std::mutex mutex_;
   CaptureStats stats_;
   std::thread thread_;

@@ -18,6 +18,18 @@
 namespace lp {
 namespace fs = std::filesystem;
 
+void FrameSource::Seek(std::int64_t frame) {
+  if (frame < 0) throw InputError(Describe() + ": cannot seek to frame " + std::to_string(frame));
+  if (const auto n = FrameCount(); n && frame >= *n)
+    throw InputError(Describe() + ": cannot seek to frame " + std::to_string(frame) + " (it has " +
+                     std::to_string(*n) + ")");
+  Rewind();
+  RgbdFrame f;
+  for (std::int64_t k = 0; k < frame; ++k)
+    if (Next(&f, 5.0) != SourceStatus::kFrame)
+      throw InputError(Describe() + ": seek to frame " + std::to_string(frame) + " ran past the end");
+}
+
 const char* ToString(SourceStatus s) {
   switch (s) {
     case SourceStatus::kFrame: return "frame";

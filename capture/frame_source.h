@@ -32,6 +32,12 @@ class FrameSource {
   virtual SourceStatus Next(RgbdFrame* frame, double timeout_seconds = 1.0) = 0;
   /// Back to the first frame (files and directories; a device throws InputError).
   virtual void Rewind() = 0;
+  /// The next frame is the source's frame `frame` (0-based). Default: rewind and read
+  /// past the frames before it (OpenNI2's own seek crashes). Throws InputError past the end.
+  virtual void Seek(std::int64_t frame);
+  /// Real-time sources hold their clock while paused, so playback resumes where it
+  /// stopped instead of skipping the paused time (a no-op where frames are pulled).
+  virtual void SetPaused(bool /*paused*/) {}
 };
 
 struct DirectorySourceOptions {

@@ -397,20 +397,24 @@ class OpenNiStreams {
   /// skips ahead to its partner). `budget` limits the extra reads (end of a recording).
   bool ReadPair(openni::VideoFrameRef* d, openni::VideoFrameRef* c, int timeout_ms, int* depth_reads,
                 int* color_reads, int depth_budget, int color_budget) {
+    // A read counts the frames up to the one read: in real-time playback OpenNI2 skips the
+    // frames a slow reader missed, and its frame index (1-based in a recording) says where
+    // it is, so the end of a file is still found.
+    auto count = [](int* reads, const openni::VideoFrameRef& f) { *reads = std::max(*reads + 1, f.getFrameIndex()); };
     if (!Read(depth_, d, timeout_ms)) return false;
-    ++*depth_reads;
+    count(depth_reads, *d);
     if (!Read(color_, c, timeout_ms)) return false;
-    ++*color_reads;
+    count(color_reads, *c);
     const int fps = std::max(1, depth_.getVideoMode().getFps());
     const long long half = 500000 / fps;  // microseconds
     for (int guard = 0; guard < 64; ++guard) {
       const long long dt = static_cast<long long>(c->getTimestamp()) - static_cast<long long>(d->getTimestamp());
       if (dt > half && *depth_reads < depth_budget) {
         if (!Read(depth_, d, timeout_ms)) return false;
-        ++*depth_reads;
+        count(depth_reads, *d);
       } else if (-dt > half && *color_reads < color_budget) {
         if (!Read(color_, c, timeout_ms)) return false;
-        ++*color_reads;
+        count(color_reads, *c);
       } else {
         break;
       }
@@ -495,6 +499,12 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
   void Rewind() override {
     CloseDevice();
     Open();
+  }
+
+  /// Real-time playback runs on OpenNI2's clock: manual speed holds it while paused.
+  void SetPaused(bool paused) override {
+    if (!options_.real_time) return;
+    if (openni::PlaybackControl* pc = device_.getPlaybackControl()) pc->setSpeed(paused ? -1.0f : 1.0f);
   }
 
  private:

@@ -79,5 +79,51 @@ TEST(CaptureThread, ASourceThatThrowsEndsTheThreadWithItsMessage) {
   EXPECT_NE(t.stats().error.find("cannot decode"), std::string::npos);
 }
 
+/// Which frame of the Redwood directory a depth image is (-1: none).
+int WhichRedwoodFrame(const DepthImage& d) {
+  auto src = OpenDirectorySource(kRedwood.string());
+  RgbdFrame f;
+  for (int i = 0; src->Next(&f) == SourceStatus::kFrame; ++i)
+    if (f.depth.data == d.data) return i;
+  return -1;
+}
+
+// A viewer's play / pause / seek bar: paused reads nothing, a seek (while paused) moves
+// to that frame, and with hold_at_end the thread waits at the end for another seek.
+TEST(CaptureThread, PauseSeekAndHoldAtTheEnd) {
+  if (!fs::exists(kRedwood)) GTEST_SKIP() << "shared data not present";
+  auto queue = std::make_shared<FrameQueue>(16);
+  CaptureThread t(OpenDirectorySource(kRedwood.string()), queue, true);
+  t.Pause(true);
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  const std::int64_t before = t.stats().captured;
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(t.stats().captured, before) << "a paused thread read frames";
+  EXPECT_TRUE(t.stats().paused);
+  while (queue->Pop(0.01)) {
+  }
+  t.Seek(3);
+  t.Pause(false);
+  for (int expect : {3, 4}) {
+    auto f = queue->Pop(10.0);
+    ASSERT_TRUE(f);
+    EXPECT_EQ(WhichRedwoodFrame(f->depth), expect);
+  }
+  // At the end: held (running, paused, queue open) until a seek.
+  EXPECT_FALSE(queue->Pop(0.5));
+  EXPECT_TRUE(t.stats().running);
+  EXPECT_TRUE(t.stats().paused);
+  EXPECT_EQ(t.stats().position, 5);
+  t.Seek(1);
+  auto f = queue->Pop(10.0);
+  ASSERT_TRUE(f);
+  EXPECT_EQ(WhichRedwoodFrame(f->depth), 1);
+  t.Seek(99);  // past the end: the source refuses, the thread ends with the reason
+  while (queue->Pop(10.0)) {
+  }
+  t.Stop();
+  EXPECT_NE(t.stats().error.find("cannot seek to frame 99"), std::string::npos) << t.stats().error;
+}
+
 }  // namespace
 }  // namespace lp

@@ -5,9 +5,11 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <thread>
 
 #include <gtest/gtest.h>
 
+#include "capture/capture_thread.h"
 #include "capture/openni.h"
 #include "capture/trajectory.h"
 #include "common/error.h"
@@ -334,6 +336,39 @@ TEST(DemoRecording, ReplaysRegisteredWithThePosesOfItsFrames) {
     EXPECT_GT(other, 1.5 * own) << "frame " << i;
   }
   EXPECT_TRUE(fs::exists(dir / "truth.json"));
+}
+
+// Real-time playback on OpenNI2's clock: a pause holds the clock (no frames lost to it),
+// and a reader slower than the recording still finds the end (OpenNI2 skips the frames it
+// missed; its frame index says where playback is).
+TEST(DemoRecording, RealTimePauseLosesNoFramesAndASlowReaderFindsTheEnd) {
+  const std::string oni = (fs::path(LIGHTPROBE_SOURCE_DIR) / "assets" / "demo-recording" / "demo.oni").string();
+  OniPlaybackOptions rt;
+  rt.real_time = true;
+  {
+    auto src = OpenOniFile(oni, rt);
+    const std::int64_t count = *src->FrameCount();
+    auto queue = std::make_shared<FrameQueue>(64);
+    CaptureThread t(std::move(src), queue);
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
+    t.Pause(true);
+    std::this_thread::sleep_for(std::chrono::milliseconds(700));  // ~20 frames at 30 fps
+    t.Pause(false);
+    int n = 0;
+    while (queue->Pop(5.0)) ++n;
+    EXPECT_GE(n, count - 3) << "frames lost to the pause";
+    EXPECT_EQ(t.stats().last_status, SourceStatus::kEnd);
+  }
+  auto src = OpenOniFile(oni, rt);
+  RgbdFrame f;
+  int n = 0;
+  SourceStatus s;
+  while ((s = src->Next(&f, 1.0)) == SourceStatus::kFrame) {
+    ++n;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));  // 3 frame periods
+  }
+  EXPECT_EQ(s, SourceStatus::kEnd);
+  EXPECT_LT(n, *src->FrameCount() / 2) << "a slow real-time reader should have skipped frames";
 }
 
 }  // namespace
