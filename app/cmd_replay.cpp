@@ -25,14 +25,7 @@ Run AddReplay(CLI::App& app) {
   cmd->add_option("--frames", *count, "stop after this many frames (0 = all)")->capture_default_str();
   cmd->add_option("--out", *out, "write the frames as a frame directory (color/, depth/ in mm, intrinsics)");
   return [=] {
-    std::unique_ptr<FrameSource> src;
-    if (fs::is_directory(*source)) {
-      src = OpenDirectorySource(*source);
-    } else {
-      OniPlaybackOptions po;
-      po.real_time = *real_time;
-      src = OpenOniFile(*source, po);
-    }
+    std::unique_ptr<FrameSource> src = OpenFrameSource(*source, *real_time);
     std::printf("%s\n", src->Describe().c_str());
     RgbdFrame f;
     if (*start > 0) src->Seek(*start);  // OpenNI2's seek crashes: the source skips frames instead

@@ -22,6 +22,7 @@ Run AddBenchReport(CLI::App& app);
 Run AddDevices(CLI::App& app);
 Run AddRecord(CLI::App& app);
 Run AddReplay(CLI::App& app);
+Run AddReconstruct(CLI::App& app);
 
 /// Registers the estimator options shared by estimate and bench.
 void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, int* threads);

@@ -320,6 +320,29 @@ std::vector<Eigen::Matrix4d> ReadPoseTxt(const fs::path& path) {
   return poses;
 }
 
+std::string FormatTrajectoryLog(const std::vector<Eigen::Matrix4d>& poses) {
+  std::string out;
+  char row[160];
+  for (std::size_t k = 0; k < poses.size(); ++k) {
+    std::snprintf(row, sizeof row, "%zu %zu %zu\n", k, k, k + 1);
+    out += row;
+    for (int r = 0; r < 4; ++r) {
+      const Eigen::Matrix4d& m = poses[k];
+      std::snprintf(row, sizeof row, "%.17g %.17g %.17g %.17g\n", m(r, 0), m(r, 1), m(r, 2), m(r, 3));
+      out += row;
+    }
+  }
+  return out;
+}
+
+std::vector<Eigen::Matrix4d> ReadTrajectory(const fs::path& path) {
+  std::error_code ec;
+  if (!fs::is_regular_file(path, ec)) throw InputError(path.string(), "trajectory file not found");
+  if (path.extension() == ".log") return ReadTrajectoryLog(path);
+  if (path.extension() == ".txt") return ReadPoseTxt(path);
+  throw InputError(path.string(), "unknown trajectory format (expected trajectory.log or pose.txt)");
+}
+
 std::unique_ptr<FrameSource> OpenDirectorySource(const std::string& dir, const DirectorySourceOptions& options) {
   return std::make_unique<DirectorySource>(dir, options);
 }
@@ -335,7 +358,7 @@ void WriteFrameDirectory(const std::string& dir_name, const std::vector<RgbdFram
   fs::create_directories(tmp / "depth", ec);
   if (ec) throw InputError(dir_name, "cannot create: " + ec.message());
   bool poses = true;
-  std::ostringstream log;
+  std::vector<Eigen::Matrix4d> trajectory;
   for (std::size_t k = 0; k < frames.size(); ++k) {
     const RgbdFrame& f = frames[k];
     if (f.color.width != frames[0].color.width || f.depth.width != f.color.width || f.depth.height != f.color.height)
@@ -345,16 +368,9 @@ void WriteFrameDirectory(const std::string& dir_name, const std::vector<RgbdFram
     WriteRgb8Png(tmp / "color" / file, f.color);
     WriteDepth16Png(tmp / "depth" / file, f.depth);
     poses = poses && f.world_from_camera.has_value();
-    if (!poses) continue;
-    log << k << ' ' << k << ' ' << k + 1 << '\n';
-    for (int r = 0; r < 4; ++r) {
-      char row[160];
-      const Eigen::Matrix4d& m = *f.world_from_camera;
-      std::snprintf(row, sizeof row, "%.17g %.17g %.17g %.17g\n", m(r, 0), m(r, 1), m(r, 2), m(r, 3));
-      log << row;
-    }
+    if (poses) trajectory.push_back(*f.world_from_camera);
   }
-  if (poses) WriteTextAtomically(tmp / "trajectory.log", log.str());
+  if (poses) WriteTextAtomically(tmp / "trajectory.log", FormatTrajectoryLog(trajectory));
   const Intrinsics& k0 = frames[0].color_intrinsics;
   nlohmann::json j = {{"fx", k0.fx}, {"fy", k0.fy}, {"cx", k0.cx}, {"cy", k0.cy}, {"width", k0.width}, {"height", k0.height}};
   WriteTextAtomically(tmp / "intrinsics.json", j.dump(2) + "\n");

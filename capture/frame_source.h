@@ -60,6 +60,11 @@ struct DirectorySourceOptions {
 /// missing file (checked when the source opens, before any frame is delivered).
 std::unique_ptr<FrameSource> OpenDirectorySource(const std::string& dir, const DirectorySourceOptions& options = {});
 
+/// Opens what a user names as input: a frame directory (any layout above) or an `.oni`
+/// recording (played as fast as frames are read unless `real_time`). Throws InputError
+/// naming the path when it is neither or cannot be opened.
+std::unique_ptr<FrameSource> OpenFrameSource(const std::string& path, bool real_time = false);
+
 /// Writes frames as a Redwood-layout directory that OpenDirectorySource reads back exactly:
 /// color/NNNNN.png (8-bit), depth/NNNNN.png (16-bit mm), intrinsics.json (the first
 /// frame's colour intrinsics; frames must be registered and of one size) and

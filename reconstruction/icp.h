@@ -1,0 +1,53 @@
+#pragma once
+/// Camera tracking: projective point-to-plane ICP of a depth pyramid against maps raycast
+/// from the model (frame-to-model, coarse to fine), as KinectFusion does.
+
+#include <array>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "reconstruction/depth_maps.h"
+
+namespace lp {
+
+struct IcpOptions {
+  std::array<int, 3> iterations{10, 5, 4};  ///< per level, finest first (level 0 = full size)
+  float max_distance = 0.10f;               ///< metres between associated points
+  float max_angle_deg = 60;                 ///< between associated normals (noisy at range)
+  /// Tracking is lost when fewer of the frame's valid pixels than this find a partner.
+  float min_inlier_ratio = 0.25f;
+  float max_rmse = 0.05f;              ///< metres, point-to-plane, at the finest level
+  float max_step_translation = 0.20f;  ///< metres per frame; a larger jump is a failure
+  float max_step_rotation_deg = 20;    ///< degrees per frame
+};
+
+/// The model as the last good camera saw it: world-frame vertex and normal maps (NaN =
+/// nothing) per pyramid level, and that camera.
+struct ModelMaps {
+  std::vector<Intrinsics> k;
+  std::vector<std::vector<Eigen::Vector3f>> vertex, normal;
+  Eigen::Matrix4d world_from_camera = Eigen::Matrix4d::Identity();
+};
+
+/// Level 0 from a raycast (world frame), coarser levels by taking every second pixel.
+ModelMaps MakeModelMaps(const Intrinsics& k, const std::vector<Eigen::Vector3f>& vertex,
+                        const std::vector<Eigen::Vector3f>& normal, const Eigen::Matrix4d& world_from_camera,
+                        int levels);
+
+struct TrackResult {
+  bool ok = false;
+  Eigen::Matrix4d world_from_camera = Eigen::Matrix4d::Identity();
+  double inlier_ratio = 0;  ///< at the finest level
+  double rmse = 0;          ///< metres, point-to-plane, at the finest level
+  int iterations = 0;
+  const char* reason = "";  ///< why it failed (for logs and the UI)
+};
+
+/// Aligns `frame` (camera-frame maps) to `model`, starting from `initial`
+/// (world_from_camera). Fails (ok = false, with a reason) on too few inliers, a large
+/// residual, a jump larger than the per-frame limits, or a degenerate system.
+TrackResult TrackFrameToModel(const std::vector<DepthLevel>& frame, const ModelMaps& model,
+                              const Eigen::Matrix4d& initial, const IcpOptions& options);
+
+}  // namespace lp

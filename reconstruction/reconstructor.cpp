@@ -1,0 +1,345 @@
+#include "reconstruction/reconstructor.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <optional>
+
+#include <Eigen/Geometry>
+
+#include "common/color.h"
+#include "common/error.h"
+#include "reconstruction/geometry.h"
+
+namespace lp {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+/// A frame kept as a possible keyframe.
+struct Candidate {
+  std::int64_t index = 0;
+  Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
+  double sharpness = 0;
+  ImageRgb8 color;
+  DepthImage depth;
+  Intrinsics depth_k, color_k;
+  bool registered = false;
+};
+
+bool GoodIntrinsics(const Intrinsics& k) {
+  return std::isfinite(k.fx) && std::isfinite(k.fy) && std::isfinite(k.cx) && std::isfinite(k.cy) && k.fx > 0 &&
+         k.fy > 0 && k.width > 0 && k.height > 0;
+}
+
+/// Distance between two camera poses for keyframe spreading: metres plus 0.5 m per radian.
+double PoseDistance(const Eigen::Matrix4d& a, const Eigen::Matrix4d& b) {
+  const Eigen::Matrix4d d = a.inverse() * b;
+  const double angle = std::acos(std::clamp((d.block<3, 3>(0, 0).trace() - 1) / 2, -1.0, 1.0));
+  return d.block<3, 1>(0, 3).norm() + 0.5 * angle;
+}
+
+}  // namespace
+
+const char* ToString(TrackingState s) {
+  switch (s) {
+    case TrackingState::kWaiting: return "waiting for depth";
+    case TrackingState::kTracking: return "tracking";
+    case TrackingState::kLost: return "lost";
+  }
+  return "?";
+}
+
+void StageTimes::Add(const StageTimes& o) {
+  preprocess += o.preprocess;
+  track += o.track;
+  fuse += o.fuse;
+  raycast += o.raycast;
+}
+
+ImageRGB LinearFromSrgb8(const ImageRgb8& image) {
+  ImageRGB out(image.width, image.height);
+  float table[256];
+  for (int i = 0; i < 256; ++i) table[i] = SrgbToLinear(i / 255.f);
+  for (std::size_t i = 0; i < image.data.size(); ++i) out.data[i] = table[image.data[i]];
+  return out;
+}
+
+double Sharpness(const ImageRgb8& im) {
+  const int w = im.width, h = im.height;
+  if (w < 3 || h < 3) return 0;
+  std::vector<float> grey(im.pixels());
+  for (std::size_t p = 0; p < grey.size(); ++p)
+    grey[p] = 0.299f * im.data[3 * p] + 0.587f * im.data[3 * p + 1] + 0.114f * im.data[3 * p + 2];
+  double sum = 0, sum2 = 0;
+  long n = 0;
+  for (int y = 1; y + 1 < h; ++y)
+    for (int x = 1; x + 1 < w; ++x) {
+      const std::size_t p = static_cast<std::size_t>(y) * w + x;
+      const double lap = grey[p - 1] + grey[p + 1] + grey[p - w] + grey[p + w] - 4.0 * grey[p];
+      sum += lap;
+      sum2 += lap * lap;
+      ++n;
+    }
+  const double mean = sum / n;
+  return sum2 / n - mean * mean;
+}
+
+struct Reconstructor::Impl {
+  ReconstructionOptions o;
+  TsdfVolume volume;
+  ModelMaps model;
+  bool started = false;
+  Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();  // last good
+  Eigen::Matrix4d first_pose = Eigen::Matrix4d::Identity();
+  Intrinsics first_depth_k, first_color_k;
+  StageTimes times;
+  std::vector<FrameReport> reports;
+  // Keyframe candidates: the sharpest tracked frame of each window of `window` frames;
+  // when the pool is full, neighbours are merged and the window doubles.
+  std::vector<Candidate> pool;
+  std::optional<Candidate> pending;
+  int window = 1, in_window = 0;
+
+  explicit Impl(const ReconstructionOptions& opt) : o(opt), volume(opt.tsdf) {}
+
+  void Validate(const RgbdFrame& f) const {
+    const std::string at = "frame " + std::to_string(f.index);
+    if (!GoodIntrinsics(f.depth_intrinsics)) throw InputError(at + ": depth intrinsics are not finite and positive");
+    if (!GoodIntrinsics(f.color_intrinsics)) throw InputError(at + ": colour intrinsics are not finite and positive");
+    if (f.depth.width != f.depth_intrinsics.width || f.depth.height != f.depth_intrinsics.height ||
+        f.depth.data.size() != f.depth.pixels())
+      throw InputError(at + ": depth image " + std::to_string(f.depth.width) + "x" + std::to_string(f.depth.height) +
+                       " does not match its intrinsics (" + std::to_string(f.depth_intrinsics.width) + "x" +
+                       std::to_string(f.depth_intrinsics.height) + ")");
+    if (f.color.width != f.color_intrinsics.width || f.color.height != f.color_intrinsics.height ||
+        f.color.data.size() != 3 * f.color.pixels())
+      throw InputError(at + ": colour image does not match its intrinsics");
+    if (started && (f.depth.width != first_depth_k.width || f.depth.height != first_depth_k.height ||
+                    f.color.width != first_color_k.width || f.color.height != first_color_k.height))
+      throw InputError(at + ": frame size " + std::to_string(f.depth.width) + "x" + std::to_string(f.depth.height) +
+                       " differs from the first frame's " + std::to_string(first_depth_k.width) + "x" +
+                       std::to_string(first_depth_k.height));
+  }
+
+  void Fuse(const RgbdFrame& f, const Eigen::Matrix4d& world_from_camera, FrameReport* r) {
+    auto t0 = Clock::now();
+    const ImageRGB color = LinearFromSrgb8(f.color);
+    r->blocks_updated = volume.Integrate(DepthToMetres(f.depth, o.preprocess), f.depth_intrinsics, &color,
+                                         f.color_intrinsics, world_from_camera);
+    r->times.fuse = Since(t0);
+    t0 = Clock::now();
+    TsdfVolume::Maps maps;
+    volume.Raycast(f.depth_intrinsics, world_from_camera, &maps);
+    model = MakeModelMaps(f.depth_intrinsics, maps.vertex, maps.normal, world_from_camera, o.preprocess.levels);
+    r->times.raycast = Since(t0);
+  }
+
+  void Offer(const RgbdFrame& f, const Eigen::Matrix4d& pose) {
+    Candidate c;
+    c.index = f.index;
+    c.pose = pose;
+    c.sharpness = Sharpness(f.color);
+    if (!pending || c.sharpness > pending->sharpness) {
+      c.color = f.color;
+      c.depth = f.depth;
+      c.depth_k = f.depth_intrinsics;
+      c.color_k = f.color_intrinsics;
+      c.registered = f.registered;
+      pending = std::move(c);
+    }
+    if (++in_window < window) return;
+    pool.push_back(std::move(*pending));
+    pending.reset();
+    in_window = 0;
+    if (static_cast<int>(pool.size()) < std::max(2, o.max_candidates)) return;
+    std::vector<Candidate> merged;
+    for (std::size_t i = 0; i < pool.size(); i += 2) {
+      if (i + 1 < pool.size() && pool[i + 1].sharpness > pool[i].sharpness) merged.push_back(std::move(pool[i + 1]));
+      else merged.push_back(std::move(pool[i]));
+    }
+    pool = std::move(merged);
+    window *= 2;
+  }
+};
+
+Reconstructor::Reconstructor(const ReconstructionOptions& o) : impl_(std::make_unique<Impl>(o)) {
+  if (!(o.tsdf.voxel >= 0.001f && o.tsdf.voxel <= 0.1f))
+    throw InputError("reconstruct: --voxel must be between 0.001 and 0.1 m");
+  if (!(o.tsdf.truncation >= 2 * o.tsdf.voxel && o.tsdf.truncation <= 1.f))
+    throw InputError("reconstruct: --truncation must be at least two voxels and at most 1 m");
+  if (o.keyframes < 1 || o.keyframes > 64) throw InputError("reconstruct: --keyframes must be between 1 and 64");
+}
+
+Reconstructor::~Reconstructor() = default;
+
+const TsdfVolume& Reconstructor::volume() const { return impl_->volume; }
+const StageTimes& Reconstructor::times() const { return impl_->times; }
+const std::vector<FrameReport>& Reconstructor::reports() const { return impl_->reports; }
+
+FrameReport Reconstructor::Process(const RgbdFrame& f) {
+  Impl& m = *impl_;
+  m.Validate(f);
+  FrameReport r;
+  r.index = f.index;
+  auto t0 = Clock::now();
+  const std::vector<DepthLevel> levels = PreprocessDepth(f.depth, f.depth_intrinsics, m.o.preprocess);
+  r.times.preprocess = Since(t0);
+  std::size_t valid = 0;
+  for (std::size_t p = 0; p < levels[0].depth.size(); ++p) valid += levels[0].valid(p);
+  const bool enough_depth = valid >= levels[0].depth.size() / 20;
+
+  std::optional<Eigen::Matrix4d> source_pose;
+  if (m.o.use_source_poses) {
+    if (!f.world_from_camera)
+      throw InputError("frame " + std::to_string(f.index) + ": no pose from the source (use_source_poses)");
+    source_pose = *f.world_from_camera;
+  }
+
+  if (!m.started) {
+    if (!enough_depth) {
+      r.state = TrackingState::kWaiting;
+      r.reason = "too little valid depth to start";
+    } else {
+      m.started = true;
+      m.first_depth_k = f.depth_intrinsics;
+      m.first_color_k = f.color_intrinsics;
+      // The world is the source's when it gives poses (synthetic frames, trajectory
+      // files: ground truth applies directly), else the first camera's.
+      m.pose = f.world_from_camera.value_or(Eigen::Matrix4d::Identity());
+      m.first_pose = m.pose;
+      m.Fuse(f, m.pose, &r);
+      r.state = TrackingState::kTracking;
+      r.world_from_camera = m.pose;
+      m.Offer(f, m.pose);
+    }
+  } else {
+    t0 = Clock::now();
+    TrackResult tr;
+    if (source_pose) {
+      tr.ok = true;
+      tr.world_from_camera = *source_pose;
+    } else if (!enough_depth) {
+      tr.reason = "too little valid depth";
+    } else {
+      tr = TrackFrameToModel(levels, m.model, m.pose, m.o.icp);
+    }
+    r.times.track = Since(t0);
+    r.inlier_ratio = tr.inlier_ratio;
+    r.rmse = tr.rmse;
+    if (tr.ok) {
+      m.pose = tr.world_from_camera;
+      m.Fuse(f, m.pose, &r);
+      r.state = TrackingState::kTracking;
+      m.Offer(f, m.pose);
+    } else {
+      r.state = TrackingState::kLost;
+      r.reason = tr.reason;
+    }
+    r.world_from_camera = m.pose;
+  }
+  m.times.Add(r.times);
+  m.reports.push_back(r);
+  return r;
+}
+
+Eigen::Vector3d Reconstructor::EstimateUp(const Mesh& mesh, bool* from_plane) const {
+  // The first fused camera's -y is up unless a horizontal plane says better.
+  const Eigen::Matrix4d& first = impl_->first_pose;
+  const Eigen::Vector3d rough = -first.block<3, 1>(0, 1);
+  const std::optional<Plane> plane =
+      DominantPlane(mesh.positions, rough, first.block<3, 1>(0, 3), 30, 2 * impl_->o.tsdf.voxel + 0.01);
+  if (from_plane) *from_plane = plane.has_value();
+  return plane ? plane->normal : rough;
+}
+
+SceneBundle Reconstructor::Finish() const {
+  const Impl& m = *impl_;
+  if (!m.started) throw InputError("reconstruct: no frame had enough valid depth to build a model");
+  SceneBundle b;
+  b.mesh = m.volume.ExtractMesh(m.o.mesh_min_weight);
+  if (b.mesh.triangles.empty()) throw InputError("reconstruct: the fused model has no surface to mesh");
+  SanitizeMesh(&b.mesh, "reconstructed mesh");
+  b.up = EstimateUp(b.mesh);
+
+  // Keyframes: the sharpest candidate first, then the one farthest (in pose) from those
+  // chosen, weighted by sharpness, until `keyframes`.
+  std::vector<const Candidate*> pool;
+  for (const Candidate& c : m.pool) pool.push_back(&c);
+  if (m.pending) pool.push_back(&*m.pending);
+  double best_sharp = 0;
+  for (const Candidate* c : pool) best_sharp = std::max(best_sharp, c->sharpness);
+  std::vector<const Candidate*> chosen;
+  while (static_cast<int>(chosen.size()) < m.o.keyframes && chosen.size() < pool.size()) {
+    const Candidate* pick = nullptr;
+    double best = -1;
+    for (const Candidate* c : pool) {
+      if (std::find(chosen.begin(), chosen.end(), c) != chosen.end()) continue;
+      double spread = 1;
+      if (!chosen.empty()) {
+        spread = std::numeric_limits<double>::max();
+        for (const Candidate* k : chosen) spread = std::min(spread, PoseDistance(c->pose, k->pose));
+      }
+      const double score = spread * std::sqrt(best_sharp > 0 ? c->sharpness / best_sharp : 1.0);
+      if (score > best) {
+        best = score;
+        pick = c;
+      }
+    }
+    chosen.push_back(pick);
+  }
+  std::sort(chosen.begin(), chosen.end(), [](const Candidate* a, const Candidate* b) { return a->index < b->index; });
+
+  for (const Candidate* c : chosen) {
+    View v;
+    const Intrinsics& k = c->color_k;
+    v.camera.width = k.width;
+    v.camera.height = k.height;
+    v.camera.fx = k.fx;
+    v.camera.fy = k.fy;
+    v.camera.cx = k.cx;
+    v.camera.cy = k.cy;
+    v.camera.world_from_camera = c->pose;
+    v.image = LinearFromSrgb8(c->color);
+    v.saturation = 1.0;  // 8-bit: the top code is clipped
+    // Mask: the model is hit, away from its depth discontinuities, and (registered depth
+    // of the same size) the measured depth agrees with it. The paper's discussion: pixels
+    // at depth edges mix surfaces.
+    TsdfVolume::Maps maps;
+    m.volume.Raycast(k, c->pose, &maps);
+    const int w = k.width, h = k.height;
+    const bool compare = c->registered && c->depth.width == w && c->depth.height == h;
+    v.valid.assign(static_cast<std::size_t>(w) * h, 0);
+    for (int y = 1; y + 1 < h; ++y)
+      for (int x = 1; x + 1 < w; ++x) {
+        const std::size_t p = static_cast<std::size_t>(y) * w + x;
+        const float z = maps.depth[p];
+        if (z <= 0) continue;
+        bool edge = false;
+        for (int dy = -1; dy <= 1 && !edge; ++dy)
+          for (int dx = -1; dx <= 1 && !edge; ++dx) {
+            const float zn = maps.depth[p + static_cast<std::ptrdiff_t>(dy) * w + dx];
+            edge = zn <= 0 || std::abs(zn - z) > 0.03f * z;
+          }
+        if (edge) continue;
+        if (compare) {
+          const float measured = c->depth.data[p] * 1e-3f;
+          const float sigma = 0.0012f + 0.0019f * (z - 0.4f) * (z - 0.4f);
+          if (measured <= 0 || std::abs(measured - z) > std::max(0.02f, 3 * sigma)) continue;
+        }
+        v.valid[p] = 1;
+      }
+    char name[32];
+    std::snprintf(name, sizeof name, "view%zu.exr", b.views.size());
+    v.image_file = name;
+    std::snprintf(name, sizeof name, "mask%zu.png", b.views.size());
+    v.mask_file = name;
+    b.views.push_back(std::move(v));
+  }
+  return b;
+}
+
+}  // namespace lp

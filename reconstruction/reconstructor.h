@@ -1,0 +1,96 @@
+#pragma once
+/// KinectFusion on the CPU: per frame, preprocess -> track (frame-to-model ICP) -> fuse
+/// (sparse TSDF) -> raycast; at the end, the scene bundle (mesh with albedo, keyframes
+/// with masks, the up direction). The orchestrator reads as that list of stages.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "capture/frame.h"
+#include "estimation/scene_bundle.h"
+#include "reconstruction/depth_maps.h"
+#include "reconstruction/icp.h"
+#include "reconstruction/tsdf_volume.h"
+
+namespace lp {
+
+struct ReconstructionOptions {
+  PreprocessOptions preprocess;
+  TsdfOptions tsdf;
+  IcpOptions icp;
+  int keyframes = 4;         ///< views in the bundle
+  int max_candidates = 64;   ///< keyframe candidates kept while running (memory bound)
+  float mesh_min_weight = 2; ///< voxels seen fewer times are left out of the mesh
+  /// Use the poses the source provides (synthetic frames, trajectory files) instead of
+  /// tracking: for testing fusion alone, or datasets with better poses.
+  bool use_source_poses = false;
+};
+
+enum class TrackingState {
+  kWaiting,   ///< no frame with enough depth yet: nothing fused
+  kTracking,  ///< tracked and fused
+  kLost,      ///< tracking failed: not fused; the next frame is tracked from the last good pose
+};
+const char* ToString(TrackingState s);
+
+/// Seconds spent per stage.
+struct StageTimes {
+  double preprocess = 0, track = 0, fuse = 0, raycast = 0;
+  double total() const { return preprocess + track + fuse + raycast; }
+  void Add(const StageTimes& o);
+};
+
+struct FrameReport {
+  std::int64_t index = 0;
+  TrackingState state = TrackingState::kWaiting;
+  std::string reason;  ///< why tracking failed or nothing was fused
+  Eigen::Matrix4d world_from_camera = Eigen::Matrix4d::Identity();  ///< estimated (or held) pose
+  double inlier_ratio = 0, rmse = 0;
+  std::size_t blocks_updated = 0;
+  StageTimes times;
+};
+
+class Reconstructor {
+ public:
+  /// Throws InputError for options out of range (voxel, truncation, keyframes).
+  explicit Reconstructor(const ReconstructionOptions& options);
+  ~Reconstructor();
+
+  /// Processes one frame. The world frame is the source's when the first fused frame
+  /// carries a pose (world_from_camera), else that camera's. Throws InputError
+  /// for a frame that cannot be used at all (size differs from its intrinsics or from the
+  /// first frame's, intrinsics not finite and positive, depth and colour of different
+  /// sizes when registered); per-frame events (tracking lost, no depth) are in the report.
+  FrameReport Process(const RgbdFrame& frame);
+
+  /// The mesh (marching cubes, per-vertex albedo = mean linear colour), the up direction
+  /// (dominant horizontal plane, else the first camera's -y), and `keyframes` sharp,
+  /// well-spread views with their masks. Throws InputError when nothing was fused.
+  SceneBundle Finish() const;
+
+  /// Up from the dominant horizontal plane of `mesh` (PCL RANSAC; normal within 30 degrees
+  /// of the first camera's -y, turned towards that camera), else the first camera's -y;
+  /// `from_plane` says which.
+  Eigen::Vector3d EstimateUp(const Mesh& mesh, bool* from_plane = nullptr) const;
+
+  const TsdfVolume& volume() const;
+  const StageTimes& times() const;
+  /// One entry per processed frame (frames before the first fused one included).
+  const std::vector<FrameReport>& reports() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// 8-bit sRGB to linear float (what the pipeline uses when no calibration is loaded).
+ImageRGB LinearFromSrgb8(const ImageRgb8& image);
+
+/// Variance of the Laplacian of the luminance: larger is sharper.
+double Sharpness(const ImageRgb8& image);
+
+}  // namespace lp

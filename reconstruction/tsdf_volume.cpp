@@ -1,0 +1,349 @@
+#include "reconstruction/tsdf_volume.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "common/parallel.h"
+#include "common/rng.h"
+#include "reconstruction/volume_internal.h"
+
+namespace lp {
+
+namespace {
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+}  // namespace
+
+// ---- BlockHash ----------------------------------------------------------------------
+
+BlockHash::BlockHash() { Rehash(1024); }
+
+std::uint64_t BlockHash::Key(int bx, int by, int bz) {
+  constexpr std::int64_t off = 1 << 20;
+  return (static_cast<std::uint64_t>(bx + off) << 42) | (static_cast<std::uint64_t>(by + off) << 21) |
+         static_cast<std::uint64_t>(bz + off);
+}
+
+int BlockHash::Find(std::uint64_t key) const {
+  for (std::size_t i = SplitMix64(key) & mask_;; i = (i + 1) & mask_) {
+    if (keys_[i] == key) return values_[i];
+    if (keys_[i] == kEmpty) return -1;
+  }
+}
+
+int BlockHash::Insert(std::uint64_t key, int value) {
+  if (2 * (size_ + 1) > keys_.size()) Rehash(2 * keys_.size());
+  for (std::size_t i = SplitMix64(key) & mask_;; i = (i + 1) & mask_) {
+    if (keys_[i] == key) return values_[i];
+    if (keys_[i] == kEmpty) {
+      keys_[i] = key;
+      values_[i] = value;
+      ++size_;
+      return value;
+    }
+  }
+}
+
+void BlockHash::Rehash(std::size_t capacity) {
+  std::vector<std::uint64_t> old_keys = std::move(keys_);
+  std::vector<int> old_values = std::move(values_);
+  keys_.assign(capacity, kEmpty);
+  values_.assign(capacity, -1);
+  mask_ = capacity - 1;
+  size_ = 0;
+  for (std::size_t i = 0; i < old_keys.size(); ++i)
+    if (old_keys[i] != kEmpty) Insert(old_keys[i], old_values[i]);
+}
+
+// ---- VolumeStore ---------------------------------------------------------------------
+
+int VolumeStore::FindBlock(int bx, int by, int bz) const { return hash.Find(BlockHash::Key(bx, by, bz)); }
+
+int VolumeStore::AllocateBlock(int bx, int by, int bz) {
+  const int next = static_cast<int>(blocks.size());
+  const int index = hash.Insert(BlockHash::Key(bx, by, bz), next);
+  if (index == next) {
+    blocks.push_back(std::make_unique<VoxelBlock>());
+    coords.emplace_back(bx, by, bz);
+  }
+  return index;
+}
+
+const Voxel* VolumeStore::VoxelAt(int ix, int iy, int iz) const {
+  const int b = FindBlock(ix >> 3, iy >> 3, iz >> 3);
+  if (b < 0) return nullptr;
+  return &blocks[b]->v[LocalIndex(ix & 7, iy & 7, iz & 7)];
+}
+
+bool VolumeStore::Cell(int ix, int iy, int iz, const Voxel* out[8]) const {
+  const int lx = ix & 7, ly = iy & 7, lz = iz & 7;
+  if (lx < 7 && ly < 7 && lz < 7) {  // fast path: the whole cell in one block
+    const int b = FindBlock(ix >> 3, iy >> 3, iz >> 3);
+    if (b < 0) return false;
+    const Voxel* v = blocks[b]->v;
+    for (int c = 0; c < 8; ++c) out[c] = &v[LocalIndex(lx + (c & 1), ly + ((c >> 1) & 1), lz + (c >> 2))];
+  } else {
+    for (int c = 0; c < 8; ++c) {
+      out[c] = VoxelAt(ix + (c & 1), iy + ((c >> 1) & 1), iz + (c >> 2));
+      if (!out[c]) return false;
+    }
+  }
+  for (int c = 0; c < 8; ++c)
+    if (out[c]->weight <= 0) return false;
+  return true;
+}
+
+bool VolumeStore::Trilinear(const Eigen::Vector3f& p, float* sdf, Eigen::Vector3f* gradient,
+                            Eigen::Vector3f* color) const {
+  const Eigen::Vector3f g = p / voxel;
+  const int ix = static_cast<int>(std::floor(g.x())), iy = static_cast<int>(std::floor(g.y())),
+            iz = static_cast<int>(std::floor(g.z()));
+  const Voxel* c[8];
+  if (!Cell(ix, iy, iz, c)) return false;
+  const float fx = g.x() - ix, fy = g.y() - iy, fz = g.z() - iz;
+  const float s[8] = {c[0]->sdf, c[1]->sdf, c[2]->sdf, c[3]->sdf, c[4]->sdf, c[5]->sdf, c[6]->sdf, c[7]->sdf};
+  // Corner c sits at (c & 1, (c >> 1) & 1, c >> 2).
+  const float x00 = s[0] + fx * (s[1] - s[0]), x10 = s[2] + fx * (s[3] - s[2]);
+  const float x01 = s[4] + fx * (s[5] - s[4]), x11 = s[6] + fx * (s[7] - s[6]);
+  const float y0 = x00 + fy * (x10 - x00), y1 = x01 + fy * (x11 - x01);
+  *sdf = y0 + fz * (y1 - y0);
+  if (gradient) {
+    const float dx0 = (1 - fy) * (s[1] - s[0]) + fy * (s[3] - s[2]);
+    const float dx1 = (1 - fy) * (s[5] - s[4]) + fy * (s[7] - s[6]);
+    const float dy0 = (1 - fx) * (s[2] - s[0]) + fx * (s[3] - s[1]);
+    const float dy1 = (1 - fx) * (s[6] - s[4]) + fx * (s[7] - s[5]);
+    *gradient = Eigen::Vector3f((1 - fz) * dx0 + fz * dx1, (1 - fz) * dy0 + fz * dy1, y1 - y0);
+  }
+  if (color) {
+    Eigen::Vector3f sum = Eigen::Vector3f::Zero();
+    float wsum = 0;
+    for (int k = 0; k < 8; ++k) {
+      if (c[k]->color_weight <= 0) continue;
+      const float w = ((k & 1) ? fx : 1 - fx) * (((k >> 1) & 1) ? fy : 1 - fy) * ((k >> 2) ? fz : 1 - fz);
+      sum += w * Eigen::Vector3f(c[k]->r, c[k]->g, c[k]->b);
+      wsum += w;
+    }
+    *color = wsum > 0 ? Eigen::Vector3f(sum / wsum) : Eigen::Vector3f::Constant(kNaN);
+  }
+  return true;
+}
+
+// ---- TsdfVolume ----------------------------------------------------------------------
+
+TsdfVolume::TsdfVolume(const TsdfOptions& o) : impl_(std::make_unique<Impl>()) {
+  impl_->o = o;
+  impl_->store.voxel = o.voxel;
+}
+TsdfVolume::~TsdfVolume() = default;
+TsdfVolume::TsdfVolume(TsdfVolume&&) noexcept = default;
+TsdfVolume& TsdfVolume::operator=(TsdfVolume&&) noexcept = default;
+
+const TsdfOptions& TsdfVolume::options() const { return impl_->o; }
+std::size_t TsdfVolume::BlockCount() const { return impl_->store.blocks.size(); }
+std::size_t TsdfVolume::MemoryBytes() const {
+  return impl_->store.blocks.size() * (sizeof(VoxelBlock) + sizeof(Eigen::Vector3i) + sizeof(int)) +
+         impl_->store.hash.Bytes();
+}
+
+std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrinsics& k, const ImageRGB* color,
+                                  const Intrinsics& color_k, const Eigen::Matrix4d& world_from_camera) {
+  Impl& m = *impl_;
+  VolumeStore& st = m.store;
+  const float voxel = m.o.voxel, trunc = m.o.truncation, block = voxel * kBlockSide;
+  const Eigen::Matrix4f wfc = world_from_camera.cast<float>();
+  const Eigen::Matrix3f R = wfc.block<3, 3>(0, 0);
+  const Eigen::Vector3f t = wfc.block<3, 1>(0, 3);
+  const int w = k.width, h = k.height;
+  const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy), cx = static_cast<float>(k.cx),
+              cy = static_cast<float>(k.cy);
+
+  // 1. Blocks within the truncation band of each measurement (every second pixel: a
+  //    block spans many pixels at any useful depth).
+  const std::size_t rows = static_cast<std::size_t>((h + 1) / 2);
+  std::vector<std::vector<Eigen::Vector3i>> found(rows);
+  ParallelForChunks(0, rows, 8, [&](std::size_t r0, std::size_t r1) {
+    for (std::size_t r = r0; r < r1; ++r) {
+      const int y = static_cast<int>(2 * r);
+      Eigen::Vector3i last(INT32_MIN, 0, 0);
+      for (int x = 0; x < w; x += 2) {
+        const float z = depth[static_cast<std::size_t>(y) * w + x];
+        if (z <= 0) continue;
+        const Eigen::Vector3f ray((x - cx) / fx, (y - cy) / fy, 1.f);
+        const float len = ray.norm(), dz = trunc / len;  // the band is +-trunc along the ray
+        const int steps = static_cast<int>(std::ceil(2 * trunc / (0.5f * block))) + 1;
+        for (int s = 0; s <= steps; ++s) {
+          const float zs = z - dz + (2 * dz) * s / steps;
+          if (zs <= 0) continue;
+          const Eigen::Vector3f p = R * (ray * zs) + t;
+          const Eigen::Vector3i b(static_cast<int>(std::floor(p.x() / block)),
+                                  static_cast<int>(std::floor(p.y() / block)),
+                                  static_cast<int>(std::floor(p.z() / block)));
+          if (b != last) found[r].push_back(b);
+          last = b;
+        }
+      }
+    }
+  });
+  ++m.frame;
+  std::vector<int> touched;
+  for (const auto& list : found)
+    for (const Eigen::Vector3i& b : list) {
+      const int index = st.AllocateBlock(b.x(), b.y(), b.z());
+      if (static_cast<std::size_t>(index) >= m.stamp.size()) m.stamp.resize(st.blocks.size(), 0);
+      if (m.stamp[index] == m.frame) continue;
+      m.stamp[index] = m.frame;
+      touched.push_back(index);
+    }
+
+  // 2. Update every voxel of the touched blocks (projective signed distance along the ray).
+  const Eigen::Matrix3f Rt = R.transpose();
+  const Eigen::Vector3f tc = -Rt * t;  // camera_from_world
+  const float cfx = static_cast<float>(color_k.fx), cfy = static_cast<float>(color_k.fy),
+              ccx = static_cast<float>(color_k.cx), ccy = static_cast<float>(color_k.cy);
+  const float max_w = m.o.max_weight;
+  ParallelForChunks(0, touched.size(), 16, [&](std::size_t i0, std::size_t i1) {
+    for (std::size_t i = i0; i < i1; ++i) {
+      VoxelBlock& blk = *st.blocks[touched[i]];
+      const Eigen::Vector3i origin = st.coords[touched[i]] * kBlockSide;
+      for (int lz = 0; lz < kBlockSide; ++lz)
+        for (int ly = 0; ly < kBlockSide; ++ly) {
+          const Eigen::Vector3f row_start =
+              Rt * (Eigen::Vector3f(origin.x(), origin.y() + ly, origin.z() + lz) * voxel) + tc;
+          const Eigen::Vector3f step = Rt.col(0) * voxel;
+          for (int lx = 0; lx < kBlockSide; ++lx) {
+            const Eigen::Vector3f pc = row_start + step * static_cast<float>(lx);
+            if (pc.z() <= 0) continue;
+            const int u = static_cast<int>(std::lround(fx * pc.x() / pc.z() + cx));
+            const int v = static_cast<int>(std::lround(fy * pc.y() / pc.z() + cy));
+            if (u < 0 || v < 0 || u >= w || v >= h) continue;
+            const float d = depth[static_cast<std::size_t>(v) * w + u];
+            if (d <= 0) continue;
+            const float sdf = (d - pc.z()) * pc.norm() / pc.z();
+            if (sdf < -trunc) continue;
+            const float tsdf = std::min(1.f, sdf / trunc);
+            Voxel& vx = blk.v[VolumeStore::LocalIndex(lx, ly, lz)];
+            vx.sdf = (vx.sdf * vx.weight + tsdf) / (vx.weight + 1);
+            vx.weight = std::min(vx.weight + 1, max_w);
+            if (!color || std::abs(sdf) > 0.5f * trunc) continue;
+            const int cu = static_cast<int>(std::lround(cfx * pc.x() / pc.z() + ccx));
+            const int cv = static_cast<int>(std::lround(cfy * pc.y() / pc.z() + ccy));
+            if (cu < 0 || cv < 0 || cu >= color->width || cv >= color->height) continue;
+            const float* c = color->at(cu, cv);
+            if (!(std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]))) continue;
+            const float cw = vx.color_weight;
+            vx.r = (vx.r * cw + c[0]) / (cw + 1);
+            vx.g = (vx.g * cw + c[1]) / (cw + 1);
+            vx.b = (vx.b * cw + c[2]) / (cw + 1);
+            vx.color_weight = std::min(cw + 1, max_w);
+          }
+        }
+    }
+  });
+  return touched.size();
+}
+
+float TsdfVolume::SignedDistance(const Eigen::Vector3f& p) const {
+  float s;
+  if (!impl_->store.Trilinear(p, &s, nullptr, nullptr)) return kNaN;
+  return s * impl_->o.truncation;
+}
+
+void TsdfVolume::Raycast(const Intrinsics& k, const Eigen::Matrix4d& world_from_camera, Maps* out,
+                         bool with_color) const {
+  const VolumeStore& st = impl_->store;
+  const float voxel = impl_->o.voxel, trunc = impl_->o.truncation, block = voxel * kBlockSide;
+  const int w = k.width, h = k.height;
+  const std::size_t n = static_cast<std::size_t>(w) * h;
+  out->k = k;
+  out->vertex.assign(n, Eigen::Vector3f::Constant(kNaN));
+  out->normal.assign(n, Eigen::Vector3f::Constant(kNaN));
+  out->color.assign(with_color ? n : 0, Eigen::Vector3f::Constant(kNaN));
+  out->depth.assign(n, 0.f);
+  const Eigen::Matrix4f wfc = world_from_camera.cast<float>();
+  const Eigen::Matrix3f R = wfc.block<3, 3>(0, 0);
+  const Eigen::Vector3f t = wfc.block<3, 1>(0, 3);
+  const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy), cx = static_cast<float>(k.cx),
+              cy = static_cast<float>(k.cy);
+
+  // Depth range per 8x8 tile from the allocated blocks' bounding spheres, so rays start
+  // near the model instead of marching through empty space.
+  constexpr int kTile = 8;
+  const int tw = (w + kTile - 1) / kTile, th = (h + kTile - 1) / kTile;
+  std::vector<float> zmin(static_cast<std::size_t>(tw) * th, std::numeric_limits<float>::max()), zmax(zmin.size(), 0);
+  const Eigen::Matrix3f Rt = R.transpose();
+  const Eigen::Vector3f tc = -Rt * t;
+  const float radius = 0.5f * std::sqrt(3.f) * block;
+  for (std::size_t b = 0; b < st.coords.size(); ++b) {
+    const Eigen::Vector3f centre = (st.coords[b].cast<float>() + Eigen::Vector3f::Constant(0.5f)) * block;
+    const Eigen::Vector3f pc = Rt * centre + tc;
+    if (pc.z() + radius < 0.05f) continue;
+    const float z = std::max(pc.z(), 0.05f + radius);
+    const float u = fx * pc.x() / z + cx, v = fy * pc.y() / z + cy;
+    const float ru = fx * radius / (z - radius) + 1, rv = fy * radius / (z - radius) + 1;
+    const int tx0 = std::max(0, static_cast<int>(std::floor((u - ru) / kTile)));
+    const int tx1 = std::min(tw - 1, static_cast<int>(std::floor((u + ru) / kTile)));
+    const int ty0 = std::max(0, static_cast<int>(std::floor((v - rv) / kTile)));
+    const int ty1 = std::min(th - 1, static_cast<int>(std::floor((v + rv) / kTile)));
+    for (int ty = ty0; ty <= ty1; ++ty)
+      for (int tx = tx0; tx <= tx1; ++tx) {
+        float& lo = zmin[static_cast<std::size_t>(ty) * tw + tx];
+        float& hi = zmax[static_cast<std::size_t>(ty) * tw + tx];
+        lo = std::min(lo, std::max(0.05f, pc.z() - radius));
+        hi = std::max(hi, pc.z() + radius);
+      }
+  }
+
+  ParallelForChunks(0, static_cast<std::size_t>(h), 4, [&](std::size_t y0, std::size_t y1) {
+    for (int y = static_cast<int>(y0); y < static_cast<int>(y1); ++y)
+      for (int x = 0; x < w; ++x) {
+        const std::size_t tile = static_cast<std::size_t>(y / kTile) * tw + x / kTile;
+        if (zmax[tile] <= 0) continue;
+        const Eigen::Vector3f ray_c((x - cx) / fx, (y - cy) / fy, 1.f);
+        const float len = ray_c.norm();
+        const Eigen::Vector3f dir = R * (ray_c / len);
+        // Distance along the ray from depth along the axis: t = z * len.
+        float tr = zmin[tile] * len;
+        const float t_end = zmax[tile] * len;
+        float prev_t = -1, prev_s = kNaN;
+        while (tr <= t_end) {
+          const Eigen::Vector3f p = t + dir * tr;
+          const Eigen::Vector3f g = p / voxel;
+          const Voxel* v = st.VoxelAt(static_cast<int>(std::lround(g.x())), static_cast<int>(std::lround(g.y())),
+                                      static_cast<int>(std::lround(g.z())));
+          if (!v) {  // unallocated: skip ahead by half a block
+            prev_s = kNaN;
+            tr += 0.5f * block;
+            continue;
+          }
+          if (v->weight <= 0) {
+            prev_s = kNaN;
+            tr += voxel;
+            continue;
+          }
+          float s = v->sdf;
+          if (s < 1.f) st.Trilinear(p, &s, nullptr, nullptr);  // near the surface: precise
+          if (s < 0) {
+            if (prev_s > 0) {  // a zero crossing from the front
+              const float th = prev_t + (tr - prev_t) * prev_s / (prev_s - s);
+              const Eigen::Vector3f hit = t + dir * th;
+              float sh;
+              Eigen::Vector3f grad, col;
+              if (st.Trilinear(hit, &sh, &grad, with_color ? &col : nullptr) && grad.norm() > 0) {
+                const std::size_t p_idx = static_cast<std::size_t>(y) * w + x;
+                out->vertex[p_idx] = hit;
+                out->normal[p_idx] = grad.normalized();
+                out->depth[p_idx] = th / len;
+                if (with_color) out->color[p_idx] = col;
+              }
+            }
+            break;  // behind a surface (or entered from behind): stop
+          }
+          prev_t = tr;
+          prev_s = s;
+          tr += std::max(voxel, 0.8f * s * trunc);
+        }
+      }
+  });
+}
+
+}  // namespace lp

@@ -1,0 +1,81 @@
+#pragma once
+/// A truncated signed distance volume with weights and colour, stored sparsely: voxel
+/// blocks of 8^3 found through a hash of their coordinates (as InfiniTAM's voxel hashing
+/// and Open3D's VoxelBlockGrid), allocated only near observed surfaces. A 3 m room at
+/// 1 cm needs a few tens of thousands of blocks (24 bytes per voxel, 12 KiB per block).
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "capture/frame.h"
+#include "common/image.h"
+#include "estimation/mesh.h"
+
+namespace lp {
+
+struct TsdfOptions {
+  float voxel = 0.01f;       ///< voxel edge, metres (1 cm for a room, 4 mm for a table top)
+  float truncation = 0.04f;  ///< metres; the signed distance is clamped to +-truncation
+  float max_weight = 64;     ///< running-average window (frames)
+};
+
+/// A voxel: signed distance over truncation in [-1, 1] (negative behind the surface),
+/// its weight, and the weighted mean linear colour of the observations near the surface.
+struct Voxel {
+  float sdf = 1, weight = 0;
+  float color_weight = 0;
+  float r = 0, g = 0, b = 0;
+};
+
+constexpr int kBlockSide = 8;
+constexpr int kBlockVoxels = kBlockSide * kBlockSide * kBlockSide;
+
+/// Maps surfaces seen from a camera (world frame, metres): depth images go in, raycasts and
+/// a triangle mesh come out.
+class TsdfVolume {
+ public:
+  explicit TsdfVolume(const TsdfOptions& options);
+  ~TsdfVolume();
+  TsdfVolume(TsdfVolume&&) noexcept;
+  TsdfVolume& operator=(TsdfVolume&&) noexcept;
+
+  /// Fuses a depth map (metres along the optical axis, 0 = invalid, camera `k`) taken from
+  /// `world_from_camera`. Only blocks within the truncation band of a measurement are
+  /// allocated and updated. `color` (linear RGB, camera `color_k`, same pose; may be null)
+  /// updates the colour of voxels within half the truncation of the surface. Returns the
+  /// number of blocks updated.
+  std::size_t Integrate(const std::vector<float>& depth, const Intrinsics& k, const ImageRGB* color,
+                        const Intrinsics& color_k, const Eigen::Matrix4d& world_from_camera);
+
+  /// What a camera sees of the model, world frame; NaN where a ray hits nothing.
+  struct Maps {
+    Intrinsics k;
+    std::vector<Eigen::Vector3f> vertex, normal, color;
+    std::vector<float> depth;  ///< along the optical axis, 0 = nothing
+  };
+  /// Casts a ray per pixel of camera `k` at `world_from_camera` to the zero crossing of
+  /// the signed distance (from front to back; rays start near the allocated blocks).
+  void Raycast(const Intrinsics& k, const Eigen::Matrix4d& world_from_camera, Maps* out,
+               bool with_color = false) const;
+
+  /// Marching cubes over the allocated blocks (cubes whose 8 corners have weight >=
+  /// min_weight); vertices shared between cubes, normals from the triangles, pointing to
+  /// free space; albedo = the voxels' mean linear colour (interpolated along the edge).
+  Mesh ExtractMesh(float min_weight = 1.f) const;
+
+  /// Trilinear signed distance in metres at a world point (NaN outside observed space).
+  float SignedDistance(const Eigen::Vector3f& p) const;
+
+  std::size_t BlockCount() const;
+  std::size_t MemoryBytes() const;
+  const TsdfOptions& options() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace lp
