@@ -6,6 +6,7 @@
 
 #include "app/commands.h"
 #include "capture/frame_source.h"
+#include "capture/synth_source.h"
 #include "common/atomic_file.h"
 #include "common/image_io.h"
 #include "common/parallel.h"
@@ -15,31 +16,6 @@
 namespace lp::app {
 namespace fs = std::filesystem;
 
-namespace {
-
-/// The synthetic frames as a camera would deliver them: 8-bit sRGB colour (clipped at 1),
-/// depth in millimetres, registered, with the true pose.
-std::vector<RgbdFrame> ToCameraFrames(const std::vector<SynthFrame>& frames) {
-  std::vector<RgbdFrame> out;
-  for (std::size_t k = 0; k < frames.size(); ++k) {
-    const SynthFrame& s = frames[k];
-    RgbdFrame f;
-    f.index = static_cast<std::int64_t>(k);
-    f.color = EncodeSrgb8(s.color);
-    f.depth = {s.color.width, s.color.height, std::vector<std::uint16_t>(s.depth.size())};
-    for (std::size_t i = 0; i < s.depth.size(); ++i)
-      f.depth.data[i] = s.depth[i] > 0 && s.depth[i] < 65.535f ? static_cast<std::uint16_t>(std::lround(s.depth[i] * 1000)) : 0;
-    const Camera& c = s.camera;
-    f.color_intrinsics = f.depth_intrinsics = {c.width, c.height, c.fx, c.fy, c.cx, c.cy};
-    f.registered = true;
-    f.world_from_camera = c.world_from_camera;
-    f.depth_timestamp = f.color_timestamp = k / 30.0;
-    out.push_back(std::move(f));
-  }
-  return out;
-}
-
-}  // namespace
 
 Run AddSynth(CLI::App& app) {
   auto* cmd = app.add_subcommand("synth", "write a synthetic scene bundle with known lighting (truth.json)");
@@ -78,7 +54,7 @@ Run AddSynth(CLI::App& app) {
     Stopwatch sw;
     if (*frames > 0) {
       std::string truth;
-      WriteFrameDirectory(*out, ToCameraFrames(RenderSynthFrames(*name, *o, *data, *frames, &truth)));
+      WriteFrameDirectory(*out, ToRgbdFrames(RenderSynthFrames(*name, *o, *data, *frames, &truth)));
       if (!truth.empty()) WriteTextAtomically(fs::path(*out) / "truth.json", truth);
       std::printf("wrote %d synthetic RGB-D frames of '%s' (%dx%d, %d spp) to %s in %.1f s\n", *frames, name->c_str(),
                   o->width, o->height, o->spp, fs::absolute(*out).lexically_normal().c_str(), sw.Seconds());

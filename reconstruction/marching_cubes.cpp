@@ -78,10 +78,9 @@ Mesh TsdfVolume::ExtractMesh(float min_weight) const {
               keys[e] = EdgeKey(corner[a], corner[bb]);
               part.vertices.push_back({keys[e], {(pa + f * (pb - pa)) * voxel, col}});
             }
-            for (int i = 0; pcl::triTable[cube][i] != -1; i += 3)
-              // Reversed order: with bits set for negative (behind-surface) corners, PCL's
-              // table winds triangles facing the inside; the mesh faces free space.
-              for (int j : {2, 1, 0}) part.triangle_edges.push_back(keys[pcl::triTable[cube][i + j]]);
+            // With bits set for negative (behind-surface) corners, the table's winding faces
+            // free space (checked on a sphere in reconstruction_test).
+            for (int i = 0; pcl::triTable[cube][i] != -1; ++i) part.triangle_edges.push_back(keys[pcl::triTable[cube][i]]);
           }
     }
   });

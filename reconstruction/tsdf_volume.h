@@ -67,6 +67,8 @@ class TsdfVolume {
   Mesh ExtractMesh(float min_weight = 1.f) const;
 
   /// Trilinear signed distance in metres at a world point (NaN outside observed space).
+  /// Fused along camera rays (projective): exact in sign and zero on the surface, at
+  /// least the Euclidean distance off it.
   float SignedDistance(const Eigen::Vector3f& p) const;
 
   std::size_t BlockCount() const;

@@ -1,0 +1,258 @@
+// Reconstruction against closed forms and ground truth: a sphere fused from analytic depth
+// maps, a synthetic room with Xtion-like noise tracked along a known trajectory (trajectory
+// error and Chamfer distance to the true surface), real frames with given poses, bad input.
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+#include "capture/frame_source.h"
+#include "capture/synth_source.h"
+#include "common/error.h"
+#include "common/rng.h"
+#include "estimation/synth.h"
+#include "reconstruction/geometry.h"
+#include "reconstruction/reconstructor.h"
+#include "reconstruction/tsdf_volume.h"
+
+namespace lp {
+namespace {
+namespace fs = std::filesystem;
+
+const fs::path kData = fs::path(LIGHTPROBE_SOURCE_DIR) / ".." / "shared" / "data";
+
+double Percentile(std::vector<float> v, double q) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[static_cast<std::size_t>(q * (v.size() - 1))];
+}
+
+Eigen::Matrix4d LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
+  const Camera c = Camera::LookAt(eye, target, Eigen::Vector3d::UnitZ(), 4, 4, 60);
+  return c.world_from_camera;
+}
+
+/// Depth (metres along the axis) of a sphere seen by camera k at pose T; 0 = background.
+std::vector<float> SphereDepth(const Intrinsics& k, const Eigen::Matrix4d& T, const Eigen::Vector3d& c, double r) {
+  std::vector<float> d(static_cast<std::size_t>(k.width) * k.height, 0.f);
+  const Eigen::Vector3d o = T.block<3, 1>(0, 3);
+  for (int y = 0; y < k.height; ++y)
+    for (int x = 0; x < k.width; ++x) {
+      const Eigen::Vector3d ray((x - k.cx) / k.fx, (y - k.cy) / k.fy, 1);
+      const Eigen::Vector3d dir = (T.block<3, 3>(0, 0) * ray).normalized();
+      const Eigen::Vector3d oc = o - c;
+      const double b = oc.dot(dir), disc = b * b - (oc.squaredNorm() - r * r);
+      if (disc < 0) continue;
+      const double t = -b - std::sqrt(disc);
+      if (t > 0) d[static_cast<std::size_t>(y) * k.width + x] = static_cast<float>(t * dir.dot(T.block<3, 1>(0, 2)));
+    }
+  return d;
+}
+
+// A sphere fused from exact depth maps around it: the mesh lies on the sphere (within a
+// fraction of a voxel) with outward normals, and a raycast from a new viewpoint gives the
+// sphere's depth.
+TEST(TsdfVolume, SphereFromExactDepthMapsMeshesAndRaycastsTheSphere) {
+  const Eigen::Vector3d centre(0.1, -0.05, 0.3);
+  const double r = 0.25;
+  const Intrinsics k{160, 120, 140, 140, 79.5, 59.5};
+  TsdfOptions o;
+  o.voxel = 0.008f;
+  o.truncation = 0.032f;
+  TsdfVolume volume(o);
+  for (int i = 0; i < 8; ++i) {
+    const double a = 2 * 3.14159265358979 * i / 8;
+    const Eigen::Matrix4d T = LookAt(centre + Eigen::Vector3d(std::cos(a), std::sin(a), 0.4 * (i % 2) - 0.2), centre);
+    volume.Integrate(SphereDepth(k, T, centre, r), k, nullptr, k, T);
+  }
+  const Mesh mesh = volume.ExtractMesh(1);
+  ASSERT_GT(mesh.triangles.size(), 1000u);
+  std::vector<float> off;
+  int outward = 0;
+  for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+    const Eigen::Vector3d p = mesh.positions[v].cast<double>();
+    off.push_back(static_cast<float>(std::abs((p - centre).norm() - r)));
+    outward += mesh.normals[v].cast<double>().dot(p - centre) > 0;
+  }
+  std::printf("mesh off the sphere: median %.2f mm, 99th %.2f mm, max %.2f mm\n", 1e3 * Percentile(off, 0.5),
+              1e3 * Percentile(off, 0.99), 1e3 * Percentile(off, 1.0));
+  EXPECT_LT(Percentile(off, 0.5), 0.1 * o.voxel) << "mesh vertices off the sphere";
+  EXPECT_LT(Percentile(off, 0.99), 0.5 * o.voxel) << "mesh vertices off the sphere";
+  EXPECT_GT(outward, 0.99 * mesh.positions.size()) << "normals must point to free space";
+  // The fused distance is projective (along camera rays): the sign is exact, the size at
+  // least the Euclidean distance and at most about twice it here.
+  const float out = volume.SignedDistance((centre + Eigen::Vector3d(r + 0.01, 0, 0)).cast<float>());
+  const float in = volume.SignedDistance((centre + Eigen::Vector3d(0, r - 0.01, 0)).cast<float>());
+  EXPECT_GT(out, 0.009);
+  EXPECT_LT(out, 0.02);
+  EXPECT_LT(in, -0.009);
+  EXPECT_GT(in, -0.02);
+
+  const Eigen::Matrix4d T = LookAt(centre + Eigen::Vector3d(0.7, 0.7, 0.1), centre);
+  TsdfVolume::Maps maps;
+  volume.Raycast(k, T, &maps);
+  const std::vector<float> truth = SphereDepth(k, T, centre, r);
+  int hits = 0, both = 0;
+  std::vector<float> err;  // away from the rim, where projective fusion is least exact
+  for (std::size_t p = 0; p < truth.size(); ++p) {
+    if (truth[p] > 0 && maps.depth[p] > 0) {
+      ++both;
+      const Eigen::Vector3d ray((p % k.width - k.cx) / k.fx, (p / k.width - k.cy) / k.fy, 1);
+      const Eigen::Vector3d hit = (T * (ray * truth[p]).homogeneous()).head<3>();
+      const Eigen::Vector3d view = (hit - T.block<3, 1>(0, 3)).normalized();
+      if (-view.dot((hit - centre) / r) > 0.5) err.push_back(std::abs(truth[p] - maps.depth[p]));
+    }
+    hits += truth[p] > 0;
+  }
+  std::printf("raycast depth error (surface within 60 degrees of facing the camera): median %.2f mm, 99th %.2f "
+              "mm; %d of %d sphere pixels hit\n",
+              1e3 * Percentile(err, 0.5), 1e3 * Percentile(err, 0.99), both, hits);
+  EXPECT_GT(both, 0.97 * hits) << "the raycast misses parts of the sphere";
+  EXPECT_LT(Percentile(err, 0.5), 0.1 * o.voxel);
+  EXPECT_LT(Percentile(err, 0.99), 0.5 * o.voxel);
+}
+
+/// Points spread over a mesh's triangles, about `spacing` apart.
+std::vector<Eigen::Vector3f> SampleSurface(const Mesh& m, double spacing) {
+  std::vector<Eigen::Vector3f> out;
+  Rng rng(5);
+  for (const Eigen::Vector3i& t : m.triangles) {
+    const Eigen::Vector3f a = m.positions[t[0]], b = m.positions[t[1]], c = m.positions[t[2]];
+    const double area = 0.5 * (b - a).cross(c - a).norm();
+    const double expected = area / (spacing * spacing);
+    int n = static_cast<int>(expected);
+    if (rng.Uniform() < expected - n) ++n;
+    for (int i = 0; i < n; ++i) {
+      float u = static_cast<float>(rng.Uniform()), v = static_cast<float>(rng.Uniform());
+      if (u + v > 1) {
+        u = 1 - u;
+        v = 1 - v;
+      }
+      out.push_back(a + u * (b - a) + v * (c - a));
+    }
+  }
+  return out;
+}
+
+
+// The synthetic room corner (boxes and a sphere, ~3.5 m away) with Xtion-like depth noise
+// (sigma ~2 cm at that range) and holes, tracked along its true 40-degree arc.
+TEST(Reconstruction, SyntheticRoomTrackedAlongItsTrueTrajectory) {
+  SynthOptions so;
+  so.width = 320;
+  so.height = 240;
+  so.spp = 1;
+  so.depth_noise = true;
+  const std::vector<RgbdFrame> frames = ToRgbdFrames(RenderSynthFrames("one-light", so, "", 24));
+  ReconstructionOptions o;
+  Reconstructor rec(o);
+  double sum2 = 0;
+  int tracked = 0;
+  for (const RgbdFrame& f : frames) {
+    const FrameReport r = rec.Process(f);
+    tracked += r.state == TrackingState::kTracking;
+    sum2 += (r.world_from_camera.block<3, 1>(0, 3) - f.world_from_camera->block<3, 1>(0, 3)).squaredNorm();
+  }
+  const double ate = std::sqrt(sum2 / frames.size());
+  const SceneBundle b = rec.Finish();
+  // Accuracy: reconstructed surface to the true one; completeness: true surface seen in
+  // the first frame to the reconstruction.
+  SynthOptions one = so;
+  one.depth_noise = false;
+  const Mesh truth = MakeSynth("one-light", one, "").bundle.mesh;
+  const std::vector<float> acc = NearestDistances(b.mesh.positions, SampleSurface(truth, 0.005));
+  std::vector<Eigen::Vector3f> seen;
+  {
+    const auto exact = RenderSynthFrames("one-light", one, "", 1);
+    const Camera& c = exact[0].camera;
+    for (int y = 0; y < c.height; y += 2)
+      for (int x = 0; x < c.width; x += 2) {
+        const float z = exact[0].depth[static_cast<std::size_t>(y) * c.width + x];
+        if (z <= 0) continue;
+        const Eigen::Vector3d ray((x - c.cx) / c.fx, (y - c.cy) / c.fy, 1);
+        seen.push_back((c.world_from_camera * (ray * z).homogeneous()).head<3>().cast<float>());
+      }
+  }
+  const std::vector<float> comp = NearestDistances(seen, b.mesh.positions);
+  const double complete = std::count_if(comp.begin(), comp.end(), [](float d) { return d < 0.02f; }) /
+                          static_cast<double>(comp.size());
+  std::printf("tracked %d/%zu, ATE %.1f mm; accuracy median %.1f mm, 90th %.1f mm; complete (2 cm) %.1f %%; "
+              "up (%.3f %.3f %.3f)\n",
+              tracked, frames.size(), 1e3 * ate, 1e3 * Percentile(acc, 0.5), 1e3 * Percentile(acc, 0.9),
+              100 * complete, b.up.x(), b.up.y(), b.up.z());
+  EXPECT_EQ(tracked, static_cast<int>(frames.size()));
+  EXPECT_LT(ate, 0.02);
+  EXPECT_LT(Percentile(acc, 0.5), 0.006);
+  EXPECT_LT(Percentile(acc, 0.9), 0.02);
+  EXPECT_GT(complete, 0.9);
+  EXPECT_GT(b.up.dot(Eigen::Vector3d::UnitZ()), std::cos(2 * 3.14159265358979 / 180)) << "the floor is z = 0";
+  ASSERT_EQ(b.views.size(), 4u);
+  for (const View& v : b.views) {
+    const long valid = std::count(v.valid.begin(), v.valid.end(), 1);
+    EXPECT_GT(valid, 0.5 * v.valid.size());
+  }
+}
+
+// Real Redwood frames (PrimeSense, 640x480) tracked against the dataset's trajectory.
+TEST(Reconstruction, RedwoodFramesAgainstTheirTrajectory) {
+  const fs::path dir = kData / "rgbd" / "redwood_open3d" / "RGBD";
+  if (!fs::exists(dir)) GTEST_SKIP() << "shared data not present";
+  auto src = OpenDirectorySource(dir.string());
+  Reconstructor rec(ReconstructionOptions{});
+  RgbdFrame f;
+  double sum2 = 0;
+  int n = 0, tracked = 0;
+  while (src->Next(&f) == SourceStatus::kFrame) {
+    const FrameReport r = rec.Process(f);
+    tracked += r.state == TrackingState::kTracking;
+    sum2 += (r.world_from_camera.block<3, 1>(0, 3) - f.world_from_camera->block<3, 1>(0, 3)).squaredNorm();
+    ++n;
+  }
+  const double ate = std::sqrt(sum2 / n);
+  std::printf("Redwood: %d/%d tracked, ATE %.1f mm\n", tracked, n, 1e3 * ate);
+  EXPECT_EQ(tracked, n);
+  EXPECT_LT(ate, 0.01);
+  EXPECT_GT(rec.Finish().mesh.triangles.size(), 10000u);
+}
+
+RgbdFrame FlatFrame(int w, int h, std::uint16_t mm) {
+  RgbdFrame f;
+  f.depth = {w, h, std::vector<std::uint16_t>(static_cast<std::size_t>(w) * h, mm)};
+  f.color = {w, h, std::vector<std::uint8_t>(static_cast<std::size_t>(w) * h * 3, 128)};
+  f.depth_intrinsics = f.color_intrinsics = {w, h, 0.9 * w, 0.9 * w, 0.5 * w - 0.5, 0.5 * h - 0.5};
+  f.registered = true;
+  return f;
+}
+
+TEST(Reconstruction, BadInputIsAClearError) {
+  {  // all-zero depth: nothing to fuse
+    Reconstructor rec(ReconstructionOptions{});
+    for (int i = 0; i < 3; ++i) EXPECT_EQ(rec.Process(FlatFrame(64, 48, 0)).state, TrackingState::kWaiting);
+    EXPECT_THROW(rec.Finish(), InputError);
+  }
+  {  // a frame of another size mid-stream
+    Reconstructor rec(ReconstructionOptions{});
+    rec.Process(FlatFrame(64, 48, 1000));
+    try {
+      rec.Process(FlatFrame(32, 24, 1000));
+      ADD_FAILURE() << "a frame of another size was accepted";
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find("differs from the first frame"), std::string::npos) << e.what();
+    }
+  }
+  {  // NaN intrinsics, and depth that does not match its intrinsics
+    Reconstructor rec(ReconstructionOptions{});
+    RgbdFrame f = FlatFrame(64, 48, 1000);
+    f.depth_intrinsics.fx = std::nan("");
+    EXPECT_THROW(rec.Process(f), InputError);
+    f = FlatFrame(64, 48, 1000);
+    f.depth.data.resize(10);
+    EXPECT_THROW(rec.Process(f), InputError);
+  }
+  ReconstructionOptions bad;
+  bad.tsdf.voxel = 0;
+  EXPECT_THROW(Reconstructor{bad}, InputError);
+}
+
+}  // namespace
+}  // namespace lp
