@@ -57,10 +57,9 @@ Normal Accumulate(const DepthLevel& f, const ModelMaps& model, int level, const 
           const Eigen::Vector3f s = R * f.vertex[p] + t;  // world
           const Eigen::Vector3f sm = Rm * s + tm;         // model camera
           if (sm.z() <= 0) continue;
-          const int u = static_cast<int>(std::lround(fx * sm.x() / sm.z() + cx));
-          const int v = static_cast<int>(std::lround(fy * sm.y() / sm.z() + cy));
-          if (u < 0 || v < 0 || u >= mk.width || v >= mk.height) continue;
-          const std::size_t q = static_cast<std::size_t>(v) * mk.width + u;
+          const float uf = fx * sm.x() / sm.z() + cx + 0.5f, vf = fy * sm.y() / sm.z() + cy + 0.5f;
+          if (uf < 0 || vf < 0 || uf >= mk.width || vf >= mk.height) continue;
+          const std::size_t q = static_cast<std::size_t>(static_cast<int>(vf)) * mk.width + static_cast<int>(uf);
           const Eigen::Vector3f& d = mv[q];
           const Eigen::Vector3f& n = mn[q];
           if (!(d.x() == d.x()) || !(n.x() == n.x())) continue;
@@ -70,8 +69,10 @@ Normal Accumulate(const DepthLevel& f, const ModelMaps& model, int level, const 
           // J = [s x n, n] (written out: Eigen's vectorized 3-vector cross trips GCC's bounds check).
           Eigen::Matrix<float, 6, 1> J;
           J << s.y() * n.z() - s.z() * n.y(), s.z() * n.x() - s.x() * n.z(), s.x() * n.y() - s.y() * n.x(), n;
-          A.selfadjointView<Eigen::Upper>().rankUpdate(J);
-          b += J * r;
+          for (int i = 0; i < 6; ++i) {  // upper triangle of J J^T
+            for (int j = i; j < 6; ++j) A(i, j) += J[i] * J[j];
+            b[i] += J[i] * r;
+          }
           nq.sq += static_cast<double>(r) * r;
           ++nq.inliers;
         }
@@ -98,15 +99,29 @@ Eigen::Matrix4d Exp(const Eigen::Matrix<double, 6, 1>& xi) {
 
 ModelMaps MakeModelMaps(const Intrinsics& k, const std::vector<Eigen::Vector3f>& vertex,
                         const std::vector<Eigen::Vector3f>& normal, const Eigen::Matrix4d& world_from_camera,
-                        int levels) {
+                        int levels, int first_level) {
   ModelMaps m;
   m.world_from_camera = world_from_camera;
   m.k.push_back(k);
   m.vertex.push_back(vertex);
   m.normal.push_back(normal);
   for (int l = 1; l < levels; ++l) {
+    if (l <= first_level) {  // the raycast is already this coarse
+      m.k.push_back(m.k.back());
+      m.vertex.push_back(m.vertex.back());
+      m.normal.push_back(m.normal.back());
+      continue;
+    }
     const Intrinsics& fk = m.k.back();
-    Intrinsics ck = ScaleIntrinsics(fk, 1);
+    // Every second pixel (not 2x2 means: a vertex map does not average): pixel x here is
+    // pixel 2x there.
+    Intrinsics ck = fk;
+    ck.width /= 2;
+    ck.height /= 2;
+    ck.fx *= 0.5;
+    ck.fy *= 0.5;
+    ck.cx *= 0.5;
+    ck.cy *= 0.5;
     std::vector<Eigen::Vector3f> v(static_cast<std::size_t>(ck.width) * ck.height), n(v.size());
     for (int y = 0; y < ck.height; ++y)
       for (int x = 0; x < ck.width; ++x) {

@@ -30,10 +30,12 @@ struct ModelMaps {
   Eigen::Matrix4d world_from_camera = Eigen::Matrix4d::Identity();
 };
 
-/// Level 0 from a raycast (world frame), coarser levels by taking every second pixel.
+/// Model maps for `levels` pyramid levels from a raycast (world frame) made at pyramid
+/// level `first_level` of the frame (0 = full size, 1 = half): levels up to first_level
+/// share the raycast, coarser ones take every second pixel of the one before.
 ModelMaps MakeModelMaps(const Intrinsics& k, const std::vector<Eigen::Vector3f>& vertex,
                         const std::vector<Eigen::Vector3f>& normal, const Eigen::Matrix4d& world_from_camera,
-                        int levels);
+                        int levels, int first_level = 0);
 
 struct TrackResult {
   bool ok = false;

@@ -49,32 +49,35 @@ Mesh TsdfVolume::ExtractMesh(float min_weight) const {
           for (int lx = 0; lx < kBlockSide; ++lx) {
             const int g[3] = {origin.x() + lx, origin.y() + ly, origin.z() + lz};
             const Voxel* c[8];
-            if (!st.Cell(g[0], g[1], g[2], c)) continue;  // Cell's order: (c&1, c>>1&1, c>>2)
+            const VoxelColor* cc[8];
+            if (!st.Cell(g[0], g[1], g[2], c, nullptr, cc)) continue;  // Cell's order: (c&1, c>>1&1, c>>2)
             const Voxel* v[8];
+            const VoxelColor* vc[8];
             int corner[8][3];
             int cube = 0;
             bool heavy = true;
             for (int i = 0; i < 8; ++i) {
               const int* o = kCorner[i];
               v[i] = c[o[0] | o[1] << 1 | o[2] << 2];
+              vc[i] = cc[o[0] | o[1] << 1 | o[2] << 2];
               for (int a = 0; a < 3; ++a) corner[i][a] = g[a] + o[a];
               heavy = heavy && v[i]->weight >= min_weight;
-              if (v[i]->sdf < 0) cube |= 1 << i;
+              if (v[i]->sdf_q < 0) cube |= 1 << i;
             }
             if (!heavy || pcl::edgeTable[cube] == 0) continue;
             std::uint64_t keys[12];
             for (int e = 0; e < 12; ++e) {
               if (!(pcl::edgeTable[cube] & (1 << e))) continue;
               const int a = kEdge[e][0], bb = kEdge[e][1];
-              const float sa = v[a]->sdf, sb = v[bb]->sdf;
+              const float sa = v[a]->sdf(), sb = v[bb]->sdf();
               const float f = sa / (sa - sb);
               const Eigen::Vector3f pa(corner[a][0], corner[a][1], corner[a][2]);
               const Eigen::Vector3f pb(corner[bb][0], corner[bb][1], corner[bb][2]);
-              const Eigen::Vector3f ca(v[a]->r, v[a]->g, v[a]->b), cb(v[bb]->r, v[bb]->g, v[bb]->b);
+              const Eigen::Vector3f ca = vc[a]->rgb(), cb = vc[bb]->rgb();
               Eigen::Vector3f col = Eigen::Vector3f::Constant(0.5f);  // never seen in colour
-              if (v[a]->color_weight > 0 && v[bb]->color_weight > 0) col = ca + f * (cb - ca);
-              else if (v[a]->color_weight > 0) col = ca;
-              else if (v[bb]->color_weight > 0) col = cb;
+              if (vc[a]->weight > 0 && vc[bb]->weight > 0) col = ca + f * (cb - ca);
+              else if (vc[a]->weight > 0) col = ca;
+              else if (vc[bb]->weight > 0) col = cb;
               keys[e] = EdgeKey(corner[a], corner[bb]);
               part.vertices.push_back({keys[e], {(pa + f * (pb - pa)) * voxel, col}});
             }

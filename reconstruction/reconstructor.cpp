@@ -92,6 +92,7 @@ struct Reconstructor::Impl {
   ReconstructionOptions o;
   TsdfVolume volume;
   ModelMaps model;
+  TsdfVolume::Maps last_maps;  // the last raycast: where the next one searches
   bool started = false;
   Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();  // last good
   Eigen::Matrix4d first_pose = Eigen::Matrix4d::Identity();
@@ -133,8 +134,11 @@ struct Reconstructor::Impl {
     r->times.fuse = Since(t0);
     t0 = Clock::now();
     TsdfVolume::Maps maps;
-    volume.Raycast(f.depth_intrinsics, world_from_camera, &maps);
-    model = MakeModelMaps(f.depth_intrinsics, maps.vertex, maps.normal, world_from_camera, o.preprocess.levels);
+    const int level = std::clamp(o.model_level, 0, std::max(0, o.preprocess.levels - 1));
+    const Intrinsics k = ScaleIntrinsics(f.depth_intrinsics, level);
+    volume.Raycast(k, world_from_camera, &maps, false, last_maps.depth.empty() ? nullptr : &last_maps);
+    model = MakeModelMaps(k, maps.vertex, maps.normal, world_from_camera, o.preprocess.levels, level);
+    last_maps = std::move(maps);
     r->times.raycast = Since(t0);
   }
 

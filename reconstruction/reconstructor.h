@@ -25,6 +25,9 @@ struct ReconstructionOptions {
   int keyframes = 4;         ///< views in the bundle
   int max_candidates = 64;   ///< keyframe candidates kept while running (memory bound)
   float mesh_min_weight = 2; ///< voxels seen fewer times are left out of the mesh
+  /// Raycast the model for tracking at this pyramid level (1 = half size: a quarter of
+  /// the rays; the frame's full-size points still associate into it).
+  int model_level = 1;
   /// Use the poses the source provides (synthetic frames, trajectory files) instead of
   /// tracking: for testing fusion alone, or datasets with better poses.
   bool use_source_poses = false;

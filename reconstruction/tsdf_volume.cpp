@@ -57,7 +57,13 @@ void BlockHash::Rehash(std::size_t capacity) {
 
 // ---- VolumeStore ---------------------------------------------------------------------
 
-int VolumeStore::FindBlock(int bx, int by, int bz) const { return hash.Find(BlockHash::Key(bx, by, bz)); }
+int VolumeStore::FindBlock(int bx, int by, int bz, BlockCache* cache) const {
+  if (!cache) return hash.Find(BlockHash::Key(bx, by, bz));
+  if (cache->bx != bx || cache->by != by || cache->bz != bz) {
+    *cache = {bx, by, bz, hash.Find(BlockHash::Key(bx, by, bz))};
+  }
+  return cache->index;
+}
 
 int VolumeStore::AllocateBlock(int bx, int by, int bz) {
   const int next = static_cast<int>(blocks.size());
@@ -69,39 +75,50 @@ int VolumeStore::AllocateBlock(int bx, int by, int bz) {
   return index;
 }
 
-const Voxel* VolumeStore::VoxelAt(int ix, int iy, int iz) const {
-  const int b = FindBlock(ix >> 3, iy >> 3, iz >> 3);
+const Voxel* VolumeStore::VoxelAt(int ix, int iy, int iz, BlockCache* cache) const {
+  const int b = FindBlock(ix >> 3, iy >> 3, iz >> 3, cache);
   if (b < 0) return nullptr;
   return &blocks[b]->v[LocalIndex(ix & 7, iy & 7, iz & 7)];
 }
 
-bool VolumeStore::Cell(int ix, int iy, int iz, const Voxel* out[8]) const {
+bool VolumeStore::Cell(int ix, int iy, int iz, const Voxel* out[8], BlockCache* cache,
+                       const VoxelColor* colors[8]) const {
   const int lx = ix & 7, ly = iy & 7, lz = iz & 7;
   if (lx < 7 && ly < 7 && lz < 7) {  // fast path: the whole cell in one block
-    const int b = FindBlock(ix >> 3, iy >> 3, iz >> 3);
+    const int b = FindBlock(ix >> 3, iy >> 3, iz >> 3, cache);
     if (b < 0) return false;
-    const Voxel* v = blocks[b]->v;
-    for (int c = 0; c < 8; ++c) out[c] = &v[LocalIndex(lx + (c & 1), ly + ((c >> 1) & 1), lz + (c >> 2))];
+    const VoxelBlock& blk = *blocks[b];
+    for (int c = 0; c < 8; ++c) {
+      const int i = LocalIndex(lx + (c & 1), ly + ((c >> 1) & 1), lz + (c >> 2));
+      out[c] = &blk.v[i];
+      if (colors) colors[c] = &blk.c[i];
+    }
   } else {
     for (int c = 0; c < 8; ++c) {
-      out[c] = VoxelAt(ix + (c & 1), iy + ((c >> 1) & 1), iz + (c >> 2));
-      if (!out[c]) return false;
+      const int x = ix + (c & 1), y = iy + ((c >> 1) & 1), z = iz + (c >> 2);
+      const int b = FindBlock(x >> 3, y >> 3, z >> 3, cache);
+      if (b < 0) return false;
+      const int i = LocalIndex(x & 7, y & 7, z & 7);
+      out[c] = &blocks[b]->v[i];
+      if (colors) colors[c] = &blocks[b]->c[i];
     }
   }
   for (int c = 0; c < 8; ++c)
-    if (out[c]->weight <= 0) return false;
+    if (out[c]->weight == 0) return false;
   return true;
 }
 
-bool VolumeStore::Trilinear(const Eigen::Vector3f& p, float* sdf, Eigen::Vector3f* gradient,
-                            Eigen::Vector3f* color) const {
+bool VolumeStore::Trilinear(const Eigen::Vector3f& p, float* sdf, Eigen::Vector3f* gradient, Eigen::Vector3f* color,
+                            BlockCache* cache) const {
   const Eigen::Vector3f g = p / voxel;
   const int ix = static_cast<int>(std::floor(g.x())), iy = static_cast<int>(std::floor(g.y())),
             iz = static_cast<int>(std::floor(g.z()));
   const Voxel* c[8];
-  if (!Cell(ix, iy, iz, c)) return false;
+  const VoxelColor* cc[8];
+  if (!Cell(ix, iy, iz, c, cache, color ? cc : nullptr)) return false;
   const float fx = g.x() - ix, fy = g.y() - iy, fz = g.z() - iz;
-  const float s[8] = {c[0]->sdf, c[1]->sdf, c[2]->sdf, c[3]->sdf, c[4]->sdf, c[5]->sdf, c[6]->sdf, c[7]->sdf};
+  float s[8];
+  for (int k = 0; k < 8; ++k) s[k] = c[k]->sdf();
   // Corner c sits at (c & 1, (c >> 1) & 1, c >> 2).
   const float x00 = s[0] + fx * (s[1] - s[0]), x10 = s[2] + fx * (s[3] - s[2]);
   const float x01 = s[4] + fx * (s[5] - s[4]), x11 = s[6] + fx * (s[7] - s[6]);
@@ -118,9 +135,9 @@ bool VolumeStore::Trilinear(const Eigen::Vector3f& p, float* sdf, Eigen::Vector3
     Eigen::Vector3f sum = Eigen::Vector3f::Zero();
     float wsum = 0;
     for (int k = 0; k < 8; ++k) {
-      if (c[k]->color_weight <= 0) continue;
+      if (cc[k]->weight == 0) continue;
       const float w = ((k & 1) ? fx : 1 - fx) * (((k >> 1) & 1) ? fy : 1 - fy) * ((k >> 2) ? fz : 1 - fz);
-      sum += w * Eigen::Vector3f(c[k]->r, c[k]->g, c[k]->b);
+      sum += w * cc[k]->rgb();
       wsum += w;
     }
     *color = wsum > 0 ? Eigen::Vector3f(sum / wsum) : Eigen::Vector3f::Constant(kNaN);
@@ -200,7 +217,14 @@ std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrins
   const Eigen::Vector3f tc = -Rt * t;  // camera_from_world
   const float cfx = static_cast<float>(color_k.fx), cfy = static_cast<float>(color_k.fy),
               ccx = static_cast<float>(color_k.cx), ccy = static_cast<float>(color_k.cy);
-  const float max_w = m.o.max_weight;
+  const int max_w = static_cast<int>(std::clamp(m.o.max_weight, 1.f, 65535.f));
+  // Per pixel: length of its ray per unit depth, so the distance along the ray is
+  // (d - z) * lambda without a square root per voxel.
+  std::vector<float> lambda(static_cast<std::size_t>(w) * h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      lambda[static_cast<std::size_t>(y) * w + x] =
+          std::sqrt(1 + ((x - cx) / fx) * ((x - cx) / fx) + ((y - cy) / fy) * ((y - cy) / fy));
   ParallelForChunks(0, touched.size(), 16, [&](std::size_t i0, std::size_t i1) {
     for (std::size_t i = i0; i < i1; ++i) {
       VoxelBlock& blk = *st.blocks[touched[i]];
@@ -213,28 +237,36 @@ std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrins
           for (int lx = 0; lx < kBlockSide; ++lx) {
             const Eigen::Vector3f pc = row_start + step * static_cast<float>(lx);
             if (pc.z() <= 0) continue;
-            const int u = static_cast<int>(std::lround(fx * pc.x() / pc.z() + cx));
-            const int v = static_cast<int>(std::lround(fy * pc.y() / pc.z() + cy));
-            if (u < 0 || v < 0 || u >= w || v >= h) continue;
-            const float d = depth[static_cast<std::size_t>(v) * w + u];
+            const float iz = 1.f / pc.z();
+            // +0.5 and truncation round to nearest for the in-image (non-negative) range.
+            const float uf = fx * pc.x() * iz + cx + 0.5f, vf = fy * pc.y() * iz + cy + 0.5f;
+            if (uf < 0 || vf < 0 || uf >= w || vf >= h) continue;
+            const std::size_t pix = static_cast<std::size_t>(static_cast<int>(vf)) * w + static_cast<int>(uf);
+            const float d = depth[pix];
             if (d <= 0) continue;
-            const float sdf = (d - pc.z()) * pc.norm() / pc.z();
+            const float sdf = (d - pc.z()) * lambda[pix];
             if (sdf < -trunc) continue;
             const float tsdf = std::min(1.f, sdf / trunc);
-            Voxel& vx = blk.v[VolumeStore::LocalIndex(lx, ly, lz)];
-            vx.sdf = (vx.sdf * vx.weight + tsdf) / (vx.weight + 1);
-            vx.weight = std::min(vx.weight + 1, max_w);
+            const int li = VolumeStore::LocalIndex(lx, ly, lz);
+            Voxel& vx = blk.v[li];
+            vx.set_sdf((vx.sdf() * vx.weight + tsdf) / (vx.weight + 1));
+            vx.weight = static_cast<std::uint16_t>(std::min<int>(vx.weight + 1, max_w));
             if (!color || std::abs(sdf) > 0.5f * trunc) continue;
             const int cu = static_cast<int>(std::lround(cfx * pc.x() / pc.z() + ccx));
             const int cv = static_cast<int>(std::lround(cfy * pc.y() / pc.z() + ccy));
             if (cu < 0 || cv < 0 || cu >= color->width || cv >= color->height) continue;
             const float* c = color->at(cu, cv);
             if (!(std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]))) continue;
-            const float cw = vx.color_weight;
-            vx.r = (vx.r * cw + c[0]) / (cw + 1);
-            vx.g = (vx.g * cw + c[1]) / (cw + 1);
-            vx.b = (vx.b * cw + c[2]) / (cw + 1);
-            vx.color_weight = std::min(cw + 1, max_w);
+            VoxelColor& vc = blk.c[li];
+            const float cw = vc.weight;
+            auto mix = [&](std::uint16_t old, float value) {
+              const float v = (old * (1.f / 65535.f) * cw + std::clamp(value, 0.f, 1.f)) / (cw + 1);
+              return static_cast<std::uint16_t>(v * 65535.f + 0.5f);
+            };
+            vc.r = mix(vc.r, c[0]);
+            vc.g = mix(vc.g, c[1]);
+            vc.b = mix(vc.b, c[2]);
+            vc.weight = static_cast<std::uint16_t>(std::min<int>(vc.weight + 1, max_w));
           }
         }
     }
@@ -248,8 +280,8 @@ float TsdfVolume::SignedDistance(const Eigen::Vector3f& p) const {
   return s * impl_->o.truncation;
 }
 
-void TsdfVolume::Raycast(const Intrinsics& k, const Eigen::Matrix4d& world_from_camera, Maps* out,
-                         bool with_color) const {
+void TsdfVolume::Raycast(const Intrinsics& k, const Eigen::Matrix4d& world_from_camera, Maps* out, bool with_color,
+                         const Maps* hint) const {
   const VolumeStore& st = impl_->store;
   const float voxel = impl_->o.voxel, trunc = impl_->o.truncation, block = voxel * kBlockSide;
   const int w = k.width, h = k.height;
@@ -293,6 +325,42 @@ void TsdfVolume::Raycast(const Intrinsics& k, const Eigen::Matrix4d& world_from_
       }
   }
 
+  if (hint && hint->k.width == w && hint->k.height == h && hint->depth.size() == static_cast<std::size_t>(w) * h) {
+    // Tiles fully hit in the hint: its depth range there, grown by one tile each way (the
+    // view moved a little) and by the truncation plus 5 cm in depth.
+    std::vector<float> lo(zmin.size(), std::numeric_limits<float>::max()), hi(zmin.size(), 0);
+    std::vector<char> full(zmin.size(), 1);
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const std::size_t tile = static_cast<std::size_t>(y / kTile) * tw + x / kTile;
+        const float z = hint->depth[static_cast<std::size_t>(y) * w + x];
+        if (z <= 0) {
+          full[tile] = 0;
+          continue;
+        }
+        lo[tile] = std::min(lo[tile], z);
+        hi[tile] = std::max(hi[tile], z);
+      }
+    const float margin = trunc + 0.05f;
+    for (int ty = 0; ty < th; ++ty)
+      for (int tx = 0; tx < tw; ++tx) {
+        float a = std::numeric_limits<float>::max(), b = 0;
+        bool ok = true;
+        for (int dy = -1; dy <= 1 && ok; ++dy)
+          for (int dx = -1; dx <= 1 && ok; ++dx) {
+            const int nx = std::clamp(tx + dx, 0, tw - 1), ny = std::clamp(ty + dy, 0, th - 1);
+            const std::size_t n = static_cast<std::size_t>(ny) * tw + nx;
+            ok = full[n] != 0;
+            a = std::min(a, lo[n]);
+            b = std::max(b, hi[n]);
+          }
+        if (!ok) continue;
+        const std::size_t tile = static_cast<std::size_t>(ty) * tw + tx;
+        zmin[tile] = std::max(zmin[tile], a - margin);
+        zmax[tile] = std::min(zmax[tile], b + margin);
+      }
+  }
+
   ParallelForChunks(0, static_cast<std::size_t>(h), 4, [&](std::size_t y0, std::size_t y1) {
     for (int y = static_cast<int>(y0); y < static_cast<int>(y1); ++y)
       for (int x = 0; x < w; ++x) {
@@ -305,30 +373,63 @@ void TsdfVolume::Raycast(const Intrinsics& k, const Eigen::Matrix4d& world_from_
         float tr = zmin[tile] * len;
         const float t_end = zmax[tile] * len;
         float prev_t = -1, prev_s = kNaN;
+        bool prev_precise = false;
+        BlockCache cache;
         while (tr <= t_end) {
           const Eigen::Vector3f p = t + dir * tr;
           const Eigen::Vector3f g = p / voxel;
-          const Voxel* v = st.VoxelAt(static_cast<int>(std::lround(g.x())), static_cast<int>(std::lround(g.y())),
-                                      static_cast<int>(std::lround(g.z())));
-          if (!v) {  // unallocated: skip ahead by half a block
+          const int ix = static_cast<int>(std::floor(g.x() + 0.5f)), iy = static_cast<int>(std::floor(g.y() + 0.5f)),
+                    iz = static_cast<int>(std::floor(g.z() + 0.5f));
+          const Voxel* v = st.VoxelAt(ix, iy, iz, &cache);
+          if (!v) {  // unallocated: on to where the ray leaves this block
             prev_s = kNaN;
-            tr += 0.5f * block;
+            float exit = std::numeric_limits<float>::max();
+            for (int a = 0; a < 3; ++a) {
+              if (dir[a] == 0) continue;
+              const int b = ((a == 0 ? ix : a == 1 ? iy : iz) >> 3) + (dir[a] > 0 ? 1 : 0);
+              // Voxel i covers [i - 0.5, i + 0.5) in voxel units (nearest voxel).
+              const float boundary = (b * kBlockSide - 0.5f) * voxel;
+              exit = std::min(exit, (boundary - p[a]) / dir[a]);
+            }
+            tr += std::max(exit, 0.f) + 0.01f * voxel;
             continue;
           }
-          if (v->weight <= 0) {
+          if (v->weight == 0) {
             prev_s = kNaN;
             tr += voxel;
             continue;
           }
-          float s = v->sdf;
-          if (s < 1.f) st.Trilinear(p, &s, nullptr, nullptr);  // near the surface: precise
+          // The nearest voxel is enough to step; near the surface the trilinear value decides
+          // where the crossing is.
+          float s = v->sdf();
+          bool precise = false;
+          if (s < 0.5f) precise = st.Trilinear(p, &s, nullptr, nullptr, &cache);
           if (s < 0) {
             if (prev_s > 0) {  // a zero crossing from the front
-              const float th = prev_t + (tr - prev_t) * prev_s / (prev_s - s);
+              float a = prev_t, b = tr, fa = prev_s, fb = s;
+              if (!prev_precise) st.Trilinear(t + dir * a, &fa, nullptr, nullptr, &cache);
+              if (!precise || !(fa > 0)) {
+                fa = prev_s;
+                fb = s;
+              }
+              if (b - a > voxel) {  // one regula falsi step on a long bracket
+                const float m = a + (b - a) * fa / (fa - fb);
+                float fm;
+                if (st.Trilinear(t + dir * m, &fm, nullptr, nullptr, &cache)) {
+                  if (fm > 0) {
+                    a = m;
+                    fa = fm;
+                  } else {
+                    b = m;
+                    fb = fm;
+                  }
+                }
+              }
+              const float th = a + (b - a) * fa / (fa - fb);
               const Eigen::Vector3f hit = t + dir * th;
               float sh;
               Eigen::Vector3f grad, col;
-              if (st.Trilinear(hit, &sh, &grad, with_color ? &col : nullptr) && grad.norm() > 0) {
+              if (st.Trilinear(hit, &sh, &grad, with_color ? &col : nullptr, &cache) && grad.norm() > 0) {
                 const std::size_t p_idx = static_cast<std::size_t>(y) * w + x;
                 out->vertex[p_idx] = hit;
                 out->normal[p_idx] = grad.normalized();
@@ -338,6 +439,7 @@ void TsdfVolume::Raycast(const Intrinsics& k, const Eigen::Matrix4d& world_from_
             }
             break;  // behind a surface (or entered from behind): stop
           }
+          prev_precise = precise;
           prev_t = tr;
           prev_s = s;
           tr += std::max(voxel, 0.8f * s * trunc);

@@ -3,6 +3,7 @@
 /// voxel blocks, the open-addressing hash from block coordinates to blocks, and voxel
 /// lookups across block borders.
 
+#include <climits>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -14,7 +15,8 @@
 namespace lp {
 
 struct VoxelBlock {
-  Voxel v[kBlockVoxels];
+  Voxel v[kBlockVoxels];       ///< what raycasting reads, packed together
+  VoxelColor c[kBlockVoxels];  ///< same order
 };
 
 /// Block coordinates (each within +-2^20) -> block index; linear probing, grows at half load.
@@ -36,6 +38,11 @@ class BlockHash {
   std::size_t mask_ = 0, size_ = 0;
 };
 
+/// The last block looked up (rays and cells mostly stay in one block): saves the hash.
+struct BlockCache {
+  int bx = INT32_MIN, by = 0, bz = 0, index = -1;
+};
+
 /// Blocks, their coordinates and the hash. Voxel (ix, iy, iz) sits at (ix, iy, iz) * voxel
 /// in the world and lives in block (ix >> 3, iy >> 3, iz >> 3).
 struct VolumeStore {
@@ -45,16 +52,19 @@ struct VolumeStore {
   std::vector<Eigen::Vector3i> coords;  ///< block coordinates per block index
 
   static int LocalIndex(int lx, int ly, int lz) { return (lz * kBlockSide + ly) * kBlockSide + lx; }
-  int FindBlock(int bx, int by, int bz) const;
+  int FindBlock(int bx, int by, int bz, BlockCache* cache = nullptr) const;
   int AllocateBlock(int bx, int by, int bz);
   /// The voxel, or null where no block is allocated.
-  const Voxel* VoxelAt(int ix, int iy, int iz) const;
+  const Voxel* VoxelAt(int ix, int iy, int iz, BlockCache* cache = nullptr) const;
   /// The 8 voxels of the cell with lower corner (ix, iy, iz), corner c at offset
-  /// (c & 1, (c >> 1) & 1, c >> 2); false unless all are allocated and observed.
-  bool Cell(int ix, int iy, int iz, const Voxel* out[8]) const;
+  /// (c & 1, (c >> 1) & 1, c >> 2), and their colours if asked; false unless all are
+  /// allocated and observed.
+  bool Cell(int ix, int iy, int iz, const Voxel* out[8], BlockCache* cache = nullptr,
+            const VoxelColor* colors[8] = nullptr) const;
   /// Trilinear signed distance (in truncation units) at world point p, with its gradient
   /// (per voxel) and colour (NaN when unobserved) if asked; false outside observed cells.
-  bool Trilinear(const Eigen::Vector3f& p, float* sdf, Eigen::Vector3f* gradient, Eigen::Vector3f* color) const;
+  bool Trilinear(const Eigen::Vector3f& p, float* sdf, Eigen::Vector3f* gradient, Eigen::Vector3f* color,
+                 BlockCache* cache = nullptr) const;
 };
 
 struct TsdfVolume::Impl {
