@@ -12,7 +12,7 @@
 namespace lp {
 
 struct IcpOptions {
-  std::array<int, 3> iterations{10, 5, 4};  ///< per level, finest first (level 0 = full size)
+  std::array<int, 3> iterations{6, 5, 4};  ///< per level, finest first (level 0 = full size)
   float max_distance = 0.10f;               ///< metres between associated points
   float max_angle_deg = 60;                 ///< between associated normals (noisy at range)
   /// Tracking is lost when fewer of the frame's valid pixels than this find a partner.

@@ -218,6 +218,8 @@ std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrins
   const float cfx = static_cast<float>(color_k.fx), cfy = static_cast<float>(color_k.fy),
               ccx = static_cast<float>(color_k.cx), ccy = static_cast<float>(color_k.cy);
   const int max_w = static_cast<int>(std::clamp(m.o.max_weight, 1.f, 65535.f));
+  std::vector<float> inv(static_cast<std::size_t>(max_w) + 1);  // 1 / (weight + 1): no division per voxel
+  for (std::size_t i = 0; i < inv.size(); ++i) inv[i] = 1.f / (i + 1);
   // Per pixel: length of its ray per unit depth, so the distance along the ray is
   // (d - z) * lambda without a square root per voxel.
   std::vector<float> lambda(static_cast<std::size_t>(w) * h);
@@ -249,7 +251,7 @@ std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrins
             const float tsdf = std::min(1.f, sdf / trunc);
             const int li = VolumeStore::LocalIndex(lx, ly, lz);
             Voxel& vx = blk.v[li];
-            vx.set_sdf((vx.sdf() * vx.weight + tsdf) / (vx.weight + 1));
+            vx.set_sdf((vx.sdf() * vx.weight + tsdf) * inv[vx.weight]);
             vx.weight = static_cast<std::uint16_t>(std::min<int>(vx.weight + 1, max_w));
             if (!color || std::abs(sdf) > 0.5f * trunc) continue;
             const int cu = static_cast<int>(std::lround(cfx * pc.x() / pc.z() + ccx));
