@@ -67,6 +67,10 @@ Run AddReconstruct(CLI::App& app) {
   cmd->add_option("--truncation", *truncation, "TSDF truncation, metres (default: 4 voxels)");
   cmd->add_option("--max-frames", *max_frames, "stop after this many frames (0 = all)")->capture_default_str();
   cmd->add_option("--keyframes", o->keyframes, "views in the bundle")->capture_default_str();
+  cmd->add_option("--view-width", o->view_width,
+                  "average keyframe images down to about this width (the estimator's cost grows with pixels; "
+                  "0 = as captured)")
+      ->capture_default_str();
   cmd->add_option("--poses", *poses,
                   "true camera poses (trajectory.log or pose.txt, one per frame): the world frame, and the "
                   "trajectory error is reported (frame directories with poses need no flag)");

@@ -42,6 +42,41 @@ double PoseDistance(const Eigen::Matrix4d& a, const Eigen::Matrix4d& b) {
   return d.block<3, 1>(0, 3).norm() + 0.5 * angle;
 }
 
+/// Averages a view down by `f` x `f` blocks (linear radiance: the mean is what a camera
+/// with bigger pixels would see). A block is valid only if all its pixels are valid and
+/// none is saturated (a mean over clipped pixels is biased low).
+void Downsample(View* v, int f) {
+  if (f <= 1) return;
+  Camera& c = v->camera;
+  const int w = c.width / f, h = c.height / f;
+  ImageRGB image(w, h);
+  std::vector<std::uint8_t> valid(static_cast<std::size_t>(w) * h, 0);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      float sum[3] = {0, 0, 0};
+      bool ok = true;
+      for (int dy = 0; dy < f; ++dy)
+        for (int dx = 0; dx < f; ++dx) {
+          const int sx = x * f + dx, sy = y * f + dy;
+          const float* p = v->image.at(sx, sy);
+          ok = ok && v->valid[static_cast<std::size_t>(sy) * c.width + sx] &&
+               std::max({p[0], p[1], p[2]}) < v->saturation;
+          for (int ch = 0; ch < 3; ++ch) sum[ch] += p[ch];
+        }
+      for (int ch = 0; ch < 3; ++ch) image.at(x, y)[ch] = sum[ch] / (f * f);
+      valid[static_cast<std::size_t>(y) * w + x] = ok;
+    }
+  // Pixel centres at integers: block x covers source pixels [f x, f x + f - 1].
+  c.cx = (c.cx + 0.5) / f - 0.5;
+  c.cy = (c.cy + 0.5) / f - 0.5;
+  c.fx /= f;
+  c.fy /= f;
+  c.width = w;
+  c.height = h;
+  v->image = std::move(image);
+  v->valid = std::move(valid);
+}
+
 }  // namespace
 
 const char* ToString(TrackingState s) {
@@ -336,6 +371,7 @@ SceneBundle Reconstructor::Finish() const {
         }
         v.valid[p] = 1;
       }
+    if (m.o.view_width > 0) Downsample(&v, std::max(1, static_cast<int>(std::lround(static_cast<double>(w) / m.o.view_width))));
     char name[32];
     std::snprintf(name, sizeof name, "view%zu.exr", b.views.size());
     v.image_file = name;

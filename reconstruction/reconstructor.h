@@ -23,6 +23,9 @@ struct ReconstructionOptions {
   TsdfOptions tsdf;
   IcpOptions icp;
   int keyframes = 4;         ///< views in the bundle
+  /// Keyframe images are averaged down by an integer factor to about this width (the
+  /// paper estimates at 160x120; the estimator's cost grows with the pixels); 0 = as captured.
+  int view_width = 160;
   int max_candidates = 64;   ///< keyframe candidates kept while running (memory bound)
   float mesh_min_weight = 2; ///< voxels seen fewer times are left out of the mesh
   /// Raycast the model for tracking at this pyramid level (1 = half size: a quarter of

@@ -1,9 +1,14 @@
 #!/usr/bin/env bash
-# Quick start 1: install what is missing, build, and estimate the lighting of the
-# bundled demo scene (assets/demo, a synthetic room lit by one light). No camera needed.
+# Quick start 1: install what is missing, build, and run the main job on the bundled demo
+# recording (assets/demo-recording/demo.oni: a synthetic room lit by one light, recorded
+# through OpenNI2): reconstruct the scene from the RGB-D frames, then estimate its
+# lighting. No camera needed. The given poses only fix the world frame for the ground
+# truth (tracking still runs); results in out/demo/scene and out/demo/estimate.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
 bash scripts/build.sh
 out="${1:-out/demo}"
-./build/app/lightprobe estimate assets/demo --out "$out"
+demo=assets/demo-recording
+./build/app/lightprobe reconstruct "$demo/demo.oni" --poses "$demo/trajectory.log" --out "$out/scene"
+./build/app/lightprobe estimate "$out/scene" --out "$out/estimate"
