@@ -144,9 +144,11 @@ Run AddBench(CLI::App& app) {
   auto solver = std::make_shared<std::string>("fast");
   auto threads = std::make_shared<int>(0);
   auto parts = std::make_shared<std::vector<std::string>>(std::vector<std::string>{"estimate", "solvers", "fd"});
-  cmd->add_option("--parts", *parts, "which parts to run: estimate (full estimates), solvers (same A), fd, replay (.oni throughput)")
+  cmd->add_option("--parts", *parts,
+                  "which parts to run: estimate (full estimates), solvers (same A), fd, replay (.oni throughput), "
+                  "reconstruct (frames/s by stage, OpenCV baseline, meshing a room)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"estimate", "solvers", "fd", "replay"}));
+      ->check(CLI::IsMember({"estimate", "solvers", "fd", "replay", "reconstruct"}));
   cmd->add_option("--out", *out, "directory for bench.csv and bench.md")->capture_default_str();
   cmd->add_option("--sizes", *sizes, "image sizes WxH")->capture_default_str();
   cmd->add_option("--gradient-cap", *cap, "seconds the gradient solver may run per problem")->capture_default_str();
@@ -170,6 +172,7 @@ Run AddBench(CLI::App& app) {
       std::fflush(stdout);
     };
     if (want("replay")) ReplayBench(fs::path(*out), row);
+    if (want("reconstruct")) ReconstructionBench(row);
     for (const std::string& size : *sizes) {
       if (!want("estimate") && !want("solvers") && !want("fd")) break;
       SynthOptions so;

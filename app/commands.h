@@ -24,6 +24,12 @@ Run AddRecord(CLI::App& app);
 Run AddReplay(CLI::App& app);
 Run AddReconstruct(CLI::App& app);
 
+/// One row of `lightprobe bench`'s table: size, method, seconds, relative RMSE, light error, note.
+using BenchRow = std::function<void(const std::string&, const std::string&, double, double, double, const std::string&)>;
+
+/// The reconstruction part of `lightprobe bench` (bench_reconstruction.cpp).
+void ReconstructionBench(const BenchRow& row);
+
 /// Registers the estimator options shared by estimate and bench.
 void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, int* threads);
 

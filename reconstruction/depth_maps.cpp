@@ -1,5 +1,6 @@
 #include "reconstruction/depth_maps.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -116,8 +117,10 @@ void ComputeVertexNormalMaps(DepthLevel* l, int normal_radius) {
 
 std::vector<DepthLevel> PreprocessDepth(const DepthImage& depth, const Intrinsics& k, const PreprocessOptions& o) {
   std::vector<DepthLevel> levels(static_cast<std::size_t>(std::max(1, o.levels)));
+  const std::size_t first = static_cast<std::size_t>(std::clamp(o.first_level, 0, static_cast<int>(levels.size()) - 1));
   levels[0].k = k;
-  levels[0].depth = BilateralFilter(DepthToMetres(depth, o), depth.width, depth.height, o);
+  levels[0].depth = DepthToMetres(depth, o);
+  if (first == 0) levels[0].depth = BilateralFilter(levels[0].depth, depth.width, depth.height, o);
   for (std::size_t l = 1; l < levels.size(); ++l) {
     const DepthLevel& fine = levels[l - 1];
     DepthLevel& c = levels[l];
@@ -139,8 +142,13 @@ std::vector<DepthLevel> PreprocessDepth(const DepthImage& depth, const Intrinsic
           }
         c.depth[static_cast<std::size_t>(y) * c.k.width + x] = n > 0 ? sum / n : 0.f;
       }
+    if (l == first) c.depth = BilateralFilter(c.depth, c.k.width, c.k.height, o);
   }
-  for (std::size_t l = 0; l < levels.size(); ++l) ComputeVertexNormalMaps(&levels[l], l == 0 ? o.normal_radius : 1);
+  // Levels finer than `first` keep their depth only (no maps: tracking does not use them).
+  for (std::size_t l = 0; l < levels.size(); ++l) {
+    if (l < first) continue;
+    ComputeVertexNormalMaps(&levels[l], l == first ? o.normal_radius : 1);
+  }
   return levels;
 }
 

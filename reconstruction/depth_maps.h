@@ -18,7 +18,10 @@ struct PreprocessOptions {
   float sigma_depth = 0.03f;    ///< metres
   float min_depth = 0.2f;       ///< metres; nearer readings are dropped
   float max_depth = 5.0f;       ///< metres; farther readings are dropped
-  int normal_radius = 2;        ///< level 0 normals from +-2 pixels (coarser levels: +-1)
+  int normal_radius = 2;        ///< first-level normals from +-2 pixels (coarser levels: +-1)
+  /// The finest level that gets filtered and gets vertex / normal maps (tracking starts
+  /// there); finer levels hold the unfiltered depth only. 1 suits 640x480 frames.
+  int first_level = 0;
 };
 
 /// One pyramid level, camera frame. Invalid entries: depth 0, vertex / normal NaN.
@@ -27,6 +30,8 @@ struct DepthLevel {
   std::vector<float> depth;             ///< metres along the optical axis
   std::vector<Eigen::Vector3f> vertex;  ///< camera frame, metres
   std::vector<Eigen::Vector3f> normal;  ///< camera frame, unit, facing the camera
+  /// Levels finer than PreprocessOptions::first_level have depth but no maps (empty).
+  bool has_maps() const { return !normal.empty(); }
   bool valid(std::size_t p) const { return depth[p] > 0 && normal[p].x() == normal[p].x(); }
 };
 
@@ -42,9 +47,9 @@ std::vector<float> BilateralFilter(const std::vector<float>& depth, int width, i
 /// +-normal_radius pixels, invalid at depth discontinuities and the border).
 void ComputeVertexNormalMaps(DepthLevel* level, int normal_radius = 1);
 
-/// The whole measurement stage: metres, bilateral filter at level 0, then each coarser
-/// level by 2x2 averaging of depths within 3 sigma_depth of the block's first valid one,
-/// with vertex and normal maps at every level.
+/// The whole measurement stage: metres, then each coarser level by 2x2 averaging of depths
+/// within 3 sigma_depth of the block's first valid one; the bilateral filter at
+/// `first_level`, and vertex and normal maps from there on.
 std::vector<DepthLevel> PreprocessDepth(const DepthImage& depth, const Intrinsics& k, const PreprocessOptions& options);
 
 /// Intrinsics of pyramid level `level` (each level halves the size).

@@ -142,7 +142,9 @@ TrackResult TrackFrameToModel(const std::vector<DepthLevel>& frame, const ModelM
   Eigen::Matrix4d pose = initial;
   const int levels = static_cast<int>(std::min({frame.size(), model.k.size(), o.iterations.size()}));
   Normal last;
-  for (int level = levels - 1; level >= 0; --level) {
+  int finest = 0;  // the finest level with maps
+  while (finest + 1 < levels && !frame[static_cast<std::size_t>(finest)].has_maps()) ++finest;
+  for (int level = levels - 1; level >= finest; --level) {
     for (int it = 0; it < o.iterations[static_cast<std::size_t>(level)]; ++it) {
       last = Accumulate(frame[static_cast<std::size_t>(level)], model, level, pose.cast<float>(), o);
       ++res.iterations;

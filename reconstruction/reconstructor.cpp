@@ -225,11 +225,14 @@ FrameReport Reconstructor::Process(const RgbdFrame& f) {
   FrameReport r;
   r.index = f.index;
   auto t0 = Clock::now();
-  const std::vector<DepthLevel> levels = PreprocessDepth(f.depth, f.depth_intrinsics, m.o.preprocess);
+  PreprocessOptions po = m.o.preprocess;
+  if (f.depth.width >= m.o.track_half_from_width) po.first_level = std::max(po.first_level, 1);
+  const std::vector<DepthLevel> levels = PreprocessDepth(f.depth, f.depth_intrinsics, po);
   r.times.preprocess = Since(t0);
+  const DepthLevel& tracked = levels[static_cast<std::size_t>(std::min<int>(po.first_level, levels.size() - 1))];
   std::size_t valid = 0;
-  for (std::size_t p = 0; p < levels[0].depth.size(); ++p) valid += levels[0].valid(p);
-  const bool enough_depth = valid >= levels[0].depth.size() / 20;
+  for (std::size_t p = 0; p < tracked.depth.size(); ++p) valid += tracked.valid(p);
+  const bool enough_depth = valid >= tracked.depth.size() / 20;
 
   std::optional<Eigen::Matrix4d> source_pose;
   if (m.o.use_source_poses) {

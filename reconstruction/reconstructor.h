@@ -31,6 +31,9 @@ struct ReconstructionOptions {
   /// Raycast the model for tracking at this pyramid level (1 = half size: a quarter of
   /// the rays; the frame's full-size points still associate into it).
   int model_level = 1;
+  /// Frames at least this wide are tracked from pyramid level 1 (at 640x480 the full-size
+  /// level costs 4x and adds little; fusion always uses the full-size depth).
+  int track_half_from_width = 600;
   /// Use the poses the source provides (synthetic frames, trajectory files) instead of
   /// tracking: for testing fusion alone, or datasets with better poses.
   bool use_source_poses = false;
