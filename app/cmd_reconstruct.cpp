@@ -90,8 +90,8 @@ Run AddReconstruct(CLI::App& app) {
     Progress progress(total);
     Stopwatch sw;
     std::ostringstream csv;
-    csv << "frame,state,seconds,preprocess_s,track_s,fuse_s,raycast_s,inlier_ratio,rmse_m,blocks_updated,"
-           "position_error_m,reason\n";
+    csv << "frame,state,seconds,preprocess_s,track_s,fuse_s,raycast_s,overlap,inlier_ratio,rmse_m,relocalized,"
+           "blocks_updated,position_error_m,reason\n";
     std::vector<Eigen::Matrix4d> estimated, truth;
     RgbdFrame f;
     std::int64_t n = 0, tracked = 0, lost = 0;
@@ -113,7 +113,8 @@ Run AddReconstruct(CLI::App& app) {
       }
       csv << r.index << ',' << ToString(r.state) << ',' << Num(sw.Seconds()) << ',' << Num(r.times.preprocess)
           << ',' << Num(r.times.track) << ',' << Num(r.times.fuse) << ',' << Num(r.times.raycast) << ','
-          << Num(r.inlier_ratio) << ',' << Num(r.rmse) << ',' << r.blocks_updated << ',' << Num(err) << ',' << r.reason << '\n';
+          << Num(r.overlap) << ',' << Num(r.inlier_ratio) << ',' << Num(r.rmse) << ',' << r.relocalized << ','
+          << r.blocks_updated << ',' << Num(err) << ',' << r.reason << '\n';
       progress.Update(n, n / std::max(1e-9, sw.Seconds()), ToString(r.state));
     }
     progress.Done();

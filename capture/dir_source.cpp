@@ -206,6 +206,8 @@ class DirectorySource : public FrameSource {
         layout_ = "joinMap";
         index = dir / "pose.txt";
         poses = ReadPoseTxt(index);
+        // slambook's joinMap camera (its joinMap.cpp): fx 518, fy 519, cx 325.5, cy 253.5.
+        intrinsics_ = {640, 480, 518.0, 519.0, 325.5, 253.5};
       } else {
         layout_ = "Redwood";
         index = dir / "color";

@@ -54,7 +54,8 @@ struct DirectorySourceOptions {
 ///   the directory or its parent ("intrinsic_matrix", column-major), else the PrimeSense
 ///   default.
 /// - joinMap (slambook): `color/N.png`, `depth/N.pgm` (millimetres), `pose.txt`
-///   ("tx ty tz qx qy qz qw" per frame); intrinsics from `intrinsics.json` if present.
+///   ("tx ty tz qx qy qz qw" per frame); slambook's camera (518, 519, 325.5, 253.5) unless
+///   `intrinsics.json` is present.
 /// `intrinsics.json` (any layout): {"fx":..,"fy":..,"cx":..,"cy":..}. Throws InputError
 /// naming the file for a missing directory, an unknown layout, or an index naming a
 /// missing file (checked when the source opens, before any frame is delivered).

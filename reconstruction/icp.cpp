@@ -18,12 +18,13 @@ struct Normal {
   Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
   Eigen::Matrix<double, 6, 1> b = Eigen::Matrix<double, 6, 1>::Zero();
   double sq = 0;
-  long inliers = 0, valid = 0;
+  long inliers = 0, valid = 0, overlap = 0;
   void Add(const Normal& o) {
     A += o.A;
     b += o.b;
     sq += o.sq;
     inliers += o.inliers;
+    overlap += o.overlap;
     valid += o.valid;
   }
 };
@@ -63,6 +64,7 @@ Normal Accumulate(const DepthLevel& f, const ModelMaps& model, int level, const 
           const Eigen::Vector3f& d = mv[q];
           const Eigen::Vector3f& n = mn[q];
           if (!(d.x() == d.x()) || !(n.x() == n.x())) continue;
+          ++nq.overlap;
           if ((s - d).squaredNorm() > o.max_distance * o.max_distance) continue;
           if (n.dot(R * f.normal[p]) < cos_max) continue;
           const float r = n.dot(s - d);
@@ -146,7 +148,9 @@ TrackResult TrackFrameToModel(const std::vector<DepthLevel>& frame, const ModelM
   while (finest + 1 < levels && !frame[static_cast<std::size_t>(finest)].has_maps()) ++finest;
   for (int level = levels - 1; level >= finest; --level) {
     for (int it = 0; it < o.iterations[static_cast<std::size_t>(level)]; ++it) {
-      last = Accumulate(frame[static_cast<std::size_t>(level)], model, level, pose.cast<float>(), o);
+      IcpOptions lo = o;
+      if (level == finest) lo.max_distance = std::min(o.max_distance, o.fine_max_distance);
+      last = Accumulate(frame[static_cast<std::size_t>(level)], model, level, pose.cast<float>(), lo);
       ++res.iterations;
       if (last.inliers < 6) {
         res.reason = "no overlap with the model";
@@ -163,12 +167,14 @@ TrackResult TrackFrameToModel(const std::vector<DepthLevel>& frame, const ModelM
     }
   }
   res.world_from_camera = pose;
-  res.inlier_ratio = last.valid > 0 ? static_cast<double>(last.inliers) / last.valid : 0;
+  res.overlap = last.valid > 0 ? static_cast<double>(last.overlap) / last.valid : 0;
+  res.inlier_ratio = last.overlap > 0 ? static_cast<double>(last.inliers) / last.overlap : 0;
   res.rmse = last.inliers > 0 ? std::sqrt(last.sq / last.inliers) : 0;
   const Eigen::Matrix4d step = initial.inverse() * pose;
   const double rot_deg =
       std::acos(std::clamp((step.block<3, 3>(0, 0).trace() - 1) / 2, -1.0, 1.0)) * 180 / kPi;
-  if (res.inlier_ratio < o.min_inlier_ratio) res.reason = "too few points match the model";
+  if (res.overlap < o.min_overlap) res.reason = "the frame hardly overlaps the model";
+  else if (res.inlier_ratio < o.min_inlier_ratio) res.reason = "too few points match the model";
   else if (res.rmse > o.max_rmse) res.reason = "the frame does not fit the model (large residual)";
   else if (step.block<3, 1>(0, 3).norm() > o.max_step_translation || rot_deg > o.max_step_rotation_deg)
     res.reason = "implausible jump between frames";

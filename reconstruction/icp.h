@@ -13,10 +13,13 @@ namespace lp {
 
 struct IcpOptions {
   std::array<int, 3> iterations{6, 5, 4};  ///< per level, finest first (level 0 = full size)
-  float max_distance = 0.10f;               ///< metres between associated points
+  float max_distance = 0.10f;               ///< metres between associated points (coarse levels)
+  float fine_max_distance = 0.04f;          ///< the same at the finest level tracked
   float max_angle_deg = 60;                 ///< between associated normals (noisy at range)
-  /// Tracking is lost when fewer of the frame's valid pixels than this find a partner.
-  float min_inlier_ratio = 0.25f;
+  /// Tracking fails when fewer of the frame's valid points than this land on the model
+  /// (overlap), or fewer of those than min_inlier_ratio match it (distance and angle).
+  float min_overlap = 0.15f;
+  float min_inlier_ratio = 0.5f;
   float max_rmse = 0.05f;              ///< metres, point-to-plane, at the finest level
   float max_step_translation = 0.20f;  ///< metres per frame; a larger jump is a failure
   float max_step_rotation_deg = 20;    ///< degrees per frame
@@ -40,7 +43,8 @@ ModelMaps MakeModelMaps(const Intrinsics& k, const std::vector<Eigen::Vector3f>&
 struct TrackResult {
   bool ok = false;
   Eigen::Matrix4d world_from_camera = Eigen::Matrix4d::Identity();
-  double inlier_ratio = 0;  ///< at the finest level
+  double overlap = 0;       ///< frame points landing on the model, at the finest level
+  double inlier_ratio = 0;  ///< of those, the ones matching it
   double rmse = 0;          ///< metres, point-to-plane, at the finest level
   int iterations = 0;
   const char* reason = "";  ///< why it failed (for logs and the UI)

@@ -140,7 +140,29 @@ struct Reconstructor::Impl {
   std::optional<Candidate> pending;
   int window = 1, in_window = 0;
 
-  explicit Impl(const ReconstructionOptions& opt) : o(opt), volume(opt.tsdf) {}
+  Relocalizer relocalizer;
+  Eigen::Matrix4d remembered = Eigen::Matrix4d::Identity();  // pose of the last frame the relocalizer kept
+
+  explicit Impl(const ReconstructionOptions& opt) : o(opt), volume(opt.tsdf), relocalizer(opt.relocalizer) {}
+
+  /// The model as a camera at `pose` sees it, for tracking.
+  ModelMaps ModelFrom(const Intrinsics& depth_k, const Eigen::Matrix4d& pose) const {
+    TsdfVolume::Maps maps;
+    const int level = std::clamp(o.model_level, 0, std::max(0, o.preprocess.levels - 1));
+    const Intrinsics k = ScaleIntrinsics(depth_k, level);
+    volume.Raycast(k, pose, &maps);
+    return MakeModelMaps(k, maps.vertex, maps.normal, pose, o.preprocess.levels, level);
+  }
+
+  /// Keeps a tracked frame's features when the camera moved on from the last one kept.
+  void MaybeRemember(const RgbdFrame& f, const Eigen::Matrix4d& pose, bool force) {
+    if (!o.relocalize) return;
+    const Eigen::Matrix4d d = remembered.inverse() * pose;
+    const double angle = std::acos(std::clamp((d.block<3, 3>(0, 0).trace() - 1) / 2, -1.0, 1.0));
+    if (!force && !relocalizer.empty() && d.block<3, 1>(0, 3).norm() < 0.1 && angle < 0.17) return;
+    relocalizer.Remember(f, pose);
+    remembered = pose;
+  }
 
   void Validate(const RgbdFrame& f) const {
     const std::string at = "frame " + std::to_string(f.index);
@@ -257,6 +279,7 @@ FrameReport Reconstructor::Process(const RgbdFrame& f) {
       r.state = TrackingState::kTracking;
       r.world_from_camera = m.pose;
       m.Offer(f, m.pose);
+      m.MaybeRemember(f, m.pose, true);
     }
   } else {
     t0 = Clock::now();
@@ -268,8 +291,21 @@ FrameReport Reconstructor::Process(const RgbdFrame& f) {
       tr.reason = "too little valid depth";
     } else {
       tr = TrackFrameToModel(levels, m.model, m.pose, m.o.icp);
+      // A failure, or a weak match (at 30 frames/s nearly every point matches): try the
+      // pose from colour features too, and keep the better fit.
+      if (m.o.relocalize &&
+          (!tr.ok || tr.overlap < m.o.suspicious_overlap || tr.inlier_ratio < m.o.suspicious_inlier_ratio)) {
+        if (const std::optional<Eigen::Matrix4d> guess = m.relocalizer.Locate(f)) {
+          const TrackResult again = TrackFrameToModel(levels, m.ModelFrom(f.depth_intrinsics, *guess), *guess, m.o.icp);
+          if (again.ok && (!tr.ok || again.overlap * again.inlier_ratio > tr.overlap * tr.inlier_ratio)) {
+            tr = again;
+            r.relocalized = true;
+          }
+        }
+      }
     }
     r.times.track = Since(t0);
+    r.overlap = tr.overlap;
     r.inlier_ratio = tr.inlier_ratio;
     r.rmse = tr.rmse;
     if (tr.ok) {
@@ -277,6 +313,7 @@ FrameReport Reconstructor::Process(const RgbdFrame& f) {
       m.Fuse(f, m.pose, &r);
       r.state = TrackingState::kTracking;
       m.Offer(f, m.pose);
+      if (!source_pose) m.MaybeRemember(f, m.pose, r.relocalized);
     } else {
       r.state = TrackingState::kLost;
       r.reason = tr.reason;

@@ -14,6 +14,7 @@
 #include "estimation/scene_bundle.h"
 #include "reconstruction/depth_maps.h"
 #include "reconstruction/icp.h"
+#include "reconstruction/relocalizer.h"
 #include "reconstruction/tsdf_volume.h"
 
 namespace lp {
@@ -22,6 +23,15 @@ struct ReconstructionOptions {
   PreprocessOptions preprocess;
   TsdfOptions tsdf;
   IcpOptions icp;
+  /// When ICP from the last pose fails, find the camera from colour features and track
+  /// from there (large motions, recovery after loss).
+  bool relocalize = true;
+  RelocalizerOptions relocalizer;
+  /// ICP results overlapping the model with fewer of the frame's points than this, or
+  /// matching fewer of those than suspicious_inlier_ratio, also try relocalizing and keep
+  /// the better fit (at 30 frames/s nearly every point overlaps and matches).
+  float suspicious_overlap = 0.6f;
+  float suspicious_inlier_ratio = 0.8f;
   int keyframes = 4;         ///< views in the bundle
   /// Keyframe images are averaged down by an integer factor to about this width (the
   /// paper estimates at 160x120; the estimator's cost grows with the pixels); 0 = as captured.
@@ -58,7 +68,8 @@ struct FrameReport {
   TrackingState state = TrackingState::kWaiting;
   std::string reason;  ///< why tracking failed or nothing was fused
   Eigen::Matrix4d world_from_camera = Eigen::Matrix4d::Identity();  ///< estimated (or held) pose
-  double inlier_ratio = 0, rmse = 0;
+  double overlap = 0, inlier_ratio = 0, rmse = 0;
+  bool relocalized = false;  ///< tracked from a pose found by colour features
   std::size_t blocks_updated = 0;
   StageTimes times;
 };

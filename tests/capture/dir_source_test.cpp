@@ -71,6 +71,9 @@ TEST(DirectorySource, JoinMapReplaysWithPoses) {
   ASSERT_EQ(frames.size(), 5u);
   ASSERT_TRUE(frames[0].world_from_camera.has_value());
   EXPECT_NEAR((*frames[0].world_from_camera)(0, 3), -0.228993, 1e-9);
+  // slambook's camera, not the PrimeSense default.
+  EXPECT_EQ(frames[0].depth_intrinsics.fx, 518.0);
+  EXPECT_EQ(frames[0].depth_intrinsics.cy, 253.5);
   const auto med = MedianValid(frames[0].depth);
   EXPECT_GT(med, 300);
   EXPECT_LT(med, 8000);

@@ -215,6 +215,38 @@ TEST(Reconstruction, RedwoodFramesAgainstTheirTrajectory) {
   EXPECT_GT(rec.Finish().mesh.triangles.size(), 10000u);
 }
 
+// Real joinMap frames (slambook): 0.2-0.7 m and up to 25 degrees between consecutive frames,
+// far beyond what frame-to-model ICP from the last pose can bridge; colour features
+// (Relocalizer) give the starting pose, ICP refines it.
+TEST(Reconstruction, JoinMapLargeMotionsTrackedWithRelocalization) {
+  const fs::path dir = kData / "rgbd" / "joinmap_slambook";
+  if (!fs::exists(dir)) GTEST_SKIP() << "shared data not present";
+  for (bool relocalize : {false, true}) {
+    auto src = OpenDirectorySource(dir.string());
+    ReconstructionOptions o;
+    o.relocalize = relocalize;
+    Reconstructor rec(o);
+    RgbdFrame f;
+    double sum2 = 0;
+    int n = 0, tracked = 0;
+    while (src->Next(&f) == SourceStatus::kFrame) {
+      const FrameReport r = rec.Process(f);
+      tracked += r.state == TrackingState::kTracking;
+      sum2 += (r.world_from_camera.block<3, 1>(0, 3) - f.world_from_camera->block<3, 1>(0, 3)).squaredNorm();
+      ++n;
+    }
+    const double ate = std::sqrt(sum2 / n);
+    std::printf("joinMap, relocalization %s: %d/%d tracked, ATE %.1f mm\n", relocalize ? "on" : "off", tracked, n,
+                1e3 * ate);
+    if (!relocalize) {
+      EXPECT_LT(tracked, n) << "ICP alone should not bridge these motions (else this test shows nothing)";
+      continue;
+    }
+    EXPECT_EQ(tracked, n);
+    EXPECT_LT(ate, 0.15);
+  }
+}
+
 RgbdFrame FlatFrame(int w, int h, std::uint16_t mm) {
   RgbdFrame f;
   f.depth = {w, h, std::vector<std::uint16_t>(static_cast<std::size_t>(w) * h, mm)};
