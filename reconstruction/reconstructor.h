@@ -31,7 +31,7 @@ struct ReconstructionOptions {
   /// matching fewer of those than suspicious_inlier_ratio, also try relocalizing and keep
   /// the better fit (at 30 frames/s nearly every point overlaps and matches).
   float suspicious_overlap = 0.6f;
-  float suspicious_inlier_ratio = 0.8f;
+  float suspicious_inlier_ratio = 0.7f;
   int keyframes = 4;         ///< views in the bundle
   /// Keyframe images are averaged down by an integer factor to about this width (the
   /// paper estimates at 160x120; the estimator's cost grows with the pixels); 0 = as captured.
