@@ -38,7 +38,8 @@ CaptureStats CaptureThread::stats() const {
 void CaptureThread::Run() {
   using Clock = std::chrono::steady_clock;
   auto window_start = Clock::now();
-  std::int64_t window_frames = 0;
+  std::int64_t window_frames = 0, window_depth = 0, window_color = 0;
+  double last_depth_ts = -1, last_color_ts = -1;
   SourceStatus status = SourceStatus::kFrame;
   std::string error;
   bool source_paused = false, at_end = false;
@@ -74,6 +75,10 @@ void CaptureThread::Run() {
         continue;
       }
       if (status != SourceStatus::kFrame) break;
+      window_depth += frame.depth_timestamp != last_depth_ts;
+      window_color += frame.color_timestamp != last_color_ts;
+      last_depth_ts = frame.depth_timestamp;
+      last_color_ts = frame.color_timestamp;
       frame.queued_at = std::chrono::duration<double>(Clock::now().time_since_epoch()).count();
       queue_->Push(std::move(frame));
     } catch (const std::exception& e) {
@@ -88,7 +93,9 @@ void CaptureThread::Run() {
       ++s.position;
       if (dt >= 1.0) {
         s.fps = window_frames / dt;
-        window_frames = 0;
+        s.depth_fps = window_depth / dt;
+        s.color_fps = window_color / dt;
+        window_frames = window_depth = window_color = 0;
         window_start = Clock::now();
       }
     });

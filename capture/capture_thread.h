@@ -18,7 +18,10 @@ namespace lp {
 struct CaptureStats {
   std::int64_t captured = 0;       ///< frames read from the source
   QueueCounters queue;             ///< pushed / dropped / popped
-  double fps = 0;                  ///< frames per second over the last second or so
+  double fps = 0;                  ///< paired frames per second over the last second or so
+  /// Per stream: new depth / colour images per second over the same window (a frame
+  /// whose image repeats the previous one's timestamp is not new: that stream dropped).
+  double depth_fps = 0, color_fps = 0;
   bool running = false;
   bool paused = false;
   /// The source's frame the next read delivers: frames read since the start or the last

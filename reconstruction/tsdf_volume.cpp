@@ -76,16 +76,16 @@ int VolumeStore::AllocateBlock(int bx, int by, int bz) {
 }
 
 const Voxel* VolumeStore::VoxelAt(int ix, int iy, int iz, BlockCache* cache) const {
-  const int b = FindBlock(ix >> 3, iy >> 3, iz >> 3, cache);
+  const int b = FindBlock(ix >> kBlockShift, iy >> kBlockShift, iz >> kBlockShift, cache);
   if (b < 0) return nullptr;
-  return &blocks[b]->v[LocalIndex(ix & 7, iy & 7, iz & 7)];
+  return &blocks[b]->v[LocalIndex(ix & kBlockMask, iy & kBlockMask, iz & kBlockMask)];
 }
 
 bool VolumeStore::Cell(int ix, int iy, int iz, const Voxel* out[8], BlockCache* cache,
                        const VoxelColor* colors[8]) const {
-  const int lx = ix & 7, ly = iy & 7, lz = iz & 7;
-  if (lx < 7 && ly < 7 && lz < 7) {  // fast path: the whole cell in one block
-    const int b = FindBlock(ix >> 3, iy >> 3, iz >> 3, cache);
+  const int lx = ix & kBlockMask, ly = iy & kBlockMask, lz = iz & kBlockMask;
+  if (lx < kBlockMask && ly < kBlockMask && lz < kBlockMask) {  // fast path: the whole cell in one block
+    const int b = FindBlock(ix >> kBlockShift, iy >> kBlockShift, iz >> kBlockShift, cache);
     if (b < 0) return false;
     const VoxelBlock& blk = *blocks[b];
     for (int c = 0; c < 8; ++c) {
@@ -96,9 +96,9 @@ bool VolumeStore::Cell(int ix, int iy, int iz, const Voxel* out[8], BlockCache* 
   } else {
     for (int c = 0; c < 8; ++c) {
       const int x = ix + (c & 1), y = iy + ((c >> 1) & 1), z = iz + (c >> 2);
-      const int b = FindBlock(x >> 3, y >> 3, z >> 3, cache);
+      const int b = FindBlock(x >> kBlockShift, y >> kBlockShift, z >> kBlockShift, cache);
       if (b < 0) return false;
-      const int i = LocalIndex(x & 7, y & 7, z & 7);
+      const int i = LocalIndex(x & kBlockMask, y & kBlockMask, z & kBlockMask);
       out[c] = &blocks[b]->v[i];
       if (colors) colors[c] = &blocks[b]->c[i];
     }
@@ -388,7 +388,7 @@ void TsdfVolume::Raycast(const Intrinsics& k, const Eigen::Matrix4d& world_from_
             float exit = std::numeric_limits<float>::max();
             for (int a = 0; a < 3; ++a) {
               if (dir[a] == 0) continue;
-              const int b = ((a == 0 ? ix : a == 1 ? iy : iz) >> 3) + (dir[a] > 0 ? 1 : 0);
+              const int b = ((a == 0 ? ix : a == 1 ? iy : iz) >> kBlockShift) + (dir[a] > 0 ? 1 : 0);
               // Voxel i covers [i - 0.5, i + 0.5) in voxel units (nearest voxel).
               const float boundary = (b * kBlockSide - 0.5f) * voxel;
               exit = std::min(exit, (boundary - p[a]) / dir[a]);

@@ -39,7 +39,9 @@ struct VoxelColor {
   Eigen::Vector3f rgb() const { return Eigen::Vector3f(r, g, b) * (1.f / 65535.f); }
 };
 
-constexpr int kBlockSide = 8;
+constexpr int kBlockShift = 3;  ///< blocks of 2^3 = 8 voxels a side
+constexpr int kBlockSide = 1 << kBlockShift;
+constexpr int kBlockMask = kBlockSide - 1;
 constexpr int kBlockVoxels = kBlockSide * kBlockSide * kBlockSide;
 
 /// Maps surfaces seen from a camera (world frame, metres): depth images go in, raycasts and

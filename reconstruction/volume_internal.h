@@ -44,7 +44,7 @@ struct BlockCache {
 };
 
 /// Blocks, their coordinates and the hash. Voxel (ix, iy, iz) sits at (ix, iy, iz) * voxel
-/// in the world and lives in block (ix >> 3, iy >> 3, iz >> 3).
+/// in the world and lives in block (ix >> kBlockShift, iy >> kBlockShift, iz >> kBlockShift).
 struct VolumeStore {
   float voxel = 0.01f;
   BlockHash hash;

@@ -125,5 +125,35 @@ TEST(CaptureThread, PauseSeekAndHoldAtTheEnd) {
   EXPECT_NE(t.stats().error.find("cannot seek to frame 99"), std::string::npos) << t.stats().error;
 }
 
+/// Frames every 5 ms whose colour repeats every second frame (a colour stream at half rate).
+class HalfRateColorSource : public FrameSource {
+ public:
+  std::string Describe() const override { return "half-rate colour"; }
+  SourceStatus Next(RgbdFrame* f, double) override {
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+    f->index = n_;
+    f->depth_timestamp = n_ * 0.005;
+    f->color_timestamp = (n_ / 2) * 0.01;
+    ++n_;
+    return SourceStatus::kFrame;
+  }
+  void Rewind() override { n_ = 0; }
+
+ private:
+  int n_ = 0;
+};
+
+TEST(CaptureThread, CountsFramesPerStream) {
+  auto queue = std::make_shared<FrameQueue>(4);
+  CaptureThread t(std::make_unique<HalfRateColorSource>(), queue);
+  std::this_thread::sleep_for(std::chrono::milliseconds(2300));
+  const CaptureStats s = t.stats();
+  t.Stop();
+  ASSERT_GT(s.depth_fps, 0);
+  EXPECT_NEAR(s.color_fps / s.depth_fps, 0.5, 0.05);
+  EXPECT_NEAR(s.fps, s.depth_fps, 1e-9);
+  EXPECT_GT(s.queue.dropped, 0) << "nobody pops: the queue drops the oldest";
+}
+
 }  // namespace
 }  // namespace lp
