@@ -1,0 +1,192 @@
+// The calibration file and its application (OpenCV for undistortion stays in this folder).
+#include "calibration/calibration.h"
+
+#include <cmath>
+#include <cstring>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/calib3d.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "common/atomic_file.h"
+#include "common/error.h"
+
+namespace lp {
+
+namespace {
+
+constexpr const char* kFormat = "lightprobe-calibration";
+constexpr int kVersion = 1;
+
+double Number(const nlohmann::json& j, const char* key, const std::string& where) {
+  if (!j.contains(key) || !j.at(key).is_number()) throw InputError(where + ": \"" + key + "\" must be a number");
+  const double v = j.at(key).get<double>();
+  if (!std::isfinite(v)) throw InputError(where + ": \"" + key + "\" is not finite");
+  return v;
+}
+
+}  // namespace
+
+bool CameraModel::distorted() const {
+  for (double d : distortion)
+    if (d != 0) return true;
+  return false;
+}
+
+std::string Calibration::Describe() const {
+  std::ostringstream s;
+  if (!color && !color_from_depth && !response && vignetting.identity() && reference_exposure <= 0)
+    return "uncalibrated: assuming an sRGB response, no vignetting, the device's intrinsics";
+  s << "calibrated: ";
+  s << (response ? "response (Mitsunaga-Nayar)" : "response assumed sRGB");
+  s << (vignetting.identity() ? ", no vignetting" : ", vignetting");
+  if (color) s << ", intrinsics" << (color->distorted() ? " and distortion" : "");
+  if (color_from_depth) s << ", depth-to-colour extrinsics";
+  if (reference_exposure > 0 && reference_gain > 0) s << ", exposure normalized";
+  return s.str();
+}
+
+Calibration ReadCalibration(const std::filesystem::path& path) {
+  const std::string where = path.string();
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(ReadTextFile(path));
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(where, std::string("not a JSON calibration file: ") + e.what());
+  }
+  if (!j.is_object() || j.value("format", "") != kFormat)
+    throw InputError(where, std::string("not a lightprobe calibration file (\"format\" must be \"") + kFormat + "\")");
+  if (j.value("version", 0) != kVersion)
+    throw InputError(where, "calibration file version " + j.value("version", nlohmann::json(0)).dump() +
+                                " is not supported (this build reads version " + std::to_string(kVersion) + ")");
+  Calibration c;
+  try {
+    if (j.contains("camera")) {
+      const auto& k = j.at("camera");
+      CameraModel m;
+      m.width = static_cast<int>(Number(k, "width", where + " camera"));
+      m.height = static_cast<int>(Number(k, "height", where + " camera"));
+      m.fx = Number(k, "fx", where + " camera");
+      m.fy = Number(k, "fy", where + " camera");
+      m.cx = Number(k, "cx", where + " camera");
+      m.cy = Number(k, "cy", where + " camera");
+      if (m.width <= 0 || m.height <= 0 || !(m.fx > 0) || !(m.fy > 0))
+        throw InputError(where, "camera: size and focal lengths must be positive");
+      if (k.contains("distortion")) {
+        const auto& d = k.at("distortion");
+        if (!d.is_array() || d.size() != 5) throw InputError(where, "camera: \"distortion\" must be 5 numbers (k1 k2 p1 p2 k3)");
+        for (std::size_t i = 0; i < 5; ++i) m.distortion[i] = d.at(i).get<double>();
+      }
+      c.color = m;
+    }
+    if (j.contains("color_from_depth")) {
+      const auto& t = j.at("color_from_depth");
+      if (!t.is_array() || t.size() != 4) throw InputError(where, "\"color_from_depth\" must be 4 rows of 4 numbers");
+      Eigen::Matrix4d m;
+      for (int r = 0; r < 4; ++r) {
+        if (!t.at(r).is_array() || t.at(r).size() != 4) throw InputError(where, "\"color_from_depth\" must be 4 rows of 4 numbers");
+        for (int col = 0; col < 4; ++col) m(r, col) = t.at(r).at(col).get<double>();
+      }
+      if (!m.allFinite()) throw InputError(where, "\"color_from_depth\" is not finite");
+      c.color_from_depth = m;
+    }
+    if (j.contains("response")) {
+      const auto& r = j.at("response");
+      if (r.value("model", "") != "mitsunaga-nayar") throw InputError(where, "response: \"model\" must be \"mitsunaga-nayar\"");
+      const auto& co = r.at("coefficients");
+      if (!co.is_array() || co.size() != 3) throw InputError(where, "response: \"coefficients\" must be 3 lists (R, G, B)");
+      InverseResponse ir;
+      for (std::size_t ch = 0; ch < 3; ++ch) {
+        ir.coefficients[ch] = co.at(ch).get<std::vector<double>>();
+        if (ir.coefficients[ch].empty()) throw InputError(where, "response: empty coefficient list");
+        const double at1 = ir.Apply(static_cast<int>(ch), 1.0), at0 = ir.Apply(static_cast<int>(ch), 0.0);
+        if (!(std::abs(at1 - 1) < 1e-3) || !(at0 < at1))
+          throw InputError(where, "response: channel " + std::to_string(ch) + " must rise to 1 at the top value");
+      }
+      c.response = ir;
+    }
+    if (j.contains("vignetting")) {
+      const auto& v = j.at("vignetting");
+      if (v.value("model", "") != "kim-pollefeys") throw InputError(where, "vignetting: \"model\" must be \"kim-pollefeys\"");
+      c.vignetting.a = Number(v, "a", where + " vignetting");
+      c.vignetting.b = Number(v, "b", where + " vignetting");
+      c.vignetting.c = Number(v, "c", where + " vignetting");
+      if (v.contains("center")) {
+        c.vignetting.cx = v.at("center").at(0).get<double>();
+        c.vignetting.cy = v.at("center").at(1).get<double>();
+      }
+    }
+    if (j.contains("exposure")) {
+      c.reference_exposure = Number(j.at("exposure"), "reference_exposure", where + " exposure");
+      c.reference_gain = Number(j.at("exposure"), "reference_gain", where + " exposure");
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(where, std::string("malformed calibration: ") + e.what());
+  }
+  return c;
+}
+
+void WriteCalibration(const std::filesystem::path& path, const Calibration& c) {
+  nlohmann::json j;
+  j["format"] = kFormat;
+  j["version"] = kVersion;
+  if (c.color) {
+    const CameraModel& m = *c.color;
+    j["camera"] = {{"width", m.width}, {"height", m.height}, {"fx", m.fx}, {"fy", m.fy},
+                   {"cx", m.cx},       {"cy", m.cy},         {"distortion", m.distortion}};
+  }
+  if (c.color_from_depth) {
+    nlohmann::json rows = nlohmann::json::array();
+    for (int r = 0; r < 4; ++r)
+      rows.push_back({(*c.color_from_depth)(r, 0), (*c.color_from_depth)(r, 1), (*c.color_from_depth)(r, 2),
+                      (*c.color_from_depth)(r, 3)});
+    j["color_from_depth"] = rows;
+  }
+  if (c.response)
+    j["response"] = {{"model", "mitsunaga-nayar"},
+                     {"coefficients", {c.response->coefficients[0], c.response->coefficients[1], c.response->coefficients[2]}}};
+  if (!c.vignetting.identity()) {
+    j["vignetting"] = {{"model", "kim-pollefeys"}, {"a", c.vignetting.a}, {"b", c.vignetting.b}, {"c", c.vignetting.c}};
+    if (c.vignetting.cx >= 0) j["vignetting"]["center"] = {c.vignetting.cx, c.vignetting.cy};
+  }
+  if (c.reference_exposure > 0)
+    j["exposure"] = {{"reference_exposure", c.reference_exposure}, {"reference_gain", c.reference_gain}};
+  WriteTextAtomically(path, j.dump(2) + "\n");
+}
+
+ImageRGB Linearize(const ImageRgb8& image, const Calibration& c, double exposure, double gain) {
+  if (c.color && (c.color->width != image.width || c.color->height != image.height))
+    throw InputError("calibration is for " + std::to_string(c.color->width) + "x" + std::to_string(c.color->height) +
+                     " images, the frame is " + std::to_string(image.width) + "x" + std::to_string(image.height));
+  const InverseResponse response = c.response.value_or(InverseResponse::Srgb());
+  float table[3][256];
+  for (int ch = 0; ch < 3; ++ch)
+    for (int v = 0; v < 256; ++v) table[ch][v] = static_cast<float>(std::max(0.0, response.Apply(ch, v / 255.0)));
+  ImageRGB out(image.width, image.height);
+  for (std::size_t p = 0; p < image.pixels(); ++p)
+    for (int ch = 0; ch < 3; ++ch) out.data[3 * p + ch] = table[ch][image.data[3 * p + ch]];
+  if (c.color && c.color->distorted()) {
+    const CameraModel& m = *c.color;
+    const cv::Mat K = (cv::Mat_<double>(3, 3) << m.fx, 0, m.cx, 0, m.fy, m.cy, 0, 0, 1);
+    const cv::Mat d(1, 5, CV_64F, const_cast<double*>(m.distortion.data()));
+    cv::Mat src(out.height, out.width, CV_32FC3, out.data.data()), dst;
+    cv::undistort(src, dst, K, d);
+    std::memcpy(out.data.data(), dst.ptr<float>(), out.data.size() * sizeof(float));
+  }
+  double scale = 1;
+  if (c.reference_exposure > 0 && c.reference_gain > 0 && exposure > 0 && gain > 0)
+    scale = (c.reference_exposure * c.reference_gain) / (exposure * gain);
+  for (int y = 0; y < out.height; ++y)
+    for (int x = 0; x < out.width; ++x) {
+      const float f = static_cast<float>(scale / c.vignetting.At(x, y, out.width, out.height));
+      float* px = out.at(x, y);
+      px[0] *= f;
+      px[1] *= f;
+      px[2] *= f;
+    }
+  return out;
+}
+
+}  // namespace lp

@@ -1,0 +1,53 @@
+#pragma once
+/// What makes the colour camera's pixels comparable irradiance: geometry (intrinsics,
+/// distortion, depth-to-colour extrinsics), the inverse response, vignetting and the
+/// exposure. Held in a versioned JSON calibration file (docs/formats.md) and applied to
+/// every colour frame before reconstruction and estimation.
+
+#include <array>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "calibration/response.h"
+#include "calibration/vignetting.h"
+#include "common/image.h"
+
+namespace lp {
+
+/// Colour camera intrinsics with OpenCV's distortion (k1, k2, p1, p2, k3).
+struct CameraModel {
+  int width = 0, height = 0;
+  double fx = 0, fy = 0, cx = 0, cy = 0;
+  std::array<double, 5> distortion{};
+  bool distorted() const;
+};
+
+struct Calibration {
+  std::optional<CameraModel> color;               ///< none: as the device reports, undistorted
+  std::optional<Eigen::Matrix4d> color_from_depth;  ///< none: registered by the device
+  std::optional<InverseResponse> response;        ///< none: sRGB assumed
+  Vignetting vignetting;                          ///< identity when not calibrated
+  /// Frames are scaled to this exposure x gain (device units) when both are known for
+  /// the frame and here; 0 = no normalization.
+  double reference_exposure = 0, reference_gain = 0;
+  /// One line: what is calibrated, or that it runs uncalibrated and what it assumes.
+  std::string Describe() const;
+};
+
+/// Reads a calibration file; throws InputError naming the file and the problem (not JSON,
+/// another format or version, values out of range).
+Calibration ReadCalibration(const std::filesystem::path& path);
+/// Writes it atomically.
+void WriteCalibration(const std::filesystem::path& path, const Calibration& calibration);
+
+/// An 8-bit colour frame as linear irradiance: inverse response (sRGB without one),
+/// undistortion (with a camera model that has distortion), division by the vignetting,
+/// and scaling to the reference exposure x gain (when the frame's exposure and gain are
+/// known, > 0). Throws InputError when the image size does not match the calibrated
+/// camera's.
+ImageRGB Linearize(const ImageRgb8& image, const Calibration& calibration, double exposure = 0, double gain = 0);
+
+}  // namespace lp

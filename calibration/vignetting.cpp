@@ -1,0 +1,99 @@
+#include "calibration/vignetting.h"
+
+#include <cmath>
+
+#include <Eigen/Dense>
+
+#include "common/error.h"
+
+namespace lp {
+
+namespace {
+
+double Radius(double x, double y, int w, int h, double cx, double cy) {
+  const double half_diag = 0.5 * std::sqrt(static_cast<double>(w) * w + static_cast<double>(h) * h);
+  return std::hypot(x - cx, y - cy) / half_diag;
+}
+
+}  // namespace
+
+double Vignetting::At(double x, double y, int w, int h) const {
+  const double r = Radius(x, y, w, h, cx >= 0 ? cx : 0.5 * w - 0.5, cy >= 0 ? cy : 0.5 * h - 0.5);
+  const double r2 = r * r;
+  return 1 + r2 * (a + r2 * (b + r2 * c));
+}
+
+Vignetting FitVignettingFlatField(const std::vector<ImageRGB>& images) {
+  if (images.empty()) throw InputError("vignetting: no flat-field images");
+  const int w = images[0].width, h = images[0].height;
+  for (const ImageRGB& im : images)
+    if (im.width != w || im.height != h) throw InputError("vignetting: the flat-field images differ in size");
+  // I = k (1 + a r^2 + b r^4 + c r^6) = k + (ka) r^2 + (kb) r^4 + (kc) r^6: linear in
+  // (k, ka, kb, kc); rows on a grid of at most ~20,000 pixels.
+  const int step = std::max(1, static_cast<int>(std::sqrt(static_cast<double>(w) * h / 20000.0)));
+  std::vector<Eigen::Vector4d> rows;
+  std::vector<double> rhs;
+  for (int y = 0; y < h; y += step)
+    for (int x = 0; x < w; x += step) {
+      double sum = 0;
+      int n = 0;
+      for (const ImageRGB& im : images)
+        for (int ch = 0; ch < 3; ++ch) {
+          const float v = im.at(x, y)[ch];
+          if (std::isfinite(v) && v > 0) {
+            sum += v;
+            ++n;
+          }
+        }
+      if (n == 0) continue;
+      const double r2 = std::pow(Radius(x, y, w, h, 0.5 * w - 0.5, 0.5 * h - 0.5), 2);
+      rows.emplace_back(1, r2, r2 * r2, r2 * r2 * r2);
+      rhs.push_back(sum / n);
+    }
+  if (rows.size() < 10) throw InputError("vignetting: too few usable pixels in the flat-field images");
+  Eigen::MatrixXd A(rows.size(), 4);
+  Eigen::VectorXd b(rows.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    A.row(static_cast<Eigen::Index>(i)) = rows[i].transpose();
+    b[static_cast<Eigen::Index>(i)] = rhs[i];
+  }
+  const Eigen::Vector4d x = A.colPivHouseholderQr().solve(b);
+  if (!(x[0] > 0)) throw InputError("vignetting: the flat-field images are not usable (no positive level)");
+  Vignetting v;
+  v.a = x[1] / x[0];
+  v.b = x[2] / x[0];
+  v.c = x[3] / x[0];
+  return v;
+}
+
+Vignetting FitVignettingPairs(const std::vector<VignettingPair>& pairs) {
+  // v_i (1 + a r_j^2 + ...) - v_j (1 + a r_i^2 + ...) = 0:
+  //   a (v_i r_j^2 - v_j r_i^2) + b (...^4) + c (...^6) = v_j - v_i.
+  std::vector<Eigen::Vector3d> rows;
+  std::vector<double> rhs;
+  double spread = 0;
+  for (const VignettingPair& p : pairs) {
+    if (!(p.value_i > 0 && p.value_j > 0) || !std::isfinite(p.value_i) || !std::isfinite(p.value_j)) continue;
+    const double i2 = p.r_i * p.r_i, j2 = p.r_j * p.r_j;
+    rows.emplace_back(p.value_i * j2 - p.value_j * i2, p.value_i * j2 * j2 - p.value_j * i2 * i2,
+                      p.value_i * j2 * j2 * j2 - p.value_j * i2 * i2 * i2);
+    rhs.push_back(p.value_j - p.value_i);
+    spread = std::max(spread, std::abs(i2 - j2));
+  }
+  if (rows.size() < 20) throw InputError("vignetting: too few surface points seen twice (" + std::to_string(rows.size()) + ")");
+  if (spread < 0.1) throw InputError("vignetting: the points are seen at nearly the same radius; V cannot be told apart");
+  Eigen::MatrixXd A(rows.size(), 3);
+  Eigen::VectorXd b(rows.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    A.row(static_cast<Eigen::Index>(i)) = rows[i].transpose();
+    b[static_cast<Eigen::Index>(i)] = rhs[i];
+  }
+  const Eigen::Vector3d x = A.colPivHouseholderQr().solve(b);
+  Vignetting v;
+  v.a = x[0];
+  v.b = x[1];
+  v.c = x[2];
+  return v;
+}
+
+}  // namespace lp
