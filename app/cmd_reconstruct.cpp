@@ -75,10 +75,15 @@ Run AddReconstruct(CLI::App& app) {
                   "true camera poses (trajectory.log or pose.txt, one per frame): the world frame, and the "
                   "trajectory error is reported (frame directories with poses need no flag)");
   cmd->add_flag("--use-poses", o->use_source_poses, "fuse with the given poses instead of tracking");
+  auto calibration = std::make_shared<std::string>();
+  cmd->add_option("--calibration", *calibration,
+                  "calibration file (lightprobe calibrate): response, vignetting, exposure, intrinsics; without "
+                  "one, sRGB is assumed");
   cmd->add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
   return [=] {
     ThreadLimit limit(*threads);
     ReconstructionOptions ro = *o;
+    if (!calibration->empty()) ro.calibration = ReadCalibration(*calibration);
     ro.tsdf.truncation = *truncation > 0 ? *truncation : 4 * ro.tsdf.voxel;
     Reconstructor rec(ro);
     auto src = OpenFrameSource(*input);
@@ -86,7 +91,7 @@ Run AddReconstruct(CLI::App& app) {
     if (!poses->empty()) given = ReadTrajectory(*poses);
     std::int64_t total = src->FrameCount().value_or(0);
     if (*max_frames > 0 && (total == 0 || total > *max_frames)) total = *max_frames;
-    std::printf("%s\n", src->Describe().c_str());
+    std::printf("%s\n%s\n", src->Describe().c_str(), ro.calibration.Describe().c_str());
     Progress progress(total);
     Stopwatch sw;
     std::ostringstream csv;

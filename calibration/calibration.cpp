@@ -11,6 +11,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/atomic_file.h"
+#include "common/color.h"
 #include "common/error.h"
 
 namespace lp {
@@ -160,10 +161,11 @@ ImageRGB Linearize(const ImageRgb8& image, const Calibration& c, double exposure
   if (c.color && (c.color->width != image.width || c.color->height != image.height))
     throw InputError("calibration is for " + std::to_string(c.color->width) + "x" + std::to_string(c.color->height) +
                      " images, the frame is " + std::to_string(image.width) + "x" + std::to_string(image.height));
-  const InverseResponse response = c.response.value_or(InverseResponse::Srgb());
   float table[3][256];
   for (int ch = 0; ch < 3; ++ch)
-    for (int v = 0; v < 256; ++v) table[ch][v] = static_cast<float>(std::max(0.0, response.Apply(ch, v / 255.0)));
+    for (int v = 0; v < 256; ++v)
+      table[ch][v] = c.response ? static_cast<float>(std::max(0.0, c.response->Apply(ch, v / 255.0)))
+                                : SrgbToLinear(v / 255.f);  // uncalibrated: the sRGB standard
   ImageRGB out(image.width, image.height);
   for (std::size_t p = 0; p < image.pixels(); ++p)
     for (int ch = 0; ch < 3; ++ch) out.data[3 * p + ch] = table[ch][image.data[3 * p + ch]];

@@ -25,6 +25,9 @@ struct RgbdFrame {
   /// Depth is registered to colour: depth pixel (x, y) sees what colour pixel (x, y) sees,
   /// and depth_intrinsics == color_intrinsics.
   bool registered = false;
+  /// The colour camera's exposure and gain (device units) when the source knows them
+  /// (a live device after locking, a recording's side file); 0 = unknown.
+  double exposure = 0, gain = 0;
   /// The true pose when the source knows it (synthetic frames, a trajectory file).
   std::optional<Eigen::Matrix4d> world_from_camera;
   /// Host steady-clock seconds when the capture thread queued the frame (0 if never

@@ -492,6 +492,8 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
       return SourceStatus::kTimeout;
     *out = ToFrame(d, c, produced_++);
     if (side_registered_) out->registered = *side_registered_;
+    out->exposure = side_exposure_;
+    out->gain = side_gain_;
     return SourceStatus::kFrame;
   }
 
@@ -539,6 +541,11 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
       if (j.value("format", "") != "lightprobe-oni-side") throw InputError(side, "not a lightprobe side file");
       if (j.value("version", 0) != 1) throw InputError(side, "unsupported side file version");
       side_registered_ = j.at("registered").get<bool>();
+      // Comparable across recordings only when the camera held them (not automatic).
+      if (!j.value("auto_exposure", true) && j.value("exposure", -1) > 0 && j.value("gain", -1) > 0) {
+        side_exposure_ = j.at("exposure").get<double>();
+        side_gain_ = j.at("gain").get<double>();
+      }
     } catch (const nlohmann::json::exception& e) {
       throw InputError(side, std::string("malformed side file: ") + e.what());
     }
@@ -547,6 +554,7 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
   std::string path_;
   OniPlaybackOptions options_;
   std::optional<bool> side_registered_;
+  double side_exposure_ = 0, side_gain_ = 0;
   int depth_count_ = 0, color_count_ = 0, depth_read_ = 0, color_read_ = 0;
   std::int64_t count_ = 0, produced_ = 0;
 };
@@ -592,6 +600,10 @@ class DeviceSource : public FrameSource, private OpenNiStreams, private openni::
     if (!ReadPair(&d, &c, static_cast<int>(timeout_seconds * 1000), &dr, &cr, 1 << 30, 1 << 30))
       return lost_ ? SourceStatus::kDeviceLost : SourceStatus::kTimeout;
     *out = ToFrame(d, c, produced_++);
+    if (controls_.camera_settings) {
+      out->exposure = controls_.exposure;
+      out->gain = controls_.gain;
+    }
     return SourceStatus::kFrame;
   }
   void Rewind() override { throw InputError(uri_, "a live device cannot rewind"); }

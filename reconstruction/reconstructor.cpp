@@ -28,6 +28,7 @@ struct Candidate {
   DepthImage depth;
   Intrinsics depth_k, color_k;
   bool registered = false;
+  double exposure = 0, gain = 0;
 };
 
 bool GoodIntrinsics(const Intrinsics& k) {
@@ -93,14 +94,6 @@ void StageTimes::Add(const StageTimes& o) {
   track += o.track;
   fuse += o.fuse;
   raycast += o.raycast;
-}
-
-ImageRGB LinearFromSrgb8(const ImageRgb8& image) {
-  ImageRGB out(image.width, image.height);
-  float table[256];
-  for (int i = 0; i < 256; ++i) table[i] = SrgbToLinear(i / 255.f);
-  for (std::size_t i = 0; i < image.data.size(); ++i) out.data[i] = table[image.data[i]];
-  return out;
 }
 
 double Sharpness(const ImageRgb8& im) {
@@ -183,11 +176,18 @@ struct Reconstructor::Impl {
                        std::to_string(first_depth_k.height));
   }
 
+  /// The colour camera: the calibrated model (for undistorted images) when there is one.
+  Intrinsics ColorK(const RgbdFrame& f) const {
+    if (!o.calibration.color) return f.color_intrinsics;
+    const CameraModel& c = *o.calibration.color;
+    return {c.width, c.height, c.fx, c.fy, c.cx, c.cy};
+  }
+
   void Fuse(const RgbdFrame& f, const Eigen::Matrix4d& world_from_camera, FrameReport* r) {
     auto t0 = Clock::now();
-    const ImageRGB color = LinearFromSrgb8(f.color);
+    const ImageRGB color = Linearize(f.color, o.calibration, f.exposure, f.gain);
     r->blocks_updated = volume.Integrate(DepthToMetres(f.depth, o.preprocess), f.depth_intrinsics, &color,
-                                         f.color_intrinsics, world_from_camera);
+                                         ColorK(f), world_from_camera);
     r->times.fuse = Since(t0);
     t0 = Clock::now();
     TsdfVolume::Maps maps;
@@ -208,8 +208,10 @@ struct Reconstructor::Impl {
       c.color = f.color;
       c.depth = f.depth;
       c.depth_k = f.depth_intrinsics;
-      c.color_k = f.color_intrinsics;
+      c.color_k = ColorK(f);
       c.registered = f.registered;
+      c.exposure = f.exposure;
+      c.gain = f.gain;
       pending = std::move(c);
     }
     if (++in_window < window) return;
@@ -382,7 +384,7 @@ SceneBundle Reconstructor::Finish() const {
     v.camera.cx = k.cx;
     v.camera.cy = k.cy;
     v.camera.world_from_camera = c->pose;
-    v.image = LinearFromSrgb8(c->color);
+    v.image = Linearize(c->color, m.o.calibration, c->exposure, c->gain);
     v.saturation = 1.0;  // 8-bit: the top code is clipped
     // Mask: the model is hit, away from its depth discontinuities, and (registered depth
     // of the same size) the measured depth agrees with it. The paper's discussion: pixels

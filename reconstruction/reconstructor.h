@@ -10,6 +10,7 @@
 
 #include <Eigen/Core>
 
+#include "calibration/calibration.h"
 #include "capture/frame.h"
 #include "estimation/scene_bundle.h"
 #include "reconstruction/depth_maps.h"
@@ -44,6 +45,10 @@ struct ReconstructionOptions {
   /// Frames at least this wide are tracked from pyramid level 1 (at 640x480 the full-size
   /// level costs 4x and adds little; fusion always uses the full-size depth).
   int track_half_from_width = 600;
+  /// Makes colour frames linear (response, undistortion, vignetting, exposure); without
+  /// one, sRGB is assumed (Calibration{}.Describe() says so). A calibrated camera model
+  /// replaces the colour intrinsics the source reports.
+  Calibration calibration;
   /// Use the poses the source provides (synthetic frames, trajectory files) instead of
   /// tracking: for testing fusion alone, or datasets with better poses.
   bool use_source_poses = false;
@@ -106,9 +111,6 @@ class Reconstructor {
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
-
-/// 8-bit sRGB to linear float (what the pipeline uses when no calibration is loaded).
-ImageRGB LinearFromSrgb8(const ImageRgb8& image);
 
 /// Variance of the Laplacian of the luminance: larger is sharper.
 double Sharpness(const ImageRgb8& image);

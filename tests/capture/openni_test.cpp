@@ -105,8 +105,12 @@ TEST_F(OpenNi, RecordThroughTheRecorderAndReplayExactly) {
     last = i;
     EXPECT_EQ(f.depth.width, kW);
     EXPECT_NEAR(f.color_intrinsics.fx, 52.5, 0.01);
-    // The synthetic device registers depth to colour; the .oni cannot say so, its side file does.
+    // The synthetic device registers depth to colour; the .oni cannot say so, its side file
+    // does, with the locked exposure and gain the frames carry.
     EXPECT_TRUE(f.registered);
+    EXPECT_EQ(f.exposure, rr.controls.exposure);
+    EXPECT_EQ(f.gain, rr.controls.gain);
+    EXPECT_GT(f.exposure, 0);
     ++n;
   }
   EXPECT_EQ(n, *src->FrameCount());
