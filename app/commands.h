@@ -23,6 +23,7 @@ Run AddDevices(CLI::App& app);
 Run AddRecord(CLI::App& app);
 Run AddReplay(CLI::App& app);
 Run AddReconstruct(CLI::App& app);
+Run AddCalibrate(CLI::App& app);
 
 /// One row of `lightprobe bench`'s table: size, method, seconds, relative RMSE, light error, note.
 using BenchRow = std::function<void(const std::string&, const std::string&, double, double, double, const std::string&)>;

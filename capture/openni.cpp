@@ -630,4 +630,24 @@ std::unique_ptr<FrameSource> OpenOpenNiDevice(const OpenNiDeviceOptions& options
   return std::make_unique<DeviceSource>(options, applied);
 }
 
+std::vector<RgbdFrame> CaptureBracket(const OpenNiDeviceOptions& device, const std::vector<int>& exposures,
+                                      int settle) {
+  std::vector<RgbdFrame> out;
+  for (int e : exposures) {
+    if (e <= 0) throw InputError("bracket: exposures must be positive");
+    OpenNiDeviceOptions o = device;
+    o.lock_exposure = true;
+    o.exposure = e;
+    auto source = OpenOpenNiDevice(o);
+    RgbdFrame f;
+    for (int k = 0; k <= settle; ++k) {
+      const SourceStatus s = source->Next(&f, 3.0);
+      if (s != SourceStatus::kFrame)
+        throw InputError(source->Describe() + ": no frame at exposure " + std::to_string(e) + " (" + ToString(s) + ")");
+    }
+    out.push_back(std::move(f));
+  }
+  return out;
+}
+
 }  // namespace lp

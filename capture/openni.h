@@ -7,6 +7,7 @@
 
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "capture/frame_source.h"
 
@@ -89,6 +90,13 @@ struct OpenNiDeviceOptions {
 /// when nothing arrives in time, kDeviceLost once the device is unplugged. Throws
 /// InputError (with the reason from the USB scan) when no device opens.
 std::unique_ptr<FrameSource> OpenOpenNiDevice(const OpenNiDeviceOptions& options, CameraControls* applied = nullptr);
+
+/// An exposure bracket from a live device for response calibration: for each exposure,
+/// the device opened with auto exposure and white balance locked and that exposure set
+/// (read back and checked), `settle` frames skipped, then one frame kept (it carries its
+/// exposure and gain). Throws InputError as OpenOpenNiDevice does.
+std::vector<RgbdFrame> CaptureBracket(const OpenNiDeviceOptions& device, const std::vector<int>& exposures,
+                                      int settle = 5);
 
 /// Checks the structure of a `.oni` file (header and record chain) without OpenNI2;
 /// throws InputError naming the file and the first problem. Returns the number of frame

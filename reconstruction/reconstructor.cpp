@@ -342,7 +342,17 @@ SceneBundle Reconstructor::Finish() const {
   if (!m.started) throw InputError("reconstruct: no frame had enough valid depth to build a model");
   SceneBundle b;
   b.mesh = m.volume.ExtractMesh(m.o.mesh_min_weight);
-  if (b.mesh.triangles.empty()) throw InputError("reconstruct: the fused model has no surface to mesh");
+  if (b.mesh.triangles.empty()) {
+    std::size_t fused = 0, lost = 0;
+    for (const FrameReport& r : m.reports) {
+      fused += r.state == TrackingState::kTracking;
+      lost += r.state == TrackingState::kLost;
+    }
+    throw InputError("reconstruct: the fused model has no surface seen at least " +
+                     std::to_string(static_cast<int>(m.o.mesh_min_weight)) + " times (" + std::to_string(fused) +
+                     " of " + std::to_string(m.reports.size()) + " frames fused, tracking lost in " +
+                     std::to_string(lost) + ": moving too fast between frames?)");
+  }
   SanitizeMesh(&b.mesh, "reconstructed mesh");
   b.up = EstimateUp(b.mesh);
 

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "capture/frame_source.h"
+#include "common/color.h"
 
 namespace {
 
@@ -180,10 +181,21 @@ class SynthStream : public oni::driver::StreamBase {
       getServices().releaseFrame(frame);
       return;
     }
-    if (type_ == ONI_SENSOR_DEPTH)
+    if (type_ == ONI_SENSOR_DEPTH) {
       std::memcpy(frame->data, f.depth.data.data(), bytes);
-    else
+    } else if (auto_exposure_ || (exposure_ == 100 && gain_ == 100)) {
       std::memcpy(frame->data, f.color.data.data(), bytes);
+    } else {
+      // A manual exposure acts like a camera's: the served images are taken at exposure x
+      // gain = 100 x 100; others scale the light (linear, sRGB-encoded, clipped at 1).
+      const float scale = exposure_ / 100.f * gain_ / 100.f;
+      std::uint8_t table[256];
+      for (int v = 0; v < 256; ++v)
+        table[v] = static_cast<std::uint8_t>(
+            std::lround(255 * lp::LinearToSrgb(std::min(1.f, lp::SrgbToLinear(v / 255.f) * scale))));
+      auto* out = static_cast<std::uint8_t*>(frame->data);
+      for (std::size_t i = 0; i < bytes; ++i) out[i] = table[f.color.data[i]];
+    }
     frame->dataSize = static_cast<int>(bytes);
     frame->sensorType = type_;
     frame->timestamp = timestamp_us;

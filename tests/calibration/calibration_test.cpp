@@ -10,9 +10,11 @@
 #include <opencv2/photo.hpp>
 
 #include "calibration/calibration.h"
+#include "calibration/geometry.h"
 #include "common/color.h"
 #include "common/error.h"
 #include "common/rng.h"
+#include "estimation/scene_bundle.h"
 
 namespace lp {
 namespace {
@@ -279,6 +281,71 @@ TEST(Calibration, FileRoundTripAndClearErrors) {
   // A calibration for another image size does not apply.
   EXPECT_THROW(Linearize(ImageRgb8{320, 240, std::vector<std::uint8_t>(320 * 240 * 3)}, r), InputError);
   fs::remove_all(dir);
+}
+
+/// A checkerboard (inner corners cols x rows, squares of `square` m, one square of white
+/// margin) seen by a pinhole camera K at world_from_camera: each pixel is 4x4 supersampled.
+ImageRgb8 RenderBoard(const CameraModel& K, const Eigen::Matrix4d& world_from_camera, int cols, int rows,
+                      double square) {
+  ImageRgb8 im{K.width, K.height, std::vector<std::uint8_t>(static_cast<std::size_t>(K.width) * K.height * 3)};
+  const Eigen::Matrix3d R = world_from_camera.block<3, 3>(0, 0);
+  const Eigen::Vector3d o = world_from_camera.block<3, 1>(0, 3);
+  for (int y = 0; y < K.height; ++y)
+    for (int x = 0; x < K.width; ++x) {
+      double sum = 0;
+      for (int sy = 0; sy < 4; ++sy)
+        for (int sx = 0; sx < 4; ++sx) {
+          const Eigen::Vector3d d =
+              R * Eigen::Vector3d((x - 0.375 + 0.25 * sx - K.cx) / K.fx, (y - 0.375 + 0.25 * sy - K.cy) / K.fy, 1);
+          if (std::abs(d.z()) < 1e-12) continue;
+          const double t = -o.z() / d.z();  // the board is the plane z = 0
+          if (t <= 0) continue;
+          const double u = (o.x() + t * d.x()) / square + 1, v = (o.y() + t * d.y()) / square + 1;  // squares
+          double value = 0.9;  // white margin and background
+          if (u >= 0 && v >= 0 && u < cols + 1 && v < rows + 1)
+            value = ((static_cast<int>(std::floor(u)) + static_cast<int>(std::floor(v))) % 2) ? 0.9 : 0.05;
+          sum += value;
+        }
+      const auto g = static_cast<std::uint8_t>(std::lround(255 * LinearToSrgb(static_cast<float>(sum / 16))));
+      for (int ch = 0; ch < 3; ++ch) im.data[(static_cast<std::size_t>(y) * K.width + x) * 3 + ch] = g;
+    }
+  return im;
+}
+
+// Checkerboard images rendered with known intrinsics: recovered within 0.5 %.
+TEST(Geometry, CheckerboardsRecoverKnownIntrinsics) {
+  const CameraModel truth{640, 480, 528.0, 531.0, 322.5, 236.0, {}};
+  const int cols = 9, rows = 6;
+  const double square = 0.03;
+  const Eigen::Vector3d centre(0.5 * (cols - 1) * square, 0.5 * (rows - 1) * square, 0);
+  std::vector<ImageRgb8> images;
+  for (int i = 0; i < 10; ++i) {
+    const double a = 2 * kPi * i / 10, tilt = 0.35 + 0.1 * (i % 3);
+    const Eigen::Vector3d eye = centre + Eigen::Vector3d(std::sin(tilt) * std::cos(a), std::sin(tilt) * std::sin(a),
+                                                         -std::cos(tilt)) * (0.45 + 0.05 * (i % 2));
+    Eigen::Matrix4d T = Camera::LookAt(eye, centre + Eigen::Vector3d(0.01 * (i % 4), 0.01 * (i % 3), 0),
+                                       Eigen::Vector3d::UnitY(), 4, 4, 60).world_from_camera;
+    images.push_back(RenderBoard(truth, T, cols, rows, square));
+  }
+  CheckerboardOptions o;
+  o.inner_columns = cols;
+  o.inner_rows = rows;
+  o.square = square;
+  const GeometryFit fit = CalibrateGeometry(images, o);
+  const CameraModel& m = fit.camera;
+  std::printf("checkerboards: %d of %zu used, reprojection RMS %.3f px; fx %.2f (%.3f %%), fy %.2f (%.3f %%), cx %.2f "
+              "(%.3f %%), cy %.2f (%.3f %%)\n",
+              fit.images_used, images.size(), fit.rms_reprojection, m.fx, 100 * (m.fx / truth.fx - 1), m.fy,
+              100 * (m.fy / truth.fy - 1), m.cx, 100 * (m.cx / truth.cx - 1), m.cy, 100 * (m.cy / truth.cy - 1));
+  EXPECT_GE(fit.images_used, 8);
+  EXPECT_NEAR(m.fx / truth.fx, 1, 0.005);
+  EXPECT_NEAR(m.fy / truth.fy, 1, 0.005);
+  EXPECT_NEAR(m.cx / truth.cx, 1, 0.005);
+  EXPECT_NEAR(m.cy / truth.cy, 1, 0.005);
+  EXPECT_LT(fit.rms_reprojection, 0.5);
+  // No board: a clear error.
+  ImageRgb8 blank{640, 480, std::vector<std::uint8_t>(640 * 480 * 3, 200)};
+  EXPECT_THROW(CalibrateGeometry({blank, blank, blank}, o), InputError);
 }
 
 }  // namespace
