@@ -12,6 +12,7 @@
 #include "capture/capture_thread.h"
 #include "capture/openni.h"
 #include "capture/trajectory.h"
+#include "common/color.h"
 #include "common/error.h"
 #include "common/image_io.h"
 #include "estimation/ray_tracer.h"
@@ -247,7 +248,13 @@ TEST_F(OpenNi, LiveDeviceLocksExposureReadsBackAndPairsFrames) {
     ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame);
     const int i = Which(f.depth);
     ASSERT_GE(i, 0);
-    EXPECT_EQ(f.color.data, ServedColor(i).data) << "depth and colour of different frames";
+    // The synthetic device scales its light by exposure x gain / (100 x 100), as a camera would.
+    ImageRgb8 expected = ServedColor(i);
+    for (std::uint8_t& v : expected.data)
+      v = static_cast<std::uint8_t>(std::lround(255 * LinearToSrgb(std::min(1.f, SrgbToLinear(v / 255.f) * 0.42f * 0.07f))));
+    EXPECT_EQ(f.color.data, expected.data) << "depth and colour of different frames, or the exposure not applied";
+    EXPECT_EQ(f.exposure, 42);
+    EXPECT_EQ(f.gain, 7);
     EXPECT_TRUE(f.registered);
     EXPECT_NEAR(f.depth_timestamp, f.color_timestamp, 1e-9);
   }
