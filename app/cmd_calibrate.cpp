@@ -10,6 +10,7 @@
 #include "calibration/calibration.h"
 #include "calibration/geometry.h"
 #include "capture/openni.h"
+#include "reconstruction/keyframe_vignetting.h"
 #include "common/color.h"
 #include "common/image_io.h"
 
@@ -70,9 +71,13 @@ Run AddCalibrate(CLI::App& app) {
   resp->add_flag("--keep-ratios", *keep_ratios, "trust the exposures as given (default: refine their ratios)");
   resp->add_option("--out", *out, "calibration file to write or update")->required();
 
-  auto* vig = cmd->add_subcommand("vignetting", "vignetting from images of a uniformly lit flat target");
+  auto* vig = cmd->add_subcommand("vignetting", "vignetting from flat-field images or a reconstruction's keyframes");
   auto vig_images = std::make_shared<std::vector<std::string>>();
-  vig->add_option("IMAGES", *vig_images, "flat-field images (PNG/JPEG)")->required();
+  auto scene = std::make_shared<std::string>();
+  vig->add_option("IMAGES", *vig_images, "flat-field images (PNG/JPEG) of a uniformly lit flat target");
+  vig->add_option("--scene", *scene,
+                  "instead: a scene bundle (lightprobe reconstruct, no vignetting applied): the same surface points "
+                  "seen at different radii in its keyframes");
   vig->add_option("--out", *out, "calibration file to write or update (its response linearizes the images)")
       ->required();
 
@@ -127,13 +132,21 @@ Run AddCalibrate(CLI::App& app) {
       c.response = fit.response;
       Save(*out, c);
     } else if (vig->parsed()) {
-      std::vector<ImageRGB> flats;
-      Calibration linear = c;  // the response only: vignetting is what is measured
-      linear.vignetting = Vignetting{};
-      linear.color.reset();
-      linear.reference_exposure = 0;
-      for (const ImageRgb8& im : ReadImages(*vig_images)) flats.push_back(Linearize(im, linear));
-      c.vignetting = FitVignettingFlatField(flats);
+      if (vig_images->empty() == scene->empty())
+        throw InputError("calibrate vignetting: give flat-field IMAGES or --scene SCENE_DIR");
+      if (!scene->empty()) {
+        const std::vector<VignettingPair> pairs = KeyframeVignettingPairs(LoadSceneBundle(*scene));
+        std::printf("%zu pairs of sightings of the same surface points\n", pairs.size());
+        c.vignetting = FitVignettingPairs(pairs);
+      } else {
+        std::vector<ImageRGB> flats;
+        Calibration linear = c;  // the response only: vignetting is what is measured
+        linear.vignetting = Vignetting{};
+        linear.color.reset();
+        linear.reference_exposure = 0;
+        for (const ImageRgb8& im : ReadImages(*vig_images)) flats.push_back(Linearize(im, linear));
+        c.vignetting = FitVignettingFlatField(flats);
+      }
       const Vignetting& v = c.vignetting;
       std::printf("vignetting V(r) = 1 %+.4f r^2 %+.4f r^4 %+.4f r^6 (corners at %.1f %% of the centre)\n", v.a, v.b,
                   v.c, 100 * (1 + v.a + v.b + v.c));

@@ -67,17 +67,18 @@ Vignetting FitVignettingFlatField(const std::vector<ImageRGB>& images) {
 }
 
 Vignetting FitVignettingPairs(const std::vector<VignettingPair>& pairs) {
-  // v_i (1 + a r_j^2 + ...) - v_j (1 + a r_i^2 + ...) = 0:
-  //   a (v_i r_j^2 - v_j r_i^2) + b (...^4) + c (...^6) = v_j - v_i.
+  // In logarithms the unknowns are on one side and the noise on the other (no
+  // errors-in-variables bias): log v_i - log v_j = L(r_i) - L(r_j), with
+  // L(r) = log V(r) = al r^2 + be r^4 + ga r^6 (L(0) = 0). Then V = exp(L) is projected
+  // onto 1 + a r^2 + b r^4 + c r^6 over r in [0, 1].
   std::vector<Eigen::Vector3d> rows;
   std::vector<double> rhs;
   double spread = 0;
   for (const VignettingPair& p : pairs) {
     if (!(p.value_i > 0 && p.value_j > 0) || !std::isfinite(p.value_i) || !std::isfinite(p.value_j)) continue;
     const double i2 = p.r_i * p.r_i, j2 = p.r_j * p.r_j;
-    rows.emplace_back(p.value_i * j2 - p.value_j * i2, p.value_i * j2 * j2 - p.value_j * i2 * i2,
-                      p.value_i * j2 * j2 * j2 - p.value_j * i2 * i2 * i2);
-    rhs.push_back(p.value_j - p.value_i);
+    rows.emplace_back(i2 - j2, i2 * i2 - j2 * j2, i2 * i2 * i2 - j2 * j2 * j2);
+    rhs.push_back(std::log(p.value_i) - std::log(p.value_j));
     spread = std::max(spread, std::abs(i2 - j2));
   }
   if (rows.size() < 20) throw InputError("vignetting: too few surface points seen twice (" + std::to_string(rows.size()) + ")");
@@ -88,7 +89,15 @@ Vignetting FitVignettingPairs(const std::vector<VignettingPair>& pairs) {
     A.row(static_cast<Eigen::Index>(i)) = rows[i].transpose();
     b[static_cast<Eigen::Index>(i)] = rhs[i];
   }
-  const Eigen::Vector3d x = A.colPivHouseholderQr().solve(b);
+  const Eigen::Vector3d L = A.colPivHouseholderQr().solve(b);
+  Eigen::MatrixXd P(101, 3);
+  Eigen::VectorXd q(101);
+  for (int k = 0; k <= 100; ++k) {
+    const double r2 = (k / 100.0) * (k / 100.0);
+    P.row(k) << r2, r2 * r2, r2 * r2 * r2;
+    q[k] = std::exp(L[0] * r2 + L[1] * r2 * r2 + L[2] * r2 * r2 * r2) - 1;
+  }
+  const Eigen::Vector3d x = P.colPivHouseholderQr().solve(q);
   Vignetting v;
   v.a = x[0];
   v.b = x[1];

@@ -29,7 +29,9 @@ struct VignettingPair {
 };
 
 /// From the same surface points seen at different image radii (keyframes of a
-/// reconstruction): value_i / V(r_i) = value_j / V(r_j), linear in (a, b, c). Throws
+/// reconstruction): value_i / V(r_i) = value_j / V(r_j), fitted in logarithms (linear in
+/// the coefficients of log V, unbiased by noise in the values), then V projected onto the
+/// model. Throws
 /// InputError with too few pairs or radii too alike to tell V apart.
 Vignetting FitVignettingPairs(const std::vector<VignettingPair>& pairs);
 
