@@ -5,10 +5,12 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 
 #include "app/commands.h"
 #include "calibration/calibration.h"
 #include "calibration/geometry.h"
+#include "capture/frame_source.h"
 #include "capture/openni.h"
 #include "reconstruction/keyframe_vignetting.h"
 #include "common/color.h"
@@ -81,6 +83,20 @@ Run AddCalibrate(CLI::App& app) {
   vig->add_option("--out", *out, "calibration file to write or update (its response linearizes the images)")
       ->required();
 
+  auto* ext = cmd->add_subcommand("extrinsics", "depth-to-colour extrinsics from RGB-D frames of a checkerboard");
+  auto ext_source = std::make_shared<std::string>();
+  auto every = std::make_shared<int>(10);
+  auto ext_board = std::make_shared<std::string>("9x6");
+  auto eo = std::make_shared<CheckerboardOptions>();
+  ext->add_option("SOURCE", *ext_source, ".oni recording or frame directory of a board tilted in several directions "
+                                         "(depth not registered to colour)")
+      ->required();
+  ext->add_option("--every", *every, "use every Nth frame")->capture_default_str();
+  ext->add_option("--board", *ext_board, "inner corners COLSxROWS")->capture_default_str();
+  ext->add_option("--square", eo->square, "square size in metres")->capture_default_str();
+  ext->add_option("--out", *out, "calibration file to write or update (its camera model is used when present)")
+      ->required();
+
   return [=] {
     Calibration c = LoadOrNew(*out);
     if (geo->parsed()) {
@@ -130,6 +146,39 @@ Run AddCalibrate(CLI::App& app) {
       for (double x : fit.exposures) std::printf(" %.4f", x);
       std::printf("\n");
       c.response = fit.response;
+      Save(*out, c);
+    } else if (ext->parsed()) {
+      if (std::sscanf(ext_board->c_str(), "%dx%d", &eo->inner_columns, &eo->inner_rows) != 2)
+        throw InputError("calibrate extrinsics: --board must be COLSxROWS, e.g. 9x6");
+      auto src = OpenFrameSource(*ext_source);
+      std::vector<DepthColorView> views;
+      std::optional<CameraModel> camera = c.color;
+      RgbdFrame f;
+      for (int k = 0; src->Next(&f, 5.0) == SourceStatus::kFrame; ++k) {
+        if (k % std::max(1, *every) != 0) continue;
+        if (!camera) {
+          const Intrinsics& i = f.color_intrinsics;
+          camera = CameraModel{i.width, i.height, i.fx, i.fy, i.cx, i.cy, {}};
+        }
+        DepthColorView v;
+        v.color = f.color;
+        v.depth_width = f.depth.width;
+        v.depth_height = f.depth.height;
+        v.depth.resize(f.depth.data.size());
+        for (std::size_t p = 0; p < v.depth.size(); ++p) v.depth[p] = f.depth.data[p] * 1e-3f;
+        v.dfx = f.depth_intrinsics.fx;
+        v.dfy = f.depth_intrinsics.fy;
+        v.dcx = f.depth_intrinsics.cx;
+        v.dcy = f.depth_intrinsics.cy;
+        views.push_back(std::move(v));
+      }
+      if (!camera) throw InputError(*ext_source, "has no frames");
+      const ExtrinsicsFit fit = CalibrateDepthToColor(views, *camera, *eo);
+      const Eigen::Matrix4d& T = fit.color_from_depth;
+      std::printf("%d views used; boards' depth points to their planes %.2f mm RMS; colour from depth: translation "
+                  "(%.4f, %.4f, %.4f) m\n",
+                  fit.views_used, 1e3 * fit.plane_rms, T(0, 3), T(1, 3), T(2, 3));
+      c.color_from_depth = T;
       Save(*out, c);
     } else if (vig->parsed()) {
       if (vig_images->empty() == scene->empty())

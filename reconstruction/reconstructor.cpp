@@ -186,8 +186,10 @@ struct Reconstructor::Impl {
   void Fuse(const RgbdFrame& f, const Eigen::Matrix4d& world_from_camera, FrameReport* r) {
     auto t0 = Clock::now();
     const ImageRGB color = Linearize(f.color, o.calibration, f.exposure, f.gain);
+    const Eigen::Matrix4d* extrinsics =
+        !f.registered && o.calibration.color_from_depth ? &*o.calibration.color_from_depth : nullptr;
     r->blocks_updated = volume.Integrate(DepthToMetres(f.depth, o.preprocess), f.depth_intrinsics, &color,
-                                         ColorK(f), world_from_camera);
+                                         ColorK(f), world_from_camera, extrinsics);
     r->times.fuse = Since(t0);
     t0 = Clock::now();
     TsdfVolume::Maps maps;
@@ -393,14 +395,18 @@ SceneBundle Reconstructor::Finish() const {
     v.camera.fy = k.fy;
     v.camera.cx = k.cx;
     v.camera.cy = k.cy;
+    // The view is the colour camera's: moved from the depth camera's pose by the
+    // calibrated extrinsics when depth was not registered to colour.
     v.camera.world_from_camera = c->pose;
+    if (!c->registered && m.o.calibration.color_from_depth)
+      v.camera.world_from_camera = c->pose * m.o.calibration.color_from_depth->inverse();
     v.image = Linearize(c->color, m.o.calibration, c->exposure, c->gain);
     v.saturation = 1.0;  // 8-bit: the top code is clipped
     // Mask: the model is hit, away from its depth discontinuities, and (registered depth
     // of the same size) the measured depth agrees with it. The paper's discussion: pixels
     // at depth edges mix surfaces.
     TsdfVolume::Maps maps;
-    m.volume.Raycast(k, c->pose, &maps);
+    m.volume.Raycast(k, v.camera.world_from_camera, &maps);
     const int w = k.width, h = k.height;
     const bool compare = c->registered && c->depth.width == w && c->depth.height == h;
     v.valid.assign(static_cast<std::size_t>(w) * h, 0);

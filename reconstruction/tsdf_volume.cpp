@@ -163,7 +163,8 @@ std::size_t TsdfVolume::MemoryBytes() const {
 }
 
 std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrinsics& k, const ImageRGB* color,
-                                  const Intrinsics& color_k, const Eigen::Matrix4d& world_from_camera) {
+                                  const Intrinsics& color_k, const Eigen::Matrix4d& world_from_camera,
+                                  const Eigen::Matrix4d* color_from_depth) {
   Impl& m = *impl_;
   VolumeStore& st = m.store;
   const float voxel = m.o.voxel, trunc = m.o.truncation, block = voxel * kBlockSide;
@@ -215,6 +216,10 @@ std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrins
   // 2. Update every voxel of the touched blocks (projective signed distance along the ray).
   const Eigen::Matrix3f Rt = R.transpose();
   const Eigen::Vector3f tc = -Rt * t;  // camera_from_world
+  const Eigen::Matrix4f cfd =
+      color_from_depth ? Eigen::Matrix4f(color_from_depth->cast<float>()) : Eigen::Matrix4f(Eigen::Matrix4f::Identity());
+  const Eigen::Matrix3f Rcd = cfd.block<3, 3>(0, 0);
+  const Eigen::Vector3f tcd = cfd.block<3, 1>(0, 3);
   const float cfx = static_cast<float>(color_k.fx), cfy = static_cast<float>(color_k.fy),
               ccx = static_cast<float>(color_k.cx), ccy = static_cast<float>(color_k.cy);
   const int max_w = static_cast<int>(std::clamp(m.o.max_weight, 1.f, 65535.f));
@@ -254,8 +259,10 @@ std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrins
             vx.set_sdf((vx.sdf() * vx.weight + tsdf) * inv[vx.weight]);
             vx.weight = static_cast<std::uint16_t>(std::min<int>(vx.weight + 1, max_w));
             if (!color || std::abs(sdf) > 0.5f * trunc) continue;
-            const int cu = static_cast<int>(std::lround(cfx * pc.x() / pc.z() + ccx));
-            const int cv = static_cast<int>(std::lround(cfy * pc.y() / pc.z() + ccy));
+            const Eigen::Vector3f pcol = color_from_depth ? Eigen::Vector3f(Rcd * pc + tcd) : pc;
+            if (pcol.z() <= 0) continue;
+            const int cu = static_cast<int>(std::lround(cfx * pcol.x() / pcol.z() + ccx));
+            const int cv = static_cast<int>(std::lround(cfy * pcol.y() / pcol.z() + ccy));
             if (cu < 0 || cv < 0 || cu >= color->width || cv >= color->height) continue;
             const float* c = color->at(cu, cv);
             if (!(std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]))) continue;

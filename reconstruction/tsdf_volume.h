@@ -55,11 +55,13 @@ class TsdfVolume {
 
   /// Fuses a depth map (metres along the optical axis, 0 = invalid, camera `k`) taken from
   /// `world_from_camera`. Only blocks within the truncation band of a measurement are
-  /// allocated and updated. `color` (linear RGB, camera `color_k`, same pose; may be null)
-  /// updates the colour of voxels within half the truncation of the surface. Returns the
-  /// number of blocks updated.
+  /// allocated and updated. `color` (linear RGB, camera `color_k`; may be null) updates the
+  /// colour of voxels within half the truncation of the surface; the colour camera is at
+  /// the depth camera's pose, or moved by `color_from_depth` when given (unregistered
+  /// frames). Returns the number of blocks updated.
   std::size_t Integrate(const std::vector<float>& depth, const Intrinsics& k, const ImageRGB* color,
-                        const Intrinsics& color_k, const Eigen::Matrix4d& world_from_camera);
+                        const Intrinsics& color_k, const Eigen::Matrix4d& world_from_camera,
+                        const Eigen::Matrix4d* color_from_depth = nullptr);
 
   /// What a camera sees of the model, world frame; NaN where a ray hits nothing.
   struct Maps {
