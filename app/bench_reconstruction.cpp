@@ -64,21 +64,32 @@ void ReconstructionBench(const BenchRow& row) {
     const int n = 40;
     const std::vector<RgbdFrame> frames = ToRgbdFrames(RenderSynthFrames("one-light", so, DefaultDataDir(), n));
 
-    // lightprobe.
-    Reconstructor rec(ReconstructionOptions{});
-    std::vector<Eigen::Matrix4d> poses;
-    Stopwatch sw;
-    for (const RgbdFrame& f : frames) poses.push_back(rec.Process(f).world_from_camera);
-    const double total = sw.Seconds();
-    const StageTimes& t = rec.times();
+    // lightprobe: fusing every frame, then every second frame (all frames tracked).
     char note[320];
-    std::snprintf(note, sizeof note,
-                  "%.1f frames/s; per frame %.1f ms preprocess, %.1f ms track, %.1f ms fuse, %.1f ms raycast "
-                  "(tracking raycast at half size); ATE %.1f mm; volume %zu blocks, %.1f MiB",
-                  n / total, 1e3 * t.preprocess / n, 1e3 * t.track / n, 1e3 * t.fuse / n, 1e3 * t.raycast / n,
-                  1e3 * Ate(poses, frames), rec.volume().BlockCount(), rec.volume().MemoryBytes() / 1048576.0);
-    row(size, "lightprobe reconstruct, 40 frames (1 cm voxels)", total, 0, NAN, note);
-    sw.Reset();
+    for (int fuse_every : {2, 1}) {
+      ReconstructionOptions ro;
+      ro.fuse_every = fuse_every;
+      Reconstructor r2(ro);
+      std::vector<Eigen::Matrix4d> p2;
+      Stopwatch s2;
+      for (const RgbdFrame& f : frames) p2.push_back(r2.Process(f).world_from_camera);
+      const double total2 = s2.Seconds();
+      const StageTimes& t2 = r2.times();
+      std::snprintf(note, sizeof note,
+                    "%.1f frames/s; per frame %.1f ms preprocess, %.1f ms track, %.1f ms fuse, %.1f ms raycast "
+                    "(tracking raycast at half size); ATE %.1f mm; volume %zu blocks, %.1f MiB",
+                    n / total2, 1e3 * t2.preprocess / n, 1e3 * t2.track / n, 1e3 * t2.fuse / n, 1e3 * t2.raycast / n,
+                    1e3 * Ate(p2, frames), r2.volume().BlockCount(), r2.volume().MemoryBytes() / 1048576.0);
+      row(size, "lightprobe reconstruct, 40 frames (1 cm voxels), fusing every " +
+                    std::string(fuse_every == 1 ? "frame" : "second frame"),
+          total2, 0, NAN, note);
+    }
+    ReconstructionOptions every;
+    every.fuse_every = 1;  // fusing every frame: compared with OpenCV per integration below
+    Reconstructor rec(every);
+    for (const RgbdFrame& f : frames) rec.Process(f);
+    const StageTimes& t = rec.times();
+    Stopwatch sw;
     const Mesh mesh = rec.volume().ExtractMesh(2);
     std::snprintf(note, sizeof note, "%zu triangles", mesh.triangles.size());
     row(size, "lightprobe marching cubes", sw.Seconds(), 0, NAN, note);

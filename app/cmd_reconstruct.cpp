@@ -67,6 +67,10 @@ Run AddReconstruct(CLI::App& app) {
   cmd->add_option("--truncation", *truncation, "TSDF truncation, metres (default: 4 voxels)");
   cmd->add_option("--max-frames", *max_frames, "stop after this many frames (0 = all)")->capture_default_str();
   cmd->add_option("--keyframes", o->keyframes, "views in the bundle")->capture_default_str();
+  cmd->add_option("--fuse-every", o->fuse_every,
+                  "fuse every Nth tracked frame (all are tracked; 2 keeps up with a 30 Hz camera at 320x240 on 2 "
+                  "cores, 1 fuses every frame)")
+      ->capture_default_str();
   cmd->add_option("--view-width", o->view_width,
                   "average keyframe images down to about this width (the estimator's cost grows with pixels; "
                   "0 = as captured)")

@@ -13,7 +13,7 @@ namespace lp {
 
 struct PreprocessOptions {
   int levels = 3;               ///< pyramid levels (level 0 = full resolution)
-  int bilateral_radius = 3;     ///< pixels (7x7 window)
+  int bilateral_radius = 2;     ///< pixels (5x5 window)
   float sigma_space = 4.5f;     ///< pixels
   float sigma_depth = 0.03f;    ///< metres
   float min_depth = 0.2f;       ///< metres; nearer readings are dropped

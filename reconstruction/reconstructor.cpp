@@ -120,6 +120,7 @@ struct Reconstructor::Impl {
   ReconstructionOptions o;
   TsdfVolume volume;
   ModelMaps model;
+  int since_fused = 0;  // tracked frames since the last fused one
   TsdfVolume::Maps last_maps;  // the last raycast: where the next one searches
   bool started = false;
   Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();  // last good
@@ -314,7 +315,12 @@ FrameReport Reconstructor::Process(const RgbdFrame& f) {
     r.rmse = tr.rmse;
     if (tr.ok) {
       m.pose = tr.world_from_camera;
-      m.Fuse(f, m.pose, &r);
+      // Fuse every fuse_every-th tracked frame (and after a relocalization); in between the
+      // model maps stay those raycast at the last fused pose.
+      if (++m.since_fused >= std::max(1, m.o.fuse_every) || r.relocalized) {
+        m.Fuse(f, m.pose, &r);
+        m.since_fused = 0;
+      }
       r.state = TrackingState::kTracking;
       m.Offer(f, m.pose);
       if (!source_pose) m.MaybeRemember(f, m.pose, r.relocalized);

@@ -45,6 +45,10 @@ struct ReconstructionOptions {
   /// Frames at least this wide are tracked from pyramid level 1 (at 640x480 the full-size
   /// level costs 4x and adds little; fusion always uses the full-size depth).
   int track_half_from_width = 600;
+  /// Fuse every Nth tracked frame (all are tracked): at 30 frames/s neighbours are nearly
+  /// the same view, and fusion is the costliest stage; 2 keeps up with a 30 Hz camera at
+  /// 320x240 on 2 cores with the same accuracy (docs/benchmarks.md).
+  int fuse_every = 2;
   /// Makes colour frames linear (response, undistortion, vignetting, exposure); without
   /// one, sRGB is assumed (Calibration{}.Describe() says so). A calibrated camera model
   /// replaces the colour intrinsics the source reports.

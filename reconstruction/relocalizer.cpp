@@ -15,8 +15,11 @@ namespace lp {
 namespace {
 
 struct Memory {
-  cv::Mat descriptors;                 // rows of features with a world point
-  std::vector<cv::Point3f> world;      // one per row
+  RgbdFrame frame;  // kept until features are needed (most runs never relocalize)
+  Eigen::Matrix4d world_from_camera = Eigen::Matrix4d::Identity();
+  bool computed = false;
+  cv::Mat descriptors;             // rows of features with a world point
+  std::vector<cv::Point3f> world;  // one per row
 };
 
 cv::Mat Grey(const ImageRgb8& image) {
@@ -45,10 +48,23 @@ bool Relocalizer::empty() const { return impl_->memory.empty(); }
 
 void Relocalizer::Remember(const RgbdFrame& f, const Eigen::Matrix4d& world_from_camera) {
   if (!f.registered || f.depth.width != f.color.width || f.depth.height != f.color.height) return;
+  Memory m;
+  m.frame.color = f.color;
+  m.frame.depth = f.depth;
+  m.frame.color_intrinsics = f.color_intrinsics;
+  m.world_from_camera = world_from_camera;
+  impl_->memory.push_back(std::move(m));
+  while (static_cast<int>(impl_->memory.size()) > impl_->o.keep) impl_->memory.pop_front();
+}
+
+namespace {
+
+/// Features of a remembered frame with world positions from its depth.
+void ComputeFeatures(cv::ORB& orb, Memory* m) {
+  const RgbdFrame& f = m->frame;
   std::vector<cv::KeyPoint> keys;
   cv::Mat desc;
-  impl_->orb->detectAndCompute(Grey(f.color), cv::noArray(), keys, desc);
-  Memory m;
+  orb.detectAndCompute(Grey(f.color), cv::noArray(), keys, desc);
   const Intrinsics& k = f.color_intrinsics;
   for (std::size_t i = 0; i < keys.size(); ++i) {
     // Corners sit on edges, where depth is often missing: the nearest surface within
@@ -64,17 +80,20 @@ void Relocalizer::Remember(const RgbdFrame& f, const Eigen::Matrix4d& world_from
       }
     if (z <= 0) continue;
     const Eigen::Vector3d pc((keys[i].pt.x - k.cx) / k.fx * z, (keys[i].pt.y - k.cy) / k.fy * z, z);
-    const Eigen::Vector3d pw = (world_from_camera * pc.homogeneous()).head<3>();
-    m.descriptors.push_back(desc.row(static_cast<int>(i)));
-    m.world.emplace_back(static_cast<float>(pw.x()), static_cast<float>(pw.y()), static_cast<float>(pw.z()));
+    const Eigen::Vector3d pw = (m->world_from_camera * pc.homogeneous()).head<3>();
+    m->descriptors.push_back(desc.row(static_cast<int>(i)));
+    m->world.emplace_back(static_cast<float>(pw.x()), static_cast<float>(pw.y()), static_cast<float>(pw.z()));
   }
-  if (m.world.size() < static_cast<std::size_t>(impl_->o.min_inliers)) return;
-  impl_->memory.push_back(std::move(m));
-  while (static_cast<int>(impl_->memory.size()) > impl_->o.keep) impl_->memory.pop_front();
+  m->computed = true;
+  m->frame = RgbdFrame{};  // the images are no longer needed
 }
 
-std::optional<Eigen::Matrix4d> Relocalizer::Locate(const RgbdFrame& f) const {
+}  // namespace
+
+std::optional<Eigen::Matrix4d> Relocalizer::Locate(const RgbdFrame& f) {
   if (impl_->memory.empty()) return std::nullopt;
+  for (Memory& m : impl_->memory)
+    if (!m.computed) ComputeFeatures(*impl_->orb, &m);
   std::vector<cv::KeyPoint> keys;
   cv::Mat desc;
   impl_->orb->detectAndCompute(Grey(f.color), cv::noArray(), keys, desc);
@@ -83,6 +102,7 @@ std::optional<Eigen::Matrix4d> Relocalizer::Locate(const RgbdFrame& f) const {
   std::vector<cv::Point3f> world;
   std::vector<cv::Point2f> image;
   for (const Memory& m : impl_->memory) {
+    if (m.world.size() < static_cast<std::size_t>(impl_->o.min_inliers)) continue;
     std::vector<std::vector<cv::DMatch>> knn;
     matcher.knnMatch(desc, m.descriptors, knn, 2);
     for (const auto& pair : knn)  // Lowe's ratio test

@@ -25,11 +25,11 @@ class Relocalizer {
   explicit Relocalizer(const RelocalizerOptions& options = {});
   ~Relocalizer();
 
-  /// Remembers the features of a tracked frame (registered depth needed: a feature's
-  /// depth is read at its colour pixel) with their world positions.
+  /// Remembers a tracked frame (registered depth needed: a feature's depth is read at its
+  /// colour pixel). Its features are computed only when a Locate needs them.
   void Remember(const RgbdFrame& frame, const Eigen::Matrix4d& world_from_camera);
   /// world_from_camera for `frame` from its features, or nothing when too few agree.
-  std::optional<Eigen::Matrix4d> Locate(const RgbdFrame& frame) const;
+  std::optional<Eigen::Matrix4d> Locate(const RgbdFrame& frame);
   bool empty() const;
 
  private:

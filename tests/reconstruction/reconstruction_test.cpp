@@ -138,7 +138,9 @@ std::vector<Eigen::Vector3f> SampleSurface(const Mesh& m, double spacing) {
 
 // The synthetic room corner (boxes and a sphere, ~3.5 m away) with Xtion-like depth noise
 // (sigma ~2 cm at that range) and holes, tracked along its true 40-degree arc.
-TEST(Reconstruction, SyntheticRoomTrackedAlongItsTrueTrajectory) {
+class SyntheticRoom : public ::testing::TestWithParam<int> {};
+
+TEST_P(SyntheticRoom, TrackedAlongItsTrueTrajectory) {
   SynthOptions so;
   so.width = 320;
   so.height = 240;
@@ -146,6 +148,7 @@ TEST(Reconstruction, SyntheticRoomTrackedAlongItsTrueTrajectory) {
   so.depth_noise = true;
   const std::vector<RgbdFrame> frames = ToRgbdFrames(RenderSynthFrames("one-light", so, "", 24));
   ReconstructionOptions o;
+  o.fuse_every = GetParam();
   Reconstructor rec(o);
   double sum2 = 0;
   int tracked = 0;
@@ -177,9 +180,9 @@ TEST(Reconstruction, SyntheticRoomTrackedAlongItsTrueTrajectory) {
   const std::vector<float> comp = NearestDistances(seen, b.mesh.positions);
   const double complete = std::count_if(comp.begin(), comp.end(), [](float d) { return d < 0.02f; }) /
                           static_cast<double>(comp.size());
-  std::printf("tracked %d/%zu, ATE %.1f mm; accuracy median %.1f mm, 90th %.1f mm; complete (2 cm) %.1f %%; "
-              "up (%.3f %.3f %.3f)\n",
-              tracked, frames.size(), 1e3 * ate, 1e3 * Percentile(acc, 0.5), 1e3 * Percentile(acc, 0.9),
+  std::printf("fusing every %d: tracked %d/%zu, ATE %.1f mm; accuracy median %.1f mm, 90th %.1f mm; complete (2 cm) "
+              "%.1f %%; up (%.3f %.3f %.3f)\n",
+              GetParam(), tracked, frames.size(), 1e3 * ate, 1e3 * Percentile(acc, 0.5), 1e3 * Percentile(acc, 0.9),
               100 * complete, b.up.x(), b.up.y(), b.up.z());
   EXPECT_EQ(tracked, static_cast<int>(frames.size()));
   EXPECT_LT(ate, 0.02);
@@ -193,6 +196,9 @@ TEST(Reconstruction, SyntheticRoomTrackedAlongItsTrueTrajectory) {
     EXPECT_GT(valid, 0.5 * v.valid.size());
   }
 }
+
+// Every frame fused, and every second frame (all tracked): the same bounds.
+INSTANTIATE_TEST_SUITE_P(FuseEvery, SyntheticRoom, ::testing::Values(1, 2));
 
 // Real Redwood frames (PrimeSense, 640x480) tracked against the dataset's trajectory.
 TEST(Reconstruction, RedwoodFramesAgainstTheirTrajectory) {
