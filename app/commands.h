@@ -3,6 +3,7 @@
 /// `app` and returns the callback that runs it.
 #include <functional>
 #include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -24,6 +25,9 @@ Run AddRecord(CLI::App& app);
 Run AddReplay(CLI::App& app);
 Run AddReconstruct(CLI::App& app);
 Run AddCalibrate(CLI::App& app);
+
+/// `lightprobe --headless INPUT --out DIR ...` (args without the program name).
+int RunHeadless(const std::vector<std::string>& args);
 
 /// One row of `lightprobe bench`'s table: size, method, seconds, relative RMSE, light error, note.
 using BenchRow = std::function<void(const std::string&, const std::string&, double, double, double, const std::string&)>;

@@ -3,6 +3,8 @@
 #include <cstdio>
 #include <iostream>
 #include <map>
+#include <string>
+#include <vector>
 
 #include <CLI/CLI.hpp>
 
@@ -10,6 +12,25 @@
 #include "common/error.h"
 
 int main(int argc, char** argv) {
+  const std::vector<std::string> args(argv + 1, argv + argc);
+  if (!args.empty() && args[0] == "--headless") {
+    try {
+      return lp::app::RunHeadless(args);
+    } catch (const lp::InputError& e) {
+      std::fprintf(stderr, "lightprobe: error: %s\n", e.what());
+      return 2;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "lightprobe: internal error: %s\n", e.what());
+      return 4;
+    }
+  }
+  if (args.empty()) {
+    std::fprintf(stderr,
+                 "lightprobe: the viewer is not built yet; run the whole pipeline without a window with\n"
+                 "  lightprobe --headless INPUT --out DIR   (e.g. INPUT = assets/demo-recording/demo.oni)\n"
+                 "or a subcommand (lightprobe --help)\n");
+    return 2;
+  }
   CLI::App app{"lightprobe: estimate a scene's illumination from RGB-D captures"};
   app.require_subcommand(1);
   app.set_version_flag("--version", "lightprobe 0.1.0");

@@ -10,5 +10,4 @@ bash scripts/install-deps.sh
 bash scripts/build.sh
 out="${1:-out/demo}"
 demo=assets/demo-recording
-./build/app/lightprobe reconstruct "$demo/demo.oni" --poses "$demo/trajectory.log" --out "$out/scene"
-./build/app/lightprobe estimate "$out/scene" --out "$out/estimate"
+./build/app/lightprobe --headless "$demo/demo.oni" --poses "$demo/trajectory.log" --out "$out"
