@@ -110,6 +110,9 @@ Run AddReconstruct(CLI::App& app) {
           throw InputError(*poses, "has " + std::to_string(given.size()) + " poses, fewer than the frames");
         f.world_from_camera = given[static_cast<std::size_t>(n)];
       }
+      if (n == 0 && !f.registered && !ro.calibration.color_from_depth)
+        std::fprintf(stderr, "warning: depth is not registered to colour and no calibration gives the extrinsics "
+                             "(lightprobe calibrate extrinsics): colour is taken from the depth camera's view\n");
       const FrameReport r = rec.Process(f);
       ++n;
       tracked += r.state == TrackingState::kTracking;

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <sstream>
 
 #include <nlohmann/json.hpp>
@@ -118,6 +119,7 @@ Calibration ReadCalibration(const std::filesystem::path& path) {
         c.vignetting.cx = v.at("center").at(0).get<double>();
         c.vignetting.cy = v.at("center").at(1).get<double>();
       }
+      if (!c.vignetting.Plausible()) throw InputError(where, "vignetting: V(r) must stay above 0.05 up to r = 1");
     }
     if (j.contains("exposure")) {
       c.reference_exposure = Number(j.at("exposure"), "reference_exposure", where + " exposure");
@@ -173,8 +175,11 @@ ImageRGB Linearize(const ImageRgb8& image, const Calibration& c, double exposure
     const CameraModel& m = *c.color;
     const cv::Mat K = (cv::Mat_<double>(3, 3) << m.fx, 0, m.cx, 0, m.fy, m.cy, 0, 0, 1);
     const cv::Mat d(1, 5, CV_64F, const_cast<double*>(m.distortion.data()));
-    cv::Mat src(out.height, out.width, CV_32FC3, out.data.data()), dst;
-    cv::undistort(src, dst, K, d);
+    cv::Mat src(out.height, out.width, CV_32FC3, out.data.data()), dst, map1, map2;
+    // Pixels with no source become NaN (never used), not black.
+    cv::initUndistortRectifyMap(K, d, cv::Mat(), K, src.size(), CV_32FC1, map1, map2);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    cv::remap(src, dst, map1, map2, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(nan, nan, nan));
     std::memcpy(out.data.data(), dst.ptr<float>(), out.data.size() * sizeof(float));
   }
   double scale = 1;

@@ -12,10 +12,11 @@
 
 namespace lp {
 
-GeometryFit CalibrateGeometry(const std::vector<ImageRgb8>& images, const CheckerboardOptions& o) {
+namespace {
+GeometryFit CalibrateGeometryImpl(const std::vector<ImageRgb8>& images, const CheckerboardOptions& o) {
   if (images.empty()) throw InputError("calibrate geometry: no images");
-  if (o.inner_columns < 2 || o.inner_rows < 2 || !(o.square > 0))
-    throw InputError("calibrate geometry: the board needs at least 2x2 inner corners and a positive square size");
+  if (o.inner_columns < 3 || o.inner_rows < 3 || !(o.square > 0))
+    throw InputError("calibrate geometry: the board needs at least 3x3 inner corners and a positive square size");
   const int w = images[0].width, h = images[0].height;
   const cv::Size pattern(o.inner_columns, o.inner_rows);
   std::vector<cv::Point3f> board;
@@ -60,7 +61,6 @@ GeometryFit CalibrateGeometry(const std::vector<ImageRgb8>& images, const Checke
   return fit;
 }
 
-namespace {
 
 /// The board's inner corners in the image, or nothing.
 std::optional<std::vector<cv::Point2f>> FindBoard(const ImageRgb8& im, const CheckerboardOptions& o) {
@@ -75,10 +75,12 @@ std::optional<std::vector<cv::Point2f>> FindBoard(const ImageRgb8& im, const Che
   return found;
 }
 
-}  // namespace
 
-ExtrinsicsFit CalibrateDepthToColor(const std::vector<DepthColorView>& views, const CameraModel& color,
-                                    const CheckerboardOptions& o) {
+ExtrinsicsFit CalibrateDepthToColorImpl(const std::vector<DepthColorView>& views, const CameraModel& color,
+                                        const CheckerboardOptions& o) {
+  if (o.inner_columns < 3 || o.inner_rows < 3 || !(o.square > 0))
+    throw InputError("calibrate extrinsics: the board needs at least 3x3 inner corners and a positive square size");
+  if (!(color.fx > 0 && color.fy > 0)) throw InputError("calibrate extrinsics: the colour camera needs focal lengths");
   const cv::Mat K = (cv::Mat_<double>(3, 3) << color.fx, 0, color.cx, 0, color.fy, color.cy, 0, 0, 1);
   const cv::Mat dist(1, 5, CV_64F, const_cast<double*>(color.distortion.data()));
   std::vector<cv::Point3f> board;
@@ -92,6 +94,9 @@ ExtrinsicsFit CalibrateDepthToColor(const std::vector<DepthColorView>& views, co
     if (v.color.width != color.width || v.color.height != color.height)
       throw InputError("calibrate extrinsics: colour images must be " + std::to_string(color.width) + "x" +
                        std::to_string(color.height) + " (the calibrated camera)");
+    if (v.depth.size() != static_cast<std::size_t>(v.depth_width) * v.depth_height || !(v.dfx > 0 && v.dfy > 0) ||
+        !std::isfinite(v.dcx) || !std::isfinite(v.dcy))
+      throw InputError("calibrate extrinsics: a depth map does not match its size or intrinsics");
     const auto corners = FindBoard(v.color, o);
     if (!corners) continue;
     cv::Mat rvec, tvec, R;
@@ -99,10 +104,14 @@ ExtrinsicsFit CalibrateDepthToColor(const std::vector<DepthColorView>& views, co
     cv::Rodrigues(rvec, R);
     const Eigen::Vector3d n(R.at<double>(0, 2), R.at<double>(1, 2), R.at<double>(2, 2));
     const Eigen::Vector3d t(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
-    // Depth points inside the board's outline (its corner hull, shrunk by a fifth towards
-    // the centre: the depth camera sees the board a little shifted).
-    std::vector<cv::Point2f> hull;
-    cv::convexHull(*corners, hull);
+    // Depth points inside the board's outline: its corners taken to depth pixels through
+    // normalized coordinates (undistorted; the small baseline is ignored), their hull shrunk
+    // by a fifth towards the centre since the depth camera sees the board a little shifted.
+    std::vector<cv::Point2f> normalized, in_depth, hull;
+    cv::undistortPoints(*corners, normalized, K, dist);
+    for (const cv::Point2f& p : normalized)
+      in_depth.emplace_back(static_cast<float>(v.dfx * p.x + v.dcx), static_cast<float>(v.dfy * p.y + v.dcy));
+    cv::convexHull(in_depth, hull);
     cv::Point2f centre(0, 0);
     for (const cv::Point2f& p : hull) centre += p * (1.f / hull.size());
     for (cv::Point2f& p : hull) p = centre + 0.8f * (p - centre);
@@ -165,6 +174,27 @@ ExtrinsicsFit CalibrateDepthToColor(const std::vector<DepthColorView>& views, co
     }
   fit.plane_rms = std::sqrt(sum2 / std::max<std::size_t>(1, n));
   return fit;
+}
+
+}  // namespace
+
+// OpenCV reports some bad input (odd boards, degenerate point sets) by throwing: that is
+// the user's input, not a bug, so it becomes an InputError.
+GeometryFit CalibrateGeometry(const std::vector<ImageRgb8>& images, const CheckerboardOptions& o) {
+  try {
+    return CalibrateGeometryImpl(images, o);
+  } catch (const cv::Exception& e) {
+    throw InputError(std::string("calibrate geometry: OpenCV could not use the images: ") + e.err);
+  }
+}
+
+ExtrinsicsFit CalibrateDepthToColor(const std::vector<DepthColorView>& views, const CameraModel& color,
+                                    const CheckerboardOptions& o) {
+  try {
+    return CalibrateDepthToColorImpl(views, color, o);
+  } catch (const cv::Exception& e) {
+    throw InputError(std::string("calibrate extrinsics: OpenCV could not use the views: ") + e.err);
+  }
 }
 
 }  // namespace lp

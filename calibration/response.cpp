@@ -102,6 +102,8 @@ ResponseFit FitResponse(const std::vector<ImageRgb8>& images, const std::vector<
                      " exposures");
   for (double e : exposures)
     if (!(e > 0) || !std::isfinite(e)) throw InputError("response: exposures must be positive");
+  if (*std::max_element(exposures.begin(), exposures.end()) < 1.1 * *std::min_element(exposures.begin(), exposures.end()))
+    throw InputError("response: the exposures must differ (at least 10 % between the shortest and the longest)");
   const int w = images[0].width, h = images[0].height;
   for (const ImageRgb8& im : images)
     if (im.width != w || im.height != h || im.data.size() != 3 * im.pixels() || im.pixels() == 0)
@@ -185,8 +187,9 @@ ResponseFit FitResponse(const std::vector<ImageRgb8>& images, const std::vector<
         for (std::size_t q = 0; q < Q; ++q) fit.exposures[order[q]] = sorted[q];
       }
     }
-    if (fit.response.coefficients[static_cast<std::size_t>(ch)].empty())
-      throw InputError("response: no monotone response fits channel " + std::to_string(ch));
+    if (fit.response.coefficients[static_cast<std::size_t>(ch)].empty() ||
+        !(fit.response.Apply(ch, 0.0) < fit.response.Apply(ch, 1.0)))
+      throw InputError("response: no rising response fits channel " + std::to_string(ch));
   }
   // Relative to the first image as given.
   const double e0 = fit.exposures[0];

@@ -1,5 +1,6 @@
 #include "calibration/vignetting.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/Dense>
@@ -18,9 +19,19 @@ double Radius(double x, double y, int w, int h, double cx, double cy) {
 }  // namespace
 
 double Vignetting::At(double x, double y, int w, int h) const {
-  const double r = Radius(x, y, w, h, cx >= 0 ? cx : 0.5 * w - 0.5, cy >= 0 ? cy : 0.5 * h - 0.5);
+  // Past the corners (an off-centre centre) the polynomial is not trusted: V(1) there.
+  const double r = std::min(1.0, Radius(x, y, w, h, cx >= 0 ? cx : 0.5 * w - 0.5, cy >= 0 ? cy : 0.5 * h - 0.5));
   const double r2 = r * r;
   return 1 + r2 * (a + r2 * (b + r2 * c));
+}
+
+bool Vignetting::Plausible() const {
+  if (!std::isfinite(a) || !std::isfinite(b) || !std::isfinite(c)) return false;
+  for (int i = 0; i <= 100; ++i) {
+    const double r2 = (i / 100.0) * (i / 100.0);
+    if (!(1 + r2 * (a + r2 * (b + r2 * c)) > 0.05)) return false;
+  }
+  return true;
 }
 
 Vignetting FitVignettingFlatField(const std::vector<ImageRGB>& images) {
@@ -63,6 +74,7 @@ Vignetting FitVignettingFlatField(const std::vector<ImageRGB>& images) {
   v.a = x[1] / x[0];
   v.b = x[2] / x[0];
   v.c = x[3] / x[0];
+  if (!v.Plausible()) throw InputError("vignetting: the fit falls to zero inside the image (not a flat field?)");
   return v;
 }
 
@@ -102,6 +114,7 @@ Vignetting FitVignettingPairs(const std::vector<VignettingPair>& pairs) {
   v.a = x[0];
   v.b = x[1];
   v.c = x[2];
+  if (!v.Plausible()) throw InputError("vignetting: the fit falls to zero inside the image (too few or noisy points)");
   return v;
 }
 

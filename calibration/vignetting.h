@@ -15,6 +15,9 @@ struct Vignetting {
   /// V at pixel (x, y) of a width x height image.
   double At(double x, double y, int width, int height) const;
   bool identity() const { return a == 0 && b == 0 && c == 0; }
+  /// V above 0.05 for r up to 1 (At() holds V(1) beyond, as an off-centre centre can
+  /// reach past the corners): a correction that would not divide by ~0 or flip signs.
+  bool Plausible() const;
 };
 
 /// From images of a uniformly lit flat target filling the view (linear values, e.g. after

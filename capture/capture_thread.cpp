@@ -52,6 +52,7 @@ void CaptureThread::Run() {
       // Controls from other threads, applied here: the source belongs to this thread.
       if (const std::int64_t target = seek_to_.exchange(-1); target >= 0) {
         source_->Seek(target);
+        source_paused = false;  // a seek may restart the source's clock: pause it again below
         at_end = false;
         publish([&](CaptureStats& s) { s.position = target; });
       }

@@ -319,8 +319,8 @@ void PlayInChild(const std::string& path, int frame_records) {
     });
     return;
   }
-  int pipe_fd[2];
-  if (pipe(pipe_fd) != 0) throw InputError(path, "cannot create a pipe for the playback check");
+  int pipe_fd[2];  // close-on-exec: no other child inherits the write end and holds it open
+  if (pipe2(pipe_fd, O_CLOEXEC) != 0) throw InputError(path, "cannot create a pipe for the playback check");
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_addopen(&actions, 1, "/dev/null", O_WRONLY, 0);
@@ -348,6 +348,7 @@ void PlayInChild(const std::string& path, int frame_records) {
       char buf[512];
       const ssize_t n = read(pipe_fd[0], buf, sizeof buf);
       if (n > 0 && err.size() < 4096) err.append(buf, static_cast<std::size_t>(n));
+      if (n <= 0) std::this_thread::sleep_for(std::chrono::milliseconds(20));  // closed: do not spin
     }
     done = waitpid(pid, &status, WNOHANG) == pid;
     if (!done && std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() > limit) {
@@ -356,6 +357,7 @@ void PlayInChild(const std::string& path, int frame_records) {
       done = killed = true;
     }
   }
+  fcntl(pipe_fd[0], F_SETFL, O_NONBLOCK);  // what is left, without waiting for anyone
   for (char buf[512];;) {  // what the child wrote just before it exited
     const ssize_t n = read(pipe_fd[0], buf, sizeof buf);
     if (n <= 0 || err.size() >= 4096) break;
@@ -501,6 +503,21 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
   void Rewind() override {
     CloseDevice();
     Open();
+  }
+
+  /// Reopens and skips to `frame` at manual speed (OpenNI2's own seek crashes), then plays
+  /// on at the chosen speed.
+  void Seek(std::int64_t frame) override {
+    if (frame < 0 || frame >= count_)
+      throw InputError(path_, "cannot seek to frame " + std::to_string(frame) + " (it has " + std::to_string(count_) + ")");
+    CloseDevice();
+    Open();
+    device_.getPlaybackControl()->setSpeed(-1.0f);
+    RgbdFrame f;
+    for (std::int64_t k = 0; k < frame; ++k)
+      if (Next(&f, 5.0) != SourceStatus::kFrame)
+        throw InputError(path_, "seek to frame " + std::to_string(frame) + " ran past the end");
+    device_.getPlaybackControl()->setSpeed(options_.real_time ? 1.0f : -1.0f);
   }
 
   /// Real-time playback runs on OpenNI2's clock: manual speed holds it while paused.

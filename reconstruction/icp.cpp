@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include "common/parallel.h"
@@ -154,6 +155,13 @@ TrackResult TrackFrameToModel(const std::vector<DepthLevel>& frame, const ModelM
       ++res.iterations;
       if (last.inliers < 6) {
         res.reason = "no overlap with the model";
+        return res;
+      }
+      // A view of one plane (a wall, a floor) leaves directions unconstrained: its system
+      // is (nearly) singular, and LDLT would divide by noise.
+      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> eig(last.A, Eigen::EigenvaluesOnly);
+      if (!(eig.eigenvalues()[0] > 1e-6 * eig.eigenvalues()[5])) {
+        res.reason = "degenerate geometry (too few surface orientations to fix the pose)";
         return res;
       }
       const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(last.A);

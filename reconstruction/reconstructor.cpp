@@ -122,6 +122,7 @@ struct Reconstructor::Impl {
   ModelMaps model;
   int since_fused = 0;  // tracked frames since the last fused one
   TsdfVolume::Maps last_maps;  // the last raycast: where the next one searches
+  Eigen::Matrix4d last_maps_pose = Eigen::Matrix4d::Identity();
   bool started = false;
   Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();  // last good
   Eigen::Matrix4d first_pose = Eigen::Matrix4d::Identity();
@@ -170,6 +171,13 @@ struct Reconstructor::Impl {
     if (f.color.width != f.color_intrinsics.width || f.color.height != f.color_intrinsics.height ||
         f.color.data.size() != 3 * f.color.pixels())
       throw InputError(at + ": colour image does not match its intrinsics");
+    if (f.world_from_camera) {
+      const Eigen::Matrix4d& T = *f.world_from_camera;
+      const Eigen::Matrix3d R = T.block<3, 3>(0, 0);
+      if (!T.allFinite() || (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() > 1e-3 || R.determinant() <= 0 ||
+          (T.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).norm() > 1e-9 || T.block<3, 1>(0, 3).norm() > 1e4)
+        throw InputError(at + ": the given pose is not a rigid transform (finite rotation and translation)");
+    }
     if (started && (f.depth.width != first_depth_k.width || f.depth.height != first_depth_k.height ||
                     f.color.width != first_color_k.width || f.color.height != first_color_k.height))
       throw InputError(at + ": frame size " + std::to_string(f.depth.width) + "x" + std::to_string(f.depth.height) +
@@ -196,9 +204,16 @@ struct Reconstructor::Impl {
     TsdfVolume::Maps maps;
     const int level = std::clamp(o.model_level, 0, std::max(0, o.preprocess.levels - 1));
     const Intrinsics k = ScaleIntrinsics(f.depth_intrinsics, level);
-    volume.Raycast(k, world_from_camera, &maps, false, last_maps.depth.empty() ? nullptr : &last_maps);
+    // The last raycast bounds the search only when the camera moved less than its margin
+    // since (it searches +-(truncation + 5 cm) around the depths it found).
+    const Eigen::Matrix4d moved = last_maps_pose.inverse() * world_from_camera;
+    const double turned = std::acos(std::clamp((moved.block<3, 3>(0, 0).trace() - 1) / 2, -1.0, 1.0));
+    const bool hint = !last_maps.depth.empty() && moved.block<3, 1>(0, 3).norm() < 0.5 * (o.tsdf.truncation + 0.05) &&
+                      turned < 0.05;
+    volume.Raycast(k, world_from_camera, &maps, false, hint ? &last_maps : nullptr);
     model = MakeModelMaps(k, maps.vertex, maps.normal, world_from_camera, o.preprocess.levels, level);
     last_maps = std::move(maps);
+    last_maps_pose = world_from_camera;
     r->times.raycast = Since(t0);
   }
 
@@ -238,6 +253,9 @@ Reconstructor::Reconstructor(const ReconstructionOptions& o) : impl_(std::make_u
   if (!(o.tsdf.truncation >= 2 * o.tsdf.voxel && o.tsdf.truncation <= 1.f))
     throw InputError("reconstruct: --truncation must be at least two voxels and at most 1 m");
   if (o.keyframes < 1 || o.keyframes > 64) throw InputError("reconstruct: --keyframes must be between 1 and 64");
+  if (!(o.preprocess.sigma_depth > 0) || !(o.preprocess.sigma_space > 0) || o.preprocess.bilateral_radius < 0 ||
+      o.preprocess.normal_radius < 1 || o.preprocess.levels < 1 || o.relocalizer.min_inliers < 4)
+    throw InputError("reconstruct: preprocessing / relocalization options out of range");
 }
 
 Reconstructor::~Reconstructor() = default;

@@ -92,8 +92,10 @@ class Reconstructor {
   /// Processes one frame. The world frame is the source's when the first fused frame
   /// carries a pose (world_from_camera), else that camera's. Throws InputError
   /// for a frame that cannot be used at all (size differs from its intrinsics or from the
-  /// first frame's, intrinsics not finite and positive, depth and colour of different
-  /// sizes when registered); per-frame events (tracking lost, no depth) are in the report.
+  /// first frame's, intrinsics not finite and positive, a given pose that is not rigid);
+  /// per-frame events (tracking lost, no depth) are in the report. Unregistered frames
+  /// use the calibration's depth-to-colour extrinsics, or none (colour from the depth
+  /// camera's view).
   FrameReport Process(const RgbdFrame& frame);
 
   /// The mesh (marching cubes, per-vertex albedo = mean linear colour), the up direction

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 
+#include "common/error.h"
 #include "common/parallel.h"
 #include "common/rng.h"
 #include "reconstruction/volume_internal.h"
@@ -204,9 +205,12 @@ std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrins
   });
   ++m.frame;
   std::vector<int> touched;
+  constexpr int kMaxBlock = 1 << 16;  // keys hold +-2^20; edge keys of the mesh +-2^19 voxels
   for (const auto& list : found)
     for (const Eigen::Vector3i& b : list) {
+      if (b.cwiseAbs().maxCoeff() >= kMaxBlock) continue;  // kilometres away: not a room
       const int index = st.AllocateBlock(b.x(), b.y(), b.z());
+      LP_CHECK(index >= 0, "block hash returned no index");
       if (static_cast<std::size_t>(index) >= m.stamp.size()) m.stamp.resize(st.blocks.size(), 0);
       if (m.stamp[index] == m.frame) continue;
       m.stamp[index] = m.frame;
@@ -247,7 +251,7 @@ std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrins
             const float iz = 1.f / pc.z();
             // +0.5 and truncation round to nearest for the in-image (non-negative) range.
             const float uf = fx * pc.x() * iz + cx + 0.5f, vf = fy * pc.y() * iz + cy + 0.5f;
-            if (uf < 0 || vf < 0 || uf >= w || vf >= h) continue;
+            if (!(uf >= 0 && vf >= 0 && uf < w && vf < h)) continue;  // NaN fails too
             const std::size_t pix = static_cast<std::size_t>(static_cast<int>(vf)) * w + static_cast<int>(uf);
             const float d = depth[pix];
             if (d <= 0) continue;

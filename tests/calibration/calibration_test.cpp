@@ -142,6 +142,7 @@ TEST(Response, BadInputIsAClearError) {
   EXPECT_THROW(FitResponse({images[0]}, {1}), InputError);
   EXPECT_THROW(FitResponse(images, {1}), InputError);
   EXPECT_THROW(FitResponse(images, {1, -2}), InputError);
+  EXPECT_THROW(FitResponse(images, {1, 1.05}), InputError);  // the same exposure: no bracket
   auto small = images;
   small[1].width = 10;
   EXPECT_THROW(FitResponse(small, {1, 2}), InputError);
@@ -232,6 +233,12 @@ TEST(Calibration, LinearizeUndoesResponseVignettingAndExposure) {
   EXPECT_LT(worst, 0.03);
   EXPECT_NE(c.Describe().find("calibrated"), std::string::npos);
   EXPECT_NE(Calibration{}.Describe().find("uncalibrated"), std::string::npos);
+  // Undistortion: pixels with no source are NaN (never used), not black.
+  Calibration d;
+  d.color = CameraModel{w, h, 40, 40, 31.5, 23.5, {0.4, 0.1, 0, 0, 0}};  // pincushion: corners from outside
+  const ImageRGB und = Linearize(ImageRgb8{w, h, std::vector<std::uint8_t>(static_cast<std::size_t>(w) * h * 3, 200)}, d);
+  EXPECT_TRUE(std::isnan(und.at(0, 0)[0])) << und.at(0, 0)[0];
+  EXPECT_NEAR(und.at(w / 2, h / 2)[0], SrgbToLinear(200 / 255.f), 1e-3);
   // Uncalibrated: sRGB decoding.
   const ImageRGB srgb = Linearize(ImageRgb8{1, 1, {128, 128, 128}}, Calibration{});
   EXPECT_NEAR(srgb.data[0], SrgbToLinear(128 / 255.f), 1e-3);
@@ -269,6 +276,7 @@ TEST(Calibration, FileRoundTripAndClearErrors) {
            {"version.json", R"({"format": "lightprobe-calibration", "version": 99})"},
            {"fx.json", R"({"format": "lightprobe-calibration", "version": 1, "camera": {"width": 640, "height": 480, "fx": -1, "fy": 500, "cx": 320, "cy": 240}})"},
            {"response.json", R"({"format": "lightprobe-calibration", "version": 1, "response": {"model": "mitsunaga-nayar", "coefficients": [[0, 0.5], [0, 1], [0, 1]]}})"},
+           {"vignetting.json", R"({"format": "lightprobe-calibration", "version": 1, "vignetting": {"model": "kim-pollefeys", "a": -2, "b": 0, "c": 0}})"},
        }) {
     try {
       ReadCalibration(write(name, text));

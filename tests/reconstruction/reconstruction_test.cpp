@@ -294,6 +294,26 @@ TEST(Reconstruction, BadInputIsAClearError) {
     f.depth.data.resize(10);
     EXPECT_THROW(rec.Process(f), InputError);
   }
+  {  // a given pose that is not a rigid transform
+    Reconstructor rec(ReconstructionOptions{});
+    RgbdFrame f = FlatFrame(64, 48, 1000);
+    Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+    T(0, 0) = 2;  // a scale, not a rotation
+    f.world_from_camera = T;
+    EXPECT_THROW(rec.Process(f), InputError);
+    T(0, 0) = std::nan("");
+    f.world_from_camera = T;
+    EXPECT_THROW(rec.Process(f), InputError);
+  }
+  {  // a flat wall fixes only 3 of the 6 pose directions: ICP says degenerate, not a guess
+    ReconstructionOptions o;
+    o.relocalize = false;
+    Reconstructor rec(o);
+    EXPECT_EQ(rec.Process(FlatFrame(64, 48, 1000)).state, TrackingState::kTracking);
+    const FrameReport r = rec.Process(FlatFrame(64, 48, 1000));
+    EXPECT_EQ(r.state, TrackingState::kLost);
+    EXPECT_NE(r.reason.find("degenerate"), std::string::npos) << r.reason;
+  }
   ReconstructionOptions bad;
   bad.tsdf.voxel = 0;
   EXPECT_THROW(Reconstructor{bad}, InputError);
