@@ -382,5 +382,37 @@ TEST(DemoRecording, RealTimePauseLosesNoFramesAndASlowReaderFindsTheEnd) {
   EXPECT_LT(n, *src->FrameCount() / 2) << "a slow real-time reader should have skipped frames";
 }
 
+// A viewer's seek bar on a real-time recording: seeking while paused lands on the frame
+// asked for, quickly (at manual speed), and stays paused until resumed.
+TEST(DemoRecording, RealTimeSeekWhilePausedLandsOnTheFrameAndStaysPaused) {
+  const std::string oni = (fs::path(LIGHTPROBE_SOURCE_DIR) / "assets" / "demo-recording" / "demo.oni").string();
+  std::vector<DepthImage> depth;  // every frame, read directly
+  {
+    auto src = OpenOniFile(oni);
+    RgbdFrame f;
+    while (src->Next(&f, 2.0) == SourceStatus::kFrame) depth.push_back(f.depth);
+  }
+  ASSERT_GT(depth.size(), 30u);
+  OniPlaybackOptions rt;
+  rt.real_time = true;
+  auto queue = std::make_shared<FrameQueue>(64);
+  CaptureThread t(OpenOniFile(oni, rt), queue);
+  t.Pause(true);
+  std::this_thread::sleep_for(std::chrono::milliseconds(200));
+  while (queue->Pop(0.01)) {
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  t.Seek(25);
+  std::this_thread::sleep_for(std::chrono::milliseconds(600));
+  EXPECT_FALSE(queue->Pop(0.01)) << "a paused thread delivered a frame after a seek";
+  EXPECT_TRUE(t.stats().paused);
+  t.Pause(false);
+  auto f = queue->Pop(5.0);
+  const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  ASSERT_TRUE(f);
+  EXPECT_EQ(f->depth.data, depth[25].data) << "the seek did not land on frame 25";
+  EXPECT_LT(waited, 2.0) << "seeking 25 frames took as long as playing them";
+}
+
 }  // namespace
 }  // namespace lp
