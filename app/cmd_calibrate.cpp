@@ -32,6 +32,12 @@ std::vector<ImageRgb8> ReadImages(const std::vector<std::string>& paths) {
   return images;
 }
 
+/// "COLSxROWS" into the board's inner corners.
+void ParseBoard(const std::string& board, const char* command, CheckerboardOptions* o) {
+  if (std::sscanf(board.c_str(), "%dx%d", &o->inner_columns, &o->inner_rows) != 2)
+    throw InputError(std::string(command) + ": --board must be COLSxROWS, e.g. 9x6");
+}
+
 void Save(const std::string& out, const Calibration& c) {
   WriteCalibration(out, c);
   std::printf("wrote %s (%s)\n", fs::absolute(out).lexically_normal().c_str(), c.Describe().c_str());
@@ -100,8 +106,7 @@ Run AddCalibrate(CLI::App& app) {
   return [=] {
     Calibration c = LoadOrNew(*out);
     if (geo->parsed()) {
-      if (std::sscanf(board->c_str(), "%dx%d", &go->inner_columns, &go->inner_rows) != 2)
-        throw InputError("calibrate geometry: --board must be COLSxROWS, e.g. 9x6");
+      ParseBoard(*board, "calibrate geometry", go.get());
       go->distortion = !*no_distortion;
       const GeometryFit fit = CalibrateGeometry(ReadImages(*geo_images), *go);
       const CameraModel& m = fit.camera;
@@ -148,8 +153,7 @@ Run AddCalibrate(CLI::App& app) {
       c.response = fit.response;
       Save(*out, c);
     } else if (ext->parsed()) {
-      if (std::sscanf(ext_board->c_str(), "%dx%d", &eo->inner_columns, &eo->inner_rows) != 2)
-        throw InputError("calibrate extrinsics: --board must be COLSxROWS, e.g. 9x6");
+      ParseBoard(*ext_board, "calibrate extrinsics", eo.get());
       auto src = OpenFrameSource(*ext_source);
       std::vector<DepthColorView> views;
       std::optional<CameraModel> camera = c.color;

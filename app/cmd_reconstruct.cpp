@@ -157,13 +157,9 @@ Run AddReconstruct(CLI::App& app) {
                 rec.volume().BlockCount(), rec.volume().MemoryBytes() / 1048576.0, bundle.mesh.positions.size(),
                 bundle.mesh.triangles.size(), bundle.up.x(), bundle.up.y(), bundle.up.z(), bundle.views.size(),
                 finish_s);
-    if (!truth.empty()) {
-      double sum2 = 0;
-      for (std::size_t i = 0; i < truth.size(); ++i)
-        sum2 += (estimated[i].block<3, 1>(0, 3) - truth[i].block<3, 1>(0, 3)).squaredNorm();
+    if (!truth.empty())
       std::printf("trajectory error against the given poses: %.1f mm RMS over %zu frames\n",
-                  1e3 * std::sqrt(sum2 / truth.size()), truth.size());
-    }
+                  1e3 * PositionRmse(estimated, truth), truth.size());
     std::printf("wrote %s\n", fs::absolute(*out).lexically_normal().c_str());
   };
 }

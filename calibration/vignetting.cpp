@@ -16,6 +16,18 @@ double Radius(double x, double y, int w, int h, double cx, double cy) {
   return std::hypot(x - cx, y - cy) / half_diag;
 }
 
+/// argmin |A x - b| for A's rows and b.
+template <int N>
+Eigen::Matrix<double, N, 1> LeastSquares(const std::vector<Eigen::Matrix<double, N, 1>>& rows, const std::vector<double>& rhs) {
+  Eigen::MatrixXd A(rows.size(), N);
+  Eigen::VectorXd b(rows.size());
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    A.row(static_cast<Eigen::Index>(i)) = rows[i].transpose();
+    b[static_cast<Eigen::Index>(i)] = rhs[i];
+  }
+  return A.colPivHouseholderQr().solve(b);
+}
+
 }  // namespace
 
 double Vignetting::At(double x, double y, int w, int h) const {
@@ -62,13 +74,7 @@ Vignetting FitVignettingFlatField(const std::vector<ImageRGB>& images) {
       rhs.push_back(sum / n);
     }
   if (rows.size() < 10) throw InputError("vignetting: too few usable pixels in the flat-field images");
-  Eigen::MatrixXd A(rows.size(), 4);
-  Eigen::VectorXd b(rows.size());
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    A.row(static_cast<Eigen::Index>(i)) = rows[i].transpose();
-    b[static_cast<Eigen::Index>(i)] = rhs[i];
-  }
-  const Eigen::Vector4d x = A.colPivHouseholderQr().solve(b);
+  const Eigen::Vector4d x = LeastSquares(rows, rhs);
   if (!(x[0] > 0)) throw InputError("vignetting: the flat-field images are not usable (no positive level)");
   Vignetting v;
   v.a = x[1] / x[0];
@@ -95,13 +101,7 @@ Vignetting FitVignettingPairs(const std::vector<VignettingPair>& pairs) {
   }
   if (rows.size() < 20) throw InputError("vignetting: too few surface points seen twice (" + std::to_string(rows.size()) + ")");
   if (spread < 0.1) throw InputError("vignetting: the points are seen at nearly the same radius; V cannot be told apart");
-  Eigen::MatrixXd A(rows.size(), 3);
-  Eigen::VectorXd b(rows.size());
-  for (std::size_t i = 0; i < rows.size(); ++i) {
-    A.row(static_cast<Eigen::Index>(i)) = rows[i].transpose();
-    b[static_cast<Eigen::Index>(i)] = rhs[i];
-  }
-  const Eigen::Vector3d L = A.colPivHouseholderQr().solve(b);
+  const Eigen::Vector3d L = LeastSquares(rows, rhs);
   Eigen::MatrixXd P(101, 3);
   Eigen::VectorXd q(101);
   for (int k = 0; k <= 100; ++k) {

@@ -322,6 +322,14 @@ std::vector<Eigen::Matrix4d> ReadPoseTxt(const fs::path& path) {
   return poses;
 }
 
+double PositionRmse(const std::vector<Eigen::Matrix4d>& estimated, const std::vector<Eigen::Matrix4d>& truth) {
+  if (estimated.empty() || estimated.size() != truth.size()) return std::nan("");
+  double sum2 = 0;
+  for (std::size_t i = 0; i < truth.size(); ++i)
+    sum2 += (estimated[i].block<3, 1>(0, 3) - truth[i].block<3, 1>(0, 3)).squaredNorm();
+  return std::sqrt(sum2 / truth.size());
+}
+
 std::string FormatTrajectoryLog(const std::vector<Eigen::Matrix4d>& poses) {
   std::string out;
   char row[160];

@@ -508,15 +508,14 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
   /// Reopens and skips to `frame` at manual speed (OpenNI2's own seek crashes), then plays
   /// on at the chosen speed.
   void Seek(std::int64_t frame) override {
-    if (frame < 0 || frame >= count_)
-      throw InputError(path_, "cannot seek to frame " + std::to_string(frame) + " (it has " + std::to_string(count_) + ")");
-    CloseDevice();
-    Open();
-    device_.getPlaybackControl()->setSpeed(-1.0f);
-    RgbdFrame f;
-    for (std::int64_t k = 0; k < frame; ++k)
-      if (Next(&f, 5.0) != SourceStatus::kFrame)
-        throw InputError(path_, "seek to frame " + std::to_string(frame) + " ran past the end");
+    seeking_ = true;  // Open() (through Rewind) plays at manual speed meanwhile
+    try {
+      FrameSource::Seek(frame);
+    } catch (...) {
+      seeking_ = false;
+      throw;
+    }
+    seeking_ = false;
     device_.getPlaybackControl()->setSpeed(options_.real_time ? 1.0f : -1.0f);
   }
 
@@ -532,7 +531,7 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
       throw InputError(path_, "OpenNI2 cannot open it: " + OpenNiError());
     openni::PlaybackControl* pc = device_.getPlaybackControl();
     if (!pc) throw InputError(path_, "not a recording");
-    pc->setSpeed(options_.real_time ? 1.0f : -1.0f);  // -1: manual, one frame per read, none lost
+    pc->setSpeed(options_.real_time && !seeking_ ? 1.0f : -1.0f);  // -1: manual, one frame per read, none lost
     pc->setRepeatEnabled(false);
     if (depth_.create(device_, openni::SENSOR_DEPTH) != openni::STATUS_OK ||
         color_.create(device_, openni::SENSOR_COLOR) != openni::STATUS_OK)
@@ -571,6 +570,7 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
   std::string path_;
   OniPlaybackOptions options_;
   std::optional<bool> side_registered_;
+  bool seeking_ = false;
   double side_exposure_ = 0, side_gain_ = 0;
   int depth_count_ = 0, color_count_ = 0, depth_read_ = 0, color_read_ = 0;
   std::int64_t count_ = 0, produced_ = 0;

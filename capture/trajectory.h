@@ -19,6 +19,10 @@ std::string FormatTrajectoryLog(const std::vector<Eigen::Matrix4d>& poses);
 /// A trajectory file by its name: `*.log` as trajectory.log, `*.txt` as pose.txt.
 std::vector<Eigen::Matrix4d> ReadTrajectory(const std::filesystem::path& path);
 
+/// RMS distance between the camera positions of two trajectories of equal length (the
+/// absolute trajectory error when both are in one world frame), metres.
+double PositionRmse(const std::vector<Eigen::Matrix4d>& estimated, const std::vector<Eigen::Matrix4d>& truth);
+
 /// slambook's `pose.txt`: "tx ty tz qx qy qz qw" per line (world_from_camera).
 std::vector<Eigen::Matrix4d> ReadPoseTxt(const std::filesystem::path& path);
 

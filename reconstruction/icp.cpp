@@ -100,6 +100,10 @@ Eigen::Matrix4d Exp(const Eigen::Matrix<double, 6, 1>& xi) {
 
 }  // namespace
 
+double RotationAngle(const Eigen::Matrix4d& t) {
+  return std::acos(std::clamp((t.block<3, 3>(0, 0).trace() - 1) / 2, -1.0, 1.0));
+}
+
 ModelMaps MakeModelMaps(const Intrinsics& k, const std::vector<Eigen::Vector3f>& vertex,
                         const std::vector<Eigen::Vector3f>& normal, const Eigen::Matrix4d& world_from_camera,
                         int levels, int first_level) {
@@ -179,8 +183,7 @@ TrackResult TrackFrameToModel(const std::vector<DepthLevel>& frame, const ModelM
   res.inlier_ratio = last.overlap > 0 ? static_cast<double>(last.inliers) / last.overlap : 0;
   res.rmse = last.inliers > 0 ? std::sqrt(last.sq / last.inliers) : 0;
   const Eigen::Matrix4d step = initial.inverse() * pose;
-  const double rot_deg =
-      std::acos(std::clamp((step.block<3, 3>(0, 0).trace() - 1) / 2, -1.0, 1.0)) * 180 / kPi;
+  const double rot_deg = RotationAngle(step) * 180 / kPi;
   if (res.overlap < o.min_overlap) res.reason = "the frame hardly overlaps the model";
   else if (res.inlier_ratio < o.min_inlier_ratio) res.reason = "too few points match the model";
   else if (res.rmse > o.max_rmse) res.reason = "the frame does not fit the model (large residual)";

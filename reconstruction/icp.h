@@ -33,6 +33,9 @@ struct ModelMaps {
   Eigen::Matrix4d world_from_camera = Eigen::Matrix4d::Identity();
 };
 
+/// The rotation angle of a rigid transform's rotation part, radians.
+double RotationAngle(const Eigen::Matrix4d& transform);
+
 /// Model maps for `levels` pyramid levels from a raycast (world frame) made at pyramid
 /// level `first_level` of the frame (0 = full size, 1 = half): levels up to first_level
 /// share the raycast, coarser ones take every second pixel of the one before.

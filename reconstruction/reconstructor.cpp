@@ -39,8 +39,7 @@ bool GoodIntrinsics(const Intrinsics& k) {
 /// Distance between two camera poses for keyframe spreading: metres plus 0.5 m per radian.
 double PoseDistance(const Eigen::Matrix4d& a, const Eigen::Matrix4d& b) {
   const Eigen::Matrix4d d = a.inverse() * b;
-  const double angle = std::acos(std::clamp((d.block<3, 3>(0, 0).trace() - 1) / 2, -1.0, 1.0));
-  return d.block<3, 1>(0, 3).norm() + 0.5 * angle;
+  return d.block<3, 1>(0, 3).norm() + 0.5 * RotationAngle(d);
 }
 
 /// Averages a view down by `f` x `f` blocks (linear radiance: the mean is what a camera
@@ -140,21 +139,24 @@ struct Reconstructor::Impl {
 
   explicit Impl(const ReconstructionOptions& opt) : o(opt), volume(opt.tsdf), relocalizer(opt.relocalizer) {}
 
-  /// The model as a camera at `pose` sees it, for tracking.
-  ModelMaps ModelFrom(const Intrinsics& depth_k, const Eigen::Matrix4d& pose) const {
+  /// The model as a camera at `pose` sees it, for tracking (raycast at model_level);
+  /// `hint` bounds the search (TsdfVolume::Raycast), `raycast` receives the maps if asked.
+  ModelMaps ModelFrom(const Intrinsics& depth_k, const Eigen::Matrix4d& pose, const TsdfVolume::Maps* hint = nullptr,
+                      TsdfVolume::Maps* raycast = nullptr) const {
     TsdfVolume::Maps maps;
     const int level = std::clamp(o.model_level, 0, std::max(0, o.preprocess.levels - 1));
     const Intrinsics k = ScaleIntrinsics(depth_k, level);
-    volume.Raycast(k, pose, &maps);
-    return MakeModelMaps(k, maps.vertex, maps.normal, pose, o.preprocess.levels, level);
+    volume.Raycast(k, pose, &maps, false, hint);
+    ModelMaps model_maps = MakeModelMaps(k, maps.vertex, maps.normal, pose, o.preprocess.levels, level);
+    if (raycast) *raycast = std::move(maps);
+    return model_maps;
   }
 
   /// Keeps a tracked frame's features when the camera moved on from the last one kept.
   void MaybeRemember(const RgbdFrame& f, const Eigen::Matrix4d& pose, bool force) {
     if (!o.relocalize) return;
     const Eigen::Matrix4d d = remembered.inverse() * pose;
-    const double angle = std::acos(std::clamp((d.block<3, 3>(0, 0).trace() - 1) / 2, -1.0, 1.0));
-    if (!force && !relocalizer.empty() && d.block<3, 1>(0, 3).norm() < 0.1 && angle < 0.17) return;
+    if (!force && !relocalizer.empty() && d.block<3, 1>(0, 3).norm() < 0.1 && RotationAngle(d) < 0.17) return;
     relocalizer.Remember(f, pose);
     remembered = pose;
   }
@@ -201,17 +203,13 @@ struct Reconstructor::Impl {
                                          ColorK(f), world_from_camera, extrinsics);
     r->times.fuse = Since(t0);
     t0 = Clock::now();
-    TsdfVolume::Maps maps;
-    const int level = std::clamp(o.model_level, 0, std::max(0, o.preprocess.levels - 1));
-    const Intrinsics k = ScaleIntrinsics(f.depth_intrinsics, level);
     // The last raycast bounds the search only when the camera moved less than its margin
     // since (it searches +-(truncation + 5 cm) around the depths it found).
     const Eigen::Matrix4d moved = last_maps_pose.inverse() * world_from_camera;
-    const double turned = std::acos(std::clamp((moved.block<3, 3>(0, 0).trace() - 1) / 2, -1.0, 1.0));
     const bool hint = !last_maps.depth.empty() && moved.block<3, 1>(0, 3).norm() < 0.5 * (o.tsdf.truncation + 0.05) &&
-                      turned < 0.05;
-    volume.Raycast(k, world_from_camera, &maps, false, hint ? &last_maps : nullptr);
-    model = MakeModelMaps(k, maps.vertex, maps.normal, world_from_camera, o.preprocess.levels, level);
+                      RotationAngle(moved) < 0.05;
+    TsdfVolume::Maps maps;
+    model = ModelFrom(f.depth_intrinsics, world_from_camera, hint ? &last_maps : nullptr, &maps);
     last_maps = std::move(maps);
     last_maps_pose = world_from_camera;
     r->times.raycast = Since(t0);

@@ -9,6 +9,7 @@
 
 #include "capture/frame_source.h"
 #include "capture/synth_source.h"
+#include "capture/trajectory.h"
 #include "common/error.h"
 #include "common/rng.h"
 #include "estimation/synth.h"
@@ -138,6 +139,34 @@ std::vector<Eigen::Vector3f> SampleSurface(const Mesh& m, double spacing) {
 
 // The synthetic room corner (boxes and a sphere, ~3.5 m away) with Xtion-like depth noise
 // (sigma ~2 cm at that range) and holes, tracked along its true 40-degree arc.
+struct Tracked {
+  int frames = 0, tracked = 0;
+  double ate = 0;  ///< metres, against the frames' own poses
+};
+
+/// Runs `frames` (each with its true pose) through `rec`.
+Tracked Track(Reconstructor& rec, const std::vector<RgbdFrame>& frames) {
+  Tracked t;
+  std::vector<Eigen::Matrix4d> estimated, truth;
+  for (const RgbdFrame& f : frames) {
+    const FrameReport r = rec.Process(f);
+    t.tracked += r.state == TrackingState::kTracking;
+    estimated.push_back(r.world_from_camera);
+    truth.push_back(*f.world_from_camera);
+  }
+  t.frames = static_cast<int>(frames.size());
+  t.ate = PositionRmse(estimated, truth);
+  return t;
+}
+
+std::vector<RgbdFrame> ReadFrames(const fs::path& dir) {
+  auto src = OpenDirectorySource(dir.string());
+  std::vector<RgbdFrame> frames;
+  RgbdFrame f;
+  while (src->Next(&f) == SourceStatus::kFrame) frames.push_back(f);
+  return frames;
+}
+
 class SyntheticRoom : public ::testing::TestWithParam<int> {};
 
 TEST_P(SyntheticRoom, TrackedAlongItsTrueTrajectory) {
@@ -150,14 +179,9 @@ TEST_P(SyntheticRoom, TrackedAlongItsTrueTrajectory) {
   ReconstructionOptions o;
   o.fuse_every = GetParam();
   Reconstructor rec(o);
-  double sum2 = 0;
-  int tracked = 0;
-  for (const RgbdFrame& f : frames) {
-    const FrameReport r = rec.Process(f);
-    tracked += r.state == TrackingState::kTracking;
-    sum2 += (r.world_from_camera.block<3, 1>(0, 3) - f.world_from_camera->block<3, 1>(0, 3)).squaredNorm();
-  }
-  const double ate = std::sqrt(sum2 / frames.size());
+  const Tracked run = Track(rec, frames);
+  const int tracked = run.tracked;
+  const double ate = run.ate;
   const SceneBundle b = rec.Finish();
   // Accuracy: reconstructed surface to the true one; completeness: true surface seen in
   // the first frame to the reconstruction.
@@ -210,18 +234,10 @@ INSTANTIATE_TEST_SUITE_P(FuseEvery, SyntheticRoom, ::testing::Values(1, 2));
 TEST(Reconstruction, RedwoodFramesAgainstTheirTrajectory) {
   const fs::path dir = kData / "rgbd" / "redwood_open3d" / "RGBD";
   if (!fs::exists(dir)) GTEST_SKIP() << "shared data not present";
-  auto src = OpenDirectorySource(dir.string());
   Reconstructor rec(ReconstructionOptions{});
-  RgbdFrame f;
-  double sum2 = 0;
-  int n = 0, tracked = 0;
-  while (src->Next(&f) == SourceStatus::kFrame) {
-    const FrameReport r = rec.Process(f);
-    tracked += r.state == TrackingState::kTracking;
-    sum2 += (r.world_from_camera.block<3, 1>(0, 3) - f.world_from_camera->block<3, 1>(0, 3)).squaredNorm();
-    ++n;
-  }
-  const double ate = std::sqrt(sum2 / n);
+  const Tracked run = Track(rec, ReadFrames(dir));
+  const int tracked = run.tracked, n = run.frames;
+  const double ate = run.ate;
   std::printf("Redwood: %d/%d tracked, ATE %.1f mm\n", tracked, n, 1e3 * ate);
   EXPECT_EQ(tracked, n);
   EXPECT_LT(ate, 0.01);
@@ -234,21 +250,14 @@ TEST(Reconstruction, RedwoodFramesAgainstTheirTrajectory) {
 TEST(Reconstruction, JoinMapLargeMotionsTrackedWithRelocalization) {
   const fs::path dir = kData / "rgbd" / "joinmap_slambook";
   if (!fs::exists(dir)) GTEST_SKIP() << "shared data not present";
+  const std::vector<RgbdFrame> frames = ReadFrames(dir);
   for (bool relocalize : {false, true}) {
-    auto src = OpenDirectorySource(dir.string());
     ReconstructionOptions o;
     o.relocalize = relocalize;
     Reconstructor rec(o);
-    RgbdFrame f;
-    double sum2 = 0;
-    int n = 0, tracked = 0;
-    while (src->Next(&f) == SourceStatus::kFrame) {
-      const FrameReport r = rec.Process(f);
-      tracked += r.state == TrackingState::kTracking;
-      sum2 += (r.world_from_camera.block<3, 1>(0, 3) - f.world_from_camera->block<3, 1>(0, 3)).squaredNorm();
-      ++n;
-    }
-    const double ate = std::sqrt(sum2 / n);
+    const Tracked run = Track(rec, frames);
+    const int tracked = run.tracked, n = run.frames;
+    const double ate = run.ate;
     std::printf("joinMap, relocalization %s: %d/%d tracked, ATE %.1f mm\n", relocalize ? "on" : "off", tracked, n,
                 1e3 * ate);
     if (!relocalize) {
