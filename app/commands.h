@@ -10,6 +10,7 @@
 #include "common/error.h"
 #include "estimation/estimator.h"
 #include "estimation/path_tracer.h"
+#include "ui/viewer.h"
 
 namespace lp::app {
 
@@ -25,6 +26,11 @@ Run AddRecord(CLI::App& app);
 Run AddReplay(CLI::App& app);
 Run AddReconstruct(CLI::App& app);
 Run AddCalibrate(CLI::App& app);
+Run AddView(CLI::App& app);
+
+/// The window's defaults: the bundled demo recording (LIGHTPROBE_DEMO overrides it) and
+/// the estimate writer for Export.
+ui::ViewerOptions DefaultViewerOptions();
 
 /// `lightprobe --headless INPUT --out DIR ...` (args without the program name).
 int RunHeadless(const std::vector<std::string>& args);

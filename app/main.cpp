@@ -1,5 +1,6 @@
 // lightprobe: an RGB-D camera as a light meter. Entry point: subcommands and the
 // one place where errors become one clear line and an exit code.
+#include <algorithm>
 #include <cstdio>
 #include <iostream>
 #include <map>
@@ -24,27 +25,25 @@ int main(int argc, char** argv) {
       return 4;
     }
   }
-  if (args.empty()) {
-    std::fprintf(stderr,
-                 "lightprobe: the viewer is not built yet; run the whole pipeline without a window with\n"
-                 "  lightprobe --headless INPUT --out DIR   (e.g. INPUT = assets/demo-recording/demo.oni)\n"
-                 "or a subcommand (lightprobe --help)\n");
-    return 2;
-  }
   CLI::App app{"lightprobe: estimate a scene's illumination from RGB-D captures"};
+  app.name("lightprobe");
   app.require_subcommand(1);
   app.set_version_flag("--version", "lightprobe 0.1.0");
   std::map<std::string, lp::app::Run> runs;
   for (auto add : {&lp::app::AddEstimate, &lp::app::AddRender, &lp::app::AddSynth, &lp::app::AddBench,
                    &lp::app::AddBenchReport, &lp::app::AddDevices,
-                   &lp::app::AddRecord, &lp::app::AddReplay, &lp::app::AddReconstruct, &lp::app::AddCalibrate}) {
+                   &lp::app::AddRecord, &lp::app::AddReplay, &lp::app::AddReconstruct, &lp::app::AddCalibrate,
+                   &lp::app::AddView}) {
     const std::size_t before = app.get_subcommands([](CLI::App*) { return true; }).size();
     lp::app::Run r = add(app);
     const auto subs = app.get_subcommands([](CLI::App*) { return true; });
     if (subs.size() == before + 1) runs[subs.back()->get_name()] = r;
   }
   try {
-    app.parse(argc, argv);
+    // No arguments: the window (an attached camera, else the bundled demo recording).
+    std::vector<std::string> reversed = args.empty() ? std::vector<std::string>{"view"} : args;
+    std::reverse(reversed.begin(), reversed.end());  // CLI11 takes them reversed
+    app.parse(reversed);
   } catch (const CLI::ParseError& e) {
     return app.exit(e);
   }

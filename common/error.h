@@ -15,6 +15,12 @@ class InputError : public std::runtime_error {
       : std::runtime_error(file + ": " + problem) {}
 };
 
+/// Work stopped on request (a Cancel button, a closing window): not an error.
+class Cancelled : public std::runtime_error {
+ public:
+  Cancelled() : std::runtime_error("cancelled") {}
+};
+
 [[noreturn]] void CheckFailed(const char* expr, const char* file, int line, const std::string& msg);
 
 }  // namespace lp

@@ -34,6 +34,9 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
   auto progress = [&](const std::string& s) {
     if (opt.progress) opt.progress(s);
   };
+  auto check_cancel = [&] {
+    if (opt.cancelled && opt.cancelled()) throw Cancelled();
+  };
   if (opt.rings < 2 || opt.rings > 181) throw InputError("--rings must be between 2 and 181");
   if (opt.max_rounds < 1) throw InputError("--max-rounds must be at least 1");
   EstimateResult res;
@@ -71,6 +74,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
   std::vector<std::uint8_t> reachable(L, 1);
   TransportMatrix A;
   for (int round = 1; round <= opt.max_rounds; ++round) {
+    check_cancel();
     RoundInfo info;
     info.round = round;
     Stopwatch ts;
@@ -119,7 +123,9 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
       row.photometric_rmse = row.relative_rmse * mean;
       if (!truth.empty()) row.angular_error_deg = DominantAngularErrorDeg(env, scatter(*it.lambda), truth);
       res.convergence.push_back(row);
+      if (opt.on_convergence) opt.on_convergence(row);
       if (opt.solver_options.on_iteration) opt.solver_options.on_iteration(it);
+      check_cancel();
     };
     Stopwatch ss;
     SolveResult sr = Solve(opt.solver, objective, init, so);
@@ -155,6 +161,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
     info.end_seconds = now();
     res.kkt_violation = sr.kkt_violation;
     res.rounds.push_back(info);
+    if (opt.on_round) opt.on_round(info, env);
     progress("round " + std::to_string(round) + ": " + ToString(opt.solver) + " solver, " +
              Fmt("%.0f iterations in %.2f s, objective %.6g, change %.3g", sr.iterations, info.solve_seconds,
                  sr.objective, info.change) +
@@ -173,6 +180,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
   res.dominant = DominantDirections(env, res.lambda, 2);
 
   if (opt.render) {
+    check_cancel();
     Stopwatch rs;
     TracerOptions topt = opt.tracer;
     topt.seed = opt.tracer.seed * 1000003ull + 999;

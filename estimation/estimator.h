@@ -21,6 +21,9 @@ constexpr double kAlphaReferencePixels = 19200;
 /// solid angle Omega_j is penalized with alpha * Omega_j / kAlphaReferenceSolidAngle.
 constexpr double kAlphaReferenceSolidAngle = 4 * 3.14159265358979323846 / 522;
 
+struct ConvergenceRow;
+struct RoundInfo;
+
 struct EstimateOptions {
   int rings = 21;
   TracerOptions tracer;
@@ -40,6 +43,13 @@ struct EstimateOptions {
   double time_offset = 0;
   /// Progress lines ("round 2: traced 19200 pixels in 0.6 s ...").
   std::function<void(const std::string&)> progress;
+  /// Polled before each round, between the views of a trace and after every solver
+  /// iteration; when it returns true Estimate throws Cancelled (a viewer's Cancel button).
+  std::function<bool()> cancelled;
+  /// Called on the estimating thread with every convergence row as it is logged, and
+  /// with every finished round (its estimate so far): a live plot and map.
+  std::function<void(const ConvergenceRow&)> on_convergence;
+  std::function<void(const RoundInfo&, const EnvMap&)> on_round;
 };
 
 /// One row of convergence.csv.

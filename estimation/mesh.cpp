@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <queue>
 
 #include "common/error.h"
 #include "estimation/mesh.h"
@@ -15,6 +16,38 @@ void Mesh::Append(const Mesh& other) {
   if (normals_ok) normals.insert(normals.end(), other.normals.begin(), other.normals.end());
   else normals.clear();
   for (const auto& t : other.triangles) triangles.push_back(t + Eigen::Vector3i::Constant(offset));
+}
+
+Mesh RefineMesh(const Mesh& mesh, int min_triangles) {
+  Mesh out = mesh;
+  const bool normals = out.normals.size() == out.positions.size();
+  const bool albedo = out.albedo.size() == out.positions.size();
+  auto area = [&](const Eigen::Vector3i& t) {
+    return (out.positions[t[1]] - out.positions[t[0]]).cross(out.positions[t[2]] - out.positions[t[0]]).norm();
+  };
+  std::priority_queue<std::pair<float, int>> largest;
+  for (int i = 0; i < static_cast<int>(out.triangles.size()); ++i) largest.push({area(out.triangles[i]), i});
+  while (static_cast<int>(out.triangles.size()) < min_triangles && !largest.empty()) {
+    const int i = largest.top().second;
+    largest.pop();
+    const Eigen::Vector3i t = out.triangles[i];
+    int e = 0;  // longest edge (t[e], t[e+1])
+    float best = -1;
+    for (int k = 0; k < 3; ++k) {
+      const float len = (out.positions[t[(k + 1) % 3]] - out.positions[t[k]]).squaredNorm();
+      if (len > best) best = len, e = k;
+    }
+    const int a = t[e], b = t[(e + 1) % 3], c = t[(e + 2) % 3];
+    const int m = static_cast<int>(out.positions.size());
+    out.positions.push_back(0.5f * (out.positions[a] + out.positions[b]));
+    if (normals) out.normals.push_back((out.normals[a] + out.normals[b]).normalized());
+    if (albedo) out.albedo.push_back(0.5f * (out.albedo[a] + out.albedo[b]));
+    out.triangles[i] = Eigen::Vector3i(a, m, c);
+    out.triangles.push_back(Eigen::Vector3i(m, b, c));
+    largest.push({area(out.triangles[i]), i});
+    largest.push({area(out.triangles.back()), static_cast<int>(out.triangles.size()) - 1});
+  }
+  return out;
 }
 
 void ComputeVertexNormals(Mesh* mesh) {

@@ -43,6 +43,12 @@ void ComputeVertexNormals(Mesh* mesh);
 /// if nothing usable remains.
 int SanitizeMesh(Mesh* mesh, const std::string& name);
 
+/// The same surface with at least `min_triangles` triangles: the largest triangle is split
+/// at the midpoint of its longest edge until there are enough (normals and albedo
+/// interpolated; the neighbour is not split, so the new vertex is a T-junction on a
+/// surface that does not change). For scaling tests and benchmarks.
+Mesh RefineMesh(const Mesh& mesh, int min_triangles);
+
 /// Axis-aligned bounds of the vertices used by triangles.
 void MeshBounds(const Mesh& mesh, Eigen::Vector3f* lo, Eigen::Vector3f* hi);
 

@@ -1,0 +1,95 @@
+#include "estimation/vertex_radiance.h"
+
+#include <cmath>
+
+#include "common/error.h"
+#include "common/parallel.h"
+#include "common/rng.h"
+#include "estimation/sampling.h"
+
+namespace lp {
+
+VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, std::vector<double> lambda, int bounces,
+                               std::uint64_t seed)
+    : scene_(scene), env_(env), lambda_(std::move(lambda)), bounces_(bounces), seed_(seed) {
+  LP_CHECK(static_cast<int>(lambda_.size()) == 3 * env.size(), "lambda has " << lambda_.size() << " values for "
+                                                                               << env.size() << " cells");
+  LP_CHECK(bounces >= 1, "bounces " << bounces);
+  sum_.assign(scene.mesh().positions.size(), Eigen::Vector3d::Zero());
+}
+
+void VertexRadiance::Refine(int samples) {
+  const Mesh& mesh = scene_.mesh();
+  const int first = samples_;
+  ParallelForChunks(0, mesh.positions.size(), 256, [&](std::size_t b, std::size_t e) {
+    for (std::size_t v = b; v < e; ++v) {
+      if (v >= mesh.normals.size()) continue;
+      const Eigen::Vector3d n0 = mesh.normals[v].cast<double>();
+      if (!(n0.squaredNorm() > 0.5)) continue;
+      for (int s = first; s < first + samples; ++s) {
+        Rng rng(seed_, v, static_cast<std::uint64_t>(s));
+        Eigen::Vector3d origin = mesh.positions[v].cast<double>() + n0 * scene_.epsilon();
+        Eigen::Vector3d n = n0, throughput = Eigen::Vector3d::Ones();
+        for (int bounce = 0; bounce < bounces_; ++bounce) {
+          const double u1 = rng.Uniform(), u2 = rng.Uniform();
+          const Eigen::Vector3d dir = SampleCosine(n, u1, u2);
+          SurfacePoint hit;
+          if (!scene_.Intersect(origin, dir, &hit)) {
+            const int j = env_.Lookup(dir);
+            sum_[v] += throughput.cwiseProduct(Eigen::Vector3d(lambda_[3 * j], lambda_[3 * j + 1], lambda_[3 * j + 2]));
+            break;
+          }
+          // Cosine sampling cancels cos/pi against the Lambertian albedo/pi: the weight is the albedo.
+          throughput = throughput.cwiseProduct(hit.albedo);
+          if (throughput.maxCoeff() < 1e-4) break;
+          n = hit.shading;
+          origin = hit.position + hit.geometric * scene_.epsilon();
+        }
+      }
+    }
+  });
+  samples_ += samples;
+}
+
+std::vector<Eigen::Vector3f> VertexRadiance::Radiance() const {
+  const Mesh& mesh = scene_.mesh();
+  std::vector<Eigen::Vector3f> out(sum_.size(), Eigen::Vector3f::Zero());
+  if (samples_ == 0) return out;
+  for (std::size_t v = 0; v < out.size(); ++v)
+    out[v] = (mesh.albedo[v].cast<double>().cwiseProduct(sum_[v]) / samples_).cast<float>();
+  return out;
+}
+
+std::vector<float> VertexPhotometricError(const RayTracer& scene, const std::vector<View>& views,
+                                          const std::vector<Eigen::Vector3f>& radiance, double scale) {
+  const Mesh& mesh = scene.mesh();
+  LP_CHECK(radiance.size() == mesh.positions.size(), "radiance per vertex: " << radiance.size());
+  std::vector<float> error(radiance.size(), std::nanf(""));
+  ParallelForChunks(0, mesh.positions.size(), 256, [&](std::size_t b, std::size_t e) {
+    for (std::size_t v = b; v < e; ++v) {
+      const Eigen::Vector3d p = mesh.positions[v].cast<double>();
+      double best = 1e300;
+      for (const View& view : views) {
+        const Camera& cam = view.camera;
+        double u, w;
+        if (!cam.Project(p, &u, &w)) continue;
+        const int x = static_cast<int>(std::lround(u)), y = static_cast<int>(std::lround(w));
+        if (x < 0 || y < 0 || x >= cam.width || y >= cam.height) continue;
+        const std::size_t i = static_cast<std::size_t>(y) * cam.width + x;
+        if (!view.valid[i]) continue;
+        const Eigen::Vector3d to = p - cam.center();
+        const double dist = to.norm();
+        if (!(dist > 0) || dist >= best) continue;
+        SurfacePoint hit;
+        if (scene.Intersect(cam.center(), to / dist, &hit) && hit.distance < 0.98 * dist) continue;
+        best = dist;
+        double err = 0;
+        for (int c = 0; c < 3; ++c) err += std::abs(radiance[v][c] - view.image.data[3 * i + c]);
+        error[v] = static_cast<float>(err / 3 / scale);
+      }
+    }
+  });
+  return error;
+}
+
+}  // namespace lp

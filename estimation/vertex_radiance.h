@@ -1,0 +1,48 @@
+#pragma once
+/// Outgoing radiance of every mesh vertex under an environment map, refined progressively:
+/// what the viewer's "lit" shading shows. Each Refine() adds samples per vertex of a
+/// cosine-weighted path (up to `bounces` surface interactions, Lambertian albedo) and
+/// averages them with the earlier ones, so the picture sharpens while the user looks.
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "estimation/envmap.h"
+#include "estimation/ray_tracer.h"
+#include "estimation/scene_bundle.h"
+
+namespace lp {
+
+class VertexRadiance {
+ public:
+  /// `lambda`: 3 * env.size() linear radiances (the estimate); `bounces` >= 1 (1 = direct
+  /// light only). `scene` must outlive this object and be built from the mesh whose
+  /// vertices are shaded (its normals orient the hemispheres).
+  VertexRadiance(const RayTracer& scene, const EnvMap& env, std::vector<double> lambda, int bounces = 3,
+                 std::uint64_t seed = 1);
+
+  /// Adds `samples` paths per vertex (parallel over vertices; deterministic per seed).
+  void Refine(int samples);
+  /// Mean outgoing radiance per vertex (linear RGB, the estimate's units): albedo times the
+  /// mean incident radiance over the cosine-weighted hemisphere.
+  std::vector<Eigen::Vector3f> Radiance() const;
+  int samples() const { return samples_; }
+
+ private:
+  const RayTracer& scene_;
+  const EnvMap& env_;
+  std::vector<double> lambda_;
+  int bounces_;
+  std::uint64_t seed_;
+  int samples_ = 0;
+  std::vector<Eigen::Vector3d> sum_;  ///< per vertex, incident radiance summed over samples
+};
+
+/// Per vertex: |radiance - observed| (mean over RGB) / `scale` against the nearest view
+/// that sees the vertex (inside its image, a valid pixel, not occluded: the first hit
+/// from its camera lies within 2 % of the distance); NaN where no view sees it.
+std::vector<float> VertexPhotometricError(const RayTracer& scene, const std::vector<View>& views,
+                                          const std::vector<Eigen::Vector3f>& radiance, double scale);
+
+}  // namespace lp

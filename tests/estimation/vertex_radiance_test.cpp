@@ -1,0 +1,108 @@
+// The viewer's lit shading (VertexRadiance) against closed forms, and RefineMesh.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "estimation/vertex_radiance.h"
+#include "tests/test_util.h"
+
+namespace lp {
+namespace {
+
+TEST(VertexRadiance, UniformSkyOverAPlaneGivesAlbedoTimesRadiance) {
+  // An open plane sees only the sky: L_o = rho/pi * (pi * L) = rho * L, per channel.
+  const RayTracer scene(test::Plane(2.0, 0.6));
+  const EnvMap env(11, Eigen::Vector3d::UnitZ());
+  std::vector<double> lambda;
+  for (int j = 0; j < env.size(); ++j) lambda.insert(lambda.end(), {1.0, 2.0, 0.5});
+  VertexRadiance vr(scene, env, lambda, 3);
+  vr.Refine(64);
+  ASSERT_EQ(vr.samples(), 64);
+  for (const Eigen::Vector3f& l : vr.Radiance()) {
+    EXPECT_NEAR(l.x(), 0.6, 1e-5);
+    EXPECT_NEAR(l.y(), 1.2, 1e-5);
+    EXPECT_NEAR(l.z(), 0.3, 1e-5);
+  }
+}
+
+TEST(VertexRadiance, OneLitCellMatchesTheIrradianceOfASmallSource) {
+  // One cell of radiance L at polar angle theta: E ~ L * Omega * cos(theta), L_o = rho/pi * E.
+  const RayTracer scene(test::Plane(2.0, 0.5));
+  const EnvMap env(11, Eigen::Vector3d::UnitZ());
+  const int j = env.size() / 4;  // a cell in the upper hemisphere
+  ASSERT_GT(env.direction(j).z(), 0.3);
+  std::vector<double> lambda(3 * env.size(), 0.0);
+  for (int c = 0; c < 3; ++c) lambda[3 * j + c] = 10.0;
+  VertexRadiance vr(scene, env, lambda, 1, 7);
+  vr.Refine(40000);
+  // The cell's cosine varies across it: integrate it finely for the reference.
+  double cos_integral = 0;
+  const int n = 200;
+  for (int a = 0; a < n; ++a)
+    for (int b = 0; b < n; ++b) cos_integral += env.SampleInCell(j, (a + 0.5) / n, (b + 0.5) / n).z();
+  cos_integral *= env.solid_angle(j) / (n * n);
+  const double expected = 0.5 / M_PI * 10.0 * cos_integral;
+  // 40000 cosine samples hit a cell of probability ~0.03: about 3 % standard deviation.
+  for (const Eigen::Vector3f& l : vr.Radiance()) EXPECT_NEAR(l.x(), expected, 0.1 * expected);
+}
+
+TEST(VertexRadiance, RefiningAddsSamplesAndStaysConsistent) {
+  const RayTracer scene(test::Ball(1.0, 0.5, 8, 16));
+  const EnvMap env(7, Eigen::Vector3d::UnitZ());
+  std::vector<double> lambda(3 * env.size(), 1.0);
+  VertexRadiance vr(scene, env, lambda, 2);
+  vr.Refine(4);
+  vr.Refine(4);
+  EXPECT_EQ(vr.samples(), 8);
+  // A convex ball under a uniform sky: every vertex sees only the sky, L_o = rho * L.
+  for (const Eigen::Vector3f& l : vr.Radiance()) EXPECT_NEAR(l.x(), 0.5, 1e-5);
+}
+
+TEST(VertexPhotometricError, ComparesWithTheNearestViewThatSeesTheVertex) {
+  // A plane seen from above by a near view (image 0.2) and a far one (image 0.9); a
+  // vertex under an occluding square is seen by neither.
+  Mesh mesh = RefineMesh(test::Plane(2.0, 0.5), 64);
+  const RayTracer scene(mesh);
+  const std::vector<Eigen::Vector3f> radiance(scene.mesh().positions.size(), Eigen::Vector3f::Constant(0.5f));
+  View near_view = test::BlankView(test::LookAt({0, 0, 2}, {0, 0, 0}, 64, 48, 90));
+  View far_view = test::BlankView(test::LookAt({0, 0, 4}, {0, 0, 0}, 64, 48, 90));
+  std::fill(near_view.image.data.begin(), near_view.image.data.end(), 0.2f);
+  std::fill(far_view.image.data.begin(), far_view.image.data.end(), 0.9f);
+  const std::vector<float> err = VertexPhotometricError(scene, {far_view, near_view}, radiance, 0.5);
+  int seen = 0;
+  for (std::size_t v = 0; v < err.size(); ++v) {
+    if (std::isnan(err[v])) continue;
+    ++seen;
+    // The near view sees the centre of the plane: |0.5 - 0.2| / 0.5.
+    if (scene.mesh().positions[v].norm() < 0.5f) EXPECT_NEAR(err[v], 0.6, 1e-5);
+  }
+  EXPECT_GT(seen, 10);
+
+  Mesh occluded = test::Plane(2.0, 0.5);
+  occluded.Append(test::Square(0, 0, 1.0, 1.5, 0.5));  // covers the whole plane
+  const RayTracer blocked(occluded);
+  const std::vector<Eigen::Vector3f> rad2(blocked.mesh().positions.size(), Eigen::Vector3f::Constant(0.5f));
+  const std::vector<float> err2 = VertexPhotometricError(blocked, {near_view}, rad2, 0.5);
+  for (int v = 0; v < 4; ++v) EXPECT_TRUE(std::isnan(err2[v])) << "vertex " << v << " is under the square";
+}
+
+TEST(RefineMesh, ReachesTheTriangleCountAndKeepsTheSurface) {
+  const Mesh plane = test::Plane(2.0, 0.5);
+  const Mesh fine = RefineMesh(plane, 1000);
+  EXPECT_GE(fine.triangles.size(), 1000u);
+  EXPECT_LT(fine.triangles.size(), 1010u);
+  double area = 0;
+  for (const auto& t : fine.triangles) {
+    const Eigen::Vector3f n =
+        (fine.positions[t[1]] - fine.positions[t[0]]).cross(fine.positions[t[2]] - fine.positions[t[0]]);
+    EXPECT_GT(n.z(), 0) << "winding kept";
+    area += 0.5 * n.norm();
+  }
+  EXPECT_NEAR(area, 4.0, 1e-4);
+  ASSERT_EQ(fine.normals.size(), fine.positions.size());
+  ASSERT_EQ(fine.albedo.size(), fine.positions.size());
+  for (const auto& p : fine.positions) EXPECT_EQ(p.z(), 0.f);
+}
+
+}  // namespace
+}  // namespace lp

@@ -1,0 +1,162 @@
+// The window under Xvfb (Mesa's llvmpipe), driven by a command file as a user would:
+// open the demo recording, reconstruct, press Estimate, wait, switch shading, open a
+// keyframe, export. Screenshots stay in build/test-artifacts/viewer/ for people to look at;
+// the checks read them back at the places the window says its panels are.
+#include <filesystem>
+#include <fstream>
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include "app/commands.h"
+#include "common/image_io.h"
+#include "ui/viewer.h"
+
+namespace lp::ui {
+namespace {
+namespace fs = std::filesystem;
+
+const fs::path kArtifacts = fs::path(LIGHTPROBE_BINARY_DIR) / "test-artifacts" / "viewer";
+
+struct RegionStats {
+  double mean = 0, stddev = 0;  ///< of the grey level, 0..255
+  double distinct = 0;          ///< share of pixels differing from the region's most common colour
+};
+
+RegionStats Stats(const ImageRgb8& img, const nlohmann::json& rect) {
+  const int x0 = rect[0].get<float>(), y0 = rect[1].get<float>();
+  const int w = rect[2].get<float>(), h = rect[3].get<float>();
+  RegionStats s;
+  std::map<int, int> counts;
+  double sum = 0, sum2 = 0;
+  int n = 0;
+  for (int y = y0; y < std::min(img.height, y0 + h); ++y)
+    for (int x = x0; x < std::min(img.width, x0 + w); ++x) {
+      const std::uint8_t* p = &img.data[3 * (static_cast<std::size_t>(y) * img.width + x)];
+      const double g = (p[0] + p[1] + p[2]) / 3.0;
+      sum += g;
+      sum2 += g * g;
+      ++counts[(p[0] << 16) | (p[1] << 8) | p[2]];
+      ++n;
+    }
+  if (n == 0) return s;
+  s.mean = sum / n;
+  s.stddev = std::sqrt(std::max(0.0, sum2 / n - s.mean * s.mean));
+  int top = 0;
+  for (const auto& [c, k] : counts) top = std::max(top, k);
+  s.distinct = 1.0 - static_cast<double>(top) / n;
+  return s;
+}
+
+nlohmann::json ReadJson(const fs::path& p) {
+  std::ifstream in(p);
+  EXPECT_TRUE(in) << p;
+  return nlohmann::json::parse(in);
+}
+
+TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
+  fs::create_directories(kArtifacts);
+  const fs::path a = kArtifacts;
+  const fs::path script = a / "script.txt";
+  std::ofstream(script) << "wait-open 60\n"
+                           "screenshot " << (a / "1-opened.png").string() << "\n"
+                           "state " << (a / "1-opened.json").string() << "\n"
+                           "speed 0\n"
+                           "reconstruct start\n"
+                           "play\n"
+                           "wait-end 300\n"
+                           "reconstruct stop\n"
+                           "frames 3\n"
+                           "screenshot " << (a / "2-reconstructed.png").string() << "\n"
+                           "state " << (a / "2-reconstructed.json").string() << "\n"
+                           "estimate rings=13 spp=16 bounces=2 rounds=2 render-spp=16\n"
+                           "wait-first 300\n"
+                           "screenshot " << (a / "3-first-estimate.png").string() << "\n"
+                           "wait-estimate 600\n"
+                           "expect-estimate done\n"
+                           "shading lit\n"
+                           "wait-lit 8 300\n"
+                           "frames 3\n"
+                           "screenshot " << (a / "4-lit.png").string() << "\n"
+                           "state " << (a / "4-lit.json").string() << "\n"
+                           "shading error\n"
+                           "keyframe 1\n"
+                           "frames 3\n"
+                           "screenshot " << (a / "5-error-keyframe.png").string() << "\n"
+                           "shading normals\n"
+                           "orbit 1.2 0.3\n"
+                           "frames 3\n"
+                           "screenshot " << (a / "6-normals.png").string() << "\n"
+                           "export " << (a / "export").string() << "\n"
+                           "wait-export 120\n"
+                           "state " << (a / "7-done.json").string() << "\n"
+                           "quit\n";
+  ViewerOptions o = app::DefaultViewerOptions();
+  o.input = "demo";
+  o.script = script.string();
+  o.session.lit_samples = 8;
+  ASSERT_EQ(RunViewer(o), 0);
+
+  // Opened: the live previews show the recording's first frame, no mesh yet.
+  const nlohmann::json opened = ReadJson(a / "1-opened.json");
+  EXPECT_NE(opened["source"].get<std::string>().find("demo.oni"), std::string::npos);
+
+  // Reconstructed: every frame tracked, a model in the 3D view, the previews non-blank.
+  const nlohmann::json rec = ReadJson(a / "2-reconstructed.json");
+  EXPECT_GE(rec["frames_tracked"].get<int>(), rec["frames_read"].get<int>() - 2);
+  EXPECT_GT(rec["model_triangles"].get<int>(), 10000);
+  const ImageRgb8 shot2 = ReadRgb8(a / "2-reconstructed.png");
+  ASSERT_EQ(shot2.width, 1280);
+  ASSERT_EQ(shot2.height, 720);
+  EXPECT_GT(Stats(shot2, rec["window"]["view3d"]).distinct, 0.05) << "the mesh is drawn";
+  EXPECT_GT(Stats(shot2, rec["window"]["live"]).stddev, 20) << "colour and depth previews";
+  EXPECT_LT(Stats(shot2, rec["window"]["equirect"]).stddev, 20) << "no environment map yet";
+
+  // Finished: an environment map, a lit mesh, the log, the export.
+  const nlohmann::json lit = ReadJson(a / "4-lit.json");
+  EXPECT_EQ(lit["estimate"]["state"], "done");
+  EXPECT_GT(lit["estimate"]["rows"].get<int>(), 2);
+  EXPECT_GE(lit["estimate"]["lit_samples"].get<int>(), 8);
+  EXPECT_LE(lit["estimate"]["seconds_to_first"].get<double>(), lit["estimate"]["seconds_total"].get<double>());
+  const ImageRgb8 shot4 = ReadRgb8(a / "4-lit.png");
+  EXPECT_GT(Stats(shot4, lit["window"]["equirect"]).stddev, 5) << "the environment map is drawn";
+  EXPECT_GT(Stats(shot4, lit["window"]["sphere"]).distinct, 0.02) << "the directions on the sphere";
+  EXPECT_GT(Stats(shot4, lit["window"]["view3d"]).distinct, 0.05) << "the lit mesh";
+  // The shading modes draw different pictures of the same mesh.
+  const ImageRgb8 shot6 = ReadRgb8(a / "6-normals.png");
+  EXPECT_GT(std::abs(Stats(shot6, lit["window"]["view3d"]).mean - Stats(shot4, lit["window"]["view3d"]).mean) +
+                std::abs(Stats(shot6, lit["window"]["view3d"]).stddev - Stats(shot4, lit["window"]["view3d"]).stddev),
+            2);
+  const nlohmann::json done = ReadJson(a / "7-done.json");
+  EXPECT_EQ(done["estimate"]["export"].get<std::string>().rfind("exported", 0), 0u);
+  EXPECT_TRUE(fs::exists(a / "export" / "estimate" / "envmap.exr"));
+  EXPECT_TRUE(fs::exists(a / "export" / "scene" / "mesh.ply"));
+}
+
+TEST(Viewer, ClosingTheWindowWhileEstimatingStopsCleanly) {
+  fs::create_directories(kArtifacts);
+  const fs::path script = kArtifacts / "close.txt";
+  std::ofstream(script) << "wait-open 60\n"
+                           "estimate rings=21 spp=256 rounds=6\n"
+                           "wait-first 300\n"
+                           "close\n";
+  ViewerOptions o = app::DefaultViewerOptions();
+  o.input = LIGHTPROBE_SOURCE_DIR "/assets/demo";
+  o.script = script.string();
+  const auto start = std::chrono::steady_clock::now();
+  ASSERT_EQ(RunViewer(o), 0);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 120);
+}
+
+TEST(Viewer, AFailingScriptCommandIsAnErrorExit) {
+  const fs::path script = kArtifacts / "bad.txt";
+  fs::create_directories(kArtifacts);
+  std::ofstream(script) << "open /no/such/file.oni\nwait-open 5\nquit\n";
+  ViewerOptions o = app::DefaultViewerOptions();
+  o.input = LIGHTPROBE_SOURCE_DIR "/assets/demo";
+  o.script = script.string();
+  EXPECT_EQ(RunViewer(o), 1);
+}
+
+}  // namespace
+}  // namespace lp::ui

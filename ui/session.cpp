@@ -1,0 +1,589 @@
+#include "ui/session.h"
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <filesystem>
+#include <mutex>
+#include <thread>
+
+#include "capture/capture_thread.h"
+#include "capture/frame_source.h"
+#include "capture/openni.h"
+#include "common/error.h"
+#include "common/timer.h"
+#include "estimation/ray_tracer.h"
+#include "estimation/truth.h"
+#include "estimation/vertex_radiance.h"
+
+namespace lp::ui {
+namespace fs = std::filesystem;
+
+const char* ToString(EstimateState s) {
+  switch (s) {
+    case EstimateState::kIdle: return "idle";
+    case EstimateState::kPreparing: return "preparing";
+    case EstimateState::kRunning: return "running";
+    case EstimateState::kDone: return "done";
+    case EstimateState::kCancelled: return "cancelled";
+    case EstimateState::kFailed: return "failed";
+  }
+  return "?";
+}
+
+struct Session::Impl {
+  SessionOptions options;
+
+  // Published state (read by the main thread).
+  mutable std::mutex mutex;
+  LiveStatus live;
+  EstimateStatus est;
+
+  // Commands for the worker.
+  std::mutex command_mutex;
+  std::condition_variable command_cv;
+  std::deque<std::function<void()>> commands;
+  std::atomic<int> pending{0};
+  std::atomic<bool> stop{false};
+
+  // Worker-owned (only the worker thread touches these).
+  std::unique_ptr<FrameSource> source;        // files, directories: pulled directly
+  std::shared_ptr<FrameQueue> queue;          // a camera: through a capture thread
+  std::unique_ptr<CaptureThread> capture;
+  std::shared_ptr<const SceneBundle> bundle;  // a loaded scene bundle
+  std::unique_ptr<Reconstructor> reconstructor;
+  ReconstructionOptions rec_options;
+  bool playing = false, reconstructing = false, fused_any = false;
+  double speed = 1;
+  double pace_wall0 = 0, pace_stamp0 = -1;  // playback clock: wall time of the frame stamp0
+  Stopwatch clock;
+  Stopwatch since_mesh;
+  std::deque<double> read_times, processed_times;
+
+  // Estimation worker.
+  std::thread estimator;
+  std::atomic<bool> cancel{false};
+  std::thread exporter;
+
+  std::thread worker;
+
+  void Post(std::function<void()> f) {
+    ++pending;
+    {
+      std::lock_guard<std::mutex> lock(command_mutex);
+      commands.push_back(std::move(f));
+    }
+    command_cv.notify_one();
+  }
+
+  template <typename F>
+  void UpdateLive(F f) {
+    std::lock_guard<std::mutex> lock(mutex);
+    f(live);
+  }
+  template <typename F>
+  void UpdateEstimate(F f) {
+    std::lock_guard<std::mutex> lock(mutex);
+    f(est);
+  }
+
+  void Fail(const std::string& what) {
+    UpdateLive([&](LiveStatus& l) { l.error = what; });
+  }
+
+  void CloseSource() {
+    capture.reset();
+    queue.reset();
+    source.reset();
+    bundle.reset();
+    playing = false;
+  }
+
+  void ResetModel() {
+    reconstructor.reset();
+    fused_any = false;
+    try {
+      reconstructor = std::make_unique<Reconstructor>(rec_options);
+    } catch (const std::exception& e) {
+      Fail(e.what());
+    }
+    UpdateLive([&](LiveStatus& l) {
+      l.model.reset();
+      ++l.model_version;
+      l.frames_tracked = l.frames_lost = 0;
+      l.tracking = TrackingState::kWaiting;
+      l.tracking_reason.clear();
+      l.has_pose = false;
+    });
+  }
+
+  void DoOpen(std::string input) {
+    CloseSource();
+    reconstructing = false;
+    ResetModel();
+    UpdateLive([&](LiveStatus& l) {
+      const std::uint64_t model_version = l.model_version, frame_version = l.frame_version;
+      l = LiveStatus{};
+      l.model_version = model_version + 1;
+      l.frame_version = frame_version + 1;
+    });
+    std::string note;
+    if (input == "auto") {  // an attached camera, else the bundled demo
+      try {
+        auto probe = OpenOpenNiDevice(OpenNiDeviceOptions{});
+        probe.reset();
+        input = "camera";
+      } catch (const std::exception& e) {
+        input = "demo";
+        note = "no camera found: opened the bundled demo recording";
+      }
+    }
+    if (input == "demo") input = options.demo_input;
+    try {
+      std::string description;
+      bool camera = false, is_bundle = false;
+      std::int64_t count = -1;
+      if (input == "camera" || input.rfind("camera:", 0) == 0) {
+        OpenNiDeviceOptions o;
+        if (input.size() > 7) o.uri = input.substr(7);
+        auto dev = OpenOpenNiDevice(o);
+        description = dev->Describe();
+        queue = std::make_shared<FrameQueue>(4);
+        capture = std::make_unique<CaptureThread>(std::move(dev), queue);
+        camera = true;
+        playing = true;
+      } else if (fs::is_directory(input) && fs::exists(fs::path(input) / "scene.json")) {
+        bundle = std::make_shared<const SceneBundle>(LoadSceneBundle(input));
+        description = "scene bundle " + input + " (" + std::to_string(bundle->mesh.triangles.size()) +
+                      " triangles, " + std::to_string(bundle->views.size()) + " views)";
+        is_bundle = true;
+      } else {
+        source = OpenFrameSource(input);
+        description = source->Describe();
+        if (auto n = source->FrameCount()) count = *n;
+      }
+      auto model = bundle ? std::make_shared<const Mesh>(bundle->mesh) : nullptr;
+      UpdateLive([&](LiveStatus& l) {
+        l.source = description;
+        l.open = true;
+        l.is_camera = camera;
+        l.is_bundle = is_bundle;
+        l.error = note;
+        l.frame_count = count;
+        l.playing = playing;
+        l.speed = speed;
+        if (model) {
+          l.model = model;
+          ++l.model_version;
+        }
+      });
+    } catch (const std::exception& e) {
+      CloseSource();
+      Fail(e.what());
+    }
+  }
+
+  static void CountRate(std::deque<double>* times, double now) {
+    times->push_back(now);
+    while (!times->empty() && times->front() < now - 1.0) times->pop_front();
+  }
+  static double Rate(const std::deque<double>& times) {
+    if (times.size() < 2) return 0;
+    return (times.size() - 1) / std::max(1e-6, times.back() - times.front());
+  }
+
+  void PublishModel() {
+    if (!reconstructor || !fused_any) return;
+    auto mesh = std::make_shared<Mesh>(reconstructor->volume().ExtractMesh(rec_options.mesh_min_weight));
+    if (mesh->normals.size() != mesh->positions.size()) ComputeVertexNormals(mesh.get());
+    UpdateLive([&](LiveStatus& l) {
+      l.model = std::move(mesh);
+      ++l.model_version;
+    });
+    since_mesh.Reset();
+  }
+
+  /// Reads and handles one frame when playing; returns false when there was nothing to do.
+  bool Step() {
+    if (!playing || (!source && !queue)) return false;
+    RgbdFrame frame;
+    if (queue) {
+      auto f = queue->Pop(0.05);
+      if (!f) {
+        const CaptureStats st = capture->stats();
+        if (!st.running) {
+          playing = false;
+          UpdateLive([&](LiveStatus& l) {
+            l.playing = false;
+            l.error = st.error.empty() ? std::string("camera stopped: ") + ToString(st.last_status) : st.error;
+          });
+        }
+        return true;
+      }
+      frame = std::move(*f);
+    } else {
+      SourceStatus s;
+      try {
+        s = source->Next(&frame, 0.05);
+      } catch (const std::exception& e) {
+        playing = false;
+        UpdateLive([&](LiveStatus& l) {
+          l.playing = false;
+          l.error = e.what();
+        });
+        return true;
+      }
+      if (s == SourceStatus::kTimeout) return true;
+      if (s != SourceStatus::kFrame) {
+        playing = false;
+        PublishModel();
+        UpdateLive([&](LiveStatus& l) {
+          l.playing = false;
+          l.at_end = true;
+        });
+        return true;
+      }
+      Pace(frame);
+    }
+    const double now = clock.Seconds();
+    CountRate(&read_times, now);
+    auto shared = std::make_shared<const RgbdFrame>(std::move(frame));
+    FrameReport report;
+    bool processed = false;
+    if (reconstructing && reconstructor) {
+      try {
+        report = reconstructor->Process(*shared);
+        processed = true;
+        if (report.state == TrackingState::kTracking) fused_any = true;
+      } catch (const std::exception& e) {
+        reconstructing = false;
+        Fail(e.what());
+      }
+    }
+    if (processed) CountRate(&processed_times, clock.Seconds());
+    const std::int64_t dropped = capture ? capture->stats().queue.dropped : 0;
+    UpdateLive([&](LiveStatus& l) {
+      l.frame = shared;
+      ++l.frame_version;
+      l.position = shared->index + 1;
+      ++l.frames_read;
+      l.dropped = dropped;
+      l.source_fps = Rate(read_times);
+      l.processed_fps = Rate(processed_times);
+      l.reconstructing = reconstructing;
+      if (processed) {
+        l.tracking = report.state;
+        l.tracking_reason = report.reason;
+        if (report.state == TrackingState::kTracking) ++l.frames_tracked;
+        if (report.state == TrackingState::kLost) ++l.frames_lost;
+        l.has_pose = report.state != TrackingState::kWaiting;
+        l.camera_pose = report.world_from_camera;
+      } else if (shared->world_from_camera) {
+        l.has_pose = true;
+        l.camera_pose = *shared->world_from_camera;
+      }
+    });
+    if (processed && since_mesh.Seconds() > 0.5) PublishModel();
+    return true;
+  }
+
+  /// Holds a file's frame until its time at the chosen speed (0 = no waiting).
+  void Pace(const RgbdFrame& frame) {
+    const double stamp = frame.depth_timestamp;
+    if (speed <= 0 || !(stamp > 0)) return;
+    const double now = clock.Seconds();
+    if (pace_stamp0 < 0 || stamp < pace_stamp0 || now - (pace_wall0 + (stamp - pace_stamp0) / speed) > 0.25) {
+      pace_stamp0 = stamp;  // first frame, a seek, or we fell behind: restart the clock
+      pace_wall0 = now;
+      return;
+    }
+    const double due = pace_wall0 + (stamp - pace_stamp0) / speed;
+    while (!stop && clock.Seconds() < due) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+  }
+
+  void Run() {
+    while (!stop) {
+      std::function<void()> command;
+      {
+        std::unique_lock<std::mutex> lock(command_mutex);
+        if (commands.empty() && !playing) command_cv.wait_for(lock, std::chrono::milliseconds(50));
+        if (!commands.empty()) {
+          command = std::move(commands.front());
+          commands.pop_front();
+        }
+      }
+      if (command) {
+        try {
+          command();
+        } catch (const std::exception& e) {
+          Fail(e.what());
+        }
+        --pending;
+        continue;
+      }
+      Step();
+    }
+  }
+
+  // ---- estimation ----
+
+  void JoinEstimator() {
+    cancel = true;
+    if (estimator.joinable()) estimator.join();
+    cancel = false;
+  }
+
+  /// On the worker: the scene to estimate, from the reconstruction or the loaded bundle.
+  std::shared_ptr<const SceneBundle> Snapshot() {
+    if (bundle) return bundle;
+    if (!reconstructor || !fused_any)
+      throw InputError("nothing reconstructed yet: start the reconstruction and play some frames first");
+    return std::make_shared<const SceneBundle>(reconstructor->Finish());
+  }
+
+  void DoEstimate(const EstimateOptions& options, double pressed_at) {
+    JoinEstimator();
+    std::shared_ptr<const SceneBundle> scene;
+    try {
+      scene = Snapshot();
+    } catch (const std::exception& e) {
+      UpdateEstimate([&](EstimateStatus& s) {
+        s.state = EstimateState::kFailed;
+        s.message = e.what();
+      });
+      return;
+    }
+    UpdateEstimate([&](EstimateStatus& s) {
+      const std::string exported = s.export_message;
+      const std::uint64_t version = s.version, lit_version = s.lit_version;
+      s = EstimateStatus{};
+      s.state = EstimateState::kRunning;
+      s.message = "tracing round 1";
+      s.options = options;
+      s.scene = scene;
+      s.version = version + 1;
+      s.lit_version = lit_version + 1;
+      s.export_message = exported;
+    });
+    estimator = std::thread([this, options, scene, pressed_at] { RunEstimate(options, scene, pressed_at); });
+  }
+
+  void RunEstimate(EstimateOptions options, std::shared_ptr<const SceneBundle> scene, double pressed_at) {
+    options.cancelled = [this] { return cancel.load() || stop.load(); };
+    options.progress = [this](const std::string& line) {
+      UpdateEstimate([&](EstimateStatus& s) { s.message = line; });
+    };
+    options.on_convergence = [this](const ConvergenceRow& row) {
+      UpdateEstimate([&](EstimateStatus& s) { s.rows.push_back(row); });
+    };
+    options.time_offset = clock.Seconds() - pressed_at;
+    const int max_rounds = options.max_rounds;
+    options.on_round = [this, pressed_at, max_rounds](const RoundInfo& info, const EnvMap& env) {
+      auto dominant = DominantDirections(env, info.lambda, 2);
+      const double t = clock.Seconds() - pressed_at;
+      UpdateEstimate([&](EstimateStatus& s) {
+        if (!s.env) s.env = std::make_shared<const EnvMap>(env);
+        s.lambda = info.lambda;
+        s.dominant = dominant;
+        ++s.version;
+        s.progress = static_cast<double>(info.round) / (max_rounds + 1);
+        if (std::isnan(s.seconds_to_first)) s.seconds_to_first = t;
+      });
+    };
+    std::shared_ptr<const EstimateResult> result;
+    try {
+      result = std::make_shared<const EstimateResult>(lp::Estimate(*scene, options));
+    } catch (const Cancelled&) {
+      UpdateEstimate([&](EstimateStatus& s) {
+        s.state = EstimateState::kCancelled;
+        s.message = "cancelled";
+      });
+      return;
+    } catch (const std::exception& e) {
+      UpdateEstimate([&](EstimateStatus& s) {
+        s.state = EstimateState::kFailed;
+        s.message = e.what();
+      });
+      return;
+    }
+    const double t = clock.Seconds() - pressed_at;
+    UpdateEstimate([&](EstimateStatus& s) {
+      s.state = EstimateState::kDone;
+      s.progress = 1;
+      s.result = result;
+      s.lambda = result->lambda;
+      s.dominant = result->dominant;
+      if (!s.env) s.env = std::make_shared<const EnvMap>(result->env);
+      ++s.version;
+      s.seconds_total = t;
+      s.message = "done in " + std::to_string(t).substr(0, 5) + " s";
+    });
+    RefineLit(*scene, *result, options.tracer.bounces);
+  }
+
+  /// Progressive per-vertex radiance under the estimate, then the error against the keyframes.
+  void RefineLit(const SceneBundle& scene, const EstimateResult& result, int bounces) {
+    try {
+      const RayTracer tracer(scene.mesh);
+      VertexRadiance radiance(tracer, result.env, result.lambda, std::max(1, bounces));
+      int step = 2;
+      while (radiance.samples() < options.lit_samples && !cancel && !stop) {
+        radiance.Refine(std::min(step, options.lit_samples - radiance.samples()));
+        step = std::min(step * 2, 32);
+        auto lit = std::make_shared<const std::vector<Eigen::Vector3f>>(radiance.Radiance());
+        std::shared_ptr<const std::vector<float>> error;
+        if (radiance.samples() >= options.lit_samples || radiance.samples() == 2)
+          error = std::make_shared<const std::vector<float>>(
+              VertexPhotometricError(tracer, scene.views, *lit, result.image_mean));
+        const int samples = radiance.samples();
+        UpdateEstimate([&](EstimateStatus& s) {
+          s.lit = lit;
+          if (error) s.error = error;
+          s.lit_samples = samples;
+          ++s.lit_version;
+        });
+      }
+    } catch (const std::exception& e) {
+      UpdateEstimate([&](EstimateStatus& s) { s.message = std::string("lit shading: ") + e.what(); });
+    }
+  }
+
+  void DoExport(const std::string& dir) {
+    std::shared_ptr<const SceneBundle> scene;
+    std::shared_ptr<const EstimateResult> result;
+    EstimateOptions used;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      scene = est.scene;
+      result = est.result;
+      used = est.options;
+    }
+    std::string message;
+    try {
+      if (!scene || !result) throw InputError("nothing to export yet: run Estimate first");
+      SceneBundle written = *scene;
+      written.dir = fs::path(dir) / "scene";
+      WriteSceneBundle(written.dir, written);
+      if (options.write_estimate) options.write_estimate((fs::path(dir) / "estimate").string(), written, used, *result);
+      message = "exported " + (fs::path(dir) / "scene").string() + " and " + (fs::path(dir) / "estimate").string();
+    } catch (const std::exception& e) {
+      message = std::string("export failed: ") + e.what();
+    }
+    UpdateEstimate([&](EstimateStatus& s) { s.export_message = message; });
+  }
+};
+
+Session::Session(SessionOptions options) : impl_(std::make_unique<Impl>()) {
+  impl_->options = std::move(options);
+  impl_->rec_options = impl_->options.reconstruction;
+  impl_->worker = std::thread([this] { impl_->Run(); });
+}
+
+Session::~Session() {
+  impl_->stop = true;
+  impl_->cancel = true;
+  impl_->command_cv.notify_all();
+  if (impl_->worker.joinable()) impl_->worker.join();
+  if (impl_->estimator.joinable()) impl_->estimator.join();
+  if (impl_->exporter.joinable()) impl_->exporter.join();  // an export finishes: nothing half-written
+  impl_->CloseSource();
+}
+
+void Session::Open(const std::string& input) {
+  impl_->Post([this, input] { impl_->DoOpen(input); });
+}
+
+void Session::SetPlaying(bool playing) {
+  impl_->Post([this, playing] {
+    Impl& s = *impl_;
+    if (!s.source && !s.queue) return;
+    s.playing = playing;
+    s.pace_stamp0 = -1;
+    if (s.capture) s.capture->Pause(!playing);
+    if (!playing) s.PublishModel();
+    s.UpdateLive([&](LiveStatus& l) {
+      l.playing = playing;
+      if (playing) l.at_end = false;
+    });
+  });
+}
+
+void Session::Seek(std::int64_t frame) {
+  impl_->Post([this, frame] {
+    Impl& s = *impl_;
+    if (!s.source) throw InputError("seek: only files and directories can seek");
+    s.source->Seek(frame);
+    s.pace_stamp0 = -1;
+    s.UpdateLive([&](LiveStatus& l) {
+      l.position = frame;
+      l.at_end = false;
+    });
+  });
+}
+
+void Session::SetSpeed(double speed) {
+  impl_->Post([this, speed] {
+    impl_->speed = std::max(0.0, speed);
+    impl_->pace_stamp0 = -1;
+    impl_->UpdateLive([&](LiveStatus& l) { l.speed = impl_->speed; });
+  });
+}
+
+void Session::StartReconstruction() {
+  impl_->Post([this] {
+    Impl& s = *impl_;
+    if (s.bundle) throw InputError("a loaded scene bundle is already reconstructed");
+    if (!s.reconstructor) s.ResetModel();
+    s.reconstructing = true;
+    s.UpdateLive([&](LiveStatus& l) { l.reconstructing = true; });
+  });
+}
+
+void Session::StopReconstruction() {
+  impl_->Post([this] {
+    impl_->reconstructing = false;
+    impl_->PublishModel();
+    impl_->UpdateLive([&](LiveStatus& l) { l.reconstructing = false; });
+  });
+}
+
+void Session::ResetReconstruction() {
+  impl_->Post([this] { impl_->ResetModel(); });
+}
+
+void Session::SetReconstructionOptions(const ReconstructionOptions& options) {
+  impl_->Post([this, options] { impl_->rec_options = options; });
+}
+
+void Session::Estimate(const EstimateOptions& options) {
+  const double pressed = impl_->clock.Seconds();
+  impl_->UpdateEstimate([&](EstimateStatus& s) {
+    s.state = EstimateState::kPreparing;
+    s.message = "taking a snapshot of the scene";
+  });
+  impl_->cancel = true;  // a running estimate stops at its next check
+  impl_->Post([this, options, pressed] { impl_->DoEstimate(options, pressed); });
+}
+
+void Session::CancelEstimate() { impl_->cancel = true; }
+
+void Session::Export(const std::string& dir) {
+  if (impl_->exporter.joinable()) impl_->exporter.join();
+  impl_->UpdateEstimate([&](EstimateStatus& s) { s.export_message = "exporting to " + dir; });
+  impl_->exporter = std::thread([this, dir] { impl_->DoExport(dir); });
+}
+
+LiveStatus Session::live() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->live;
+}
+
+EstimateStatus Session::estimate() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->est;
+}
+
+bool Session::busy() const { return impl_->pending.load() > 0; }
+
+}  // namespace lp::ui

@@ -1,0 +1,773 @@
+#include "ui/viewer.h"
+
+#include <imgui.h>
+#include <imgui_impl_glfw.h>
+#include <imgui_impl_opengl3.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+
+#include "common/color.h"
+#include "common/error.h"
+#include "common/image_io.h"
+#include "ui/viewer_internal.h"
+
+namespace lp::ui {
+
+namespace {
+
+constexpr float kPanelWidth = 380;
+constexpr float kEnvHeight = 250;
+
+std::string g_glfw_error;
+
+void OnGlfwError(int code, const char* description) {
+  g_glfw_error = std::to_string(code) + ": " + (description ? description : "");
+}
+
+std::uint8_t ToSrgb8(float linear) {
+  const float c = std::clamp(linear, 0.f, 1.f);
+  const float s = c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1 / 2.4f) - 0.055f;
+  return static_cast<std::uint8_t>(std::lround(255 * s));
+}
+
+ImageRgb8 ToDisplay(const ImageRGB& image, float exposure) {
+  ImageRgb8 out;
+  out.width = image.width;
+  out.height = image.height;
+  out.data.resize(image.data.size());
+  for (std::size_t i = 0; i < image.data.size(); ++i)
+    out.data[i] = std::isfinite(image.data[i]) ? ToSrgb8(image.data[i] * exposure) : 0;
+  return out;
+}
+
+/// Blue (0) -> green -> yellow -> red (1): the error and depth colour scale.
+Eigen::Vector3f Heat(float t) {
+  t = std::clamp(t, 0.f, 1.f);
+  const float r = std::clamp(1.5f - std::abs(4 * t - 3), 0.f, 1.f);
+  const float g = std::clamp(1.5f - std::abs(4 * t - 2), 0.f, 1.f);
+  const float b = std::clamp(1.5f - std::abs(4 * t - 1), 0.f, 1.f);
+  return {r, g, b};
+}
+
+ImageRgb8 DepthDisplay(const DepthImage& depth) {
+  ImageRgb8 out;
+  out.width = depth.width;
+  out.height = depth.height;
+  out.data.assign(depth.pixels() * 3, 0);
+  for (std::size_t i = 0; i < depth.pixels(); ++i) {
+    const std::uint16_t mm = depth.data[i];
+    if (mm == 0) continue;
+    const Eigen::Vector3f c = Heat(std::clamp((mm - 300.f) / 4700.f, 0.f, 1.f));
+    for (int k = 0; k < 3; ++k) out.data[3 * i + k] = static_cast<std::uint8_t>(255 * c[k]);
+  }
+  return out;
+}
+
+/// The estimate's environment map as a display image (exposure from its 99th percentile).
+ImageRgb8 EnvDisplay(const EnvMap& env, const std::vector<double>& lambda, int height) {
+  const ImageRGB eq = env.ToEquirect(lambda, height);
+  std::vector<float> lum;
+  for (std::size_t i = 0; i < eq.data.size(); i += 3)
+    lum.push_back(static_cast<float>(Luminance(eq.data[i], eq.data[i + 1], eq.data[i + 2])));
+  std::sort(lum.begin(), lum.end());
+  const float top = lum.empty() ? 1.f : lum[std::min(lum.size() - 1, lum.size() * 99 / 100)];
+  return ToDisplay(eq, top > 0 ? 0.9f / top : 1.f);
+}
+
+Eigen::Matrix4f LookAtMatrix(const Eigen::Vector3f& eye, const Eigen::Vector3f& target, const Eigen::Vector3f& up) {
+  const Eigen::Vector3f f = (target - eye).normalized();
+  Eigen::Vector3f s = f.cross(up);
+  if (s.norm() < 1e-6f) s = f.cross(Eigen::Vector3f::UnitX());
+  s.normalize();
+  const Eigen::Vector3f u = s.cross(f);
+  Eigen::Matrix4f m = Eigen::Matrix4f::Identity();
+  m.row(0) << s.transpose(), -s.dot(eye);
+  m.row(1) << u.transpose(), -u.dot(eye);
+  m.row(2) << -f.transpose(), f.dot(eye);
+  return m;
+}
+
+}  // namespace
+
+const char* ToString(Shading s) {
+  switch (s) {
+    case Shading::kAlbedo: return "albedo";
+    case Shading::kLit: return "lit";
+    case Shading::kError: return "error";
+    case Shading::kNormals: return "normals";
+  }
+  return "?";
+}
+
+Eigen::Vector3f OrbitCamera::Eye() const {
+  // Azimuth around `up`, elevation from the horizontal plane.
+  Eigen::Vector3f a = up.cross(Eigen::Vector3f::UnitX());
+  if (a.norm() < 1e-3f) a = up.cross(Eigen::Vector3f::UnitY());
+  a.normalize();
+  const Eigen::Vector3f b = up.cross(a);
+  const Eigen::Vector3f dir = std::cos(pitch) * (std::cos(yaw) * a + std::sin(yaw) * b) + std::sin(pitch) * up;
+  return target + distance * dir;
+}
+
+Eigen::Matrix4f OrbitCamera::View() const { return LookAtMatrix(Eye(), target, up); }
+
+Eigen::Matrix4f OrbitCamera::Projection(float aspect) const {
+  const float fovy = 50.f * 3.14159265f / 180.f, n = std::max(0.01f, distance * 0.01f), f = distance * 20.f;
+  const float t = 1.f / std::tan(fovy / 2);
+  Eigen::Matrix4f p = Eigen::Matrix4f::Zero();
+  p(0, 0) = t / aspect;
+  p(1, 1) = t;
+  p(2, 2) = (f + n) / (n - f);
+  p(2, 3) = 2 * f * n / (n - f);
+  p(3, 2) = -1;
+  return p;
+}
+
+Viewer::Viewer(const ViewerOptions& options, GLFWwindow* window)
+    : options_(options),
+      window_(window),
+      session_(options.session),
+      settings_(options.estimate),
+      mesh_program_(MeshProgram()),
+      line_program_(LineProgram()) {
+  solver_index_ = settings_.solver == SolverKind::kFast ? 0 : 1;
+  if (!options.script.empty()) script_ = std::make_unique<ScriptRunner>(options.script, this);
+  session_.Open(options.input.empty() ? "auto" : options.input);
+}
+
+Viewer::~Viewer() = default;
+
+void Viewer::ResetCamera() {
+  if (!shown_mesh_ || shown_mesh_->positions.empty()) return;
+  Eigen::Vector3f lo, hi;
+  MeshBounds(*shown_mesh_, &lo, &hi);
+  camera_.target = 0.5f * (lo + hi);
+  camera_.distance = std::max(0.2f, 1.2f * (hi - lo).norm());
+  camera_.yaw = 0.6f;
+  camera_.pitch = 0.45f;
+  if (est_.scene) camera_.up = est_.scene->up.cast<float>();
+  camera_set_ = true;
+  // Look from where the scene was captured (the first keyframe, else the live camera),
+  // a little higher: a room is seen from inside, not from behind its walls.
+  Eigen::Vector3f eye;
+  if (est_.scene && !est_.scene->views.empty()) eye = est_.scene->views[0].camera.center().cast<float>();
+  else if (live_.has_pose) eye = live_.camera_pose.block<3, 1>(0, 3).cast<float>();
+  else return;
+  Eigen::Vector3f d = eye - camera_.target;
+  if (d.norm() < 1e-3f) return;
+  d.normalize();
+  Eigen::Vector3f a = camera_.up.cross(Eigen::Vector3f::UnitX());
+  if (a.norm() < 1e-3f) a = camera_.up.cross(Eigen::Vector3f::UnitY());
+  a.normalize();
+  const Eigen::Vector3f b = camera_.up.cross(a);
+  camera_.yaw = std::atan2(d.dot(b), d.dot(a));
+  camera_.pitch = std::clamp(std::asin(std::clamp(d.dot(camera_.up), -1.f, 1.f)) + 0.25f, -1.2f, 1.2f);
+  camera_.distance = std::max(0.2f, 0.9f * (hi - lo).norm());
+}
+
+/// The mesh shown: the estimate's snapshot once there is one, else the live model.
+void Viewer::SyncModel() {
+  const bool want_snapshot = est_.scene != nullptr;
+  std::shared_ptr<const Mesh> mesh = want_snapshot ? std::shared_ptr<const Mesh>(est_.scene, &est_.scene->mesh)
+                                                   : live_.model;
+  if (mesh == shown_mesh_ && want_snapshot == showing_snapshot_) return;
+  if (!want_snapshot && live_.model_version == model_version_ && !showing_snapshot_) return;
+  model_version_ = live_.model_version;
+  showing_snapshot_ = want_snapshot;
+  shown_mesh_ = mesh;
+  if (mesh) {
+    mesh_.SetGeometry(*mesh);
+    if (!camera_set_ || (want_snapshot && camera_.up != est_.scene->up.cast<float>())) ResetCamera();
+  } else {
+    mesh_.SetGeometry(Mesh{});
+  }
+  lit_version_ = ~0ull;  // recolour
+  shaded_ = Shading::kNormals;
+}
+
+void Viewer::SyncShading() {
+  if (!shown_mesh_) return;
+  const bool lit_ready = showing_snapshot_ && est_.lit && est_.lit->size() == shown_mesh_->positions.size();
+  if (shading_ == shaded_ && (shading_ == Shading::kAlbedo || shading_ == Shading::kNormals)) return;
+  if ((shading_ == Shading::kLit || shading_ == Shading::kError) && shading_ == shaded_ &&
+      est_.lit_version == lit_version_)
+    return;
+  std::vector<Eigen::Vector3f> colors;
+  if (shading_ == Shading::kLit && lit_ready) {
+    colors = *est_.lit;
+  } else if (shading_ == Shading::kError && lit_ready && est_.error) {
+    colors.resize(est_.error->size());
+    for (std::size_t i = 0; i < colors.size(); ++i) {
+      const float e = (*est_.error)[i];
+      // Error heat (0 .. 50 % of the mean) in display values; unseen vertices grey.
+      const Eigen::Vector3f h = Heat(e / 0.5f);
+      colors[i] = std::isnan(e) ? Eigen::Vector3f::Constant(0.05f) : Eigen::Vector3f(h.array().pow(2.2f));
+    }
+  } else {
+    colors = shown_mesh_->albedo;
+  }
+  colors.resize(shown_mesh_->positions.size(), Eigen::Vector3f::Constant(0.5f));
+  mesh_.SetColors(colors);
+  shaded_ = shading_;
+  lit_version_ = est_.lit_version;
+}
+
+void Viewer::DrawScene(const Rect& r) {
+  int fb_w, fb_h;
+  glfwGetFramebufferSize(window_, &fb_w, &fb_h);
+  int win_w, win_h;
+  glfwGetWindowSize(window_, &win_w, &win_h);
+  const float sx = static_cast<float>(fb_w) / std::max(1, win_w), sy = static_cast<float>(fb_h) / std::max(1, win_h);
+  glViewport(static_cast<int>(r.x * sx), static_cast<int>(fb_h - (r.y + r.h) * sy), static_cast<int>(r.w * sx),
+             static_cast<int>(r.h * sy));
+  glEnable(GL_SCISSOR_TEST);
+  glScissor(static_cast<int>(r.x * sx), static_cast<int>(fb_h - (r.y + r.h) * sy), static_cast<int>(r.w * sx),
+            static_cast<int>(r.h * sy));
+  glClearColor(0.13f, 0.14f, 0.16f, 1.f);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  glDisable(GL_SCISSOR_TEST);
+  glEnable(GL_DEPTH_TEST);
+  const Eigen::Matrix4f vp = camera_.Projection(r.w / std::max(1.f, r.h)) * camera_.View();
+
+  mesh_program_.Use();
+  glUniformMatrix4fv(mesh_program_.Uniform("view_projection"), 1, GL_FALSE, vp.data());
+  glUniform1i(mesh_program_.Uniform("mode"), shading_ == Shading::kNormals ? 1 : 0);
+  const bool lit = shading_ == Shading::kLit && shaded_ == Shading::kLit;
+  glUniform1i(mesh_program_.Uniform("headlight"), headlight_ && shading_ == Shading::kAlbedo ? 1 : 0);
+  glUniform1f(mesh_program_.Uniform("exposure"), lit ? exposure_ : 1.f);
+  const Eigen::Vector3f eye = camera_.Eye();
+  glUniform3f(mesh_program_.Uniform("eye"), eye.x(), eye.y(), eye.z());
+  mesh_.Draw();
+
+  // Keyframe frusta, the live camera, the dominant light directions.
+  lines_.Clear();
+  const float size = std::max(0.05f, camera_.distance * 0.06f);
+  auto frustum = [&](const Camera& cam, const Eigen::Vector3f& color) {
+    const Eigen::Vector3f c = cam.center().cast<float>();
+    const double us[4] = {0, double(cam.width - 1), double(cam.width - 1), 0};
+    const double vs[4] = {0, 0, double(cam.height - 1), double(cam.height - 1)};
+    Eigen::Vector3f corner[4];
+    const Eigen::Vector3d forward = cam.world_from_camera.block<3, 1>(0, 2);
+    for (int k = 0; k < 4; ++k) {
+      const Eigen::Vector3d d = cam.RayDirection(us[k], vs[k]);
+      corner[k] = c + (d / d.dot(forward)).cast<float>() * size;
+    }
+    for (int k = 0; k < 4; ++k) {
+      lines_.Add(c, corner[k], color);
+      lines_.Add(corner[k], corner[(k + 1) % 4], color);
+    }
+  };
+  if (est_.scene)
+    for (std::size_t k = 0; k < est_.scene->views.size(); ++k)
+      frustum(est_.scene->views[k].camera, static_cast<int>(k) == selected_keyframe_ ? Eigen::Vector3f(1, 0.55f, 0)
+                                                                                    : Eigen::Vector3f(0.3f, 0.8f, 1));
+  if (live_.has_pose && live_.frame && !showing_snapshot_) {
+    Camera cam;
+    const Intrinsics& in = live_.frame->depth_intrinsics;
+    cam.width = in.width;
+    cam.height = in.height;
+    cam.fx = in.fx;
+    cam.fy = in.fy;
+    cam.cx = in.cx;
+    cam.cy = in.cy;
+    cam.world_from_camera = live_.camera_pose;
+    if (cam.fx > 0) frustum(cam, Eigen::Vector3f(0.3f, 1, 0.3f));
+  }
+  if (!est_.dominant.empty()) {
+    const float reach = camera_.distance * 0.6f;
+    for (std::size_t k = 0; k < est_.dominant.size(); ++k) {
+      const Eigen::Vector3f d = est_.dominant[k].cast<float>();
+      const Eigen::Vector3f color = k == 0 ? Eigen::Vector3f(1, 0.9f, 0.1f) : Eigen::Vector3f(1, 0.6f, 0.2f);
+      lines_.Add(camera_.target, camera_.target + reach * d, color);
+      // A small star at the end.
+      const Eigen::Vector3f tip = camera_.target + reach * d;
+      const float s = size * 0.5f;
+      for (int a = 0; a < 3; ++a)
+        lines_.Add(tip - s * Eigen::Vector3f::Unit(a), tip + s * Eigen::Vector3f::Unit(a), color);
+    }
+  }
+  line_program_.Use();
+  glUniformMatrix4fv(line_program_.Uniform("view_projection"), 1, GL_FALSE, vp.data());
+  lines_.Draw();
+  glDisable(GL_DEPTH_TEST);
+  glViewport(0, 0, fb_w, fb_h);
+}
+
+void Viewer::HandleMouse(const Rect& r) {
+  ImGuiIO& io = ImGui::GetIO();
+  const ImVec2 m = io.MousePos;
+  const bool inside = r.Contains(m.x, m.y) && !io.WantCaptureMouse;
+  if (inside && io.MouseWheel != 0) camera_.distance *= std::pow(0.88f, io.MouseWheel);
+  for (int button = 0; button < 2; ++button) {
+    if (inside && ImGui::IsMouseClicked(button)) {
+      dragging_ = true;
+      drag_moved_ = false;
+      drag_x_ = m.x;
+      drag_y_ = m.y;
+    }
+  }
+  if (dragging_) {
+    const float dx = io.MouseDelta.x, dy = io.MouseDelta.y;
+    if (std::abs(m.x - drag_x_) + std::abs(m.y - drag_y_) > 3) drag_moved_ = true;
+    if (ImGui::IsMouseDown(0)) {
+      camera_.yaw -= dx * 0.008f;
+      camera_.pitch = std::clamp(camera_.pitch + dy * 0.008f, -1.5f, 1.5f);
+    } else if (ImGui::IsMouseDown(1)) {
+      const Eigen::Matrix4f v = camera_.View();
+      const Eigen::Vector3f right = v.block<1, 3>(0, 0).transpose(), up = v.block<1, 3>(1, 0).transpose();
+      const float scale = camera_.distance * 0.0015f;
+      camera_.target += (-dx * right + dy * up) * scale;
+    }
+    if (ImGui::IsMouseReleased(0) && !drag_moved_ && est_.scene) {
+      // A click: the keyframe whose camera centre is nearest on screen (within 20 px).
+      const Eigen::Matrix4f vp = camera_.Projection(r.w / std::max(1.f, r.h)) * camera_.View();
+      float best = 20;
+      int pick = -1;
+      for (std::size_t k = 0; k < est_.scene->views.size(); ++k) {
+        const Eigen::Vector4f p = vp * est_.scene->views[k].camera.center().cast<float>().homogeneous();
+        if (p.w() <= 0) continue;
+        const float x = r.x + (p.x() / p.w() * 0.5f + 0.5f) * r.w, y = r.y + (0.5f - p.y() / p.w() * 0.5f) * r.h;
+        const float d = std::hypot(x - m.x, y - m.y);
+        if (d < best) best = d, pick = static_cast<int>(k);
+      }
+      if (pick >= 0) selected_keyframe_ = pick;
+    }
+    if (!ImGui::IsMouseDown(0) && !ImGui::IsMouseDown(1)) dragging_ = false;
+  }
+}
+
+void Viewer::PanelSource() {
+  ImGui::SetNextWindowPos(ImVec2(0, 0));
+  ImGui::SetNextWindowSize(ImVec2(kPanelWidth, 330));
+  ImGui::Begin("Source", nullptr, ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse);
+  ImGui::TextWrapped("%s", live_.open ? live_.source.c_str() : "nothing open");
+  if (ImGui::Button("Demo")) session_.Open("demo");
+  ImGui::SameLine();
+  if (ImGui::Button("Camera")) session_.Open("camera");
+  ImGui::SameLine();
+  ImGui::SetNextItemWidth(170);
+  ImGui::InputTextWithHint("##path", ".oni, directory or bundle", path_field_, sizeof path_field_);
+  ImGui::SameLine();
+  if (ImGui::Button("Open") && path_field_[0]) session_.Open(path_field_);
+  if (!live_.is_bundle && live_.open) {
+    if (ImGui::Button(live_.playing ? "Pause" : "Play")) session_.SetPlaying(!live_.playing);
+    if (live_.frame_count > 0) {
+      ImGui::SameLine();
+      ImGui::SetNextItemWidth(150);
+      seek_frame_ = static_cast<float>(live_.position);
+      if (ImGui::SliderFloat("##seek", &seek_frame_, 0, static_cast<float>(live_.frame_count - 1), "frame %.0f"))
+        session_.Seek(static_cast<std::int64_t>(seek_frame_));
+      ImGui::SameLine();
+      ImGui::SetNextItemWidth(70);
+      if (ImGui::SliderFloat("speed", &speed_, 0.f, 4.f, speed_ == 0 ? "max" : "%.1fx")) session_.SetSpeed(speed_);
+    }
+    ImGui::Text("%.1f frames/s in, %.1f reconstructed, %lld dropped", live_.source_fps, live_.processed_fps,
+                static_cast<long long>(live_.dropped));
+    const ImVec4 state_color = live_.tracking == TrackingState::kTracking ? ImVec4(0.4f, 1, 0.4f, 1)
+                               : live_.tracking == TrackingState::kLost   ? ImVec4(1, 0.4f, 0.3f, 1)
+                                                                          : ImVec4(0.8f, 0.8f, 0.8f, 1);
+    ImGui::TextColored(state_color, "tracking: %s  (%lld tracked, %lld lost)%s%s", ToString(live_.tracking),
+                       static_cast<long long>(live_.frames_tracked), static_cast<long long>(live_.frames_lost),
+                       live_.tracking_reason.empty() ? "" : " - ", live_.tracking_reason.c_str());
+    if (ImGui::Button(live_.reconstructing ? "Stop reconstruction" : "Start reconstruction")) {
+      if (live_.reconstructing) session_.StopReconstruction();
+      else session_.StartReconstruction();
+    }
+    ImGui::SameLine();
+    if (ImGui::Button("Reset")) session_.ResetReconstruction();
+    ImGui::SameLine();
+    ImGui::Text("model: %zu tri", live_.model ? live_.model->triangles.size() : std::size_t{0});
+  }
+  if (live_.frame && live_.frame_version != frame_version_) {
+    frame_version_ = live_.frame_version;
+    color_tex_.Upload(live_.frame->color);
+    depth_tex_.Upload(DepthDisplay(live_.frame->depth));
+  }
+  const ImVec2 at = ImGui::GetCursorScreenPos();
+  live_rect_ = {at.x, at.y, 360, 135};
+  if (color_tex_.width() > 0 && live_.frame) {
+    ImGui::Image(reinterpret_cast<void*>(static_cast<std::intptr_t>(color_tex_.id())), ImVec2(178, 134));
+    ImGui::SameLine();
+    ImGui::Image(reinterpret_cast<void*>(static_cast<std::intptr_t>(depth_tex_.id())), ImVec2(178, 134));
+  } else if (live_.is_bundle) {
+    ImGui::TextWrapped("A scene bundle: press Estimate.");
+  }
+  if (!live_.error.empty()) ImGui::TextColored(ImVec4(1, 0.45f, 0.35f, 1), "%s", live_.error.c_str());
+  ImGui::End();
+}
+
+void Viewer::PlotConvergence(float width, float height) {
+  ImDrawList* dl = ImGui::GetWindowDrawList();
+  const ImVec2 p0 = ImGui::GetCursorScreenPos();
+  const ImVec2 p1(p0.x + width, p0.y + height);
+  dl->AddRectFilled(p0, p1, IM_COL32(25, 27, 32, 255));
+  dl->AddRect(p0, p1, IM_COL32(90, 90, 100, 255));
+  ImGui::Dummy(ImVec2(width, height));
+  if (est_.rows.size() < 1) {
+    dl->AddText(ImVec2(p0.x + 8, p0.y + 8), IM_COL32(160, 160, 160, 255), "relative RMSE against run time");
+    return;
+  }
+  double tmax = 0, emin = 1e30, emax = 0;
+  for (const ConvergenceRow& r : est_.rows) {
+    tmax = std::max(tmax, r.wall_seconds);
+    if (r.relative_rmse > 0) emin = std::min(emin, r.relative_rmse), emax = std::max(emax, r.relative_rmse);
+  }
+  if (!(emax > 0)) return;
+  const double lo = std::log10(emin) - 0.05, hi = std::log10(emax) + 0.05;
+  auto X = [&](double t) { return p0.x + 30 + static_cast<float>(t / std::max(1e-6, tmax)) * (width - 38); };
+  auto Y = [&](double e) {
+    return p1.y - 14 - static_cast<float>((std::log10(e) - lo) / std::max(1e-6, hi - lo)) * (height - 22);
+  };
+  ImVec2 prev;
+  int prev_round = -1;
+  for (const ConvergenceRow& r : est_.rows) {
+    if (!(r.relative_rmse > 0)) continue;
+    const ImVec2 p(X(r.wall_seconds), Y(r.relative_rmse));
+    if (prev_round == r.round) dl->AddLine(prev, p, IM_COL32(90, 200, 255, 255), 2);
+    else dl->AddCircleFilled(p, 3, IM_COL32(255, 200, 80, 255));  // a round starts
+    prev = p;
+    prev_round = r.round;
+  }
+  char label[96];
+  std::snprintf(label, sizeof label, "rel. RMSE %.3g .. %.3g (log)", emin, emax);
+  dl->AddText(ImVec2(p0.x + 34, p0.y + 3), IM_COL32(200, 200, 200, 255), label);
+  std::snprintf(label, sizeof label, "%.1f s", tmax);
+  dl->AddText(ImVec2(p1.x - 48, p1.y - 14), IM_COL32(200, 200, 200, 255), label);
+  dl->AddText(ImVec2(p0.x + 3, p1.y - 14), IM_COL32(200, 200, 200, 255), "0 s");
+}
+
+void Viewer::PanelEstimate() {
+  int win_w, win_h;
+  glfwGetWindowSize(window_, &win_w, &win_h);
+  ImGui::SetNextWindowPos(ImVec2(0, 330));
+  ImGui::SetNextWindowSize(ImVec2(kPanelWidth, static_cast<float>(win_h) - 330));
+  ImGui::Begin("Estimate", nullptr, ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse);
+  const bool running = est_.state == EstimateState::kRunning || est_.state == EstimateState::kPreparing;
+  if (ImGui::Button("Estimate", ImVec2(100, 0))) session_.Estimate(settings_);
+  ImGui::SameLine();
+  if (running && ImGui::Button("Cancel")) session_.CancelEstimate();
+  if (!running) {
+    ImGui::SameLine();
+    ImGui::SetNextItemWidth(140);
+    ImGui::InputText("##export", export_field_, sizeof export_field_);
+    ImGui::SameLine();
+    if (ImGui::Button("Export") && est_.result) session_.Export(export_field_);
+  }
+  char overlay[64];
+  std::snprintf(overlay, sizeof overlay, "%s %.0f%%", ToString(est_.state), 100 * est_.progress);
+  ImGui::ProgressBar(static_cast<float>(est_.progress), ImVec2(-1, 0), overlay);
+  ImGui::TextWrapped("%s", est_.message.c_str());
+  if (!std::isnan(est_.seconds_to_first))
+    ImGui::Text("first estimate after %.2f s%s", est_.seconds_to_first,
+                std::isnan(est_.seconds_total) ? "" : (", done after " + std::to_string(est_.seconds_total).substr(0, 5) + " s").c_str());
+  PlotConvergence(kPanelWidth - 16, 110);
+  if (!est_.export_message.empty()) ImGui::TextWrapped("%s", est_.export_message.c_str());
+  if (ImGui::CollapsingHeader("Settings")) {
+    ImGui::SliderInt("rings", &settings_.rings, 5, 41);
+    ImGui::SliderInt("samples/pixel", &settings_.tracer.spp, 8, 256);
+    ImGui::SliderInt("bounces", &settings_.tracer.bounces, 1, 5);
+    ImGui::SliderInt("rounds", &settings_.max_rounds, 1, 6);
+    float alpha = static_cast<float>(settings_.objective.alpha), beta = static_cast<float>(settings_.objective.beta),
+          sigma = static_cast<float>(settings_.objective.sigma);
+    if (ImGui::InputFloat("alpha", &alpha, 0, 0, "%.4g")) settings_.objective.alpha = std::max(0.f, alpha);
+    if (ImGui::InputFloat("beta", &beta, 0, 0, "%.4g")) settings_.objective.beta = std::max(1e-6f, beta);
+    if (ImGui::InputFloat("sigma", &sigma, 0, 0, "%.4g")) settings_.objective.sigma = std::max(1e-6f, sigma);
+    const char* solvers[] = {"fast (MM-NNQP)", "gradient (paper)"};
+    if (ImGui::Combo("solver", &solver_index_, solvers, 2))
+      settings_.solver = solver_index_ == 0 ? SolverKind::kFast : SolverKind::kGradient;
+  }
+  ImGui::End();
+}
+
+void Viewer::PanelEnvironment() {
+  int win_w, win_h;
+  glfwGetWindowSize(window_, &win_w, &win_h);
+  env_rect_ = {kPanelWidth, static_cast<float>(win_h) - kEnvHeight, static_cast<float>(win_w) - kPanelWidth, kEnvHeight};
+  ImGui::SetNextWindowPos(ImVec2(env_rect_.x, env_rect_.y));
+  ImGui::SetNextWindowSize(ImVec2(env_rect_.w, env_rect_.h));
+  ImGui::Begin("Environment map", nullptr,
+               ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse);
+  if (est_.env && est_.version != env_version_ && !est_.lambda.empty()) {
+    env_version_ = est_.version;
+    env_tex_.Upload(EnvDisplay(*est_.env, est_.lambda, 128));
+  }
+  const float h = env_rect_.h - 50, w = 2 * h;
+  ImVec2 at = ImGui::GetCursorScreenPos();
+  equirect_rect_ = {at.x, at.y, w, h};
+  if (est_.env && env_tex_.width() > 0) {
+    ImGui::Image(reinterpret_cast<void*>(static_cast<std::intptr_t>(env_tex_.id())), ImVec2(w, h));
+    // The dominant directions on the picture.
+    ImDrawList* dl = ImGui::GetWindowDrawList();
+    for (const Eigen::Vector3d& d : est_.dominant) {
+      double theta, phi;
+      est_.env->ToSpherical(d, &theta, &phi);
+      const ImVec2 p(at.x + static_cast<float>(phi / (2 * M_PI)) * w, at.y + static_cast<float>(theta / M_PI) * h);
+      dl->AddCircle(p, 8, IM_COL32(255, 230, 30, 255), 16, 2);
+    }
+  } else {
+    ImGui::Dummy(ImVec2(w, h));
+    ImGui::GetWindowDrawList()->AddRect(at, ImVec2(at.x + w, at.y + h), IM_COL32(90, 90, 100, 255));
+    ImGui::GetWindowDrawList()->AddText(ImVec2(at.x + 8, at.y + 8), IM_COL32(160, 160, 160, 255),
+                                        "no estimate yet: press Estimate");
+  }
+  ImGui::SameLine();
+  // The discrete directions on a sphere seen from the 3D view's camera, coloured by intensity.
+  at = ImGui::GetCursorScreenPos();
+  sphere_rect_ = {at.x, at.y, h, h};
+  ImGui::Dummy(ImVec2(h, h));
+  ImDrawList* dl = ImGui::GetWindowDrawList();
+  const ImVec2 c(at.x + h / 2, at.y + h / 2);
+  const float radius = h / 2 - 4;
+  dl->AddCircle(c, radius, IM_COL32(90, 90, 100, 255), 48);
+  if (est_.env && !est_.lambda.empty()) {
+    const Eigen::Matrix4f v = camera_.View();
+    const Eigen::Vector3f right = v.block<1, 3>(0, 0).transpose(), up = v.block<1, 3>(1, 0).transpose(),
+                          back = v.block<1, 3>(2, 0).transpose();
+    double top = 0;
+    for (int j = 0; j < est_.env->size(); ++j)
+      top = std::max(top, Luminance(est_.lambda[3 * j], est_.lambda[3 * j + 1], est_.lambda[3 * j + 2]));
+    for (int j = 0; j < est_.env->size(); ++j) {
+      const Eigen::Vector3f d = est_.env->direction(j).cast<float>();
+      const float depth = d.dot(back);  // towards the viewer: front hemisphere
+      const ImVec2 p(c.x + radius * d.dot(right), c.y - radius * d.dot(up));
+      const double lum = Luminance(est_.lambda[3 * j], est_.lambda[3 * j + 1], est_.lambda[3 * j + 2]);
+      const Eigen::Vector3f col = Heat(top > 0 ? static_cast<float>(std::sqrt(lum / top)) : 0.f);
+      const int alpha = depth >= 0 ? 255 : 70;
+      dl->AddCircleFilled(p, depth >= 0 ? 3.f : 2.f,
+                          IM_COL32(int(255 * col.x()), int(255 * col.y()), int(255 * col.z()), alpha));
+    }
+    for (const Eigen::Vector3d& dd : est_.dominant) {
+      const Eigen::Vector3f d = dd.cast<float>();
+      dl->AddCircle(ImVec2(c.x + radius * d.dot(right), c.y - radius * d.dot(up)), 8, IM_COL32(255, 230, 30, 255), 16,
+                    2);
+    }
+  }
+  ImGui::Text("directions: %d (%d rings); dominant light(s) circled; drag the 3D view to turn the sphere",
+              est_.env ? est_.env->size() : 0, est_.env ? est_.env->rings() : 0);
+  ImGui::End();
+}
+
+void Viewer::PanelKeyframe() {
+  if (selected_keyframe_ < 0 || !est_.scene || selected_keyframe_ >= static_cast<int>(est_.scene->views.size()))
+    return;
+  const View& view = est_.scene->views[selected_keyframe_];
+  const bool have_render = est_.result && selected_keyframe_ < static_cast<int>(est_.result->renders.size());
+  const std::uint64_t version = est_.version * 64 + (have_render ? 1 : 0);
+  if (compare_keyframe_ != selected_keyframe_ || compare_version_ != version) {
+    compare_keyframe_ = selected_keyframe_;
+    compare_version_ = version;
+    compare_tex_[0].Upload(ToDisplay(view.image, 1.f));
+    if (have_render) {
+      const ImageRGB& render = est_.result->renders[selected_keyframe_];
+      compare_tex_[1].Upload(ToDisplay(render, 1.f));
+      ImageRgb8 err;
+      err.width = render.width;
+      err.height = render.height;
+      err.data.assign(render.data.size(), 0);
+      const double scale = est_.result->image_mean;
+      for (std::size_t i = 0; i < render.pixels(); ++i) {
+        if (!view.valid[i]) continue;
+        double e = 0;
+        for (int k = 0; k < 3; ++k) e += std::abs(render.data[3 * i + k] - view.image.data[3 * i + k]);
+        const Eigen::Vector3f h = Heat(static_cast<float>(e / 3 / scale / 0.5));
+        for (int k = 0; k < 3; ++k) err.data[3 * i + k] = static_cast<std::uint8_t>(255 * h[k]);
+      }
+      compare_tex_[2].Upload(err);
+    }
+  }
+  int win_w, win_h;
+  glfwGetWindowSize(window_, &win_w, &win_h);
+  ImGui::SetNextWindowPos(ImVec2(kPanelWidth + 10, 40), ImGuiCond_Appearing);
+  bool open = true;
+  ImGui::Begin("Keyframe", &open, ImGuiWindowFlags_AlwaysAutoResize);
+  ImGui::Text("keyframe %d: reference | relit by the estimate | error (0 .. 50 %% of the mean)", selected_keyframe_);
+  const float w = 240, h = w * view.camera.height / std::max(1, view.camera.width);
+  ImGui::Image(reinterpret_cast<void*>(static_cast<std::intptr_t>(compare_tex_[0].id())), ImVec2(w, h));
+  if (have_render) {
+    for (int k = 1; k < 3; ++k) {
+      ImGui::SameLine();
+      ImGui::Image(reinterpret_cast<void*>(static_cast<std::intptr_t>(compare_tex_[k].id())), ImVec2(w, h));
+    }
+  } else {
+    ImGui::SameLine();
+    ImGui::TextWrapped("the relit render comes with the finished estimate");
+  }
+  ImGui::End();
+  if (!open) selected_keyframe_ = -1;
+}
+
+bool Viewer::Frame() {
+  const double now = glfwGetTime();
+  if (last_frame_time_ > 0) {
+    if (bench_frames_left_ > 0) {
+      bench_seconds_.push_back(now - last_frame_time_);
+      --bench_frames_left_;
+    }
+  }
+  last_frame_time_ = now;
+  // The workers share the cores with the window (Mesa renders on the CPU): outside the
+  // benchmark at most ~60 frames/s, and ~10 when nothing changed (any input wakes it).
+  if (bench_frames_left_ > 0) glfwPollEvents();
+  else glfwWaitEventsTimeout(changed_ ? 1.0 / 60 : 0.1);
+  live_ = session_.live();
+  est_ = session_.estimate();
+  const std::array<std::uint64_t, 6> versions = {live_.frame_version, live_.model_version, est_.version,
+                                                 est_.lit_version, est_.rows.size(),
+                                                 static_cast<std::uint64_t>(est_.state)};
+  changed_ = versions != versions_ || dragging_ || ImGui::IsAnyItemActive();
+  versions_ = versions;
+  SyncModel();
+  SyncShading();
+
+  ImGui_ImplOpenGL3_NewFrame();
+  ImGui_ImplGlfw_NewFrame();
+  ImGui::NewFrame();
+  int win_w, win_h;
+  glfwGetWindowSize(window_, &win_w, &win_h);
+  view_rect_ = {kPanelWidth, 0, static_cast<float>(win_w) - kPanelWidth, static_cast<float>(win_h) - kEnvHeight};
+  PanelSource();
+  PanelEstimate();
+  PanelEnvironment();
+  PanelKeyframe();
+  // Shading mode bar over the 3D view.
+  ImGui::SetNextWindowPos(ImVec2(view_rect_.x + 8, 8));
+  ImGui::SetNextWindowBgAlpha(0.6f);
+  ImGui::Begin("##shading", nullptr,
+               ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoMove);
+  for (Shading s : {Shading::kAlbedo, Shading::kLit, Shading::kError, Shading::kNormals}) {
+    if (ImGui::RadioButton(ToString(s), shading_ == s)) shading_ = s;
+    ImGui::SameLine();
+  }
+  if (ImGui::Button("reset view")) ResetCamera();
+  if (shading_ == Shading::kLit) {
+    ImGui::SetNextItemWidth(120);
+    ImGui::SliderFloat("exposure", &exposure_, 0.1f, 8.f, "%.2f", ImGuiSliderFlags_Logarithmic);
+    ImGui::SameLine();
+    ImGui::Text("%d samples/vertex", est_.lit_samples);
+  } else if (shading_ == Shading::kAlbedo) {
+    ImGui::Checkbox("headlight", &headlight_);
+  }
+  if ((shading_ == Shading::kLit || shading_ == Shading::kError) && !est_.lit)
+    ImGui::Text("(available once an estimate is done)");
+  ImGui::Text("%zu triangles, %.0f frames/s", mesh_.triangles(), ImGui::GetIO().Framerate);
+  ImGui::End();
+  HandleMouse(view_rect_);
+
+  if (script_ && !quit_) {
+    try {
+      if (!script_->Step()) script_.reset();
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "lightprobe: script: %s\n", e.what());
+      exit_code_ = 1;
+      quit_ = true;
+    }
+  }
+
+  ImGui::Render();
+  int fb_w, fb_h;
+  glfwGetFramebufferSize(window_, &fb_w, &fb_h);
+  glViewport(0, 0, fb_w, fb_h);
+  glClearColor(0.1f, 0.1f, 0.11f, 1.f);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  DrawScene(view_rect_);
+  ImGui_ImplOpenGL3_RenderDrawData(ImGui::GetDrawData());
+  if (!pending_screenshot_.empty()) {
+    WriteRgb8Png(pending_screenshot_, ReadBackBuffer(fb_w, fb_h));
+    pending_screenshot_.clear();
+  }
+  glfwSwapBuffers(window_);
+  return !quit_ && !glfwWindowShouldClose(window_);
+}
+
+void Viewer::Screenshot(const std::string& path) { pending_screenshot_ = path; }
+
+void Viewer::WriteState(const std::string& path) const {
+  using nlohmann::json;
+  auto rect = [](const Rect& r) { return json::array({r.x, r.y, r.w, r.h}); };
+  json j;
+  j["window"] = {{"view3d", rect(view_rect_)},  {"environment", rect(env_rect_)}, {"equirect", rect(equirect_rect_)},
+                 {"sphere", rect(sphere_rect_)}, {"live", rect(live_rect_)}};
+  j["source"] = live_.source;
+  j["error"] = live_.error;
+  j["frames_read"] = live_.frames_read;
+  j["frames_tracked"] = live_.frames_tracked;
+  j["frames_lost"] = live_.frames_lost;
+  j["model_triangles"] = live_.model ? live_.model->triangles.size() : 0;
+  j["shown_triangles"] = mesh_.triangles();
+  j["shading"] = ToString(shading_);
+  j["estimate"] = {{"state", ToString(est_.state)},
+                   {"message", est_.message},
+                   {"rows", est_.rows.size()},
+                   {"rounds", est_.result ? est_.result->rounds.size() : 0},
+                   {"lit_samples", est_.lit_samples},
+                   {"seconds_to_first", std::isnan(est_.seconds_to_first) ? json() : json(est_.seconds_to_first)},
+                   {"seconds_total", std::isnan(est_.seconds_total) ? json() : json(est_.seconds_total)},
+                   {"export", est_.export_message}};
+  if (est_.result && !std::isnan(est_.result->final_angular_error_deg))
+    j["estimate"]["angular_error_deg"] = est_.result->final_angular_error_deg;
+  if (!bench_seconds_.empty()) {
+    std::vector<double> s = bench_seconds_;
+    std::sort(s.begin(), s.end());
+    double sum = 0;
+    for (double v : s) sum += v;
+    j["bench"] = {{"frames", s.size()},
+                  {"mean_ms", 1000 * sum / s.size()},
+                  {"median_ms", 1000 * s[s.size() / 2]},
+                  {"p95_ms", 1000 * s[std::min(s.size() - 1, s.size() * 95 / 100)]},
+                  {"fps", s.size() / sum}};
+  }
+  std::ofstream(path) << j.dump(2) << "\n";
+}
+
+int RunViewer(const ViewerOptions& options) {
+  glfwSetErrorCallback(OnGlfwError);
+  if (!glfwInit())
+    throw InputError("cannot open a window (no display: " + (g_glfw_error.empty() ? "glfwInit failed" : g_glfw_error) +
+                     "); run the pipeline without one: lightprobe --headless INPUT --out DIR");
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
+  glfwWindowHint(GLFW_CONTEXT_VERSION_MINOR, 3);
+  glfwWindowHint(GLFW_OPENGL_PROFILE, GLFW_OPENGL_CORE_PROFILE);
+  glfwWindowHint(GLFW_OPENGL_FORWARD_COMPAT, GLFW_TRUE);
+  GLFWwindow* window = glfwCreateWindow(options.width, options.height, "lightprobe", nullptr, nullptr);
+  if (!window) {
+    glfwTerminate();
+    throw InputError("cannot create an OpenGL 3.3 window (" + g_glfw_error +
+                     "); run the pipeline without one: lightprobe --headless INPUT --out DIR");
+  }
+  glfwMakeContextCurrent(window);
+  glfwSwapInterval(0);  // the benchmark measures frame time, not the display's refresh
+  IMGUI_CHECKVERSION();
+  ImGui::CreateContext();
+  ImGui::GetIO().IniFilename = nullptr;  // no imgui.ini in the working directory
+  ImGui::StyleColorsDark();
+  ImGui_ImplGlfw_InitForOpenGL(window, true);
+  ImGui_ImplOpenGL3_Init("#version 330 core");
+  int code = 0;
+  try {
+    Viewer viewer(options, window);
+    while (viewer.Frame()) {
+    }
+    code = viewer.exit_code();
+  } catch (...) {
+    ImGui_ImplOpenGL3_Shutdown();
+    ImGui_ImplGlfw_Shutdown();
+    ImGui::DestroyContext();
+    glfwDestroyWindow(window);
+    glfwTerminate();
+    throw;
+  }
+  ImGui_ImplOpenGL3_Shutdown();
+  ImGui_ImplGlfw_Shutdown();
+  ImGui::DestroyContext();
+  glfwDestroyWindow(window);
+  glfwTerminate();
+  return code;
+}
+
+}  // namespace lp::ui

@@ -1,0 +1,128 @@
+#pragma once
+/// Inside the viewer (ui/ only): the window's state, shared by viewer.cpp (panels, 3D
+/// view) and script.cpp (the command file).
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "ui/gl.h"
+#include "ui/session.h"
+#include "ui/viewer.h"
+
+namespace lp::ui {
+
+enum class Shading { kAlbedo, kLit, kError, kNormals };
+const char* ToString(Shading s);
+
+/// Orbit camera around a target; `up` is the scene's up.
+struct OrbitCamera {
+  Eigen::Vector3f target = Eigen::Vector3f::Zero();
+  Eigen::Vector3f up = -Eigen::Vector3f::UnitY();
+  float yaw = 0.6f, pitch = 0.5f, distance = 3.f;
+  Eigen::Vector3f Eye() const;
+  Eigen::Matrix4f View() const;
+  Eigen::Matrix4f Projection(float aspect) const;
+};
+
+/// A rectangle in window pixels (top-left origin).
+struct Rect {
+  float x = 0, y = 0, w = 0, h = 0;
+  bool Contains(float px, float py) const { return px >= x && py >= y && px < x + w && py < y + h; }
+};
+
+/// One script line: the command and its words.
+struct ScriptLine {
+  int number = 0;
+  std::vector<std::string> words;
+};
+
+class Viewer {
+ public:
+  Viewer(const ViewerOptions& options, GLFWwindow* window);
+  ~Viewer();
+  /// One frame: poll, panels, 3D view, script step, swap. False when the window should close.
+  bool Frame();
+  int exit_code() const { return exit_code_; }
+
+ private:
+  friend class ScriptRunner;
+  void SyncModel();
+  void SyncShading();
+  void DrawScene(const Rect& r);
+  void HandleMouse(const Rect& r);
+  void PanelSource();
+  void PanelEstimate();
+  void PanelEnvironment();
+  void PanelKeyframe();
+  void PlotConvergence(float width, float height);
+  void ResetCamera();
+  void WriteState(const std::string& path) const;
+  void Screenshot(const std::string& path);
+
+  ViewerOptions options_;
+  GLFWwindow* window_;
+  Session session_;
+  LiveStatus live_;
+  EstimateStatus est_;
+  EstimateOptions settings_;
+  int solver_index_ = 0;
+
+  Program mesh_program_;
+  Program line_program_;
+  GlMesh mesh_;
+  GlLines lines_;
+  Texture color_tex_, depth_tex_, env_tex_;
+  std::array<Texture, 3> compare_tex_;  // reference, render, error of the selected keyframe
+  std::uint64_t model_version_ = ~0ull, frame_version_ = ~0ull, env_version_ = ~0ull, lit_version_ = ~0ull;
+  std::shared_ptr<const Mesh> shown_mesh_;   // geometry in mesh_
+  bool showing_snapshot_ = false;            // mesh_ holds the estimate's scene mesh
+  Shading shading_ = Shading::kAlbedo, shaded_ = Shading::kAlbedo;
+  bool headlight_ = true;
+  float exposure_ = 1.f;
+  OrbitCamera camera_;
+  bool camera_set_ = false;
+  Rect view_rect_, env_rect_, equirect_rect_, sphere_rect_, live_rect_;
+  int selected_keyframe_ = -1, compare_keyframe_ = -1;
+  std::uint64_t compare_version_ = ~0ull;
+  bool dragging_ = false, drag_moved_ = false;
+  double drag_x_ = 0, drag_y_ = 0;
+  char path_field_[512] = {0};
+  char export_field_[512] = "lightprobe-export";
+  float seek_frame_ = 0;
+  float speed_ = 1.f;
+
+  // Frame timing (the benchmark) and the script.
+  bool changed_ = true;
+  std::array<std::uint64_t, 6> versions_{};
+  double last_frame_time_ = 0;
+  int bench_frames_left_ = 0;
+  std::vector<double> bench_seconds_;
+  std::unique_ptr<class ScriptRunner> script_;
+  int exit_code_ = 0;
+  bool quit_ = false;
+  std::string pending_screenshot_;
+};
+
+/// Runs the command file one step per frame (commands that wait return false until done).
+class ScriptRunner {
+ public:
+  /// Throws InputError for a missing file or an unknown command (checked up front).
+  ScriptRunner(const std::string& path, Viewer* viewer);
+  /// Advances; returns false when the script is finished.
+  bool Step();
+
+ private:
+  bool Run(const ScriptLine& line);  ///< true = done with this line
+  [[noreturn]] void Fail(const ScriptLine& line, const std::string& why) const;
+  std::string path_;
+  Viewer* viewer_;
+  std::vector<ScriptLine> lines_;
+  std::size_t next_ = 0;
+  double line_started_ = -1;
+  int frames_waited_ = 0;
+};
+
+}  // namespace lp::ui
