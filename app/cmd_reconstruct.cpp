@@ -78,6 +78,10 @@ Run AddReconstruct(CLI::App& app) {
   cmd->add_option("--poses", *poses,
                   "true camera poses (trajectory.log or pose.txt, one per frame): the world frame, and the "
                   "trajectory error is reported (frame directories with poses need no flag)");
+  cmd->add_option("--albedo", o->albedo.segment,
+                  "1: flatten the shading baked into the fused colour per segment of one chromaticity (default); "
+                  "0: keep each vertex's mean observed colour")
+      ->capture_default_str();
   cmd->add_flag("--use-poses", o->use_source_poses, "fuse with the given poses instead of tracking");
   auto calibration = std::make_shared<std::string>();
   cmd->add_option("--calibration", *calibration,

@@ -26,6 +26,7 @@ Run AddSynth(CLI::App& app) {
   auto data = std::make_shared<std::string>(DefaultDataDir());
   auto threads = std::make_shared<int>(0);
   auto frames = std::make_shared<int>(0);
+  auto min_triangles = std::make_shared<int>(0);
   cmd->add_option("--frames", *frames,
                   "write N RGB-D frames along an arc (a Redwood-layout frame directory with trajectory.log and "
                   "truth.json) "
@@ -43,6 +44,9 @@ Run AddSynth(CLI::App& app) {
                 "with --frames: structured-light depth noise and holes (Xtion-like; default exact depth)");
   cmd->add_option("--data", *data, "shared data directory (mesh/ for frag115, hdri/ for env-*)")->capture_default_str();
   cmd->add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
+  cmd->add_option("--min-triangles", *min_triangles,
+                  "split the bundle's triangles (same surface) until it has at least this many (viewer benchmark)")
+      ->capture_default_str();
   return [=] {
     if (*list) {
       for (const auto& [n, d] : SynthSceneList()) std::printf("%-12s %s\n", n.c_str(), d.c_str());
@@ -61,6 +65,7 @@ Run AddSynth(CLI::App& app) {
       return;
     }
     SceneBundle b = MakeSynthScene(*name, *o, *data);
+    if (*min_triangles > 0) b.mesh = RefineMesh(b.mesh, *min_triangles);
     WriteSceneBundle(*out, b);
     std::printf("wrote synthetic scene '%s' (%dx%d, %d spp) to %s in %.1f s\n", name->c_str(), o->width, o->height,
                 o->spp, fs::absolute(*out).lexically_normal().c_str(), sw.Seconds());

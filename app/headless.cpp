@@ -39,12 +39,12 @@ int RunHeadless(const std::vector<std::string>& args) {
     };
     if (a == "--headless") input = value();
     else if (a == "--out") out = value();
-    else if (a == "--poses" || a == "--calibration" || a == "--voxel" || a == "--keyframes") {
+    else if (a == "--poses" || a == "--calibration" || a == "--voxel" || a == "--keyframes" || a == "--albedo") {
       extra.push_back(a);
       extra.push_back(value());
     } else throw InputError("--headless: unknown argument " + a +
                             " (usage: lightprobe --headless INPUT --out DIR [--poses FILE] [--calibration FILE] "
-                            "[--voxel M] [--keyframes N])");
+                            "[--voxel M] [--keyframes N] [--albedo 0|1])");
   }
   if (input.empty() || out.empty()) throw InputError("--headless: usage: lightprobe --headless INPUT --out DIR");
   const std::string scene = (std::filesystem::path(out) / "scene").string();

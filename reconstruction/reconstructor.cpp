@@ -379,6 +379,7 @@ SceneBundle Reconstructor::Finish() const {
   }
   SanitizeMesh(&b.mesh, "reconstructed mesh");
   b.up = EstimateUp(b.mesh);
+  FlattenAlbedo(&b.mesh, m.o.albedo);
 
   // Keyframes: the sharpest candidate first, then the one farthest (in pose) from those
   // chosen, weighted by sharpness, until `keyframes`.

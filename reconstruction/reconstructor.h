@@ -13,6 +13,7 @@
 #include "calibration/calibration.h"
 #include "capture/frame.h"
 #include "estimation/scene_bundle.h"
+#include "reconstruction/albedo.h"
 #include "reconstruction/depth_maps.h"
 #include "reconstruction/icp.h"
 #include "reconstruction/relocalizer.h"
@@ -39,6 +40,8 @@ struct ReconstructionOptions {
   int view_width = 160;
   int max_candidates = 64;   ///< keyframe candidates kept while running (memory bound)
   float mesh_min_weight = 2; ///< voxels seen fewer times are left out of the mesh
+  /// The bundle's albedo: per-segment mean colour (shading flattened), see albedo.h.
+  AlbedoOptions albedo;
   /// Raycast the model for tracking at this pyramid level (1 = half size: a quarter of
   /// the rays; the frame's full-size points still associate into it).
   int model_level = 1;

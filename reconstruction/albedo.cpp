@@ -1,0 +1,77 @@
+#include "reconstruction/albedo.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+namespace lp {
+
+namespace {
+
+struct Segments {
+  std::vector<int> parent;
+  std::vector<Eigen::Vector3d> sum;  // colour sums
+  std::vector<int> count;
+
+  int Find(int a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  }
+  Eigen::Vector3d Mean(int root) const { return sum[root] / count[root]; }
+};
+
+Eigen::Vector3d Chroma(const Eigen::Vector3d& c) {
+  const double s = c.sum();
+  return s > 1e-6 ? Eigen::Vector3d(c / s) : Eigen::Vector3d::Constant(1.0 / 3);
+}
+
+}  // namespace
+
+int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& o) {
+  if (!o.segment || mesh->albedo.size() != mesh->positions.size()) return 0;
+  const int n = static_cast<int>(mesh->positions.size());
+  struct Edge {
+    float cost;
+    int a, b;
+  };
+  std::vector<Edge> edges;
+  edges.reserve(mesh->triangles.size() * 3 / 2 + 1);
+  for (const Eigen::Vector3i& t : mesh->triangles)
+    for (int k = 0; k < 3; ++k) {
+      const int a = t[k], b = t[(k + 1) % 3];
+      if (a >= b) continue;  // each shared edge once (the other triangle has it reversed)
+      const Eigen::Vector3d ca = mesh->albedo[a].cast<double>(), cb = mesh->albedo[b].cast<double>();
+      const double chroma = (Chroma(ca) - Chroma(cb)).norm();
+      const double log_step = std::abs(std::log(std::max(1e-4, ca.sum())) - std::log(std::max(1e-4, cb.sum())));
+      if (chroma < o.max_chroma_step && log_step < o.max_log_step)
+        edges.push_back({static_cast<float>(chroma / o.max_chroma_step + log_step / o.max_log_step), a, b});
+    }
+  // The smoothest joins first (Felzenszwalb-style), each checked against the segments' means.
+  std::sort(edges.begin(), edges.end(), [](const Edge& x, const Edge& y) { return x.cost < y.cost; });
+  Segments s;
+  s.parent.resize(n);
+  std::iota(s.parent.begin(), s.parent.end(), 0);
+  s.count.assign(n, 1);
+  s.sum.resize(n);
+  for (int v = 0; v < n; ++v) s.sum[v] = mesh->albedo[v].cast<double>();
+  for (const Edge& e : edges) {
+    const int ra = s.Find(e.a), rb = s.Find(e.b);
+    if (ra == rb) continue;
+    if ((Chroma(s.Mean(ra)) - Chroma(s.Mean(rb))).norm() > o.max_chroma_spread) continue;
+    const int big = s.count[ra] >= s.count[rb] ? ra : rb, small = big == ra ? rb : ra;
+    s.parent[small] = big;
+    s.sum[big] += s.sum[small];
+    s.count[big] += s.count[small];
+  }
+  int flattened = 0;
+  std::vector<char> counted(n, 0);
+  for (int v = 0; v < n; ++v) {
+    const int r = s.Find(v);
+    if (s.count[r] < o.min_segment) continue;
+    mesh->albedo[v] = s.Mean(r).cast<float>();
+    if (!counted[r]) counted[r] = 1, ++flattened;
+  }
+  return flattened;
+}
+
+}  // namespace lp

@@ -1,0 +1,25 @@
+#pragma once
+/// Albedo from the fused colour. A voxel's mean linear colour is albedo times shading
+/// (the light we want to estimate is baked in): rendered under any light, a mesh coloured
+/// that way explains the images with a uniform environment. Real scenes are mostly made of
+/// surfaces of one material, so the mesh is split into segments of one chromaticity
+/// (joined across edges whose colour changes smoothly) and each segment gets its mean
+/// colour: the shading's variation within a segment is then left for the estimator to
+/// explain with light.
+#include "estimation/mesh.h"
+
+namespace lp {
+
+struct AlbedoOptions {
+  bool segment = true;          ///< false: keep the per-vertex mean colour
+  float max_chroma_step = 0.03f;  ///< join neighbours whose chromaticity differs less than this
+  float max_log_step = 0.15f;     ///< ... and whose log luminance differs less than this
+  float max_chroma_spread = 0.06f;  ///< segments whose mean chromaticities differ more stay apart
+  int min_segment = 200;        ///< vertices: smaller segments keep their per-vertex colour
+};
+
+/// Replaces each segment's per-vertex albedo by the segment's mean; returns the number of
+/// segments flattened.
+int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& options = {});
+
+}  // namespace lp

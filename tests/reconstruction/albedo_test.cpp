@@ -1,0 +1,73 @@
+// FlattenAlbedo: shading baked into the fused colour is flattened per segment of one
+// chromaticity; different materials stay apart.
+#include <gtest/gtest.h>
+
+#include "reconstruction/albedo.h"
+
+namespace lp {
+namespace {
+
+/// A strip of n x 2 vertices along x, colour `rgb` scaled by shading(x).
+Mesh Strip(int n, float x0, const Eigen::Vector3f& rgb, float shade0, float shade1) {
+  Mesh m;
+  for (int i = 0; i < n; ++i)
+    for (int k = 0; k < 2; ++k) {
+      m.positions.push_back({x0 + 0.01f * i, 0.01f * k, 0});
+      const float s = shade0 + (shade1 - shade0) * i / (n - 1);
+      m.albedo.push_back(rgb * s);
+    }
+  for (int i = 0; i + 1 < n; ++i) {
+    const int a = 2 * i, b = 2 * i + 1, c = 2 * i + 2, d = 2 * i + 3;
+    m.triangles.push_back({a, c, b});
+    m.triangles.push_back({b, c, d});
+  }
+  return m;
+}
+
+TEST(FlattenAlbedo, ShadingInsideAMaterialIsFlattenedMaterialsStayApart) {
+  // Beige fading from full light to a third (smoothly: 1 % per vertex), then a blue strip
+  // joined to it (the same vertices' neighbours across the seam).
+  Mesh beige = Strip(300, 0, {0.6f, 0.5f, 0.35f}, 1.0f, 0.33f);
+  Mesh blue = Strip(300, 3.0f, {0.1f, 0.2f, 0.6f}, 0.5f, 0.9f);
+  const int seam_a = 2 * 299, seam_b = 2 * 299 + 1;
+  beige.Append(blue);
+  const int offset = 600;
+  beige.triangles.push_back({seam_a, offset, seam_b});  // connect the strips
+  beige.triangles.push_back({seam_b, offset, offset + 1});
+  AlbedoOptions o;
+  o.min_segment = 50;
+  ASSERT_EQ(FlattenAlbedo(&beige, o), 2);
+  // Each strip is one colour: the mean of its shaded colours.
+  for (int v = 1; v < 600; ++v) EXPECT_TRUE(beige.albedo[v].isApprox(beige.albedo[0], 1e-5f)) << v;
+  for (int v = 601; v < 1200; ++v) EXPECT_TRUE(beige.albedo[v].isApprox(beige.albedo[600], 1e-5f)) << v;
+  const float mean_shade = (1.0f + 0.33f) / 2;
+  EXPECT_NEAR(beige.albedo[0].x(), 0.6f * mean_shade, 1e-3f);
+  EXPECT_NEAR(beige.albedo[600].z(), 0.6f * 0.7f, 1e-3f);
+  // Its chromaticity is kept.
+  EXPECT_NEAR(beige.albedo[0].x() / beige.albedo[0].z(), 0.6f / 0.35f, 1e-3f);
+}
+
+TEST(FlattenAlbedo, AnAbruptBrightnessStepSplitsAndSmallSegmentsKeepTheirColour) {
+  Mesh dark = Strip(100, 0, Eigen::Vector3f::Constant(0.2f), 1, 1);
+  Mesh light = Strip(100, 1.0f, Eigen::Vector3f::Constant(0.8f), 1, 1);
+  Mesh tiny = Strip(5, 5.0f, Eigen::Vector3f(0.9f, 0.1f, 0.1f), 1, 0.5f);
+  dark.Append(light);
+  dark.triangles.push_back({198, 200, 199});  // a grey-level step of 4x across this edge
+  dark.Append(tiny);
+  const std::vector<Eigen::Vector3f> before = dark.albedo;
+  AlbedoOptions o;
+  o.min_segment = 50;
+  EXPECT_EQ(FlattenAlbedo(&dark, o), 2);
+  EXPECT_NEAR(dark.albedo[0].x(), 0.2f, 1e-5f);
+  EXPECT_NEAR(dark.albedo[399].x(), 0.8f, 1e-5f);
+  for (int v = 400; v < 410; ++v) EXPECT_EQ(dark.albedo[v], before[v]) << "segments under min_segment are kept";
+  // Off: nothing changes.
+  Mesh off = Strip(100, 0, {0.6f, 0.5f, 0.35f}, 1.0f, 0.5f);
+  const std::vector<Eigen::Vector3f> original = off.albedo;
+  o.segment = false;
+  EXPECT_EQ(FlattenAlbedo(&off, o), 0);
+  EXPECT_EQ(off.albedo, original);
+}
+
+}  // namespace
+}  // namespace lp
