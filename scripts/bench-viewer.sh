@@ -16,8 +16,10 @@ frames 10
 estimate
 wait-first 600
 bench-frames 300
-screenshot $out/frames.png
 state $out/frames.json
+bench-frames 100 orbit
+screenshot $out/frames.png
+state $out/frames-orbit.json
 cancel
 quit
 EOS
@@ -40,6 +42,8 @@ quit
 EOS
 xvfb-run -a -s "-screen 0 1280x720x24" $exe view demo --script "$out/first.txt" >"$out/first.log" 2>&1
 echo "frame time, 1280x720, $(grep -o '"shown_triangles": [0-9]*' "$out/frames.json"), estimating:"
-grep -A6 '"bench"' "$out/frames.json"
+grep -A8 '"bench"' "$out/frames.json"
+echo "the same, orbiting (the 3D view redrawn every frame):"
+grep -A8 '"bench"' "$out/frames-orbit.json"
 echo "Estimate -> first usable estimate on the demo: $(grep -o '"seconds_to_first": [0-9.]*' "$out/first.json")"
 echo "Estimate -> done: $(grep -o '"seconds_total": [0-9.]*' "$out/done.json")"

@@ -140,6 +140,39 @@ void GlLines::Draw() {
   glBindVertexArray(0);
 }
 
+RenderTarget::RenderTarget() {
+  glGenFramebuffers(1, &fbo_);
+  glGenTextures(1, &color_);
+  glGenRenderbuffers(1, &depth_);
+}
+
+RenderTarget::~RenderTarget() {
+  glDeleteRenderbuffers(1, &depth_);
+  glDeleteTextures(1, &color_);
+  glDeleteFramebuffers(1, &fbo_);
+}
+
+void RenderTarget::Bind(int width, int height) {
+  glBindFramebuffer(GL_FRAMEBUFFER, fbo_);
+  if (width != width_ || height != height_) {
+    glBindTexture(GL_TEXTURE_2D, color_);
+    glTexImage2D(GL_TEXTURE_2D, 0, GL_RGBA8, width, height, 0, GL_RGBA, GL_UNSIGNED_BYTE, nullptr);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    glTexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    glFramebufferTexture2D(GL_FRAMEBUFFER, GL_COLOR_ATTACHMENT0, GL_TEXTURE_2D, color_, 0);
+    glBindRenderbuffer(GL_RENDERBUFFER, depth_);
+    glRenderbufferStorage(GL_RENDERBUFFER, GL_DEPTH_COMPONENT24, width, height);
+    glFramebufferRenderbuffer(GL_FRAMEBUFFER, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, depth_);
+    if (glCheckFramebufferStatus(GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+      throw std::runtime_error("GL: the offscreen framebuffer is incomplete");
+    width_ = width;
+    height_ = height;
+  }
+  glViewport(0, 0, width, height);
+}
+
+void RenderTarget::Unbind() { glBindFramebuffer(GL_FRAMEBUFFER, 0); }
+
 Program MeshProgram() {
   return Program(R"(#version 330 core
 layout(location = 0) in vec3 position;

@@ -83,6 +83,24 @@ class GlLines {
   std::vector<float> data_;  // x y z r g b per point
 };
 
+/// An offscreen colour + depth target (the 3D view is drawn into it only when it changes,
+/// then shown as an image every frame).
+class RenderTarget {
+ public:
+  RenderTarget();
+  ~RenderTarget();
+  RenderTarget(const RenderTarget&) = delete;
+  RenderTarget& operator=(const RenderTarget&) = delete;
+  /// Binds it for drawing at this size (reallocated when the size changes).
+  void Bind(int width, int height);
+  static void Unbind();
+  unsigned texture() const { return color_; }
+
+ private:
+  unsigned fbo_ = 0, color_ = 0, depth_ = 0;
+  int width_ = 0, height_ = 0;
+};
+
 /// The mesh program: mode 0 = vertex colour (already display-ready, sRGB-encoded in the
 /// shader from linear), 1 = normals; optional headlight.
 Program MeshProgram();

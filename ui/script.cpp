@@ -19,7 +19,7 @@ const std::map<std::string, std::pair<int, int>>& Commands() {
       {"speed", {1, 1}},         {"reconstruct", {1, 1}}, {"wait-end", {0, 1}},    {"wait-open", {0, 1}},
       {"estimate", {0, 20}},     {"cancel", {0, 0}},      {"wait-estimate", {0, 1}}, {"wait-lit", {1, 2}},
       {"wait-first", {0, 1}},    {"shading", {1, 1}},     {"keyframe", {1, 1}},    {"orbit", {2, 2}},
-      {"frames", {1, 1}},        {"screenshot", {1, 1}},  {"bench-frames", {1, 1}}, {"export", {1, 1}},
+      {"frames", {1, 1}},        {"screenshot", {1, 1}},  {"bench-frames", {1, 2}}, {"export", {1, 1}},
       {"wait-export", {0, 1}},   {"state", {1, 1}},       {"expect-estimate", {1, 1}}, {"quit", {0, 0}},
       {"close", {0, 0}},
   };
@@ -203,7 +203,10 @@ bool ScriptRunner::Run(const ScriptLine& line) {
   }
   if (cmd == "bench-frames") {
     if (first) {
+      if (line.words.size() > 2 && line.words[2] != "orbit") Fail(line, "the second word can only be orbit");
       v.bench_seconds_.clear();
+      v.bench_orbit_ = line.words.size() > 2;
+      v.bench_scene_renders_start_ = v.scene_renders_;
       v.bench_frames_left_ = static_cast<int>(Number(line, 1, 100));
     }
     return v.bench_frames_left_ == 0;

@@ -52,6 +52,7 @@ class Viewer {
   void SyncModel();
   void SyncShading();
   void DrawScene(const Rect& r);
+  std::string SceneKey(const Rect& r) const;
   void HandleMouse(const Rect& r);
   void PanelSource();
   void PanelEstimate();
@@ -73,7 +74,13 @@ class Viewer {
   Program mesh_program_;
   Program line_program_;
   GlMesh mesh_;
+  GlMesh coarse_mesh_;  // drawn while the view moves
+  std::vector<int> cluster_of_;
+  bool has_coarse_ = false, moving_ = false;
   GlLines lines_;
+  RenderTarget target_;
+  std::string scene_key_;
+  std::uint64_t scene_renders_ = 0;
   Texture color_tex_, depth_tex_, env_tex_;
   std::array<Texture, 3> compare_tex_;  // reference, render, error of the selected keyframe
   std::uint64_t model_version_ = ~0ull, frame_version_ = ~0ull, env_version_ = ~0ull, lit_version_ = ~0ull;
@@ -100,6 +107,8 @@ class Viewer {
   double last_frame_time_ = 0;
   int bench_frames_left_ = 0;
   std::vector<double> bench_seconds_;
+  bool bench_orbit_ = false;
+  std::uint64_t bench_scene_renders_start_ = 0, bench_scene_renders_end_ = 0;
   std::unique_ptr<class ScriptRunner> script_;
   int exit_code_ = 0;
   bool quit_ = false;
