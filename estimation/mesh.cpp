@@ -176,15 +176,26 @@ int SanitizeMesh(Mesh* mesh, const std::string& name) {
   const int removed = static_cast<int>(mesh->triangles.size() - kept.size());
   mesh->triangles.swap(kept);
   if (mesh->triangles.empty()) throw InputError(name, "mesh has no non-degenerate triangles");
-  bool normals_ok = mesh->normals.size() == mesh->positions.size();
-  if (normals_ok) {
-    for (auto& nrm : mesh->normals) {
-      const float len = nrm.norm();
-      if (!std::isfinite(len) || len < 1e-6f) { normals_ok = false; break; }
-      nrm /= len;
-    }
+  if (mesh->normals.size() != mesh->positions.size()) {
+    ComputeVertexNormals(mesh);
+    return removed;
   }
-  if (!normals_ok) ComputeVertexNormals(mesh);
+  // Only the unusable normals (zero, NaN: e.g. a vertex no triangle uses) are replaced by
+  // the triangles' normals; the file's others are kept (they may be smoothed on purpose).
+  std::vector<std::size_t> bad;
+  for (std::size_t v = 0; v < mesh->normals.size(); ++v) {
+    Eigen::Vector3f& nrm = mesh->normals[v];
+    const float len = nrm.norm();
+    if (!std::isfinite(len) || len < 1e-6f) bad.push_back(v);
+    else nrm /= len;
+  }
+  if (!bad.empty()) {
+    Mesh computed;
+    computed.positions = mesh->positions;
+    computed.triangles = mesh->triangles;
+    ComputeVertexNormals(&computed);
+    for (std::size_t v : bad) mesh->normals[v] = computed.normals[v];
+  }
   return removed;
 }
 

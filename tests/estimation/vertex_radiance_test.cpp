@@ -109,6 +109,16 @@ TEST(RefineMesh, ReachesTheTriangleCountAndKeepsTheSurface) {
   for (const auto& p : fine.positions) EXPECT_EQ(p.z(), 0.f);
 }
 
+TEST(SanitizeMesh, OneUnusableNormalDoesNotDiscardTheOthers) {
+  // Smoothed (tilted) normals from a file, and one zero normal: only that one is recomputed.
+  Mesh m = test::Plane(1.0, 0.5);
+  const Eigen::Vector3f tilted = Eigen::Vector3f(0.3f, 0, 1).normalized();
+  m.normals = {tilted, tilted, 2 * tilted, Eigen::Vector3f::Zero()};
+  SanitizeMesh(&m, "test");
+  for (int v = 0; v < 3; ++v) EXPECT_TRUE(m.normals[v].isApprox(tilted, 1e-6f)) << v;
+  EXPECT_TRUE(m.normals[3].isApprox(Eigen::Vector3f::UnitZ(), 1e-6f));
+}
+
 TEST(SimplifyForDisplay, FitsTheBudgetKeepsTheSurfaceAndCarriesValues) {
   const Mesh fine = ComputeNormalsOf(RefineMesh(test::Ball(1.0, 0.5, 64, 128), 200000));
   std::vector<int> cluster_of;
