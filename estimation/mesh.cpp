@@ -61,12 +61,18 @@ Mesh ClusterMesh(const Mesh& mesh, float cell, std::vector<int>* cluster_of) {
   std::vector<int> count;
   const bool normals = mesh.normals.size() == mesh.positions.size();
   const bool albedo = mesh.albedo.size() == mesh.positions.size();
+  std::vector<char> used(mesh.positions.size(), 0);
+  for (const Eigen::Vector3i& t : mesh.triangles)
+    for (int k = 0; k < 3; ++k) used[t[k]] = 1;
+  // 21 bits per axis: a cell is at least 1/2^21 of the mesh's extent.
+  const float extent = (hi - lo).maxCoeff();
+  cell = std::max(cell, extent / 2097000.f);
   for (std::size_t v = 0; v < mesh.positions.size(); ++v) {
+    if (!used[v]) continue;  // outside the bounds; dropped with the triangles it is not in
     const Eigen::Vector3f q = (mesh.positions[v] - lo) / cell;
     if (!q.allFinite()) continue;
-    const std::int64_t key = (static_cast<std::int64_t>(std::max(0.f, q.x())) << 42) ^
-                             (static_cast<std::int64_t>(std::max(0.f, q.y())) << 21) ^
-                             static_cast<std::int64_t>(std::max(0.f, q.z()));
+    const std::int64_t key = (static_cast<std::int64_t>(q.x()) << 42) | (static_cast<std::int64_t>(q.y()) << 21) |
+                             static_cast<std::int64_t>(q.z());
     auto [it, fresh] = index.emplace(key, static_cast<int>(out.positions.size()));
     if (fresh) {
       out.positions.push_back(Eigen::Vector3f::Zero());

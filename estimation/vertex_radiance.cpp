@@ -28,11 +28,15 @@ void VertexRadiance::Refine(int samples) {
       if (!(n0.squaredNorm() > 0.5)) continue;
       for (int s = first; s < first + samples; ++s) {
         Rng rng(seed_, v, static_cast<std::uint64_t>(s));
-        Eigen::Vector3d origin = mesh.positions[v].cast<double>() + n0 * scene_.epsilon();
-        Eigen::Vector3d n = n0, throughput = Eigen::Vector3d::Ones();
+        // The path tracer's conventions: leave a surface 4 epsilon along its geometric
+        // normal, and a direction the shading normal allows but the geometry faces away
+        // from is absorbed.
+        Eigen::Vector3d origin = mesh.positions[v].cast<double>() + n0 * (4 * scene_.epsilon());
+        Eigen::Vector3d n = n0, geometric = n0, throughput = Eigen::Vector3d::Ones();
         for (int bounce = 0; bounce < bounces_; ++bounce) {
           const double u1 = rng.Uniform(), u2 = rng.Uniform();
           const Eigen::Vector3d dir = SampleCosine(n, u1, u2);
+          if (geometric.dot(dir) <= 0) break;
           SurfacePoint hit;
           if (!scene_.Intersect(origin, dir, &hit)) {
             const int j = env_.Lookup(dir);
@@ -43,7 +47,8 @@ void VertexRadiance::Refine(int samples) {
           throughput = throughput.cwiseProduct(hit.albedo);
           if (throughput.maxCoeff() < 1e-4) break;
           n = hit.shading;
-          origin = hit.position + hit.geometric * scene_.epsilon();
+          geometric = hit.geometric;
+          origin = hit.position + hit.geometric * (4 * scene_.epsilon());
         }
       }
     }

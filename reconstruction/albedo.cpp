@@ -36,10 +36,13 @@ int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& o) {
   };
   std::vector<Edge> edges;
   edges.reserve(mesh->triangles.size() * 3 / 2 + 1);
+  std::vector<std::pair<int, int>> pairs;
+  pairs.reserve(mesh->triangles.size() * 3);
   for (const Eigen::Vector3i& t : mesh->triangles)
-    for (int k = 0; k < 3; ++k) {
-      const int a = t[k], b = t[(k + 1) % 3];
-      if (a >= b) continue;  // each shared edge once (the other triangle has it reversed)
+    for (int k = 0; k < 3; ++k) pairs.emplace_back(std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3]));
+  std::sort(pairs.begin(), pairs.end());  // each edge once, boundary edges included
+  pairs.erase(std::unique(pairs.begin(), pairs.end()), pairs.end());
+  for (const auto& [a, b] : pairs) {
       const Eigen::Vector3d ca = mesh->albedo[a].cast<double>(), cb = mesh->albedo[b].cast<double>();
       const double chroma = (Chroma(ca) - Chroma(cb)).norm();
       const double log_step = std::abs(std::log(std::max(1e-4, ca.sum())) - std::log(std::max(1e-4, cb.sum())));

@@ -62,9 +62,13 @@ struct Session::Impl {
   std::deque<double> read_times, processed_times;
 
   // Estimation worker.
+  // Each Estimate press is a generation; an estimate stops when a newer one is pressed,
+  // when its own generation is cancelled, or at shutdown, and its reports are dropped
+  // once it is not the latest.
   std::thread estimator;
-  std::atomic<bool> cancel{false};
+  std::atomic<std::uint64_t> generation{0}, cancelled_generation{0};
   std::thread exporter;
+  std::atomic<bool> exporting{false};
 
   std::thread worker;
 
@@ -87,6 +91,27 @@ struct Session::Impl {
     std::lock_guard<std::mutex> lock(mutex);
     f(est);
   }
+  /// The same, only while `gen` is the latest estimate.
+  template <typename F>
+  void UpdateEstimate(std::uint64_t gen, F f) {
+    std::lock_guard<std::mutex> lock(mutex);
+    if (gen == generation.load()) f(est);
+  }
+  bool Stopped(std::uint64_t gen) const {
+    return stop.load() || gen != generation.load() || cancelled_generation.load() >= gen;
+  }
+  /// Forgets the estimate (a new source or a reset model): the 3D view shows the live model.
+  void ClearEstimate() {
+    std::lock_guard<std::mutex> lock(mutex);
+    const std::uint64_t gen = ++generation;
+    cancelled_generation = gen;
+    const std::string exported = est.export_message;
+    const std::uint64_t version = est.version, lit_version = est.lit_version;
+    est = EstimateStatus{};
+    est.version = version + 1;
+    est.lit_version = lit_version + 1;
+    est.export_message = exported;
+  }
 
   void Fail(const std::string& what) {
     UpdateLive([&](LiveStatus& l) { l.error = what; });
@@ -101,6 +126,7 @@ struct Session::Impl {
   }
 
   void ResetModel() {
+    ClearEstimate();
     reconstructor.reset();
     fused_any = false;
     try {
@@ -299,7 +325,8 @@ struct Session::Impl {
       return;
     }
     const double due = pace_wall0 + (stamp - pace_stamp0) / speed;
-    while (!stop && clock.Seconds() < due) std::this_thread::sleep_for(std::chrono::milliseconds(2));
+    while (!stop && pending.load() == 0 && clock.Seconds() < due)
+      std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
 
   void Run() {
@@ -322,17 +349,19 @@ struct Session::Impl {
         --pending;
         continue;
       }
-      Step();
+      try {
+        Step();
+      } catch (const std::exception& e) {  // nothing may escape the worker
+        playing = false;
+        UpdateLive([&](LiveStatus& l) {
+          l.playing = false;
+          l.error = e.what();
+        });
+      }
     }
   }
 
   // ---- estimation ----
-
-  void JoinEstimator() {
-    cancel = true;
-    if (estimator.joinable()) estimator.join();
-    cancel = false;
-  }
 
   /// On the worker: the scene to estimate, from the reconstruction or the loaded bundle.
   std::shared_ptr<const SceneBundle> Snapshot() {
@@ -342,19 +371,19 @@ struct Session::Impl {
     return std::make_shared<const SceneBundle>(reconstructor->Finish());
   }
 
-  void DoEstimate(const EstimateOptions& options, double pressed_at) {
-    JoinEstimator();
+  void DoEstimate(const EstimateOptions& options, double pressed_at, std::uint64_t gen) {
+    if (Stopped(gen)) return;  // cancelled or replaced before it started
     std::shared_ptr<const SceneBundle> scene;
     try {
       scene = Snapshot();
     } catch (const std::exception& e) {
-      UpdateEstimate([&](EstimateStatus& s) {
+      UpdateEstimate(gen, [&](EstimateStatus& s) {
         s.state = EstimateState::kFailed;
         s.message = e.what();
       });
       return;
     }
-    UpdateEstimate([&](EstimateStatus& s) {
+    UpdateEstimate(gen, [&](EstimateStatus& s) {
       const std::string exported = s.export_message;
       const std::uint64_t version = s.version, lit_version = s.lit_version;
       s = EstimateStatus{};
@@ -366,23 +395,30 @@ struct Session::Impl {
       s.lit_version = lit_version + 1;
       s.export_message = exported;
     });
-    estimator = std::thread([this, options, scene, pressed_at] { RunEstimate(options, scene, pressed_at); });
+    // The previous estimate (already told to stop) is joined by the new thread, not here:
+    // the worker keeps reading frames and commands meanwhile.
+    std::thread previous = std::move(estimator);
+    estimator = std::thread([this, options, scene, pressed_at, gen, previous = std::move(previous)]() mutable {
+      if (previous.joinable()) previous.join();
+      RunEstimate(options, scene, pressed_at, gen);
+    });
   }
 
-  void RunEstimate(EstimateOptions options, std::shared_ptr<const SceneBundle> scene, double pressed_at) {
-    options.cancelled = [this] { return cancel.load() || stop.load(); };
-    options.progress = [this](const std::string& line) {
-      UpdateEstimate([&](EstimateStatus& s) { s.message = line; });
+  void RunEstimate(EstimateOptions options, std::shared_ptr<const SceneBundle> scene, double pressed_at,
+                   std::uint64_t gen) {
+    options.cancelled = [this, gen] { return Stopped(gen); };
+    options.progress = [this, gen](const std::string& line) {
+      UpdateEstimate(gen, [&](EstimateStatus& s) { s.message = line; });
     };
-    options.on_convergence = [this](const ConvergenceRow& row) {
-      UpdateEstimate([&](EstimateStatus& s) { s.rows.push_back(row); });
+    options.on_convergence = [this, gen](const ConvergenceRow& row) {
+      UpdateEstimate(gen, [&](EstimateStatus& s) { s.rows.push_back(row); });
     };
     options.time_offset = clock.Seconds() - pressed_at;
     const int max_rounds = options.max_rounds;
-    options.on_round = [this, pressed_at, max_rounds](const RoundInfo& info, const EnvMap& env) {
+    options.on_round = [this, pressed_at, max_rounds, gen](const RoundInfo& info, const EnvMap& env) {
       auto dominant = DominantDirections(env, info.lambda, 2);
       const double t = clock.Seconds() - pressed_at;
-      UpdateEstimate([&](EstimateStatus& s) {
+      UpdateEstimate(gen, [&](EstimateStatus& s) {
         if (!s.env) s.env = std::make_shared<const EnvMap>(env);
         s.lambda = info.lambda;
         s.dominant = dominant;
@@ -395,20 +431,20 @@ struct Session::Impl {
     try {
       result = std::make_shared<const EstimateResult>(lp::Estimate(*scene, options));
     } catch (const Cancelled&) {
-      UpdateEstimate([&](EstimateStatus& s) {
+      UpdateEstimate(gen, [&](EstimateStatus& s) {
         s.state = EstimateState::kCancelled;
         s.message = "cancelled";
       });
       return;
     } catch (const std::exception& e) {
-      UpdateEstimate([&](EstimateStatus& s) {
+      UpdateEstimate(gen, [&](EstimateStatus& s) {
         s.state = EstimateState::kFailed;
         s.message = e.what();
       });
       return;
     }
     const double t = clock.Seconds() - pressed_at;
-    UpdateEstimate([&](EstimateStatus& s) {
+    UpdateEstimate(gen, [&](EstimateStatus& s) {
       s.state = EstimateState::kDone;
       s.progress = 1;
       s.result = result;
@@ -419,16 +455,16 @@ struct Session::Impl {
       s.seconds_total = t;
       s.message = "done in " + std::to_string(t).substr(0, 5) + " s";
     });
-    RefineLit(*scene, *result, options.tracer.bounces);
+    RefineLit(*scene, *result, options.tracer.bounces, gen);
   }
 
   /// Progressive per-vertex radiance under the estimate, then the error against the keyframes.
-  void RefineLit(const SceneBundle& scene, const EstimateResult& result, int bounces) {
+  void RefineLit(const SceneBundle& scene, const EstimateResult& result, int bounces, std::uint64_t gen) {
     try {
       const RayTracer tracer(scene.mesh);
       VertexRadiance radiance(tracer, result.env, result.lambda, std::max(1, bounces));
       int step = 2;
-      while (radiance.samples() < options.lit_samples && !cancel && !stop) {
+      while (radiance.samples() < options.lit_samples && !Stopped(gen)) {
         radiance.Refine(std::min(step, options.lit_samples - radiance.samples()));
         step = std::min(step * 2, 32);
         auto lit = std::make_shared<const std::vector<Eigen::Vector3f>>(radiance.Radiance());
@@ -437,7 +473,7 @@ struct Session::Impl {
           error = std::make_shared<const std::vector<float>>(
               VertexPhotometricError(tracer, scene.views, *lit, result.image_mean));
         const int samples = radiance.samples();
-        UpdateEstimate([&](EstimateStatus& s) {
+        UpdateEstimate(gen, [&](EstimateStatus& s) {
           s.lit = lit;
           if (error) s.error = error;
           s.lit_samples = samples;
@@ -445,7 +481,7 @@ struct Session::Impl {
         });
       }
     } catch (const std::exception& e) {
-      UpdateEstimate([&](EstimateStatus& s) { s.message = std::string("lit shading: ") + e.what(); });
+      UpdateEstimate(gen, [&](EstimateStatus& s) { s.message = std::string("lit shading: ") + e.what(); });
     }
   }
 
@@ -482,7 +518,6 @@ Session::Session(SessionOptions options) : impl_(std::make_unique<Impl>()) {
 
 Session::~Session() {
   impl_->stop = true;
-  impl_->cancel = true;
   impl_->command_cv.notify_all();
   if (impl_->worker.joinable()) impl_->worker.join();
   if (impl_->estimator.joinable()) impl_->estimator.join();
@@ -558,20 +593,42 @@ void Session::SetReconstructionOptions(const ReconstructionOptions& options) {
 
 void Session::Estimate(const EstimateOptions& options) {
   const double pressed = impl_->clock.Seconds();
-  impl_->UpdateEstimate([&](EstimateStatus& s) {
+  std::uint64_t gen;
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    gen = ++impl_->generation;  // a running estimate stops at its next check
+    EstimateStatus& s = impl_->est;
     s.state = EstimateState::kPreparing;
     s.message = "taking a snapshot of the scene";
-  });
-  impl_->cancel = true;  // a running estimate stops at its next check
-  impl_->Post([this, options, pressed] { impl_->DoEstimate(options, pressed); });
+    s.rows.clear();
+    s.progress = 0;
+    s.seconds_to_first = s.seconds_total = std::nan("");
+    s.lit_samples = 0;
+  }
+  impl_->Post([this, options, pressed, gen] { impl_->DoEstimate(options, pressed, gen); });
 }
 
-void Session::CancelEstimate() { impl_->cancel = true; }
+void Session::CancelEstimate() {
+  Impl& m = *impl_;
+  std::lock_guard<std::mutex> lock(m.mutex);
+  m.cancelled_generation = m.generation.load();
+  if (m.est.state == EstimateState::kPreparing) {
+    m.est.state = EstimateState::kCancelled;
+    m.est.message = "cancelled";
+  }
+}
 
 void Session::Export(const std::string& dir) {
-  if (impl_->exporter.joinable()) impl_->exporter.join();
+  if (impl_->exporting.exchange(true)) {
+    impl_->UpdateEstimate([&](EstimateStatus& s) { s.export_message = "exporting: wait for the export in progress"; });
+    return;
+  }
+  if (impl_->exporter.joinable()) impl_->exporter.join();  // finished: exporting was false
   impl_->UpdateEstimate([&](EstimateStatus& s) { s.export_message = "exporting to " + dir; });
-  impl_->exporter = std::thread([this, dir] { impl_->DoExport(dir); });
+  impl_->exporter = std::thread([this, dir] {
+    impl_->DoExport(dir);
+    impl_->exporting = false;
+  });
 }
 
 LiveStatus Session::live() const {

@@ -483,7 +483,8 @@ void Viewer::PanelEstimate() {
     ImGui::SetNextItemWidth(140);
     ImGui::InputText("##export", export_field_, sizeof export_field_);
     ImGui::SameLine();
-    if (ImGui::Button("Export") && est_.result) session_.Export(export_field_);
+    const bool exporting = est_.export_message.rfind("exporting", 0) == 0;
+    if (!exporting && ImGui::Button("Export") && est_.result) session_.Export(export_field_);
   }
   char overlay[64];
   std::snprintf(overlay, sizeof overlay, "%s %.0f%%", ToString(est_.state), 100 * est_.progress);

@@ -98,12 +98,30 @@ TEST(Session, ReconstructsTheDemoEstimatesWithALiveLogAndExports) {
   // The exported bundle is a valid one.
   EXPECT_EQ(LoadSceneBundle(out / "scene").views.size(), 4u);
 
-  // An export that cannot be written says so and leaves the earlier one whole.
-  std::ofstream(out / "blocker") << "a file, not a directory";
-  s.Export((out / "blocker" / "x").string());
+  // An export over the earlier one that fails half-way (DIR/estimate is now a file) says
+  // so, and the bundle there is whole (replaced as a whole, never half-written).
+  fs::remove_all(out / "estimate");
+  std::ofstream(out / "estimate") << "a file, not a directory";
+  s.Export(out.string());
   ASSERT_TRUE(WaitFor([&] { return s.estimate().export_message.rfind("export failed", 0) == 0; }, 60))
       << s.estimate().export_message;
   EXPECT_EQ(LoadSceneBundle(out / "scene").views.size(), 4u);
+
+  // Estimate pressed twice at once: the first is replaced, the second finishes; Cancel
+  // while one is still being prepared stops it.
+  s.Estimate(Small());
+  s.Estimate(Small());
+  ASSERT_TRUE(WaitFor([&] { return s.estimate().state == EstimateState::kDone; }, 300)) << s.estimate().message;
+  s.Estimate(Small());
+  s.CancelEstimate();
+  ASSERT_TRUE(WaitFor([&] { return !s.busy(); }, 60));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  EXPECT_EQ(s.estimate().state, EstimateState::kCancelled) << s.estimate().message;
+  // Opening a source forgets the estimate: the 3D view shows the live model again.
+  s.Open("demo");
+  ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().open; }, 60));
+  EXPECT_FALSE(s.estimate().scene);
+  EXPECT_EQ(s.estimate().state, EstimateState::kIdle);
 }
 
 TEST(Session, CancelStopsTheEstimateAndClosingStopsEverything) {

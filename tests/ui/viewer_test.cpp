@@ -83,13 +83,19 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
                            "keyframe 1\n"
                            "frames 3\n"
                            "screenshot " << (a / "5-error-keyframe.png").string() << "\n"
+                           "keyframe -1\n"
                            "shading normals\n"
-                           "orbit 1.2 0.3\n"
                            "frames 3\n"
                            "screenshot " << (a / "6-normals.png").string() << "\n"
+                           "shading lit\n"
+                           "frames 3\n"
+                           "screenshot " << (a / "6-lit-again.png").string() << "\n"
+                           "orbit 1.2 0.3\n"
+                           "frames 3\n"
+                           "screenshot " << (a / "7-orbit.png").string() << "\n"
                            "export " << (a / "export").string() << "\n"
                            "wait-export 120\n"
-                           "state " << (a / "7-done.json").string() << "\n"
+                           "state " << (a / "8-done.json").string() << "\n"
                            "quit\n";
   ViewerOptions o = app::DefaultViewerOptions();
   o.input = "demo";
@@ -122,12 +128,16 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
   EXPECT_GT(Stats(shot4, lit["window"]["equirect"]).stddev, 5) << "the environment map is drawn";
   EXPECT_GT(Stats(shot4, lit["window"]["sphere"]).distinct, 0.02) << "the directions on the sphere";
   EXPECT_GT(Stats(shot4, lit["window"]["view3d"]).distinct, 0.05) << "the lit mesh";
-  // The shading modes draw different pictures of the same mesh.
-  const ImageRgb8 shot6 = ReadRgb8(a / "6-normals.png");
-  EXPECT_GT(std::abs(Stats(shot6, lit["window"]["view3d"]).mean - Stats(shot4, lit["window"]["view3d"]).mean) +
-                std::abs(Stats(shot6, lit["window"]["view3d"]).stddev - Stats(shot4, lit["window"]["view3d"]).stddev),
+  // The shading modes draw different pictures of the same mesh from the same camera.
+  const ImageRgb8 normals = ReadRgb8(a / "6-normals.png"), lit_again = ReadRgb8(a / "6-lit-again.png");
+  const nlohmann::json& view = lit["window"]["view3d"];
+  EXPECT_GT(std::abs(Stats(normals, view).mean - Stats(lit_again, view).mean) +
+                std::abs(Stats(normals, view).stddev - Stats(lit_again, view).stddev),
             2);
-  const nlohmann::json done = ReadJson(a / "7-done.json");
+  // The keyframe window (reference | relit | error) covers part of the 3D view.
+  const ImageRgb8 keyframe = ReadRgb8(a / "5-error-keyframe.png");
+  EXPECT_GT(Stats(keyframe, nlohmann::json::array({view[0].get<float>() + 10, 85.f, 740.f, 175.f})).stddev, 20);
+  const nlohmann::json done = ReadJson(a / "8-done.json");
   EXPECT_EQ(done["estimate"]["export"].get<std::string>().rfind("exported", 0), 0u);
   EXPECT_TRUE(fs::exists(a / "export" / "estimate" / "envmap.exr"));
   EXPECT_TRUE(fs::exists(a / "export" / "scene" / "mesh.ply"));
