@@ -1,8 +1,10 @@
 // The viewer's lit shading (VertexRadiance) against closed forms, and RefineMesh.
 #include <cmath>
+#include <cstdio>
 
 #include <gtest/gtest.h>
 
+#include "estimation/path_tracer.h"
 #include "estimation/vertex_radiance.h"
 #include "tests/test_util.h"
 
@@ -49,6 +51,41 @@ TEST(VertexRadiance, OneLitCellMatchesTheIrradianceOfASmallSource) {
   const double expected = 0.5 / M_PI * 10.0 * cos_integral;
   // 40000 cosine samples hit a cell of probability ~0.03: about 3 % standard deviation.
   for (const Eigen::Vector3f& l : vr.Radiance()) EXPECT_NEAR(l.x(), expected, 0.1 * expected);
+}
+
+TEST(VertexRadiance, InterreflectionsAgreeWithThePathTracer) {
+  // A floor (a vertex at the origin) under a two-sided square that hides most of its sky:
+  // light reaches the origin mostly after bouncing between the square and the floor. The
+  // path tracer renders the origin through a camera looking straight down at it; a
+  // Lambertian surface sends the same radiance every way, so the two must agree.
+  Mesh floor;
+  floor.positions = {{0, 0, 0}, {-2, -2, 0}, {2, -2, 0}, {2, 2, 0}, {-2, 2, 0}};
+  floor.normals.assign(5, Eigen::Vector3f::UnitZ());
+  floor.albedo.assign(5, Eigen::Vector3f::Constant(0.8f));
+  floor.triangles = {{0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 4, 1}};
+  floor.Append(test::Square(0, 0, 0.5, 0.6, 0.8));
+  const RayTracer scene(floor);
+  const EnvMap env(9, Eigen::Vector3d::UnitZ());
+  const std::vector<double> lambda(3 * env.size(), 1.0);
+  VertexRadiance vr(scene, env, lambda, 4, 3);
+  vr.Refine(20000);
+  const double vertex = vr.Radiance()[0].x();
+
+  View view = test::BlankView(test::LookAt({0, 0, 0.3}, {0, 0, 0}, 9, 9, 2));
+  TracerOptions opt;
+  opt.spp = 3000;
+  opt.bounces = 4;
+  opt.roulette_after = 10;
+  const auto images = RenderEnvironment(scene, env, {view}, lambda, CellSampler(env, lambda, {}, 0.2), opt, true);
+  double pixel = 0;
+  for (std::size_t i = 0; i < images[0].pixels(); ++i) pixel += images[0].data[3 * i];
+  pixel /= images[0].pixels();
+  std::printf("origin under the square: vertex radiance %.4f, path tracer %.4f\n", vertex, pixel);
+  EXPECT_NEAR(vertex, pixel, 0.04 * pixel) << "vertex " << vertex << ", path tracer " << pixel;
+  VertexRadiance direct(scene, env, lambda, 1, 3);
+  direct.Refine(20000);
+  std::printf("direct light only: %.4f\n", direct.Radiance()[0].x());
+  EXPECT_LT(direct.Radiance()[0].x(), 0.85 * vertex) << "the bounces carry a visible share";
 }
 
 TEST(VertexRadiance, RefiningAddsSamplesAndStaysConsistent) {
