@@ -23,7 +23,7 @@ state $out/frames-orbit.json
 cancel
 quit
 EOS
-xvfb-run -a -s "-screen 0 1280x720x24" $exe view "$out/scene200k" --script "$out/frames.txt" >"$out/frames.log" 2>&1
+xvfb-run -a -s "-screen 0 1280x720x24 -noreset" $exe view "$out/scene200k" --script "$out/frames.txt" >"$out/frames.log" 2>&1
 cat >"$out/first.txt" <<EOS
 wait-open 120
 speed 0
@@ -40,7 +40,7 @@ state $out/done.json
 screenshot $out/done.png
 quit
 EOS
-xvfb-run -a -s "-screen 0 1280x720x24" $exe view demo --script "$out/first.txt" >"$out/first.log" 2>&1
+xvfb-run -a -s "-screen 0 1280x720x24 -noreset" $exe view demo --script "$out/first.txt" >"$out/first.log" 2>&1
 echo "frame time, 1280x720, $(grep -o '"shown_triangles": [0-9]*' "$out/frames.json"), estimating:"
 grep -A8 '"bench"' "$out/frames.json"
 echo "the same, orbiting (the 3D view redrawn every frame):"

@@ -13,12 +13,12 @@ env -u DISPLAY -u WAYLAND_DISPLAY "$exe" >"$out/nodisplay" 2>&1; rc=$?
 
 # No input, no camera: the demo recording (under Xvfb).
 printf 'wait-open 60\nstate %s\nquit\n' "$out/state.json" >"$out/s.txt"
-xvfb-run -a -s "-screen 0 1280x720x24" "$exe" view --script "$out/s.txt" >"$out/log" 2>&1 || fail "view: $(tail -5 "$out/log")"
+xvfb-run -a -s "-screen 0 1280x720x24 -noreset" "$exe" view --script "$out/s.txt" >"$out/log" 2>&1 || fail "view: $(tail -5 "$out/log")"
 grep -q 'demo.oni' "$out/state.json" || fail "did not open the demo: $(cat "$out/state.json")"
 grep -q 'no camera found' "$out/state.json" || fail "did not say why the demo: $(cat "$out/state.json")"
 
 # A script with an unknown command: checked before the window opens anything.
 printf 'wait-open\nfly-away\n' >"$out/bad.txt"
-xvfb-run -a -s "-screen 0 1280x720x24" "$exe" view --script "$out/bad.txt" >"$out/bad" 2>&1; rc=$?
+xvfb-run -a -s "-screen 0 1280x720x24 -noreset" "$exe" view --script "$out/bad.txt" >"$out/bad" 2>&1; rc=$?
 [ "$rc" -eq 2 ] || fail "bad script: exit $rc"; grep -q "line 2: unknown command fly-away" "$out/bad" || fail "$(cat "$out/bad")"
 echo "cli_viewer: ok"

@@ -6,7 +6,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <thread>
 #include <fstream>
 
 #include <Eigen/Geometry>
@@ -769,7 +772,15 @@ void Viewer::WriteState(const std::string& path) const {
 
 int RunViewer(const ViewerOptions& options) {
   glfwSetErrorCallback(OnGlfwError);
-  if (!glfwInit())
+  bool ok = glfwInit();
+  // With a display named, a failure can be an X server resetting as its last client left
+  // (Xvfb between two windows): try again briefly before saying there is none.
+  const char* display = std::getenv("DISPLAY");
+  for (int attempt = 0; !ok && display && *display && attempt < 5; ++attempt) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    ok = glfwInit();
+  }
+  if (!ok)
     throw InputError("cannot open a window (no display: " + (g_glfw_error.empty() ? "glfwInit failed" : g_glfw_error) +
                      "); run the pipeline without one: lightprobe --headless INPUT --out DIR");
   glfwWindowHint(GLFW_CONTEXT_VERSION_MAJOR, 3);
