@@ -95,9 +95,11 @@ bool ScriptRunner::Run(const ScriptLine& line) {
     if (waited > seconds) Fail(line, std::string("timed out after ") + std::to_string(seconds) + " s waiting for " + what);
   };
   const bool first = frames_waited_ == 0;
+  // A command posted to the session is done once the worker has taken and handled it.
+  auto handled = [&] { return !v.session_.busy() && frames_waited_ > 0; };
   if (cmd == "open") {
     if (first) v.session_.Open(line.words[1]);
-    return !v.session_.busy() && frames_waited_ > 0;
+    return handled();
   }
   if (cmd == "wait-open") {
     timeout(Number(line, 1, 60), "the source to open");
@@ -106,15 +108,15 @@ bool ScriptRunner::Run(const ScriptLine& line) {
   }
   if (cmd == "play" || cmd == "pause") {
     if (first) v.session_.SetPlaying(cmd == "play");
-    return !v.session_.busy() && frames_waited_ > 0;
+    return handled();
   }
   if (cmd == "seek") {
     if (first) v.session_.Seek(static_cast<std::int64_t>(Number(line, 1, 0)));
-    return !v.session_.busy() && frames_waited_ > 0;
+    return handled();
   }
   if (cmd == "speed") {
     if (first) v.session_.SetSpeed(Number(line, 1, 1));
-    return !v.session_.busy() && frames_waited_ > 0;
+    return handled();
   }
   if (cmd == "reconstruct") {
     const std::string& what = line.words[1];
@@ -124,7 +126,7 @@ bool ScriptRunner::Run(const ScriptLine& line) {
       else if (what == "reset") v.session_.ResetReconstruction();
       else Fail(line, "start, stop or reset, not " + what);
     }
-    return !v.session_.busy() && frames_waited_ > 0;
+    return handled();
   }
   if (cmd == "wait-end") {
     timeout(Number(line, 1, 300), "the end of the source");

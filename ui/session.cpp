@@ -105,12 +105,17 @@ struct Session::Impl {
     std::lock_guard<std::mutex> lock(mutex);
     const std::uint64_t gen = ++generation;
     cancelled_generation = gen;
-    const std::string exported = est.export_message;
-    const std::uint64_t version = est.version, lit_version = est.lit_version;
-    est = EstimateStatus{};
-    est.version = version + 1;
-    est.lit_version = lit_version + 1;
-    est.export_message = exported;
+    Restart(&est);
+  }
+
+  /// An empty status that still counts versions up (the window re-uploads what changed)
+  /// and keeps the last export's outcome.
+  static void Restart(EstimateStatus* s) {
+    EstimateStatus fresh;
+    fresh.version = s->version + 1;
+    fresh.lit_version = s->lit_version + 1;
+    fresh.export_message = s->export_message;
+    *s = std::move(fresh);
   }
 
   void Fail(const std::string& what) {
@@ -384,16 +389,11 @@ struct Session::Impl {
       return;
     }
     UpdateEstimate(gen, [&](EstimateStatus& s) {
-      const std::string exported = s.export_message;
-      const std::uint64_t version = s.version, lit_version = s.lit_version;
-      s = EstimateStatus{};
+      Restart(&s);
       s.state = EstimateState::kRunning;
       s.message = "tracing round 1";
       s.options = options;
       s.scene = scene;
-      s.version = version + 1;
-      s.lit_version = lit_version + 1;
-      s.export_message = exported;
     });
     // The previous estimate (already told to stop) is joined by the new thread, not here:
     // the worker keeps reading frames and commands meanwhile.

@@ -36,22 +36,6 @@ void OnGlfwError(int code, const char* description) {
   g_glfw_error = std::to_string(code) + ": " + (description ? description : "");
 }
 
-std::uint8_t ToSrgb8(float linear) {
-  const float c = std::clamp(linear, 0.f, 1.f);
-  const float s = c <= 0.0031308f ? 12.92f * c : 1.055f * std::pow(c, 1 / 2.4f) - 0.055f;
-  return static_cast<std::uint8_t>(std::lround(255 * s));
-}
-
-ImageRgb8 ToDisplay(const ImageRGB& image, float exposure) {
-  ImageRgb8 out;
-  out.width = image.width;
-  out.height = image.height;
-  out.data.resize(image.data.size());
-  for (std::size_t i = 0; i < image.data.size(); ++i)
-    out.data[i] = std::isfinite(image.data[i]) ? ToSrgb8(image.data[i] * exposure) : 0;
-  return out;
-}
-
 /// Blue (0) -> green -> yellow -> red (1): the error and depth colour scale.
 Eigen::Vector3f Heat(float t) {
   t = std::clamp(t, 0.f, 1.f);
@@ -83,7 +67,7 @@ ImageRgb8 EnvDisplay(const EnvMap& env, const std::vector<double>& lambda, int h
     lum.push_back(static_cast<float>(Luminance(eq.data[i], eq.data[i + 1], eq.data[i + 2])));
   std::sort(lum.begin(), lum.end());
   const float top = lum.empty() ? 1.f : lum[std::min(lum.size() - 1, lum.size() * 99 / 100)];
-  return ToDisplay(eq, top > 0 ? 0.9f / top : 1.f);
+  return EncodeSrgb8(eq, top > 0 ? 0.9f / top : 1.f);
 }
 
 Eigen::Matrix4f LookAtMatrix(const Eigen::Vector3f& eye, const Eigen::Vector3f& target, const Eigen::Vector3f& up) {
@@ -111,12 +95,17 @@ const char* ToString(Shading s) {
   return "?";
 }
 
+void OrbitCamera::Horizontal(Eigen::Vector3f* a, Eigen::Vector3f* b) const {
+  *a = up.cross(Eigen::Vector3f::UnitX());
+  if (a->norm() < 1e-3f) *a = up.cross(Eigen::Vector3f::UnitY());
+  a->normalize();
+  *b = up.cross(*a);
+}
+
 Eigen::Vector3f OrbitCamera::Eye() const {
   // Azimuth around `up`, elevation from the horizontal plane.
-  Eigen::Vector3f a = up.cross(Eigen::Vector3f::UnitX());
-  if (a.norm() < 1e-3f) a = up.cross(Eigen::Vector3f::UnitY());
-  a.normalize();
-  const Eigen::Vector3f b = up.cross(a);
+  Eigen::Vector3f a, b;
+  Horizontal(&a, &b);
   const Eigen::Vector3f dir = std::cos(pitch) * (std::cos(yaw) * a + std::sin(yaw) * b) + std::sin(pitch) * up;
   return target + distance * dir;
 }
@@ -168,10 +157,8 @@ void Viewer::ResetCamera() {
   Eigen::Vector3f d = eye - camera_.target;
   if (d.norm() < 1e-3f) return;
   d.normalize();
-  Eigen::Vector3f a = camera_.up.cross(Eigen::Vector3f::UnitX());
-  if (a.norm() < 1e-3f) a = camera_.up.cross(Eigen::Vector3f::UnitY());
-  a.normalize();
-  const Eigen::Vector3f b = camera_.up.cross(a);
+  Eigen::Vector3f a, b;
+  camera_.Horizontal(&a, &b);
   camera_.yaw = std::atan2(d.dot(b), d.dot(a));
   camera_.pitch = std::clamp(std::asin(std::clamp(d.dot(camera_.up), -1.f, 1.f)) + 0.25f, -1.2f, 1.2f);
   camera_.distance = std::max(0.2f, 0.9f * (hi - lo).norm());
@@ -592,10 +579,10 @@ void Viewer::PanelKeyframe() {
   if (compare_keyframe_ != selected_keyframe_ || compare_version_ != version) {
     compare_keyframe_ = selected_keyframe_;
     compare_version_ = version;
-    compare_tex_[0].Upload(ToDisplay(view.image, 1.f));
+    compare_tex_[0].Upload(EncodeSrgb8(view.image, 1.f));
     if (have_render) {
       const ImageRGB& render = est_.result->renders[selected_keyframe_];
-      compare_tex_[1].Upload(ToDisplay(render, 1.f));
+      compare_tex_[1].Upload(EncodeSrgb8(render, 1.f));
       ImageRgb8 err;
       err.width = render.width;
       err.height = render.height;

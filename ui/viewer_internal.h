@@ -23,6 +23,8 @@ struct OrbitCamera {
   Eigen::Vector3f up = -Eigen::Vector3f::UnitY();
   float yaw = 0.6f, pitch = 0.5f, distance = 3.f;
   Eigen::Vector3f Eye() const;
+  /// The horizontal axes yaw is measured in: yaw 0 along `a`, pi/2 along `b`.
+  void Horizontal(Eigen::Vector3f* a, Eigen::Vector3f* b) const;
   Eigen::Matrix4f View() const;
   Eigen::Matrix4f Projection(float aspect) const;
 };
