@@ -78,6 +78,11 @@ Run AddReconstruct(CLI::App& app) {
   cmd->add_option("--poses", *poses,
                   "true camera poses (trajectory.log or pose.txt, one per frame): the world frame, and the "
                   "trajectory error is reported (frame directories with poses need no flag)");
+  cmd->add_option("--smooth", o->smooth_iterations,
+                  "Taubin smoothing passes over the mesh (fused depth noise makes voxel-sized bumps that "
+                  "shade and shadow themselves; 0 = as meshed)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 10000));
   cmd->add_option("--albedo", o->albedo.segment,
                   "1: flatten the shading baked into the fused colour per segment of one chromaticity (default); "
                   "0: keep each vertex's mean observed colour")

@@ -155,6 +155,41 @@ void ComputeVertexNormals(Mesh* mesh) {
   }
 }
 
+void SmoothMesh(Mesh* mesh, int iterations, float lambda, float mu) {
+  if (iterations <= 0 || mesh->triangles.empty()) return;
+  const int n = static_cast<int>(mesh->positions.size());
+  // Each undirected edge once, then compressed rows of neighbours.
+  std::vector<std::pair<int, int>> edges;
+  edges.reserve(mesh->triangles.size() * 6);
+  for (const Eigen::Vector3i& t : mesh->triangles)
+    for (int k = 0; k < 3; ++k) {
+      const int a = t[k], b = t[(k + 1) % 3];
+      edges.emplace_back(a, b);
+      edges.emplace_back(b, a);
+    }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  std::vector<int> start(n + 1, 0), next(edges.size());
+  for (const auto& e : edges) ++start[e.first + 1];
+  for (int v = 0; v < n; ++v) start[v + 1] += start[v];
+  for (std::size_t e = 0; e < edges.size(); ++e) next[e] = edges[e].second;
+  std::vector<Eigen::Vector3f> moved(mesh->positions);
+  for (int it = 0; it < iterations; ++it)
+    for (const float f : {lambda, mu}) {
+      for (int v = 0; v < n; ++v) {
+        const int b = start[v], e = start[v + 1];
+        if (b == e) continue;
+        Eigen::Vector3f mean = Eigen::Vector3f::Zero();
+        for (int k = b; k < e; ++k) mean += mesh->positions[next[k]];
+        mean /= static_cast<float>(e - b);
+        moved[v] = mesh->positions[v] + f * (mean - mesh->positions[v]);
+      }
+      std::swap(moved, mesh->positions);
+    }
+  mesh->normals.clear();
+  ComputeVertexNormals(mesh);
+}
+
 int SanitizeMesh(Mesh* mesh, const std::string& name) {
   if (mesh->positions.empty()) throw InputError(name, "mesh has no vertices");
   if (mesh->triangles.empty()) throw InputError(name, "mesh has no triangles");

@@ -38,6 +38,12 @@ void WritePly(const std::filesystem::path& path, const Mesh& mesh);
 /// Fills `normals` with area-weighted vertex normals (used when the file has none).
 void ComputeVertexNormals(Mesh* mesh);
 
+/// Taubin's smoothing (lambda | mu, 1995): `iterations` pairs of a Laplacian step towards
+/// the neighbours' mean (`lambda` > 0) and one back (`mu` < -lambda). High frequencies
+/// (noise a few vertices across) fade while the shape does not shrink as plain Laplacian
+/// smoothing does. Normals are recomputed from the triangles.
+void SmoothMesh(Mesh* mesh, int iterations, float lambda = 0.5f, float mu = -0.53f);
+
 /// Validates indices and values; removes degenerate (zero-area or repeated-index)
 /// triangles and returns how many were removed. Throws InputError (with `name`)
 /// if nothing usable remains.

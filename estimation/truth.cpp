@@ -52,27 +52,44 @@ std::vector<Eigen::Vector3d> DominantDirections(const EnvMap& env, const std::ve
   std::vector<double> power(L);
   for (int j = 0; j < L; ++j)
     power[j] = std::max(0.0, Luminance(lambda[3 * j], lambda[3 * j + 1], lambda[3 * j + 2])) * env.solid_angle(j);
-  // Power gathered in a window of half the separation around each cell.
-  const double window = std::cos(separation_deg / 2 * 3.14159265358979323846 / 180);
-  std::vector<double> gathered(L, 0.0);
-  for (int j = 0; j < L; ++j) {
-    if (power[j] <= 0) continue;
-    for (int i = 0; i < L; ++i)
-      if (env.direction(i).dot(env.direction(j)) >= window) gathered[i] += power[j];
-  }
+  constexpr double kDeg = 3.14159265358979323846 / 180;
+  // Gaussian kernel of half the separation on the sphere: exp((cos t - 1) / s^2) ~ exp(-t^2 / 2s^2),
+  // cut at 3 s.
+  const double s = separation_deg / 2 * kDeg, inv_s2 = 1 / (s * s), cut = std::cos(std::min(3 * s, 3.14159));
+  const auto kernel = [&](double c) { return c >= cut ? std::exp((c - 1) * inv_s2) : 0.0; };
+  const double far = std::cos(separation_deg * kDeg);
   std::vector<Eigen::Vector3d> out;
   for (int k = 0; k < count; ++k) {
+    // Start from the cell whose kernel gathers the most remaining power, at least the
+    // separation from the lights already found.
     int best = -1;
-    for (int j = 0; j < L; ++j) {
-      bool far = true;
-      for (const auto& d : out) far = far && AngleDeg(env.direction(j), d) >= separation_deg;
-      if (far && gathered[j] > 0 && (best < 0 || gathered[j] > gathered[best])) best = j;
+    double best_gathered = 0;
+    for (int i = 0; i < L; ++i) {
+      bool apart = true;
+      for (const auto& d : out) apart = apart && env.direction(i).dot(d) <= far;
+      if (!apart) continue;
+      double g = 0;
+      for (int j = 0; j < L; ++j)
+        if (power[j] > 0) g += power[j] * kernel(env.direction(i).dot(env.direction(j)));
+      if (g > best_gathered) best_gathered = g, best = i;
     }
     if (best < 0) break;
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    // Mean shift: move to the kernel-weighted mean direction until it stays.
+    Eigen::Vector3d c = env.direction(best);
+    for (int it = 0; it < 100; ++it) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (int j = 0; j < L; ++j)
+        if (power[j] > 0) sum += power[j] * kernel(c.dot(env.direction(j))) * env.direction(j);
+      if (!(sum.norm() > 0)) break;
+      const Eigen::Vector3d next = sum.normalized();
+      const bool settled = next.dot(c) > std::cos(1e-4 * kDeg);
+      c = next;
+      if (settled) break;
+    }
+    out.push_back(c);
+    // The cells within the separation belong to this light.
     for (int j = 0; j < L; ++j)
-      if (env.direction(j).dot(env.direction(best)) >= window) sum += power[j] * env.direction(j);
-    out.push_back(sum.norm() > 0 ? Eigen::Vector3d(sum.normalized()) : env.direction(best));
+      if (env.direction(j).dot(c) > far) power[j] = 0;
   }
   return out;
 }

@@ -21,10 +21,12 @@ struct TruthLight {
 /// Parses truth.json text (`name` for errors); throws InputError when malformed.
 std::vector<TruthLight> ParseTruthLights(const std::string& text, const std::string& name);
 
-/// Up to `count` dominant directions of an estimate: the centres of the windows
-/// (half `separation_deg` wide) that gather the most power (luminance x solid angle),
-/// at least `separation_deg` apart, each refined to the power-weighted mean direction
-/// of its window.
+/// Up to `count` dominant directions of an estimate, found one after another: the modes
+/// of its power (luminance x solid angle) smoothed by a Gaussian of half `separation_deg`
+/// on the sphere (mean shift from the cell that gathers the most power, at least
+/// `separation_deg` from the lights already found); the cells within `separation_deg` of
+/// a light found are then taken out. A light spread over several cells gets the centre of
+/// its spread, not of its brightest cell.
 std::vector<Eigen::Vector3d> DominantDirections(const EnvMap& env, const std::vector<double>& lambda, int count,
                                                 double separation_deg = 30);
 

@@ -377,6 +377,7 @@ SceneBundle Reconstructor::Finish() const {
                      " of " + std::to_string(m.reports.size()) + " frames fused, tracking lost in " +
                      std::to_string(lost) + ": moving too fast between frames?)");
   }
+  SmoothMesh(&b.mesh, m.o.smooth_iterations);
   SanitizeMesh(&b.mesh, "reconstructed mesh");
   b.up = EstimateUp(b.mesh);
   FlattenAlbedo(&b.mesh, m.o.albedo);

@@ -18,9 +18,9 @@ ate=$(sed -n 's/.*trajectory error against the given poses: \([0-9.]*\) mm.*/\1/
 awk -v e="$ate" 'BEGIN { exit !(e < 20) }' || { echo "trajectory error $ate mm"; exit 1; }
 head -1 "$out/scene/reconstruction.csv" | grep -q "^frame,state,seconds," || exit 1
 err=$(grep -o '"angular_error_deg": [0-9.e+-]*' "$out/h/estimate/report.json" | head -1 | awk '{print $2}')
-# The reconstructed geometry puts the light ~22 degrees off on this scene (docs/method.md;
-# issue 7 wants 10): this bound guards against regressions.
-awk -v e="$err" 'BEGIN { exit !(e < 30) }' || { echo "dominant light error $err deg"; exit 1; }
+# Issue 7: the headless run finds the demo's light within 10 degrees (8.5 with this seed and
+# 2 keyframes; 7.7-10.0 over seeds 1-3, docs/method.md).
+awk -v e="$err" 'BEGIN { exit !(e < 10) }' || { echo "dominant light error $err deg"; exit 1; }
 
 # No arguments and no display: the viewer says so and points to --headless.
 set +e; env -u DISPLAY -u WAYLAND_DISPLAY "$exe" >"$out/noargs" 2>&1; rc=$?; set -e

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "common/rng.h"
+#include "estimation/truth.h"
 
 namespace lp {
 namespace {
@@ -67,6 +68,34 @@ TEST(EnvMap, UpAxisIsThePole) {
   EXPECT_NEAR(env.direction(0).z(), 1, 1e-12);
   EXPECT_NEAR(env.direction(env.size() - 1).z(), -1, 1e-12);
   EXPECT_EQ(env.Lookup(Eigen::Vector3d(0, 0, 5)), 0);
+}
+
+// A light the estimate spread over many cells (lumpy, one cell 14 degrees off three times
+// as bright as its neighbours) is found at the spread's centre, and a weaker second one
+// 70 degrees away is found second.
+TEST(DominantDirections, CentreOfASpreadLightThenTheNext) {
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+  const EnvMap env(21, up);
+  const Eigen::Vector3d a = Eigen::Vector3d(0.55, 0.3, 0.78).normalized();
+  const Eigen::Vector3d b = Eigen::Vector3d(0.1, -0.8, 0.6).normalized();
+  ASSERT_NEAR(AngleDeg(a, b), 70, 10);
+  Rng rng(5);
+  std::vector<double> lambda(3 * env.size(), 0.0);
+  int lump = -1;
+  for (int j = 0; j < env.size(); ++j) {
+    const double ta = AngleDeg(env.direction(j), a), tb = AngleDeg(env.direction(j), b);
+    double v = 0;
+    if (ta < 25) v += std::exp(-0.5 * ta * ta / 100) * (0.7 + 0.6 * rng.Uniform());
+    if (tb < 10) v += 0.3 * std::exp(-0.5 * tb * tb / 16);
+    if (lump < 0 && ta > 13 && ta < 16) lump = j, v *= 3;
+    for (int c = 0; c < 3; ++c) lambda[3 * j + c] = v / env.solid_angle(j);
+  }
+  ASSERT_GE(lump, 0);
+  const auto found = DominantDirections(env, lambda, 2);
+  ASSERT_EQ(found.size(), 2u);
+  EXPECT_LT(AngleDeg(found[0], a), 4);
+  EXPECT_LT(AngleDeg(found[1], b), 4);
+  EXPECT_TRUE(DominantDirections(env, std::vector<double>(3 * env.size(), 0.0), 2).empty());
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/rng.h"
 #include "estimation/path_tracer.h"
 #include "estimation/vertex_radiance.h"
 #include "tests/test_util.h"
@@ -173,6 +174,53 @@ TEST(SimplifyForDisplay, FitsTheBudgetKeepsTheSurfaceAndCarriesValues) {
   const Mesh small = test::Plane(1.0, 0.5);
   EXPECT_EQ(SimplifyForDisplay(small, 60000, &cluster_of).triangles.size(), 2u);
   EXPECT_EQ(cluster_of, (std::vector<int>{0, 1, 2, 3}));
+}
+
+// Depth noise a voxel across, as fusion leaves it: Taubin smoothing straightens the normals
+// of a noisy plane and keeps a noisy sphere's radius, where plain Laplacian smoothing
+// (mu = 0) of the same strength shrinks it.
+TEST(SmoothMesh, StraightensNoisyNormalsWithoutShrinking) {
+  Rng rng(3);
+  const auto noise = [&rng](double sd) { return sd * std::sqrt(12.0) * (rng.Uniform() - 0.5); };  // uniform, sd
+  Mesh plane;
+  const int n = 101;  // 1 m, 1 cm apart
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      plane.positions.emplace_back(0.01f * j, 0.01f * i, static_cast<float>(noise(0.006)));
+      plane.albedo.emplace_back(0.5f, 0.5f, 0.5f);
+    }
+  for (int i = 0; i + 1 < n; ++i)
+    for (int j = 0; j + 1 < n; ++j) {
+      const int a = i * n + j;
+      plane.triangles.emplace_back(a, a + 1, a + n + 1);
+      plane.triangles.emplace_back(a, a + n + 1, a + n);
+    }
+  const auto mean_nz = [](const Mesh& m) {
+    double s = 0;
+    for (const auto& v : m.normals) s += std::abs(v.z());
+    return s / m.normals.size();
+  };
+  ComputeVertexNormals(&plane);
+  const double before = mean_nz(plane);
+  SmoothMesh(&plane, 40);
+  const double after = mean_nz(plane);
+  std::printf("plane: mean |n.z| %.3f -> %.3f\n", before, after);
+  EXPECT_LT(before, 0.92);
+  EXPECT_GT(after, 0.99);
+
+  Mesh sphere = UvSphere(Eigen::Vector3f::Zero(), 0.35f, Eigen::Vector3f::Constant(0.5f), 48, 96);
+  for (auto& p : sphere.positions) p *= static_cast<float>(1 + noise(0.006));
+  const auto mean_radius = [](const Mesh& m) {
+    double s = 0;
+    for (const auto& p : m.positions) s += p.norm();
+    return s / m.positions.size();
+  };
+  Mesh laplacian = sphere;
+  SmoothMesh(&sphere, 40);
+  SmoothMesh(&laplacian, 40, 0.5f, 0.f);
+  std::printf("sphere radius 0.35: Taubin %.4f, Laplacian %.4f\n", mean_radius(sphere), mean_radius(laplacian));
+  EXPECT_NEAR(mean_radius(sphere), 0.35, 0.002);
+  EXPECT_LT(mean_radius(laplacian), 0.35 - 0.004);
 }
 
 }  // namespace
