@@ -248,7 +248,7 @@ RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
     if (recorder.start() != openni::STATUS_OK) throw InputError(out_file, "cannot start recording: " + OpenNiError());
     const auto t0 = std::chrono::steady_clock::now();
     auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
-    while (o.frames > 0 ? result.depth_frames < o.frames : elapsed() < o.seconds) {
+    while ((o.frames > 0 ? result.depth_frames < o.frames : elapsed() < o.seconds) && !(o.stop && o.stop->load())) {
       int ready = -1;
       if (openni::OpenNI::waitForAnyStream(streams, 2, &ready, 2000) != openni::STATUS_OK)
         throw InputError(o.uri, "the device stopped delivering frames (unplugged?) after " +
@@ -256,6 +256,7 @@ RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
       if (streams[ready]->readFrame(&frame) != openni::STATUS_OK) continue;
       if (ready == 0 && result.depth_frames == 0) result.first_depth_frame_index = frame.getFrameIndex();
       (ready == 0 ? result.depth_frames : result.color_frames)++;
+      if (ready == 0 && o.progress) o.progress(result.depth_frames, elapsed());
     }
     result.seconds = elapsed();
     FinishRecording(recorder, depth, color);

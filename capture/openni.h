@@ -5,6 +5,8 @@
 /// signal, seek by reopening, files checked before OpenNI2 sees them, and playback tried
 /// in a separate process first (OpenNI2 crashes on some corrupted records).
 
+#include <atomic>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -35,6 +37,11 @@ struct RecordOptions {
   /// set exposure / gain when >= 0, after the streams start, then read them back.
   bool lock_exposure = true;
   int exposure = -1, gain = -1;
+  /// When set and true, recording ends early (the frames so far are kept and the file is
+  /// finished as for a complete recording): the window's Stop and its closing.
+  const std::atomic<bool>* stop = nullptr;
+  /// Called after each recorded depth frame: frames so far, seconds since the start.
+  std::function<void(int depth_frames, double seconds)> progress;
 };
 
 struct RecordResult {

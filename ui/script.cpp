@@ -21,7 +21,7 @@ const std::map<std::string, std::pair<int, int>>& Commands() {
       {"wait-first", {0, 1}},    {"shading", {1, 1}},     {"keyframe", {1, 1}},    {"orbit", {2, 2}},
       {"frames", {1, 1}},        {"screenshot", {1, 1}},  {"bench-frames", {1, 2}}, {"export", {1, 1}},
       {"wait-export", {0, 1}},   {"state", {1, 1}},       {"expect-estimate", {1, 1}}, {"quit", {0, 0}},
-      {"close", {0, 0}},
+      {"close", {0, 0}},         {"record", {2, 2}},      {"stop-recording", {0, 0}}, {"wait-record", {0, 1}},
   };
   return commands;
 }
@@ -212,6 +212,19 @@ bool ScriptRunner::Run(const ScriptLine& line) {
       v.bench_frames_left_ = static_cast<int>(Number(line, 1, 100));
     }
     return v.bench_frames_left_ == 0;
+  }
+  if (cmd == "record") {
+    if (first) v.session_.Record(line.words[1], Number(line, 2, 0));
+    return true;
+  }
+  if (cmd == "stop-recording") {
+    v.session_.StopRecording();
+    return true;
+  }
+  if (cmd == "wait-record") {  // the recording finished and its replay is open
+    timeout(Number(line, 1, 120), "the recording");
+    if (v.live_.record_message.rfind("recording failed", 0) == 0) Fail(line, v.live_.record_message);
+    return !v.live_.recording && !v.session_.busy() && v.live_.record_message.rfind("recorded", 0) == 0;
   }
   if (cmd == "export") {
     if (first) v.session_.Export(line.words[1]);

@@ -69,6 +69,8 @@ struct Session::Impl {
   std::atomic<std::uint64_t> generation{0}, cancelled_generation{0};
   std::thread exporter;
   std::atomic<bool> exporting{false};
+  std::atomic<bool> record_stop{false};
+  std::string camera_uri;  // worker-owned: the open camera's URI ("" = the first device)
 
   std::thread worker;
 
@@ -178,6 +180,7 @@ struct Session::Impl {
       if (input == "camera" || input.rfind("camera:", 0) == 0) {
         OpenNiDeviceOptions o;
         if (input.size() > 7) o.uri = input.substr(7);
+        camera_uri = o.uri;
         auto dev = OpenOpenNiDevice(o);
         description = dev->Describe();
         queue = std::make_shared<FrameQueue>(4);
@@ -508,6 +511,53 @@ struct Session::Impl {
     }
     UpdateEstimate([&](EstimateStatus& s) { s.export_message = message; });
   }
+
+  void DoRecord(const std::string& path, double seconds) {
+    bool camera = false;
+    UpdateLive([&](LiveStatus& l) { camera = l.is_camera && l.open; });
+    if (!camera || !capture) {
+      Fail("record: open a camera first (recording needs a live device)");
+      return;
+    }
+    const std::string uri = camera_uri;
+    CloseSource();  // the recorder opens the device itself
+    UpdateLive([&](LiveStatus& l) {
+      l.recording = true;
+      l.recorded_frames = 0;
+      l.recorded_seconds = 0;
+      l.playing = false;
+      l.record_message = "recording to " + path;
+      l.error.clear();
+    });
+    RecordOptions ro;
+    ro.uri = uri;
+    ro.frames = 0;
+    ro.seconds = seconds;
+    ro.stop = &record_stop;
+    ro.progress = [this](int frames, double t) {
+      UpdateLive([&](LiveStatus& l) {
+        l.recorded_frames = frames;
+        l.recorded_seconds = t;
+      });
+    };
+    std::string message;
+    bool ok = false;
+    try {
+      const RecordResult r = RecordOni(path, ro);
+      char line[160];
+      std::snprintf(line, sizeof line, "recorded %d depth frames in %.1f s to ", r.depth_frames, r.seconds);
+      message = line + path;
+      ok = true;
+    } catch (const std::exception& e) {
+      message = std::string("recording failed: ") + e.what();
+    }
+    if (!stop.load()) DoOpen(ok ? path : "camera:" + uri);  // replay what was recorded
+    UpdateLive([&](LiveStatus& l) {
+      l.recording = false;
+      l.record_message = message;
+      if (!ok) l.error = message;
+    });
+  }
 };
 
 Session::Session(SessionOptions options) : impl_(std::make_unique<Impl>()) {
@@ -518,12 +568,20 @@ Session::Session(SessionOptions options) : impl_(std::make_unique<Impl>()) {
 
 Session::~Session() {
   impl_->stop = true;
+  impl_->record_stop = true;  // a recording finishes its file with the frames so far
   impl_->command_cv.notify_all();
   if (impl_->worker.joinable()) impl_->worker.join();
   if (impl_->estimator.joinable()) impl_->estimator.join();
   if (impl_->exporter.joinable()) impl_->exporter.join();  // an export finishes: nothing half-written
   impl_->CloseSource();
 }
+
+void Session::Record(const std::string& path, double seconds) {
+  impl_->record_stop = false;
+  impl_->Post([this, path, seconds] { impl_->DoRecord(path, seconds); });
+}
+
+void Session::StopRecording() { impl_->record_stop = true; }
 
 void Session::Open(const std::string& input) {
   impl_->Post([this, input] { impl_->DoOpen(input); });

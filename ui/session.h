@@ -41,6 +41,11 @@ struct LiveStatus {
   std::shared_ptr<const Mesh> model;  ///< the growing model (or the loaded bundle's mesh)
   std::uint64_t model_version = 0;
   bool has_pose = false;
+  /// Recording the camera to an .oni file (Session::Record).
+  bool recording = false;
+  int recorded_frames = 0;        ///< depth frames so far
+  double recorded_seconds = 0;
+  std::string record_message;     ///< the last recording's outcome
   Eigen::Matrix4d camera_pose = Eigen::Matrix4d::Identity();  ///< world_from_camera of the latest frame
 };
 
@@ -105,6 +110,14 @@ class Session {
   void ResetReconstruction();
   /// Used from the next reset (or Open) on.
   void SetReconstructionOptions(const ReconstructionOptions& options);
+  /// Records the open camera into the .oni file `path` (OpenNI2's Recorder, depth lossless,
+  /// colour uncompressed, exposure locked; the file and its side file are written under a
+  /// temporary name and moved into place when finished) for `seconds` or until
+  /// StopRecording, then opens the recording for replay. The camera is closed while it
+  /// records (the recorder opens the device itself). Needs a camera source.
+  void Record(const std::string& path, double seconds);
+  /// Ends a recording early; the frames so far are kept (not queued: takes effect at once).
+  void StopRecording();
   /// Snapshots the scene (the reconstruction's bundle, or the loaded one) and estimates
   /// its lighting on a background thread; an estimate still running is cancelled first.
   void Estimate(const EstimateOptions& options);

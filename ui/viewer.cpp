@@ -371,7 +371,23 @@ void Viewer::PanelSource() {
   ImGui::InputTextWithHint("##path", ".oni, directory or bundle", path_field_, sizeof path_field_);
   ImGui::SameLine();
   if (ImGui::Button("Open") && path_field_[0]) session_.Open(path_field_);
-  if (!live_.is_bundle && live_.open) {
+  if (live_.recording) {
+    ImGui::TextColored(ImVec4(1, 0.35f, 0.3f, 1), "recording: %d frames, %.1f s", live_.recorded_frames,
+                       live_.recorded_seconds);
+    ImGui::SameLine();
+    if (ImGui::Button("Stop recording")) session_.StopRecording();
+  } else if (live_.is_camera && live_.open) {
+    ImGui::SetNextItemWidth(170);
+    ImGui::InputText("##record", record_field_, sizeof record_field_);
+    ImGui::SameLine();
+    ImGui::SetNextItemWidth(50);
+    ImGui::InputFloat("s##seconds", &record_seconds_, 0, 0, "%.0f");
+    ImGui::SameLine();
+    if (ImGui::Button("Record") && record_field_[0] && record_seconds_ > 0)
+      session_.Record(record_field_, record_seconds_);
+  }
+  if (!live_.recording && !live_.record_message.empty()) ImGui::TextWrapped("%s", live_.record_message.c_str());
+  if (!live_.is_bundle && live_.open && !live_.recording) {
     if (ImGui::Button(live_.playing ? "Pause" : "Play")) session_.SetPlaying(!live_.playing);
     if (live_.frame_count > 0) {
       ImGui::SameLine();

@@ -99,6 +99,8 @@ class Viewer {
   bool dragging_ = false, drag_moved_ = false;
   double drag_x_ = 0, drag_y_ = 0;
   char path_field_[512] = {0};
+  char record_field_[512] = "lightprobe-recording.oni";
+  float record_seconds_ = 10;
   char export_field_[512] = "lightprobe-export";
   float seek_frame_ = 0;
   float speed_ = 1.f;

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "app/commands.h"
+#include "common/image_io.h"
 #include "common/timer.h"
 #include "ui/session.h"
 
@@ -175,6 +176,70 @@ TEST(Session, BadInputIsAMessageNotACrash) {
   s.Export((dir / "out").string());
   ASSERT_TRUE(WaitFor([&] { return s.estimate().export_message.rfind("export failed", 0) == 0; }, 30));
   EXPECT_FALSE(fs::exists(dir / "out" / "scene"));
+}
+
+/// A frame directory the project's synthetic OpenNI2 device serves as a camera.
+std::string SyntheticCamera(const fs::path& dir) {
+  fs::create_directories(dir / "color");
+  fs::create_directories(dir / "depth");
+  for (int i = 0; i < 8; ++i) {
+    // 640x480: the mode the window opens a camera in.
+    DepthImage d{640, 480, std::vector<std::uint16_t>(640 * 480, static_cast<std::uint16_t>(1000 + 10 * i))};
+    ImageRgb8 c{640, 480, std::vector<std::uint8_t>(3 * 640 * 480, static_cast<std::uint8_t>(40 + 20 * i))};
+    char name[32];
+    std::snprintf(name, sizeof name, "%05d.png", i);
+    WriteDepth16Png(dir / "depth" / name, d);
+    WriteRgb8Png(dir / "color" / name, c);
+  }
+  std::ofstream(dir / "intrinsics.json") << R"({"fx": 525, "fy": 525, "cx": 319.5, "cy": 239.5, "width": 640, "height": 480})";
+  return "camera:lpsynth://" + dir.string();
+}
+
+// Record from the camera through OpenNI2's Recorder: for a time, stopped early, and cut
+// short by closing the window; each leaves a finished recording that then replays.
+TEST(Session, RecordsTheCameraAndReplaysTheRecording) {
+  const fs::path dir = TempDir("record");
+  const std::string camera = SyntheticCamera(dir / "frames");
+  {
+    Session s(Options());
+    s.Record((dir / "none.oni").string(), 1);  // no camera open: a message
+    ASSERT_TRUE(WaitFor([&] { return !s.busy(); }, 30));
+    EXPECT_NE(s.live().error.find("open a camera first"), std::string::npos) << s.live().error;
+
+    s.Open(camera);
+    ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().open; }, 30)) << s.live().error;
+    ASSERT_TRUE(s.live().is_camera);
+    const fs::path timed = dir / "timed.oni";
+    s.Record(timed.string(), 0.5);
+    ASSERT_TRUE(WaitFor([&] { return s.live().recording; }, 10));
+    ASSERT_TRUE(WaitFor([&] { return !s.busy() && !s.live().recording; }, 30));
+    LiveStatus l = s.live();
+    EXPECT_EQ(l.record_message.rfind("recorded", 0), 0u) << l.record_message << " / " << l.error;
+    EXPECT_TRUE(fs::exists(timed) && fs::exists(timed.string() + ".json"));
+    EXPECT_FALSE(l.is_camera);  // the recording is open for replay
+    EXPECT_GT(l.frame_count, 5) << l.source;  // 30 frames/s for 0.5 s
+
+    s.Open(camera);
+    ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().is_camera; }, 30)) << s.live().error;
+    const fs::path stopped = dir / "stopped.oni";
+    Stopwatch sw;
+    s.Record(stopped.string(), 600);
+    ASSERT_TRUE(WaitFor([&] { return s.live().recorded_frames >= 5; }, 30));
+    s.StopRecording();
+    ASSERT_TRUE(WaitFor([&] { return !s.busy() && !s.live().recording; }, 30));
+    EXPECT_LT(sw.Seconds(), 30);
+    l = s.live();
+    EXPECT_EQ(l.record_message.rfind("recorded", 0), 0u) << l.record_message;
+    EXPECT_GE(l.frame_count, 5);
+
+    s.Open(camera);
+    ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().is_camera; }, 30)) << s.live().error;
+    s.Record((dir / "closed.oni").string(), 600);
+    ASSERT_TRUE(WaitFor([&] { return s.live().recorded_frames >= 3; }, 30));
+  }  // closing mid-recording finishes the file
+  EXPECT_TRUE(fs::exists(dir / "closed.oni"));
+  EXPECT_TRUE(fs::exists(dir / "closed.oni.json"));
+  fs::remove_all(dir);
 }
 
 }  // namespace
