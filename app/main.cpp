@@ -45,7 +45,10 @@ int main(int argc, char** argv) {
     std::reverse(reversed.begin(), reversed.end());  // CLI11 takes them reversed
     app.parse(reversed);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    if (e.get_exit_code() == 0) return app.exit(e);  // --help
+    // Bad usage is bad input: one line and exit 2, like every other.
+    std::fprintf(stderr, "lightprobe: error: %s (see --help)\n", e.what());
+    return 2;
   }
   try {
     for (CLI::App* sub : app.get_subcommands()) runs.at(sub->get_name())();

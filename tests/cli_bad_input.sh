@@ -27,5 +27,8 @@ expect "mesh.ply: mesh has no non-degenerate triangles" "$exe" estimate "$tmp/s"
 expect "unknown solver" "$exe" estimate "$tmp/s" --out "$tmp/o" --solver newton --quiet
 expect "unknown synthetic scene" "$exe" synth nope --out "$tmp/x"
 expect "exactly one of --envmap or --uniform" "$exe" render "$tmp/s" --out "$tmp/o"
+expect "nee-floor: Value 2 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --nee-floor 2 --quiet
+expect "smooth: Value -1 not in range" "$exe" reconstruct "$tmp/nope" --out "$tmp/o" --smooth -1
+expect "unknown-flag" "$exe" estimate "$tmp/s" --out "$tmp/o" --unknown-flag
 [ ! -e "$tmp/o/report.json" ] || { echo "FAIL: output written on error"; fail=1; }
 exit $fail
