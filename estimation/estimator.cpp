@@ -81,7 +81,9 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
     CellSampler sampler(env, round == 1 ? std::vector<double>() : lambda, reachable, opt.tracer.nee_floor);
     TracerOptions topt = opt.tracer;
     topt.seed = opt.tracer.seed * 1000003ull + round;
+    topt.cancelled = opt.cancelled;  // a cancelled trace stops within 64 pixels
     TransportMatrix Ar = TraceTransport(scene, env, bundle.views, sampler, topt, &res.trace);
+    check_cancel();
     A = (opt.combine_rounds && round > 1) ? Combine(A, Ar) : std::move(Ar);
     info.trace_seconds = ts.Seconds();
     info.nonzeros = static_cast<std::int64_t>(A.nonzeros());
@@ -185,8 +187,10 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
     TracerOptions topt = opt.tracer;
     topt.seed = opt.tracer.seed * 1000003ull + 999;
     if (opt.render_spp > 0) topt.spp = opt.render_spp;
+    topt.cancelled = opt.cancelled;
     CellSampler sampler(env, res.lambda, reachable, opt.tracer.nee_floor);
     res.renders = RenderEnvironment(scene, env, bundle.views, res.lambda, sampler, topt, true);
+    check_cancel();
     res.render_seconds = rs.Seconds();
     progress(Fmt("relit %.0f view(s) in %.2f s", bundle.views.size(), res.render_seconds));
   }

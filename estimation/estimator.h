@@ -43,9 +43,9 @@ struct EstimateOptions {
   double time_offset = 0;
   /// Progress lines ("round 2: traced 19200 pixels in 0.6 s ...").
   std::function<void(const std::string&)> progress;
-  /// Polled before each round's trace, after every solver iteration and before the final
-  /// render (a trace or the render, once started, runs to its end); when it returns true
-  /// Estimate throws Cancelled (a viewer's Cancel button).
+  /// Polled before and during each round's trace (every 64 pixels per worker), after every
+  /// solver iteration, and before and during the final render; when it returns true
+  /// Estimate throws Cancelled (a viewer's Cancel button). Called from worker threads.
   std::function<bool()> cancelled;
   /// Called on the estimating thread with every convergence row as it is logged, and
   /// with every finished round (its estimate so far): a live plot and map.

@@ -147,6 +147,7 @@ template <class F>
 void ForEachPixel(const std::vector<PixelRef>& pixels, const TracerOptions& opt, TraceStats* stats, F&& per_pixel) {
   std::atomic<std::int64_t> paths{0}, rays{0}, roulette{0}, negligible{0}, max_bounces{0};
   ParallelForChunks(0, pixels.size(), 64, [&](std::size_t b, std::size_t e) {
+    if (opt.cancelled && opt.cancelled()) return;
     Counters cnt;
     for (std::size_t i = b; i < e; ++i) per_pixel(i, pixels[i], cnt);
     paths += cnt.paths;

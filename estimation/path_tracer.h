@@ -2,6 +2,7 @@
 /// Monte Carlo estimation of the light-transport matrix A for an environment map
 /// of discrete cells, and the relighting render with the same paths.
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "common/image.h"
@@ -19,6 +20,9 @@ struct TracerOptions {
   double nee_floor = 0.05;       ///< epsilon: share of NEE samples spread by solid angle
   double min_throughput = 1e-4;  ///< paths whose throughput falls below this stop (negligible)
   std::uint64_t seed = 1;
+  /// Checked (from the worker threads) before each chunk of 64 pixels; once it returns true
+  /// the remaining pixels are skipped and the result is incomplete: the caller discards it.
+  std::function<bool()> cancelled;
 };
 
 /// What the tracer left out or did, for the report.

@@ -1,4 +1,5 @@
 // Closed forms for the path tracer and the transport matrix.
+#include <atomic>
 #include <cmath>
 #include <cstring>
 
@@ -143,6 +144,27 @@ TEST(Transport, SameSeedIsBitIdenticalForAnyThreadCount) {
   ASSERT_EQ(a.val.size(), b.val.size());
   EXPECT_EQ(std::memcmp(a.val.data(), b.val.data(), a.val.size() * sizeof(a.val[0])), 0);
   EXPECT_EQ(std::memcmp(a.val.data(), c.val.data(), a.val.size() * sizeof(a.val[0])), 0);
+}
+
+// A cancelled trace stops within a chunk of 64 pixels per worker: cancelled from the start
+// nothing is traced; cancelled after 5 checks, at most 5 + (workers) chunks are.
+TEST(Transport, ACancelledTraceStopsEarly) {
+  RayTracer scene(test::Plane(6, 0.7));
+  const EnvMap env(9, Eigen::Vector3d::UnitZ());
+  std::vector<View> views{test::BlankView(test::LookAt({0, 0, 2}, {0, 0, 0}, 64, 48, 50))};  // 48 chunks
+  TracerOptions opt;
+  opt.spp = 2;
+  TraceStats all, none, some;
+  TraceTransport(scene, env, views, CellSampler(env, {}, {}, 0.2), opt, &all);
+  EXPECT_EQ(all.paths, 64 * 48 * 2);
+  opt.cancelled = [] { return true; };
+  TraceTransport(scene, env, views, CellSampler(env, {}, {}, 0.2), opt, &none);
+  EXPECT_EQ(none.paths, 0);
+  std::atomic<int> checks{0};
+  opt.cancelled = [&checks] { return ++checks > 5; };
+  TraceTransport(scene, env, views, CellSampler(env, {}, {}, 0.2), opt, &some);
+  EXPECT_GT(some.paths, 0);
+  EXPECT_LE(some.paths, (5 + HardwareThreads()) * 64 * 2);
 }
 
 TEST(Transport, MaskedPixelsAreNotTraced) {
