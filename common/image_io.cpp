@@ -245,22 +245,26 @@ void WriteMask(const fs::path& path, const Mask& mask) {
   WriteMat(path, m.clone());
 }
 
-void WriteHeatmapPng(const fs::path& path, int width, int height, const std::vector<float>& values,
-                     float max_value) {
+void Viridis(float t, float rgb[3]) {
   // Piecewise-linear approximation of matplotlib's viridis.
   static const float kStops[5][3] = {{0.267f, 0.005f, 0.329f}, {0.229f, 0.322f, 0.546f},
                                      {0.128f, 0.567f, 0.551f}, {0.369f, 0.789f, 0.383f},
                                      {0.993f, 0.906f, 0.144f}};
+  const float x = std::clamp(std::isfinite(t) ? t : 0.f, 0.f, 1.f) * 4.f;
+  const int k = std::min(3, static_cast<int>(x));
+  const float f = x - k;
+  for (int c = 0; c < 3; ++c) rgb[c] = kStops[k][c] * (1 - f) + kStops[k + 1][c] * f;
+}
+
+void WriteHeatmapPng(const fs::path& path, int width, int height, const std::vector<float>& values,
+                     float max_value) {
   std::vector<unsigned char> rgb(static_cast<std::size_t>(3) * width * height, 0);
   for (std::size_t i = 0; i < values.size() && i < static_cast<std::size_t>(width) * height; ++i) {
-    float v = values[i];
+    const float v = values[i];
     if (!std::isfinite(v) || v < 0.f) continue;  // invalid / masked: black
-    const float t = std::clamp(max_value > 0.f ? v / max_value : 0.f, 0.f, 1.f) * 4.f;
-    const int k = std::min(3, static_cast<int>(t));
-    const float f = t - k;
-    for (int c = 0; c < 3; ++c)
-      rgb[3 * i + c] = static_cast<unsigned char>(
-          std::lround(255.f * (kStops[k][c] * (1 - f) + kStops[k + 1][c] * f)));
+    float c[3];
+    Viridis(max_value > 0.f ? v / max_value : 0.f, c);
+    for (int k = 0; k < 3; ++k) rgb[3 * i + k] = static_cast<unsigned char>(std::lround(255.f * c[k]));
   }
   WritePng8(path, width, height, rgb);
 }

@@ -50,6 +50,11 @@ void WritePng8(const std::filesystem::path& path, int width, int height,
 /// 8-bit single-channel mask PNG.
 void WriteMask(const std::filesystem::path& path, const Mask& mask);
 
+/// The error colour map used everywhere (error_view*.png, the viewer's error shading and
+/// keyframe error): a piecewise-linear viridis, t in [0, 1] (clamped) -> linear 0..1 RGB
+/// as displayed (sRGB-encoded values).
+void Viridis(float t, float rgb[3]);
+
 /// Maps a non-negative scalar image to a colour map (viridis-like) PNG,
 /// with `max_value` at the top of the scale.
 void WriteHeatmapPng(const std::filesystem::path& path, int width, int height,

@@ -36,7 +36,8 @@ void OnGlfwError(int code, const char* description) {
   g_glfw_error = std::to_string(code) + ": " + (description ? description : "");
 }
 
-/// Blue (0) -> green -> yellow -> red (1): the error and depth colour scale.
+/// Blue (0) -> green -> yellow -> red (1): the depth and environment-map colour scale
+/// (errors use Viridis, as the exported error_view*.png do).
 Eigen::Vector3f Heat(float t) {
   t = std::clamp(t, 0.f, 1.f);
   const float r = std::clamp(1.5f - std::abs(4 * t - 3), 0.f, 1.f);
@@ -207,7 +208,8 @@ void Viewer::SyncShading() {
     for (std::size_t i = 0; i < colors.size(); ++i) {
       const float e = (*est_.error)[i];
       // Error heat (0 .. 50 % of the mean) in display values; unseen vertices grey.
-      const Eigen::Vector3f h = Heat(e / 0.5f);
+      Eigen::Vector3f h;
+      Viridis(e / 0.5f, h.data());
       colors[i] = std::isnan(e) ? Eigen::Vector3f::Constant(0.05f) : Eigen::Vector3f(h.array().pow(2.2f));
     }
   } else {
@@ -608,7 +610,8 @@ void Viewer::PanelKeyframe() {
         if (!view.valid[i]) continue;
         double e = 0;
         for (int k = 0; k < 3; ++k) e += std::abs(render.data[3 * i + k] - view.image.data[3 * i + k]);
-        const Eigen::Vector3f h = Heat(static_cast<float>(e / 3 / scale / 0.5));
+        float h[3];
+        Viridis(static_cast<float>(e / 3 / scale / 0.5), h);
         for (int k = 0; k < 3; ++k) err.data[3 * i + k] = static_cast<std::uint8_t>(255 * h[k]);
       }
       compare_tex_[2].Upload(err);
