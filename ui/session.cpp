@@ -124,6 +124,15 @@ struct Session::Impl {
     UpdateLive([&](LiveStatus& l) { l.error = what; });
   }
 
+  /// Playback stops on an error (a source that failed or ended badly).
+  void StopPlaying(const std::string& error) {
+    playing = false;
+    UpdateLive([&](LiveStatus& l) {
+      l.playing = false;
+      l.error = error;
+    });
+  }
+
   void CloseSource() {
     capture.reset();
     queue.reset();
@@ -246,13 +255,8 @@ struct Session::Impl {
       auto f = queue->Pop(0.05);
       if (!f) {
         const CaptureStats st = capture->stats();
-        if (!st.running) {
-          playing = false;
-          UpdateLive([&](LiveStatus& l) {
-            l.playing = false;
-            l.error = st.error.empty() ? std::string("camera stopped: ") + ToString(st.last_status) : st.error;
-          });
-        }
+        if (!st.running)
+          StopPlaying(st.error.empty() ? std::string("camera stopped: ") + ToString(st.last_status) : st.error);
         return true;
       }
       frame = std::move(*f);
@@ -261,11 +265,7 @@ struct Session::Impl {
       try {
         s = source->Next(&frame, 0.05);
       } catch (const std::exception& e) {
-        playing = false;
-        UpdateLive([&](LiveStatus& l) {
-          l.playing = false;
-          l.error = e.what();
-        });
+        StopPlaying(e.what());
         return true;
       }
       if (s == SourceStatus::kTimeout) return true;
@@ -360,11 +360,7 @@ struct Session::Impl {
       try {
         Step();
       } catch (const std::exception& e) {  // nothing may escape the worker
-        playing = false;
-        UpdateLive([&](LiveStatus& l) {
-          l.playing = false;
-          l.error = e.what();
-        });
+        StopPlaying(e.what());
       }
     }
   }
@@ -513,9 +509,7 @@ struct Session::Impl {
   }
 
   void DoRecord(const std::string& path, double seconds) {
-    bool camera = false;
-    UpdateLive([&](LiveStatus& l) { camera = l.is_camera && l.open; });
-    if (!camera || !capture) {
+    if (!capture) {  // only a camera has a capture thread
       Fail("record: open a camera first (recording needs a live device)");
       return;
     }
