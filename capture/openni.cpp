@@ -5,6 +5,10 @@
 
 #include <atomic>
 #include <chrono>
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <future>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -33,6 +37,67 @@ namespace lp {
 namespace fs = std::filesystem;
 
 namespace {
+
+/// OpenNI2 keeps an error log per calling thread, keyed by pthread_t, and when a thread
+/// calls it for the first time it probes every thread it has seen with pthread_kill(id, 0).
+/// Once a thread that called OpenNI2 has exited and glibc has unmapped its stack (glibc
+/// keeps ~40 MiB of stacks cached), that probe reads unmapped memory and the process
+/// crashes: e.g. a viewer Session that played a file, then a new Session opening a camera.
+/// So no thread that calls OpenNI2 may exit: every call in this file runs on a thread of
+/// this pool, which lives as long as the process. It grows to the number of calls in
+/// flight at once (a capture thread's read, a recording, ...); idle threads wait.
+class OpenNiThreads {
+ public:
+  /// Never destroyed: its threads wait on it until the process ends.
+  static OpenNiThreads& Get() {
+    static OpenNiThreads* pool = new OpenNiThreads;
+    return *pool;
+  }
+
+  /// Runs f on a pool thread and returns its result (or rethrows its exception).
+  template <class F>
+  auto Run(F&& f) -> decltype(f()) {
+    if (on_pool_thread_) return f();
+    using R = decltype(f());
+    auto task = std::make_shared<std::packaged_task<R()>>(std::forward<F>(f));
+    std::future<R> result = task->get_future();
+    {
+      std::lock_guard<std::mutex> lock(m_);
+      jobs_.emplace_back([task] { (*task)(); });
+      if (jobs_.size() > idle_) std::thread([this] { Loop(); }).detach();
+    }
+    cv_.notify_one();
+    return result.get();
+  }
+
+ private:
+  void Loop() {
+    on_pool_thread_ = true;
+    std::unique_lock<std::mutex> lock(m_);
+    for (;;) {
+      ++idle_;
+      cv_.wait(lock, [this] { return !jobs_.empty(); });
+      --idle_;
+      std::function<void()> job = std::move(jobs_.front());
+      jobs_.pop_front();
+      lock.unlock();
+      job();
+      lock.lock();
+    }
+  }
+
+  std::mutex m_;
+  std::condition_variable cv_;
+  std::deque<std::function<void()>> jobs_;
+  std::size_t idle_ = 0;
+  static thread_local bool on_pool_thread_;
+};
+thread_local bool OpenNiThreads::on_pool_thread_ = false;
+
+template <class F>
+auto OnOpenNiThread(F&& f) -> decltype(f()) {
+  return OpenNiThreads::Get().Run(std::forward<F>(f));
+}
 
 /// OpenNI2 is initialized once per process and never shut down (shutting down and
 /// initializing again is not reliable in 2.2).
@@ -193,7 +258,9 @@ int ValidateOniFile(const std::string& path) {
   return frames;
 }
 
-RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
+namespace {
+
+RecordResult RecordOniHere(const std::string& out_file, const RecordOptions& o) {
   if (o.frames <= 0 && !(o.seconds > 0)) throw InputError("record: give a number of frames or seconds");
   InitOpenNi();
   openni::Device device;
@@ -289,6 +356,12 @@ RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
   if (ec) throw InputError(out_file, "cannot move the recording into place: " + ec.message());
   WriteTextAtomically(OniSideFile(out_file), side.dump(2) + "\n");
   return result;
+}
+
+}  // namespace
+
+RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
+  return OnOpenNiThread([&] { return RecordOniHere(out_file, o); });
 }
 
 std::string OniSideFile(const std::string& oni_file) { return oni_file + ".json"; }
@@ -638,14 +711,43 @@ class DeviceSource : public FrameSource, private OpenNiStreams, private openni::
   std::int64_t produced_ = 0;
 };
 
+/// A source whose every call (construction and destruction included) runs on the
+/// OpenNI2 pool (OpenNiThreads).
+class OnOpenNiThreadSource : public FrameSource {
+ public:
+  explicit OnOpenNiThreadSource(std::unique_ptr<FrameSource> inner) : inner_(std::move(inner)) {}
+  ~OnOpenNiThreadSource() override {
+    OnOpenNiThread([this] { inner_.reset(); });
+  }
+  std::string Describe() const override { return inner_->Describe(); }
+  std::optional<std::int64_t> FrameCount() const override { return inner_->FrameCount(); }
+  SourceStatus Next(RgbdFrame* frame, double timeout_seconds) override {
+    return OnOpenNiThread([&] { return inner_->Next(frame, timeout_seconds); });
+  }
+  void Rewind() override {
+    OnOpenNiThread([this] { inner_->Rewind(); });
+  }
+  void Seek(std::int64_t frame) override {
+    OnOpenNiThread([&] { inner_->Seek(frame); });
+  }
+  void SetPaused(bool paused) override {
+    OnOpenNiThread([&] { inner_->SetPaused(paused); });
+  }
+
+ private:
+  std::unique_ptr<FrameSource> inner_;
+};
+
 }  // namespace
 
 std::unique_ptr<FrameSource> OpenOniFile(const std::string& path, const OniPlaybackOptions& options) {
-  return std::make_unique<OniFileSource>(path, options);
+  return std::make_unique<OnOpenNiThreadSource>(
+      OnOpenNiThread([&]() -> std::unique_ptr<FrameSource> { return std::make_unique<OniFileSource>(path, options); }));
 }
 
 std::unique_ptr<FrameSource> OpenOpenNiDevice(const OpenNiDeviceOptions& options, CameraControls* applied) {
-  return std::make_unique<DeviceSource>(options, applied);
+  return std::make_unique<OnOpenNiThreadSource>(OnOpenNiThread(
+      [&]() -> std::unique_ptr<FrameSource> { return std::make_unique<DeviceSource>(options, applied); }));
 }
 
 std::vector<RgbdFrame> CaptureBracket(const OpenNiDeviceOptions& device, const std::vector<int>& exposures,

@@ -2,6 +2,7 @@
 // OpenNI2's Recorder writes an .oni, its OniFile driver plays it back.
 #include <unistd.h>
 
+#include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -119,6 +120,42 @@ TEST_F(OpenNi, RecordThroughTheRecorderAndReplayExactly) {
   EXPECT_EQ(src->Next(&f, 0.5), SourceStatus::kEnd);
   src->Rewind();
   ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame);
+}
+
+// OpenNI2 remembers every thread that called it (its error log is per thread, keyed by
+// pthread_t) and probes them all with pthread_kill(id, 0) when a new thread calls it. A
+// thread that called OpenNI2 and exited, whose stack glibc then unmapped (its cache of
+// stacks holds ~40 MiB), made that probe crash: a Session that played a file, then a new
+// Session opening a camera. Here: read from one thread, let it exit, flush the stack
+// cache with threads holding large stacks, then open from a new thread.
+TEST_F(OpenNi, AThreadThatUsedOpenNiAndExitedDoesNotCrashTheNextOne) {
+  RecordBytes(3);
+  const std::string oni = (dir_ / "rec.oni").string();
+  auto use_openni = [&] {
+    auto src = OpenOniFile(oni);
+    RgbdFrame f;
+    EXPECT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame);
+  };
+  std::thread(use_openni).join();
+  {
+    std::vector<std::thread> flush;  // 12 x 8 MiB stacks alive at once, then all exit
+    std::atomic<int> started{0};
+    for (int i = 0; i < 12; ++i)
+      flush.emplace_back([&] {
+        volatile char touch[1 << 16];  // the stack is used, not only reserved
+        touch[sizeof touch - 1] = 1;
+        started += touch[sizeof touch - 1];
+        while (started.load() < 12) std::this_thread::yield();
+      });
+    for (std::thread& t : flush) t.join();
+  }
+  std::thread(use_openni).join();
+  std::thread([&] {
+    RecordOptions ro;
+    ro.uri = uri_;
+    ro.frames = 2;
+    EXPECT_EQ(RecordOni((dir_ / "again.oni").string(), ro).depth_frames, 2);
+  }).join();
 }
 
 TEST_F(OpenNi, CorruptTruncatedAndEmptyFilesAreClearErrors) {
