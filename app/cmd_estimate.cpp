@@ -11,6 +11,7 @@
 #include "common/color.h"
 #include "common/image_io.h"
 #include "common/parallel.h"
+#include "common/plot.h"
 #include "common/timer.h"
 
 namespace lp::app {
@@ -58,6 +59,32 @@ std::string Num(double v) {
   return buf;
 }
 
+/// convergence.png: error against wall-clock time, one series per sMC round (the rows of
+/// convergence.csv): relative RMSE, objective and, with truth.json, the dominant light's
+/// angular error.
+static void WriteConvergencePlot(const fs::path& path, const std::vector<ConvergenceRow>& rows) {
+  if (rows.empty()) return;
+  PlotPanel rmse{"photometric error", "wall-clock seconds", "relative RMSE", false, true, {}, {}};
+  PlotPanel objective{"objective", "wall-clock seconds", "E(lambda)", false, true, {}, {}};
+  PlotPanel angle{"dominant light direction error", "wall-clock seconds", "degrees", false, false, {}, {}};
+  bool any_angle = false;
+  for (const ConvergenceRow& row : rows) {
+    const std::string label = "round " + std::to_string(row.round);
+    for (PlotPanel* p : {&rmse, &objective, &angle})
+      if (p->series.empty() || p->series.back().label != label) p->series.push_back({label, {}, {}, true, true});
+    rmse.series.back().x.push_back(row.wall_seconds);
+    rmse.series.back().y.push_back(row.relative_rmse);
+    objective.series.back().x.push_back(row.wall_seconds);
+    objective.series.back().y.push_back(row.objective);
+    angle.series.back().x.push_back(row.wall_seconds);
+    angle.series.back().y.push_back(row.angular_error_deg);
+    any_angle = any_angle || std::isfinite(row.angular_error_deg);
+  }
+  std::vector<PlotPanel> panels{rmse, objective};
+  if (any_angle) panels.push_back(angle);
+  WritePlotPng(path, "lightprobe estimate: error against run time", panels, static_cast<int>(panels.size()));
+}
+
 void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle, const EstimateOptions& o,
                           const EstimateResult& r, double command_seconds) {
   const fs::path out(out_dir);
@@ -87,6 +114,7 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
     conv << Num(row.wall_seconds) << ',' << row.round << ',' << row.iteration << ',' << Num(row.objective) << ','
          << Num(row.photometric_rmse) << ',' << Num(row.relative_rmse) << ',' << Num(row.angular_error_deg) << '\n';
   WriteTextAtomically(out / "convergence.csv", conv.str());
+  WriteConvergencePlot(out / "convergence.png", r.convergence);
 
   json views = json::array();
   for (std::size_t k = 0; k < r.renders.size(); ++k) {
@@ -215,7 +243,7 @@ Run AddEstimate(CLI::App& app) {
                 sw.Seconds(), r.final_relative_rmse);
     if (!std::isnan(r.final_angular_error_deg)) std::printf("; dominant light error %.2f deg", r.final_angular_error_deg);
     std::printf("\nresults in %s (envmap.exr, envmap_directions.csv, render_view*.png, error_view*.png, "
-                "convergence.csv, report.json)\n",
+                "convergence.csv/.png, report.json)\n",
                 fs::absolute(*out).lexically_normal().c_str());
   };
 }

@@ -5,11 +5,12 @@ exe="$1"; demo="$2"
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 "$exe" estimate "$demo" --out "$out" --quiet --max-rounds 2
-for f in envmap.exr envmap_directions.csv render_view0.exr render_view0.png error_view0.png convergence.csv report.json; do
+for f in envmap.exr envmap_directions.csv render_view0.exr render_view0.png error_view0.png convergence.csv convergence.png report.json; do
   [ -s "$out/$f" ] || { echo "missing $f"; exit 1; }
 done
 rows=$(($(wc -l <"$out/envmap_directions.csv") - 1))
 [ "$rows" -eq 522 ] || { echo "envmap_directions.csv has $rows rows, expected 522"; exit 1; }
+head -c 8 "$out/convergence.png" | od -An -tx1 | tr -d ' \n' | grep -q '^89504e470d0a1a0a$' || { echo "convergence.png is not a PNG"; exit 1; }
 head -1 "$out/convergence.csv" | grep -q "^wall_seconds,round,iteration,objective,photometric_rmse" || exit 1
 err=$(grep -o '"angular_error_deg": [0-9.e+-]*' "$out/report.json" | head -1 | awk '{print $2}')
 awk -v e="$err" 'BEGIN { exit !(e < 15) }' || { echo "dominant light error $err deg"; exit 1; }
