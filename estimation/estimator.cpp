@@ -104,7 +104,6 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
     params.cell_weight.resize(problem.unknown_cells);
     for (int k = 0; k < problem.unknown_cells; ++k)
       params.cell_weight[k] = env.solid_angle(problem.cell_of[k]) / kAlphaReferenceSolidAngle;
-    Objective objective(problem, params);
     std::vector<double> init(3 * problem.unknown_cells);
     for (int k = 0; k < problem.unknown_cells; ++k)
       for (int c = 0; c < 3; ++c) init[3 * k + c] = lambda[3 * problem.cell_of[k] + c];
@@ -114,12 +113,22 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
         for (int c = 0; c < 3; ++c) full[3 * problem.cell_of[k] + c] = compact[3 * k + c];
       return full;
     };
+    // Graduated Cauchy scale: from the cold start (round 1, a dark map) every residual is
+    // about the mean pixel; with a small sigma that is the loss's flat tail, where the
+    // activation penalty outweighs the data and the all-zero map is a local minimum
+    // (sigma = 0.1 lit nothing on the demo). Round 1 solves at kGraduatedSigmaStart first and
+    // halves the scale down to sigma, each solve warm-started from the last.
+    std::vector<double> sigmas;
+    if (round == 1)
+      for (double s = kGraduatedSigmaStart; s > params.sigma * 1.5; s *= 0.5) sigmas.push_back(s);
+    sigmas.push_back(params.sigma);
+    int iteration_offset = 0;
     SolverOptions so = opt.solver_options;
     so.on_iteration = [&](const IterationInfo& it) {
       ConvergenceRow row;
       row.wall_seconds = now();
       row.round = round;
-      row.iteration = it.iteration;
+      row.iteration = iteration_offset + it.iteration;
       row.objective = it.objective;
       row.relative_rmse = it.Rmse();
       row.photometric_rmse = row.relative_rmse * mean;
@@ -130,9 +139,20 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
       check_cancel();
     };
     Stopwatch ss;
-    SolveResult sr = Solve(opt.solver, objective, init, so);
+    SolveResult sr;
+    std::vector<double> start = init;
+    for (double sigma : sigmas) {
+      ObjectiveParams step = params;
+      step.sigma = sigma;
+      Objective objective(problem, step);
+      const bool increased = sr.objective_increased;
+      sr = Solve(opt.solver, objective, start, so);
+      sr.objective_increased = sr.objective_increased || increased;
+      iteration_offset += sr.iterations + 1;
+      info.solver_iterations += sr.iterations;
+      start = sr.lambda;
+    }
     info.solve_seconds = ss.Seconds();
-    info.solver_iterations = sr.iterations;
     info.objective = sr.objective;
     info.kkt_violation = sr.kkt_violation;
     res.objective_increased = res.objective_increased || sr.objective_increased;

@@ -20,6 +20,10 @@ constexpr double kAlphaReferencePixels = 19200;
 /// and per cell of this solid angle (the mean cell of 21 rings, 4 pi / 522): a cell of
 /// solid angle Omega_j is penalized with alpha * Omega_j / kAlphaReferenceSolidAngle.
 constexpr double kAlphaReferenceSolidAngle = 4 * 3.14159265358979323846 / 522;
+/// Round 1 (the cold start) solves at this Cauchy scale first when a smaller one is asked
+/// for, then halves it down to the one asked for, each solve warm-started (graduated
+/// non-convexity; see Estimate).
+constexpr double kGraduatedSigmaStart = 0.5;
 
 struct ConvergenceRow;
 struct RoundInfo;
