@@ -122,29 +122,18 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
     const ImageRGB& img = r.renders[k];
     const std::string name = "render_view" + std::to_string(k);
     WriteExr(out / (name + ".exr"), img);
-    // Same exposure for render and error image: the observed image's 99th percentile maps to white.
-    std::vector<float> lum;
-    for (std::size_t i = 0; i < v.valid.size(); ++i)
-      if (v.valid[i]) lum.push_back(static_cast<float>(Luminance(v.image.data[3 * i], v.image.data[3 * i + 1], v.image.data[3 * i + 2])));
-    float white = 1;
-    if (!lum.empty()) {
-      std::nth_element(lum.begin(), lum.begin() + lum.size() * 99 / 100, lum.end());
-      white = std::max(1e-12f, lum[lum.size() * 99 / 100]);
-    }
+    // Same exposure for render and error image: the observed image's white level.
+    const float white = WhiteLevel(v);
     WritePngSrgb(out / (name + ".png"), img, 1 / white);
     std::vector<float> err(img.pixels(), -1.f);
     double se = 0;
     for (std::size_t i = 0; i < img.pixels(); ++i) {
       if (!v.valid[i]) continue;
-      double e2 = 0;
-      for (int c = 0; c < 3; ++c) {
-        const double d = img.data[3 * i + c] - v.image.data[3 * i + c];
-        e2 += d * d;
-      }
-      se += e2;
-      err[i] = static_cast<float>(std::sqrt(e2 / 3));
+      err[i] = PixelError(&img.data[3 * i], &v.image.data[3 * i]);
+      se += 3.0 * err[i] * err[i];
     }
-    WriteHeatmapPng(out / ("error_view" + std::to_string(k) + ".png"), img.width, img.height, err, 0.25f * white);
+    WriteHeatmapPng(out / ("error_view" + std::to_string(k) + ".png"), img.width, img.height, err,
+                    kErrorDisplayFraction * white);
     const int n = static_cast<int>(std::count(v.valid.begin(), v.valid.end(), 1));
     double mean_obs = 0;
     for (std::size_t i = 0; i < v.valid.size(); ++i)

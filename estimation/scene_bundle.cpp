@@ -1,11 +1,13 @@
 #include "estimation/scene_bundle.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <Eigen/LU>
 #include <nlohmann/json.hpp>
 
 #include "common/atomic_file.h"
+#include "common/color.h"
 #include "common/error.h"
 #include "common/image_io.h"
 
@@ -131,6 +133,19 @@ SceneBundle ParseSceneJson(const std::string& text, const std::string& name) {
     b.views.push_back(std::move(view));
   }
   return b;
+}
+
+float WhiteLevel(const View& view) {
+  std::vector<float> lum;
+  for (std::size_t i = 0; i < view.valid.size(); ++i)
+    if (view.valid[i]) {
+      const float* p = &view.image.data[3 * i];
+      lum.push_back(static_cast<float>(Luminance(p[0], p[1], p[2])));
+    }
+  if (lum.empty()) return 1;
+  const std::size_t k = lum.size() * 99 / 100;
+  std::nth_element(lum.begin(), lum.begin() + k, lum.end());
+  return std::max(1e-12f, lum[k]);
 }
 
 void MarkUnusablePixels(View* view) {

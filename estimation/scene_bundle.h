@@ -2,6 +2,7 @@
 /// The scene bundle (docs/formats.md): the on-disk contract between
 /// reconstruction and estimation. Readers accept exactly the documented format;
 /// the writer writes exactly it.
+#include <cmath>
 #include <filesystem>
 #include <limits>
 #include <optional>
@@ -52,6 +53,21 @@ struct View {
 /// Clears `valid` for the pixels of `view` that are non-finite, negative or saturated (in
 /// any channel) and adds them to the counts; pixels already invalid are not counted again.
 void MarkUnusablePixels(View* view);
+
+/// A view's white level: the 99th-percentile luminance of its valid pixels (1 if none).
+/// Renders are shown with it mapped to white, and photometric errors as a fraction of it.
+float WhiteLevel(const View& view);
+
+/// Errors are shown in viridis from 0 to this fraction of the white level, in the same
+/// way everywhere: error_view*.png, the viewer's error shading and its keyframe panel.
+constexpr float kErrorDisplayFraction = 0.25f;
+
+/// The error shown for one pixel: the RMS over the three channels of rendered - observed.
+inline float PixelError(const float* rendered, const float* observed) {
+  float s = 0;
+  for (int c = 0; c < 3; ++c) s += (rendered[c] - observed[c]) * (rendered[c] - observed[c]);
+  return std::sqrt(s / 3);
+}
 
 struct SceneBundle {
   std::filesystem::path dir;

@@ -66,7 +66,9 @@ std::vector<Eigen::Vector3f> VertexRadiance::Radiance() const {
 }
 
 std::vector<float> VertexPhotometricError(const RayTracer& scene, const std::vector<View>& views,
-                                          const std::vector<Eigen::Vector3f>& radiance, double scale) {
+                                          const std::vector<Eigen::Vector3f>& radiance) {
+  std::vector<float> white(views.size());
+  for (std::size_t k = 0; k < views.size(); ++k) white[k] = WhiteLevel(views[k]);
   const Mesh& mesh = scene.mesh();
   LP_CHECK(radiance.size() == mesh.positions.size(), "radiance per vertex: " << radiance.size());
   std::vector<float> error(radiance.size(), std::nanf(""));
@@ -74,7 +76,8 @@ std::vector<float> VertexPhotometricError(const RayTracer& scene, const std::vec
     for (std::size_t v = b; v < e; ++v) {
       const Eigen::Vector3d p = mesh.positions[v].cast<double>();
       double best = 1e300;
-      for (const View& view : views) {
+      for (std::size_t k = 0; k < views.size(); ++k) {
+        const View& view = views[k];
         const Camera& cam = view.camera;
         double u, w;
         if (!cam.Project(p, &u, &w)) continue;
@@ -88,9 +91,7 @@ std::vector<float> VertexPhotometricError(const RayTracer& scene, const std::vec
         SurfacePoint hit;
         if (scene.Intersect(cam.center(), to / dist, &hit) && hit.distance < 0.98 * dist) continue;
         best = dist;
-        double err = 0;
-        for (int c = 0; c < 3; ++c) err += std::abs(radiance[v][c] - view.image.data[3 * i + c]);
-        error[v] = static_cast<float>(err / 3 / scale);
+        error[v] = PixelError(radiance[v].data(), &view.image.data[3 * i]) / white[k];
       }
     }
   });

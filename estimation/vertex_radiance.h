@@ -39,10 +39,10 @@ class VertexRadiance {
   std::vector<Eigen::Vector3d> sum_;  ///< per vertex, incident radiance summed over samples
 };
 
-/// Per vertex: |radiance - observed| (mean over RGB) / `scale` against the nearest view
+/// Per vertex: PixelError(radiance, observed) / WhiteLevel(view) against the nearest view
 /// that sees the vertex (inside its image, a valid pixel, not occluded: the first hit
 /// from its camera lies within 2 % of the distance); NaN where no view sees it.
 std::vector<float> VertexPhotometricError(const RayTracer& scene, const std::vector<View>& views,
-                                          const std::vector<Eigen::Vector3f>& radiance, double scale);
+                                          const std::vector<Eigen::Vector3f>& radiance);
 
 }  // namespace lp

@@ -470,7 +470,7 @@ struct Session::Impl {
         std::shared_ptr<const std::vector<float>> error;
         if (radiance.samples() >= options.lit_samples || radiance.samples() == 2)
           error = std::make_shared<const std::vector<float>>(
-              VertexPhotometricError(tracer, scene.views, *lit, result.image_mean));
+              VertexPhotometricError(tracer, scene.views, *lit));
         const int samples = radiance.samples();
         UpdateEstimate(gen, [&](EstimateStatus& s) {
           s.lit = lit;

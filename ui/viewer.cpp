@@ -207,9 +207,10 @@ void Viewer::SyncShading() {
     colors.resize(est_.error->size());
     for (std::size_t i = 0; i < colors.size(); ++i) {
       const float e = (*est_.error)[i];
-      // Error heat (0 .. 50 % of the mean) in display values; unseen vertices grey.
+      // Error heat (0 .. kErrorDisplayFraction of the white level, as error_view*.png) in
+      // display values; unseen vertices grey.
       Eigen::Vector3f h;
-      Viridis(e / 0.5f, h.data());
+      Viridis(e / kErrorDisplayFraction, h.data());
       colors[i] = std::isnan(e) ? Eigen::Vector3f::Constant(0.05f) : Eigen::Vector3f(h.array().pow(2.2f));
     }
   } else {
@@ -597,21 +598,20 @@ void Viewer::PanelKeyframe() {
   if (compare_keyframe_ != selected_keyframe_ || compare_version_ != version) {
     compare_keyframe_ = selected_keyframe_;
     compare_version_ = version;
-    compare_tex_[0].Upload(EncodeSrgb8(view.image, 1.f));
+    // As render_view*.png and error_view*.png: the reference's white level maps to white.
+    const float white = WhiteLevel(view);
+    compare_tex_[0].Upload(EncodeSrgb8(view.image, 1 / white));
     if (have_render) {
       const ImageRGB& render = est_.result->renders[selected_keyframe_];
-      compare_tex_[1].Upload(EncodeSrgb8(render, 1.f));
+      compare_tex_[1].Upload(EncodeSrgb8(render, 1 / white));
       ImageRgb8 err;
       err.width = render.width;
       err.height = render.height;
       err.data.assign(render.data.size(), 0);
-      const double scale = est_.result->image_mean;
       for (std::size_t i = 0; i < render.pixels(); ++i) {
         if (!view.valid[i]) continue;
-        double e = 0;
-        for (int k = 0; k < 3; ++k) e += std::abs(render.data[3 * i + k] - view.image.data[3 * i + k]);
         float h[3];
-        Viridis(static_cast<float>(e / 3 / scale / 0.5), h);
+        Viridis(PixelError(&render.data[3 * i], &view.image.data[3 * i]) / (kErrorDisplayFraction * white), h);
         for (int k = 0; k < 3; ++k) err.data[3 * i + k] = static_cast<std::uint8_t>(255 * h[k]);
       }
       compare_tex_[2].Upload(err);
@@ -622,7 +622,7 @@ void Viewer::PanelKeyframe() {
   ImGui::SetNextWindowPos(ImVec2(kPanelWidth + 10, 40), ImGuiCond_Appearing);
   bool open = true;
   ImGui::Begin("Keyframe", &open, ImGuiWindowFlags_AlwaysAutoResize);
-  ImGui::Text("keyframe %d: reference | relit by the estimate | error (0 .. 50 %% of the mean)", selected_keyframe_);
+  ImGui::Text("keyframe %d: reference | relit by the estimate | error (0 .. 25 %% of white)", selected_keyframe_);
   const float w = 240, h = w * view.camera.height / std::max(1, view.camera.width);
   ImGui::Image(reinterpret_cast<void*>(static_cast<std::intptr_t>(compare_tex_[0].id())), ImVec2(w, h));
   if (have_render) {
@@ -747,6 +747,9 @@ void Viewer::WriteState(const std::string& path) const {
   j["frames_read"] = live_.frames_read;
   j["frames_tracked"] = live_.frames_tracked;
   j["frames_lost"] = live_.frames_lost;
+  j["record"] = {{"recording", live_.recording},
+                 {"recorded_frames", live_.recorded_frames},
+                 {"message", live_.record_message}};
   j["model_triangles"] = live_.model ? live_.model->triangles.size() : 0;
   j["shown_triangles"] = mesh_.triangles();
   j["shading"] = ToString(shading_);

@@ -3,6 +3,7 @@
 #include <fstream>
 
 #include <gtest/gtest.h>
+#include <cmath>
 
 #include "common/atomic_file.h"
 #include "common/error.h"
@@ -93,6 +94,27 @@ TEST(Bundle, NonFiniteAndNegativePixelsAreMaskedAndCounted) {
   EXPECT_EQ(r.views[0].valid[1], 0);
   EXPECT_EQ(r.views[0].valid[2], 0);
   EXPECT_EQ(r.views[0].valid[3], 1);
+}
+
+// The one white level behind render_view*.png, error_view*.png and the viewer's error
+// shading: the 99th-percentile luminance of the valid pixels; masked pixels do not count.
+TEST(Bundle, WhiteLevelIsThe99thPercentileOfTheValidPixels) {
+  View v;
+  v.image = ImageRGB(100, 2);
+  v.valid.assign(200, 0);
+  for (int i = 0; i < 100; ++i) {
+    for (int c = 0; c < 3; ++c) v.image.data[3 * i + c] = static_cast<float>(i + 1);  // grey 1 .. 100
+    v.valid[i] = 1;
+  }
+  for (int i = 100; i < 200; ++i)
+    for (int c = 0; c < 3; ++c) v.image.data[3 * i + c] = 1000.f;  // masked: ignored
+  EXPECT_NEAR(WhiteLevel(v), 100.f, 1e-3);  // index 99 of 100 sorted values
+  for (int i = 0; i < 100; ++i) v.valid[i] = i < 50;
+  EXPECT_NEAR(WhiteLevel(v), 50.f, 1e-3);
+  std::fill(v.valid.begin(), v.valid.end(), 0);
+  EXPECT_EQ(WhiteLevel(v), 1.f);
+  const float a[3] = {1, 2, 3}, b[3] = {1, 2, 0};
+  EXPECT_NEAR(PixelError(a, b), std::sqrt(3.f), 1e-6);
 }
 
 TEST(Bundle, EverythingMaskedIsAClearError) {

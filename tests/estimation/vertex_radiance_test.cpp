@@ -111,13 +111,13 @@ TEST(VertexPhotometricError, ComparesWithTheNearestViewThatSeesTheVertex) {
   View far_view = test::BlankView(test::LookAt({0, 0, 4}, {0, 0, 0}, 64, 48, 90));
   std::fill(near_view.image.data.begin(), near_view.image.data.end(), 0.2f);
   std::fill(far_view.image.data.begin(), far_view.image.data.end(), 0.9f);
-  const std::vector<float> err = VertexPhotometricError(scene, {far_view, near_view}, radiance, 0.5);
+  const std::vector<float> err = VertexPhotometricError(scene, {far_view, near_view}, radiance);
   int seen = 0;
   for (std::size_t v = 0; v < err.size(); ++v) {
     if (std::isnan(err[v])) continue;
     ++seen;
-    // The near view sees the centre of the plane: |0.5 - 0.2| / 0.5.
-    if (scene.mesh().positions[v].norm() < 0.5f) EXPECT_NEAR(err[v], 0.6, 1e-5);
+    // The near view sees the centre of the plane: |0.5 - 0.2| over its white level 0.2.
+    if (scene.mesh().positions[v].norm() < 0.5f) EXPECT_NEAR(err[v], 1.5, 1e-5);
   }
   EXPECT_GT(seen, 10);
 
@@ -125,7 +125,7 @@ TEST(VertexPhotometricError, ComparesWithTheNearestViewThatSeesTheVertex) {
   occluded.Append(test::Square(0, 0, 1.0, 1.5, 0.5));  // covers the whole plane
   const RayTracer blocked(occluded);
   const std::vector<Eigen::Vector3f> rad2(blocked.mesh().positions.size(), Eigen::Vector3f::Constant(0.5f));
-  const std::vector<float> err2 = VertexPhotometricError(blocked, {near_view}, rad2, 0.5);
+  const std::vector<float> err2 = VertexPhotometricError(blocked, {near_view}, rad2);
   for (int v = 0; v < 4; ++v) EXPECT_TRUE(std::isnan(err2[v])) << "vertex " << v << " is under the square";
 }
 
