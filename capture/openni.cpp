@@ -260,6 +260,57 @@ int ValidateOniFile(const std::string& path) {
 
 namespace {
 
+/// OpenNI2's recordings keep each stream's timestamps relative to its own first recorded
+/// frame, so both streams must start recording with the same frame or replay pairs them
+/// one frame apart: returns just after a depth and a colour frame with the same timestamp
+/// arrived (the next pair is a frame period away), when the recorder is to start.
+void WaitForPairedFrames(openni::VideoStream& depth, openni::VideoStream& color, const std::string& uri) {
+  openni::VideoStream* streams[2] = {&depth, &color};
+  openni::VideoFrameRef frame;
+  std::uint64_t last[2] = {~0ull, ~1ull};
+  for (int k = 0; k < 60 && last[0] != last[1]; ++k) {
+    int ready = -1;
+    if (openni::OpenNI::waitForAnyStream(streams, 2, &ready, 2000) != openni::STATUS_OK)
+      throw InputError(uri, "the device delivers no frames: " + OpenNiError());
+    if (streams[ready]->readFrame(&frame) == openni::STATUS_OK) last[ready] = frame.getTimestamp();
+  }
+}
+
+/// Where a recording is written until it is finished: `.NAME.recording.oni` next to it.
+fs::path RecordingTempFile(const std::string& out_file) {
+  const fs::path out(out_file);
+  std::error_code ec;
+  if (!out.parent_path().empty()) fs::create_directories(out.parent_path(), ec);
+  return out.parent_path() / ("." + out.filename().string() + ".recording.oni");
+}
+
+/// Moves a finished recording into place and writes its side file (an old side file
+/// never describes the new recording: removed before the .oni moves in).
+void PublishRecording(const fs::path& tmp, const std::string& out_file, openni::Device& device,
+                      const RecordResult& result, bool lossy_color) {
+  nlohmann::json side;
+  side["format"] = "lightprobe-oni-side";
+  side["version"] = 1;
+  side["device_uri"] = device.getDeviceInfo().getUri();
+  side["device_name"] = device.getDeviceInfo().getName();
+  const CameraControls& c = result.controls;
+  side["registered"] = c.registered;
+  side["camera_settings"] = c.camera_settings;
+  side["auto_exposure"] = c.auto_exposure;
+  side["auto_white_balance"] = c.auto_white_balance;
+  side["exposure"] = c.exposure;
+  side["gain"] = c.gain;
+  side["lossy_color"] = lossy_color;
+  side["depth_frames"] = result.depth_frames;
+  side["color_frames"] = result.color_frames;
+  side["first_depth_frame_index"] = result.first_depth_frame_index;
+  std::error_code ec;
+  fs::remove(OniSideFile(out_file), ec);
+  fs::rename(tmp, out_file, ec);
+  if (ec) throw InputError(out_file, "cannot move the recording into place: " + ec.message());
+  WriteTextAtomically(OniSideFile(out_file), side.dump(2) + "\n");
+}
+
 RecordResult RecordOniHere(const std::string& out_file, const RecordOptions& o) {
   if (o.frames <= 0 && !(o.seconds > 0)) throw InputError("record: give a number of frames or seconds");
   InitOpenNi();
@@ -285,9 +336,7 @@ RecordResult RecordOniHere(const std::string& out_file, const RecordOptions& o) 
   if (device.isImageRegistrationModeSupported(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR))
     device.setImageRegistrationMode(openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR);
   device.setDepthColorSyncEnabled(true);
-  const fs::path out(out_file), tmp = out.parent_path() / ("." + out.filename().string() + ".recording.oni");
-  std::error_code ec;
-  if (!out.parent_path().empty()) fs::create_directories(out.parent_path(), ec);
+  const fs::path tmp = RecordingTempFile(out_file);
   openni::Recorder recorder;
   RecordResult result;
   try {
@@ -297,21 +346,9 @@ RecordResult RecordOniHere(const std::string& out_file, const RecordOptions& o) 
     if (depth.start() != openni::STATUS_OK || color.start() != openni::STATUS_OK)
       throw InputError(o.uri, "cannot start the streams: " + OpenNiError());
     result.controls = ApplyCameraControls(device, color, o.lock_exposure, o.exposure, o.gain, o.uri);
-    // OpenNI2's recordings keep each stream's timestamps relative to its own first recorded
-    // frame, so both streams must start recording with the same frame or replay pairs them
-    // one frame apart: start the recorder just after a depth and a colour frame with the same
-    // timestamp arrived (the next pair is a frame period away).
+    WaitForPairedFrames(depth, color, o.uri);
     openni::VideoStream* streams[2] = {&depth, &color};
     openni::VideoFrameRef frame;
-    {
-      std::uint64_t last[2] = {~0ull, ~1ull};
-      for (int k = 0; k < 60 && last[0] != last[1]; ++k) {
-        int ready = -1;
-        if (openni::OpenNI::waitForAnyStream(streams, 2, &ready, 2000) != openni::STATUS_OK)
-          throw InputError(o.uri, "the device delivers no frames: " + OpenNiError());
-        if (streams[ready]->readFrame(&frame) == openni::STATUS_OK) last[ready] = frame.getTimestamp();
-      }
-    }
     if (recorder.start() != openni::STATUS_OK) throw InputError(out_file, "cannot start recording: " + OpenNiError());
     const auto t0 = std::chrono::steady_clock::now();
     auto elapsed = [&] { return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
@@ -330,31 +367,17 @@ RecordResult RecordOniHere(const std::string& out_file, const RecordOptions& o) 
   } catch (...) {
     FinishRecording(recorder, depth, color);
     device.close();
+    std::error_code ec;
     fs::remove(tmp, ec);
     throw;
   }
-  nlohmann::json side;
-  side["format"] = "lightprobe-oni-side";
-  side["version"] = 1;
-  side["device_uri"] = device.getDeviceInfo().getUri();
-  side["device_name"] = device.getDeviceInfo().getName();
+  try {
+    PublishRecording(tmp, out_file, device, result, o.lossy_color);
+  } catch (...) {
+    device.close();
+    throw;
+  }
   device.close();
-  const CameraControls& c = result.controls;
-  side["registered"] = c.registered;
-  side["camera_settings"] = c.camera_settings;
-  side["auto_exposure"] = c.auto_exposure;
-  side["auto_white_balance"] = c.auto_white_balance;
-  side["exposure"] = c.exposure;
-  side["gain"] = c.gain;
-  side["lossy_color"] = o.lossy_color;
-  side["depth_frames"] = result.depth_frames;
-  side["color_frames"] = result.color_frames;
-  side["first_depth_frame_index"] = result.first_depth_frame_index;
-  // An old side file never describes the new recording: removed before the .oni moves in.
-  fs::remove(OniSideFile(out_file), ec);
-  fs::rename(tmp, out, ec);
-  if (ec) throw InputError(out_file, "cannot move the recording into place: " + ec.message());
-  WriteTextAtomically(OniSideFile(out_file), side.dump(2) + "\n");
   return result;
 }
 
@@ -651,6 +674,21 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
 };
 
 
+class DeviceSource;
+
+/// What a DeviceSource and its LiveRecorder share. `read` is held by the source's reads
+/// and by every recorder call (the Recorder must not start or stop during a read of the
+/// same streams); `state` guards what the UI polls.
+struct RecorderLink {
+  std::mutex read;
+  DeviceSource* source = nullptr;  ///< under `read`; null once the source is gone
+  mutable std::mutex state;
+  bool recording = false;
+  int depth_frames = 0;
+  std::chrono::steady_clock::time_point start;
+  std::string ended;
+};
+
 class DeviceSource : public FrameSource, private OpenNiStreams, private openni::OpenNI::DeviceDisconnectedListener {
  public:
   DeviceSource(const OpenNiDeviceOptions& o, CameraControls* applied) : options_(o) {
@@ -676,8 +714,14 @@ class DeviceSource : public FrameSource, private OpenNiStreams, private openni::
       throw;
     }
     if (applied) *applied = controls_;
+    link_->source = this;
   }
   ~DeviceSource() override {
+    {
+      std::lock_guard<std::mutex> lock(link_->read);
+      if (rec_) EndRecording("the camera was closed");
+      link_->source = nullptr;
+    }
     openni::OpenNI::removeDeviceDisconnectedListener(this);
     CloseDevice();
   }
@@ -685,21 +729,142 @@ class DeviceSource : public FrameSource, private OpenNiStreams, private openni::
   std::string Describe() const override { return "OpenNI2 device " + uri_; }
 
   SourceStatus Next(RgbdFrame* out, double timeout_seconds) override {
-    if (lost_) return SourceStatus::kDeviceLost;
+    std::lock_guard<std::mutex> lock(link_->read);
+    if (!broken_.empty()) throw InputError(uri_, broken_);
+    if (lost_) {
+      if (rec_) EndRecording("the device was unplugged");
+      return SourceStatus::kDeviceLost;
+    }
     openni::VideoFrameRef d, c;
     int dr = 0, cr = 0;
-    if (!ReadPair(&d, &c, static_cast<int>(timeout_seconds * 1000), &dr, &cr, 1 << 30, 1 << 30))
-      return lost_ ? SourceStatus::kDeviceLost : SourceStatus::kTimeout;
+    if (!ReadPair(&d, &c, static_cast<int>(timeout_seconds * 1000), &dr, &cr, 1 << 30, 1 << 30)) {
+      if (!lost_) return SourceStatus::kTimeout;
+      if (rec_) EndRecording("the device was unplugged");
+      return SourceStatus::kDeviceLost;
+    }
     *out = ToFrame(d, c, produced_++);
     if (controls_.camera_settings) {
       out->exposure = controls_.exposure;
       out->gain = controls_.gain;
     }
+    if (rec_) {
+      RecordResult& r = rec_->result;
+      if (r.depth_frames == 0) r.first_depth_frame_index = d.getFrameIndex();
+      ++r.depth_frames;
+      ++r.color_frames;
+      std::lock_guard<std::mutex> state(link_->state);
+      link_->depth_frames = r.depth_frames;
+    }
     return SourceStatus::kFrame;
   }
   void Rewind() override { throw InputError(uri_, "a live device cannot rewind"); }
 
+  std::shared_ptr<RecorderLink> link() const { return link_; }
+
+  // The LiveRecorder's calls, with link()->read held, on an OpenNI2 thread.
+  bool recording() const { return rec_ != nullptr; }
+  void StartRecording(const std::string& out_file, bool lossy_color) {
+    if (rec_) throw InputError(out_file, "already recording to " + rec_->out_file);
+    if (lost_) throw InputError(uri_, "the device was unplugged");
+    if (!broken_.empty()) throw InputError(uri_, broken_);
+    auto r = std::make_unique<Recording>();
+    r->out_file = out_file;
+    r->lossy_color = lossy_color;
+    r->tmp = RecordingTempFile(out_file);
+    r->result.controls = controls_;
+    try {
+      if (r->recorder.create(r->tmp.c_str()) != openni::STATUS_OK)
+        throw InputError(out_file, "cannot create: " + OpenNiError());
+      if (r->recorder.attach(depth_, false) != openni::STATUS_OK ||
+          r->recorder.attach(color_, lossy_color) != openni::STATUS_OK)
+        throw InputError(out_file, "cannot attach the streams to the recorder: " + OpenNiError());
+      WaitForPairedFrames(depth_, color_, uri_);
+      if (r->recorder.start() != openni::STATUS_OK) throw InputError(out_file, "cannot start recording: " + OpenNiError());
+    } catch (...) {
+      // As when stopping: streams first (OpenNI2's Recorder deadlock), then the recorder.
+      StopStreams(depth_, color_);
+      if (r->recorder.isValid()) r->recorder.destroy();
+      std::error_code ec;
+      fs::remove(r->tmp, ec);
+      RestartStreams();
+      throw;
+    }
+    r->start = std::chrono::steady_clock::now();
+    std::lock_guard<std::mutex> state(link_->state);
+    link_->recording = true;
+    link_->depth_frames = 0;
+    link_->start = r->start;
+    link_->ended.clear();
+    rec_ = std::move(r);
+  }
+  /// Finishes the file; the streams start again unless the source is closing or lost.
+  RecordResult StopRecording(bool restart = true) {
+    std::unique_ptr<Recording> r = std::move(rec_);
+    r->result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - r->start).count();
+    // OpenNI2's Recorder deadlocks when it is stopped while a frame arrives: streams first.
+    StopStreams(depth_, color_);
+    r->recorder.stop();
+    r->recorder.destroy();
+    {
+      std::lock_guard<std::mutex> state(link_->state);
+      link_->recording = false;
+    }
+    std::exception_ptr failure;
+    try {
+      PublishRecording(r->tmp, r->out_file, device_, r->result, r->lossy_color);
+    } catch (...) {
+      failure = std::current_exception();
+      std::error_code ec;
+      fs::remove(r->tmp, ec);
+    }
+    if (restart && !lost_) RestartStreams();
+    if (failure) std::rethrow_exception(failure);
+    return r->result;
+  }
+
  private:
+  struct Recording {
+    openni::Recorder recorder;
+    std::string out_file;
+    fs::path tmp;
+    bool lossy_color = false;
+    RecordResult result;
+    std::chrono::steady_clock::time_point start;
+  };
+
+  /// A recording that ends without Stop (closing, unplugged): finished, and the outcome
+  /// left for the recorder's owner.
+  void EndRecording(const std::string& why) {
+    const std::string file = rec_->out_file;
+    std::string ended;
+    try {
+      const RecordResult r = StopRecording(false);
+      char line[160];
+      std::snprintf(line, sizeof line, "recorded %d depth frames in %.1f s to ", r.depth_frames, r.seconds);
+      ended = line + file + " (" + why + ")";
+    } catch (const std::exception& e) {
+      ended = std::string("recording failed: ") + e.what();
+    }
+    std::lock_guard<std::mutex> state(link_->state);
+    link_->ended = ended;
+  }
+
+  /// After a recording the streams run again with the exposure they had (read back at
+  /// the start); a device that refuses is an error on the next read.
+  void RestartStreams() {
+    if (depth_.start() != openni::STATUS_OK || color_.start() != openni::STATUS_OK) {
+      broken_ = "cannot restart the streams after recording: " + OpenNiError();
+      return;
+    }
+    const bool keep = options_.lock_exposure && controls_.camera_settings;
+    try {
+      controls_ = ApplyCameraControls(device_, color_, options_.lock_exposure, keep ? controls_.exposure : options_.exposure,
+                                      keep ? controls_.gain : options_.gain, uri_);
+    } catch (const std::exception& e) {
+      broken_ = e.what();
+    }
+  }
+
   void onDeviceDisconnected(const openni::DeviceInfo* info) override {
     if (info && uri_ == info->getUri()) lost_ = true;
   }
@@ -709,6 +874,46 @@ class DeviceSource : public FrameSource, private OpenNiStreams, private openni::
   CameraControls controls_;
   std::atomic<bool> lost_{false};
   std::int64_t produced_ = 0;
+  std::shared_ptr<RecorderLink> link_ = std::make_shared<RecorderLink>();
+  std::unique_ptr<Recording> rec_;
+  std::string broken_;  ///< set when the streams could not restart after a recording
+};
+
+class DeviceRecorder : public LiveRecorder {
+ public:
+  explicit DeviceRecorder(std::shared_ptr<RecorderLink> link) : link_(std::move(link)) {}
+  void Start(const std::string& out_file, bool lossy_color) override {
+    OnOpenNiThread([&] {
+      std::lock_guard<std::mutex> lock(link_->read);
+      if (!link_->source) throw InputError(out_file, "cannot record: the camera is closed");
+      link_->source->StartRecording(out_file, lossy_color);
+    });
+  }
+  RecordResult Stop() override {
+    return OnOpenNiThread([&] {
+      std::lock_guard<std::mutex> lock(link_->read);
+      if (!link_->source || !link_->source->recording()) throw InputError("record: not recording");
+      return link_->source->StopRecording();
+    });
+  }
+  bool recording() const override {
+    std::lock_guard<std::mutex> state(link_->state);
+    return link_->recording;
+  }
+  void Progress(int* depth_frames, double* seconds) const override {
+    std::lock_guard<std::mutex> state(link_->state);
+    *depth_frames = link_->recording ? link_->depth_frames : 0;
+    *seconds = link_->recording
+                   ? std::chrono::duration<double>(std::chrono::steady_clock::now() - link_->start).count()
+                   : 0;
+  }
+  std::string EndedWithoutStop() const override {
+    std::lock_guard<std::mutex> state(link_->state);
+    return link_->ended;
+  }
+
+ private:
+  std::shared_ptr<RecorderLink> link_;
 };
 
 /// A source whose every call (construction and destruction included) runs on the
@@ -745,9 +950,11 @@ std::unique_ptr<FrameSource> OpenOniFile(const std::string& path, const OniPlayb
       OnOpenNiThread([&]() -> std::unique_ptr<FrameSource> { return std::make_unique<OniFileSource>(path, options); }));
 }
 
-std::unique_ptr<FrameSource> OpenOpenNiDevice(const OpenNiDeviceOptions& options, CameraControls* applied) {
-  return std::make_unique<OnOpenNiThreadSource>(OnOpenNiThread(
-      [&]() -> std::unique_ptr<FrameSource> { return std::make_unique<DeviceSource>(options, applied); }));
+std::unique_ptr<FrameSource> OpenOpenNiDevice(const OpenNiDeviceOptions& options, CameraControls* applied,
+                                              std::shared_ptr<LiveRecorder>* recorder) {
+  auto device = OnOpenNiThread([&] { return std::make_unique<DeviceSource>(options, applied); });
+  if (recorder) *recorder = std::make_shared<DeviceRecorder>(device->link());
+  return std::make_unique<OnOpenNiThreadSource>(std::move(device));
 }
 
 std::vector<RgbdFrame> CaptureBracket(const OpenNiDeviceOptions& device, const std::vector<int>& exposures,

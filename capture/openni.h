@@ -93,10 +93,38 @@ struct OpenNiDeviceOptions {
   int exposure = -1, gain = -1;
 };
 
+/// Records an open device's running streams into an `.oni` file while the device keeps
+/// serving frames (OpenNI2's Recorder attached to its streams): a window records without
+/// closing its previews or its reconstruction. The file is written as
+/// `.NAME.recording.oni` next to `out_file` and moved into place, with its side file, when
+/// the recording stops; the source's destruction (closing the camera or the window) stops
+/// it the same way, so a finished file is never lost. Any thread may call it; the calls
+/// wait for the source's current read (at most its timeout). Pausing the source does not
+/// pause a recording (the Recorder takes every frame the device sends).
+class LiveRecorder {
+ public:
+  virtual ~LiveRecorder() = default;
+  /// Starts recording. Throws InputError when already recording, when the source is
+  /// closed, or when OpenNI2 cannot create or start the recorder.
+  virtual void Start(const std::string& out_file, bool lossy_color = false) = 0;
+  /// Stops and finishes the file; returns what was recorded (frames counted as read by
+  /// the source meanwhile). Throws InputError when not recording (or the file cannot be
+  /// moved into place).
+  virtual RecordResult Stop() = 0;
+  virtual bool recording() const = 0;
+  /// Depth frames the source read since Start and seconds since Start (0, 0 when idle).
+  virtual void Progress(int* depth_frames, double* seconds) const = 0;
+  /// Set when the source's destruction or a lost device finished the recording: what
+  /// was recorded, or the reason it failed. Cleared by Start.
+  virtual std::string EndedWithoutStop() const = 0;
+};
+
 /// A live OpenNI2 device as a FrameSource: depth + colour paired by timestamp, kTimeout
 /// when nothing arrives in time, kDeviceLost once the device is unplugged. Throws
-/// InputError (with the reason from the USB scan) when no device opens.
-std::unique_ptr<FrameSource> OpenOpenNiDevice(const OpenNiDeviceOptions& options, CameraControls* applied = nullptr);
+/// InputError (with the reason from the USB scan) when no device opens. `recorder`, when
+/// given, receives the source's LiveRecorder (it outlives the source harmlessly).
+std::unique_ptr<FrameSource> OpenOpenNiDevice(const OpenNiDeviceOptions& options, CameraControls* applied = nullptr,
+                                              std::shared_ptr<LiveRecorder>* recorder = nullptr);
 
 /// An exposure bracket from a live device for response calibration: for each exposure,
 /// the device opened with auto exposure and white balance locked and that exposure set

@@ -221,7 +221,7 @@ bool ScriptRunner::Run(const ScriptLine& line) {
     v.session_.StopRecording();
     return true;
   }
-  if (cmd == "wait-record") {  // the recording finished and its replay is open
+  if (cmd == "wait-record") {  // the recording finished (its file in place)
     timeout(Number(line, 1, 120), "the recording");
     if (v.live_.record_message.rfind("recording failed", 0) == 0) Fail(line, v.live_.record_message);
     return !v.live_.recording && !v.session_.busy() && v.live_.record_message.rfind("recorded", 0) == 0;

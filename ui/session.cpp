@@ -70,7 +70,10 @@ struct Session::Impl {
   std::thread exporter;
   std::atomic<bool> exporting{false};
   std::atomic<bool> record_stop{false};
-  std::string camera_uri;  // worker-owned: the open camera's URI ("" = the first device)
+  std::shared_ptr<LiveRecorder> recorder;  // worker-owned: the open camera's
+  double record_seconds = 0;               // worker-owned: the recording's length (<= 0: no limit)
+  std::string record_path;                 // worker-owned: the recording's file
+  bool record_started = false;             // worker-owned: a recording this session has not reported
 
   std::thread worker;
 
@@ -134,6 +137,8 @@ struct Session::Impl {
   }
 
   void CloseSource() {
+    if (recorder && recorder->recording()) FinishRecording();
+    recorder.reset();
     capture.reset();
     queue.reset();
     source.reset();
@@ -166,9 +171,11 @@ struct Session::Impl {
     ResetModel();
     UpdateLive([&](LiveStatus& l) {
       const std::uint64_t model_version = l.model_version, frame_version = l.frame_version;
+      std::string record_message = std::move(l.record_message);
       l = LiveStatus{};
       l.model_version = model_version + 1;
       l.frame_version = frame_version + 1;
+      l.record_message = std::move(record_message);
     });
     std::string note;
     if (input == "auto") {  // an attached camera, else the bundled demo
@@ -189,8 +196,7 @@ struct Session::Impl {
       if (input == "camera" || input.rfind("camera:", 0) == 0) {
         OpenNiDeviceOptions o;
         if (input.size() > 7) o.uri = input.substr(7);
-        camera_uri = o.uri;
-        auto dev = OpenOpenNiDevice(o);
+        auto dev = OpenOpenNiDevice(o, nullptr, &recorder);
         description = dev->Describe();
         queue = std::make_shared<FrameQueue>(4);
         capture = std::make_unique<CaptureThread>(std::move(dev), queue);
@@ -358,6 +364,7 @@ struct Session::Impl {
         continue;
       }
       try {
+        PollRecording();
         Step();
       } catch (const std::exception& e) {  // nothing may escape the worker
         StopPlaying(e.what());
@@ -509,43 +516,74 @@ struct Session::Impl {
   }
 
   void DoRecord(const std::string& path, double seconds) {
-    if (!capture) {  // only a camera has a capture thread
+    if (!recorder) {  // only a camera has one
       Fail("record: open a camera first (recording needs a live device)");
       return;
     }
-    const std::string uri = camera_uri;
-    CloseSource();  // the recorder opens the device itself
+    if (recorder->recording()) {
+      Fail("record: already recording");
+      return;
+    }
+    try {
+      recorder->Start(path);
+    } catch (const std::exception& e) {
+      const std::string message = std::string("recording failed: ") + e.what();
+      UpdateLive([&](LiveStatus& l) {
+        l.record_message = message;
+        l.error = message;
+      });
+      return;
+    }
+    record_seconds = seconds;
+    record_path = path;
+    record_started = true;
     UpdateLive([&](LiveStatus& l) {
       l.recording = true;
       l.recorded_frames = 0;
       l.recorded_seconds = 0;
-      l.playing = false;
       l.record_message = "recording to " + path;
       l.error.clear();
     });
-    RecordOptions ro;
-    ro.uri = uri;
-    ro.frames = 0;
-    ro.seconds = seconds;
-    ro.stop = &record_stop;
-    ro.progress = [this](int frames, double t) {
+  }
+
+  /// On the worker, between frames: the recording's progress, its end (its time is up or
+  /// StopRecording was called), or its end without us (the camera was unplugged).
+  void PollRecording() {
+    if (!recorder) return;
+    if (recorder->recording()) {
+      int frames = 0;
+      double seconds = 0;
+      recorder->Progress(&frames, &seconds);
       UpdateLive([&](LiveStatus& l) {
         l.recorded_frames = frames;
-        l.recorded_seconds = t;
+        l.recorded_seconds = seconds;
       });
-    };
+      if (record_stop.load() || (record_seconds > 0 && seconds >= record_seconds)) FinishRecording();
+    } else if (record_started) {
+      record_started = false;
+      const std::string ended = recorder->EndedWithoutStop();
+      UpdateLive([&](LiveStatus& l) {
+        l.recording = false;
+        l.record_message = ended;
+        if (ended.rfind("recorded", 0) != 0) l.error = ended;
+      });
+    }
+  }
+
+  void FinishRecording() {
     std::string message;
     bool ok = false;
     try {
-      const RecordResult r = RecordOni(path, ro);
+      const RecordResult r = recorder->Stop();
       char line[160];
       std::snprintf(line, sizeof line, "recorded %d depth frames in %.1f s to ", r.depth_frames, r.seconds);
-      message = line + path;
+      message = line + record_path;
       ok = true;
     } catch (const std::exception& e) {
       message = std::string("recording failed: ") + e.what();
     }
-    if (!stop.load()) DoOpen(ok ? path : "camera:" + uri);  // replay what was recorded
+    record_stop = false;
+    record_started = false;
     UpdateLive([&](LiveStatus& l) {
       l.recording = false;
       l.record_message = message;
@@ -562,12 +600,11 @@ Session::Session(SessionOptions options) : impl_(std::make_unique<Impl>()) {
 
 Session::~Session() {
   impl_->stop = true;
-  impl_->record_stop = true;  // a recording finishes its file with the frames so far
   impl_->command_cv.notify_all();
   if (impl_->worker.joinable()) impl_->worker.join();
   if (impl_->estimator.joinable()) impl_->estimator.join();
   if (impl_->exporter.joinable()) impl_->exporter.join();  // an export finishes: nothing half-written
-  impl_->CloseSource();
+  impl_->CloseSource();  // a recording finishes its file with the frames so far
 }
 
 void Session::Record(const std::string& path, double seconds) {

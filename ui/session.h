@@ -110,13 +110,14 @@ class Session {
   void ResetReconstruction();
   /// Used from the next reset (or Open) on.
   void SetReconstructionOptions(const ReconstructionOptions& options);
-  /// Records the open camera into the .oni file `path` (OpenNI2's Recorder, depth lossless,
-  /// colour uncompressed, exposure locked; the file and its side file are written under a
-  /// temporary name and moved into place when finished) for `seconds` or until
-  /// StopRecording, then opens the recording for replay. The camera is closed while it
-  /// records (the recorder opens the device itself). Needs a camera source.
+  /// Records the open camera into the .oni file `path` (OpenNI2's Recorder attached to the
+  /// camera's streams: depth lossless, colour uncompressed, exposure as locked when the
+  /// camera opened; the file and its side file are written under a temporary name and
+  /// moved into place when finished) for `seconds` (<= 0: until StopRecording). The
+  /// previews and the reconstruction go on while it records; opening another source or
+  /// closing the session finishes the file. Needs a camera source.
   void Record(const std::string& path, double seconds);
-  /// Ends a recording early; the frames so far are kept (not queued: takes effect at once).
+  /// Ends a recording early; the frames so far are kept (not queued behind other commands).
   void StopRecording();
   /// Snapshots the scene (the reconstruction's bundle, or the loaded one) and estimates
   /// its lighting on a background thread; an estimate still running is cancelled first.

@@ -390,8 +390,11 @@ void Viewer::PanelSource() {
       session_.Record(record_field_, record_seconds_);
   }
   if (!live_.recording && !live_.record_message.empty()) ImGui::TextWrapped("%s", live_.record_message.c_str());
-  if (!live_.is_bundle && live_.open && !live_.recording) {
+  if (!live_.is_bundle && live_.open) {
+    // While recording the camera keeps playing: the Recorder takes every frame it sends.
+    ImGui::BeginDisabled(live_.recording);
     if (ImGui::Button(live_.playing ? "Pause" : "Play")) session_.SetPlaying(!live_.playing);
+    ImGui::EndDisabled();
     if (live_.frame_count > 0) {
       ImGui::SameLine();
       ImGui::SetNextItemWidth(150);

@@ -70,6 +70,16 @@ class OpenNi : public ::testing::Test {
     std::ifstream in(dir_ / "rec.oni", std::ios::binary);
     return std::string((std::istreambuf_iterator<char>(in)), {});
   }
+  /// The synthetic device in its frames' mode, exposure and gain set when >= 0.
+  OpenNiDeviceOptions Device(int exposure = -1, int gain = -1) const {
+    OpenNiDeviceOptions o;
+    o.uri = uri_;
+    o.width = kW;
+    o.height = kH;
+    o.exposure = exposure;
+    o.gain = gain;
+    return o;
+  }
   /// Which served frame a depth image is (-1: none).
   static int Which(const DepthImage& d) {
     for (int i = 0; i < kFrames; ++i)
@@ -266,12 +276,7 @@ TEST_F(OpenNi, UnpluggedMidStreamIsAClearErrorAndKeepsTheOldFile) {
 }
 
 TEST_F(OpenNi, LiveDeviceLocksExposureReadsBackAndPairsFrames) {
-  OpenNiDeviceOptions o;
-  o.uri = uri_;
-  o.width = kW;
-  o.height = kH;
-  o.exposure = 42;
-  o.gain = 7;
+  const OpenNiDeviceOptions o = Device(42, 7);
   CameraControls applied;
   auto src = OpenOpenNiDevice(o, &applied);
   EXPECT_TRUE(applied.camera_settings);
@@ -313,6 +318,83 @@ TEST_F(OpenNi, LiveDeviceUnpluggedReportsDeviceLost) {
   }
   EXPECT_EQ(s, SourceStatus::kDeviceLost);
   EXPECT_LE(frames, 3);
+}
+
+// Recording while the device keeps serving: the live frames go on during and after the
+// recording (the streams restart with the same locked exposure), the file replays exactly
+// the served frames, paired, and a second recording works too.
+TEST_F(OpenNi, LiveRecorderRecordsWhileTheDeviceKeepsServing) {
+  const OpenNiDeviceOptions o = Device(42, 7);
+  std::shared_ptr<LiveRecorder> recorder;
+  auto src = OpenOpenNiDevice(o, nullptr, &recorder);
+  ASSERT_TRUE(recorder);
+  EXPECT_FALSE(recorder->recording());
+  EXPECT_THROW(recorder->Stop(), InputError);  // not recording
+  RgbdFrame f;
+  ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame);
+  for (int take = 0; take < 2; ++take) {
+    const fs::path oni = dir_ / ("live" + std::to_string(take) + ".oni");
+    recorder->Start(oni.string());
+    EXPECT_TRUE(recorder->recording());
+    EXPECT_THROW(recorder->Start((dir_ / "twice.oni").string()), InputError);
+    for (int n = 0; n < 8; ++n) {
+      ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame) << "the live view stopped while recording";
+      EXPECT_GE(Which(f.depth), 0);
+      EXPECT_EQ(f.exposure, 42);
+    }
+    int frames = 0;
+    double seconds = 0;
+    recorder->Progress(&frames, &seconds);
+    EXPECT_EQ(frames, 8);
+    EXPECT_GT(seconds, 0);
+    EXPECT_FALSE(fs::exists(oni));  // written under a temporary name until finished
+    const RecordResult r = recorder->Stop();
+    EXPECT_FALSE(recorder->recording());
+    EXPECT_EQ(r.depth_frames, 8);
+    EXPECT_EQ(r.controls.exposure, 42);
+    ASSERT_TRUE(fs::exists(oni) && fs::exists(OniSideFile(oni.string())));
+    // The live view goes on after the recording, with the exposure it had.
+    for (int n = 0; n < 3; ++n) {
+      ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame) << "the live view did not resume after recording";
+      EXPECT_EQ(f.exposure, 42);
+      EXPECT_EQ(f.gain, 7);
+    }
+    auto replay = OpenOniFile(oni.string());
+    ASSERT_TRUE(replay->FrameCount().has_value());
+    EXPECT_GE(*replay->FrameCount(), 8);
+    int n = 0, last = -1;
+    while (replay->Next(&f, 2.0) == SourceStatus::kFrame) {
+      const int i = Which(f.depth);
+      ASSERT_GE(i, 0) << "replayed frame " << n << " is not a served depth image";
+      EXPECT_EQ(f.color.data.size(), ServedColor(i).data.size());
+      if (last >= 0) {
+        EXPECT_EQ(i, (last + 1) % kFrames) << "a frame lost or repeated at " << n;
+      }
+      EXPECT_EQ(f.exposure, 42);
+      EXPECT_TRUE(f.registered);
+      last = i;
+      ++n;
+    }
+    EXPECT_EQ(n, *replay->FrameCount());
+  }
+}
+
+// Closing the source mid-recording finishes the file; the recorder then says how it ended
+// and refuses to start.
+TEST_F(OpenNi, LiveRecorderFinishesTheFileWhenTheSourceCloses) {
+  const OpenNiDeviceOptions o = Device();
+  std::shared_ptr<LiveRecorder> recorder;
+  auto src = OpenOpenNiDevice(o, nullptr, &recorder);
+  const fs::path oni = dir_ / "closed.oni";
+  recorder->Start(oni.string());
+  RgbdFrame f;
+  for (int n = 0; n < 4; ++n) ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame);
+  src.reset();
+  EXPECT_FALSE(recorder->recording());
+  EXPECT_EQ(recorder->EndedWithoutStop().rfind("recorded 4 depth frames", 0), 0u) << recorder->EndedWithoutStop();
+  ASSERT_TRUE(fs::exists(oni) && fs::exists(OniSideFile(oni.string())));
+  EXPECT_GE(*OpenOniFile(oni.string())->FrameCount(), 4);
+  EXPECT_THROW(recorder->Start((dir_ / "after.oni").string()), InputError);
 }
 
 TEST_F(OpenNi, AModeTheDeviceDoesNotHaveIsAClearError) {

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "app/commands.h"
+#include "capture/openni.h"
 #include "common/image_io.h"
 #include "common/timer.h"
 #include "ui/session.h"
@@ -195,11 +196,16 @@ std::string SyntheticCamera(const fs::path& dir) {
   return "camera:lpsynth://" + dir.string();
 }
 
-// Record from the camera through OpenNI2's Recorder: for a time, stopped early, and cut
-// short by closing the window; each leaves a finished recording that then replays.
-TEST(Session, RecordsTheCameraAndReplaysTheRecording) {
+// Record from the camera through OpenNI2's Recorder while its previews go on: for a time,
+// stopped early, cut short by opening another source, and by closing the window; each
+// leaves a finished recording that replays.
+TEST(Session, RecordsTheCameraWhileItsPreviewsGoOn) {
   const fs::path dir = TempDir("record");
   const std::string camera = SyntheticCamera(dir / "frames");
+  auto frames_in = [](const fs::path& oni) {
+    auto src = OpenOniFile(oni.string());
+    return src->FrameCount().value_or(0);
+  };
   {
     Session s(Options());
     s.Record((dir / "none.oni").string(), 1);  // no camera open: a message
@@ -209,36 +215,51 @@ TEST(Session, RecordsTheCameraAndReplaysTheRecording) {
     s.Open(camera);
     ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().open; }, 30)) << s.live().error;
     ASSERT_TRUE(s.live().is_camera);
+    s.StartReconstruction();
     const fs::path timed = dir / "timed.oni";
     s.Record(timed.string(), 0.5);
     ASSERT_TRUE(WaitFor([&] { return s.live().recording; }, 10));
+    const std::int64_t read_at_start = s.live().frames_read;
     ASSERT_TRUE(WaitFor([&] { return !s.busy() && !s.live().recording; }, 30));
     LiveStatus l = s.live();
     EXPECT_EQ(l.record_message.rfind("recorded", 0), 0u) << l.record_message << " / " << l.error;
     EXPECT_TRUE(fs::exists(timed) && fs::exists(timed.string() + ".json"));
-    EXPECT_FALSE(l.is_camera);  // the recording is open for replay
-    EXPECT_GT(l.frame_count, 5) << l.source;  // 30 frames/s for 0.5 s
+    EXPECT_TRUE(l.is_camera);  // the camera stays open
+    EXPECT_GT(l.frames_read, read_at_start + 5) << "the previews stopped while recording";
+    EXPECT_GT(l.frames_tracked + l.frames_lost, 5) << "the reconstruction stopped while recording";
+    EXPECT_GT(frames_in(timed), 5);  // 30 frames/s for 0.5 s
+    const std::int64_t read_after = l.frames_read;
+    ASSERT_TRUE(WaitFor([&] { return s.live().frames_read > read_after + 3; }, 10)) << "no frames after recording";
 
-    s.Open(camera);
-    ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().is_camera; }, 30)) << s.live().error;
     const fs::path stopped = dir / "stopped.oni";
     Stopwatch sw;
     s.Record(stopped.string(), 600);
-    ASSERT_TRUE(WaitFor([&] { return s.live().recorded_frames >= 5; }, 30));
+    ASSERT_TRUE(WaitFor([&] { return s.live().recording && s.live().recorded_frames >= 5; }, 30));
     s.StopRecording();
     ASSERT_TRUE(WaitFor([&] { return !s.busy() && !s.live().recording; }, 30));
     EXPECT_LT(sw.Seconds(), 30);
     l = s.live();
     EXPECT_EQ(l.record_message.rfind("recorded", 0), 0u) << l.record_message;
-    EXPECT_GE(l.frame_count, 5);
+    EXPECT_GE(frames_in(stopped), 5);
+
+    const fs::path reopened = dir / "reopened.oni";
+    s.Record(reopened.string(), 600);
+    ASSERT_TRUE(WaitFor([&] { return s.live().recording && s.live().recorded_frames >= 3; }, 30));
+    s.Open(timed.string());  // another source finishes the recording
+    ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().open && !s.live().is_camera; }, 30)) << s.live().error;
+    EXPECT_FALSE(s.live().recording);
+    EXPECT_EQ(s.live().record_message.rfind("recorded", 0), 0u) << s.live().record_message;
+    EXPECT_GE(frames_in(reopened), 3);
+    EXPECT_GT(s.live().frame_count, 5) << s.live().source;
 
     s.Open(camera);
     ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().is_camera; }, 30)) << s.live().error;
     s.Record((dir / "closed.oni").string(), 600);
-    ASSERT_TRUE(WaitFor([&] { return s.live().recorded_frames >= 3; }, 30));
+    ASSERT_TRUE(WaitFor([&] { return s.live().recording && s.live().recorded_frames >= 3; }, 30));
   }  // closing mid-recording finishes the file
   EXPECT_TRUE(fs::exists(dir / "closed.oni"));
   EXPECT_TRUE(fs::exists(dir / "closed.oni.json"));
+  EXPECT_GE(frames_in(dir / "closed.oni"), 3);
   fs::remove_all(dir);
 }
 
