@@ -397,6 +397,27 @@ TEST_F(OpenNi, LiveRecorderFinishesTheFileWhenTheSourceCloses) {
   EXPECT_THROW(recorder->Start((dir_ / "after.oni").string()), InputError);
 }
 
+// Unplugged mid-recording: the frames so far are a finished file, and the recorder says so.
+TEST_F(OpenNi, LiveRecorderKeepsTheFramesWhenTheDeviceIsUnplugged) {
+  OpenNiDeviceOptions o = Device();
+  o.uri += "?unplug_after=12";
+  std::shared_ptr<LiveRecorder> recorder;
+  auto src = OpenOpenNiDevice(o, nullptr, &recorder);
+  const fs::path oni = dir_ / "unplugged.oni";
+  recorder->Start(oni.string());
+  RgbdFrame f;
+  SourceStatus st = SourceStatus::kFrame;
+  for (int k = 0; k < 40 && st != SourceStatus::kDeviceLost; ++k) st = src->Next(&f, 0.5);
+  ASSERT_EQ(st, SourceStatus::kDeviceLost);
+  EXPECT_FALSE(recorder->recording());
+  const std::string ended = recorder->EndedWithoutStop();
+  EXPECT_EQ(ended.rfind("recorded", 0), 0u) << ended;
+  EXPECT_NE(ended.find("unplugged"), std::string::npos) << ended;
+  ASSERT_TRUE(fs::exists(oni) && fs::exists(OniSideFile(oni.string())));
+  EXPECT_GE(*OpenOniFile(oni.string())->FrameCount(), 1);
+  EXPECT_THROW(recorder->Start((dir_ / "after.oni").string()), InputError);
+}
+
 TEST_F(OpenNi, AModeTheDeviceDoesNotHaveIsAClearError) {
   OpenNiDeviceOptions o;
   o.uri = uri_;  // 64x48 frames; asks for 640x480
