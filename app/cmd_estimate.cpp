@@ -69,7 +69,10 @@ static void WriteConvergencePlot(const fs::path& path, const std::vector<Converg
   PlotPanel angle{"dominant light direction error", "wall-clock seconds", "degrees", false, false, {}, {}};
   bool any_angle = false;
   for (const ConvergenceRow& row : rows) {
-    const std::string label = "round " + std::to_string(row.round);
+    // Round 1's graduated steps (a sigma below kGraduatedSigmaStart) measure the objective
+    // at other scales: each its own series.
+    std::string label = "round " + std::to_string(row.round);
+    if (row.sigma != rows.back().sigma) label += ", sigma " + Num(row.sigma);
     for (PlotPanel* p : {&rmse, &objective, &angle})
       if (p->series.empty() || p->series.back().label != label) p->series.push_back({label, {}, {}, true, true});
     rmse.series.back().x.push_back(row.wall_seconds);
@@ -109,10 +112,11 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
   WriteTextAtomically(out / "envmap_directions.csv", dirs.str());
 
   std::ostringstream conv;
-  conv << "wall_seconds,round,iteration,objective,photometric_rmse,relative_rmse,angular_error_deg\n";
+  conv << "wall_seconds,round,iteration,objective,photometric_rmse,relative_rmse,angular_error_deg,sigma\n";
   for (const auto& row : r.convergence)
     conv << Num(row.wall_seconds) << ',' << row.round << ',' << row.iteration << ',' << Num(row.objective) << ','
-         << Num(row.photometric_rmse) << ',' << Num(row.relative_rmse) << ',' << Num(row.angular_error_deg) << '\n';
+         << Num(row.photometric_rmse) << ',' << Num(row.relative_rmse) << ',' << Num(row.angular_error_deg) << ','
+         << Num(row.sigma) << '\n';
   WriteTextAtomically(out / "convergence.csv", conv.str());
   WriteConvergencePlot(out / "convergence.png", r.convergence);
 

@@ -1,5 +1,6 @@
 #include "estimation/estimator.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -39,6 +40,8 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
   };
   if (opt.rings < 2 || opt.rings > 181) throw InputError("--rings must be between 2 and 181");
   if (opt.max_rounds < 1) throw InputError("--max-rounds must be at least 1");
+  if (!(opt.objective.sigma > 0) || !std::isfinite(opt.objective.sigma))
+    throw InputError("--sigma must be positive and finite");
   EstimateResult res;
   res.env = EnvMap(opt.rings, bundle.up);
   const EnvMap& env = res.env;
@@ -118,17 +121,20 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
     // activation penalty outweighs the data and the all-zero map is a local minimum
     // (sigma = 0.1 lit nothing on the demo). Round 1 solves at kGraduatedSigmaStart first and
     // halves the scale down to sigma, each solve warm-started from the last.
-    std::vector<double> sigmas;
+    std::vector<double> sigmas;  // at most 7 steps: a tiny sigma jumps from 1/64 of the start
     if (round == 1)
-      for (double s = kGraduatedSigmaStart; s > params.sigma * 1.5; s *= 0.5) sigmas.push_back(s);
+      for (double s = kGraduatedSigmaStart; s > std::max(params.sigma * 1.5, kGraduatedSigmaStart / 64); s *= 0.5)
+        sigmas.push_back(s);
     sigmas.push_back(params.sigma);
     int iteration_offset = 0;
+    double step_sigma = params.sigma;
     SolverOptions so = opt.solver_options;
     so.on_iteration = [&](const IterationInfo& it) {
       ConvergenceRow row;
       row.wall_seconds = now();
       row.round = round;
       row.iteration = iteration_offset + it.iteration;
+      row.sigma = step_sigma;
       row.objective = it.objective;
       row.relative_rmse = it.Rmse();
       row.photometric_rmse = row.relative_rmse * mean;
@@ -143,7 +149,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
     std::vector<double> start = init;
     for (double sigma : sigmas) {
       ObjectiveParams step = params;
-      step.sigma = sigma;
+      step.sigma = step_sigma = sigma;
       Objective objective(problem, step);
       const bool increased = sr.objective_increased;
       sr = Solve(opt.solver, objective, start, so);

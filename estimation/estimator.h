@@ -66,6 +66,9 @@ struct ConvergenceRow {
   double photometric_rmse = 0;  ///< in image units
   double relative_rmse = 0;     ///< photometric_rmse / mean observed value
   double angular_error_deg = std::nan("");  ///< dominant light(s) vs truth.json; NaN without truth
+  /// The Cauchy scale this iteration's objective is measured at (round 1 steps down to
+  /// the requested one from kGraduatedSigmaStart; objectives at different scales differ).
+  double sigma = 0;
 };
 
 struct RoundInfo {

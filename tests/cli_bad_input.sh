@@ -30,5 +30,10 @@ expect "exactly one of --envmap or --uniform" "$exe" render "$tmp/s" --out "$tmp
 expect "nee-floor: Value 2 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --nee-floor 2 --quiet
 expect "smooth: Value -1 not in range" "$exe" reconstruct "$tmp/nope" --out "$tmp/o" --smooth -1
 expect "unknown-flag" "$exe" estimate "$tmp/s" --out "$tmp/o" --unknown-flag
+# A valid scene with bad settings: refused before any work (a negative sigma once looped).
+"$exe" synth one-light --out "$tmp/good" --width 16 --height 12 --spp 1 >/dev/null 2>&1 || { echo "FAIL: synth"; fail=1; }
+for sigma in -1 0 nan; do
+  expect "sigma must be positive and finite" timeout 60 "$exe" estimate "$tmp/good" --out "$tmp/o" --sigma "$sigma" --quiet
+done
 [ ! -e "$tmp/o/report.json" ] || { echo "FAIL: output written on error"; fail=1; }
 exit $fail
