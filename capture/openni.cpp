@@ -64,7 +64,14 @@ class OpenNiThreads {
     {
       std::lock_guard<std::mutex> lock(m_);
       jobs_.emplace_back([task] { (*task)(); });
-      if (jobs_.size() > idle_) std::thread([this] { Loop(); }).detach();
+      if (jobs_.size() > idle_) {
+        try {
+          std::thread([this] { Loop(); }).detach();
+        } catch (...) {  // no thread: the job (which refers to our caller's frame) must not stay queued
+          jobs_.pop_back();
+          throw;
+        }
+      }
     }
     cv_.notify_one();
     return result.get();

@@ -100,17 +100,18 @@ TEST(Bundle, NonFiniteAndNegativePixelsAreMaskedAndCounted) {
 // shading: the 99th-percentile luminance of the valid pixels; masked pixels do not count.
 TEST(Bundle, WhiteLevelIsThe99thPercentileOfTheValidPixels) {
   View v;
-  v.image = ImageRGB(100, 2);
-  v.valid.assign(200, 0);
-  for (int i = 0; i < 100; ++i) {
-    for (int c = 0; c < 3; ++c) v.image.data[3 * i + c] = static_cast<float>(i + 1);  // grey 1 .. 100
+  v.image = ImageRGB(1000, 2);
+  v.valid.assign(2000, 0);
+  for (int i = 0; i < 1000; ++i) {
+    // grey 1 .. 1000, shuffled (a multiplier coprime to 1000)
+    for (int c = 0; c < 3; ++c) v.image.data[3 * i + c] = static_cast<float>((i * 37) % 1000 + 1);
     v.valid[i] = 1;
   }
-  for (int i = 100; i < 200; ++i)
-    for (int c = 0; c < 3; ++c) v.image.data[3 * i + c] = 1000.f;  // masked: ignored
-  EXPECT_NEAR(WhiteLevel(v), 100.f, 1e-3);  // index 99 of 100 sorted values
-  for (int i = 0; i < 100; ++i) v.valid[i] = i < 50;
-  EXPECT_NEAR(WhiteLevel(v), 50.f, 1e-3);
+  for (int i = 1000; i < 2000; ++i)
+    for (int c = 0; c < 3; ++c) v.image.data[3 * i + c] = 5000.f;  // masked: ignored
+  EXPECT_NEAR(WhiteLevel(v), 991.f, 1e-3);  // index 990 of 1000 sorted values: not the maximum
+  for (int i = 0; i < 1000; ++i) v.valid[i] = (i * 37) % 1000 < 500;  // the values 1 .. 500
+  EXPECT_NEAR(WhiteLevel(v), 496.f, 1e-3);
   std::fill(v.valid.begin(), v.valid.end(), 0);
   EXPECT_EQ(WhiteLevel(v), 1.f);
   const float a[3] = {1, 2, 3}, b[3] = {1, 2, 0};

@@ -146,8 +146,8 @@ TEST(Transport, SameSeedIsBitIdenticalForAnyThreadCount) {
   EXPECT_EQ(std::memcmp(a.val.data(), c.val.data(), a.val.size() * sizeof(a.val[0])), 0);
 }
 
-// A cancelled trace stops within a chunk of 64 pixels per worker: cancelled from the start
-// nothing is traced; cancelled after 5 checks, at most 5 + (workers) chunks are.
+// A cancelled trace stops at the next chunk of 64 pixels: cancelled from the start nothing
+// is traced; cancelled after 5 checks, exactly 5 chunks are.
 TEST(Transport, ACancelledTraceStopsEarly) {
   RayTracer scene(test::Plane(6, 0.7));
   const EnvMap env(9, Eigen::Vector3d::UnitZ());
@@ -163,8 +163,9 @@ TEST(Transport, ACancelledTraceStopsEarly) {
   std::atomic<int> checks{0};
   opt.cancelled = [&checks] { return ++checks > 5; };
   TraceTransport(scene, env, views, CellSampler(env, {}, {}, 0.2), opt, &some);
-  EXPECT_GT(some.paths, 0);
-  EXPECT_LE(some.paths, (5 + HardwareThreads()) * 64 * 2);
+  // Each chunk of 64 pixels asks once before it starts: exactly the first 5 run, whichever
+  // threads ask (64x48 pixels are 48 full chunks).
+  EXPECT_EQ(some.paths, 5 * 64 * 2);
 }
 
 TEST(Transport, MaskedPixelsAreNotTraced) {
