@@ -129,13 +129,10 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
     // Same exposure for render and error image: the observed image's white level.
     const float white = WhiteLevel(v);
     WritePngSrgb(out / (name + ".png"), img, 1 / white);
-    std::vector<float> err(img.pixels(), -1.f);
+    const std::vector<float> err = ErrorImage(img, v);
     double se = 0;
-    for (std::size_t i = 0; i < img.pixels(); ++i) {
-      if (!v.valid[i]) continue;
-      err[i] = PixelError(&img.data[3 * i], &v.image.data[3 * i]);
-      se += 3.0 * err[i] * err[i];
-    }
+    for (float e : err)
+      if (e >= 0) se += 3.0 * e * e;
     WriteHeatmapPng(out / ("error_view" + std::to_string(k) + ".png"), img.width, img.height, err,
                     kErrorDisplayFraction * white);
     const int n = static_cast<int>(std::count(v.valid.begin(), v.valid.end(), 1));

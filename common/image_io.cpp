@@ -256,17 +256,21 @@ void Viridis(float t, float rgb[3]) {
   for (int c = 0; c < 3; ++c) rgb[c] = kStops[k][c] * (1 - f) + kStops[k + 1][c] * f;
 }
 
-void WriteHeatmapPng(const fs::path& path, int width, int height, const std::vector<float>& values,
-                     float max_value) {
-  std::vector<unsigned char> rgb(static_cast<std::size_t>(3) * width * height, 0);
-  for (std::size_t i = 0; i < values.size() && i < static_cast<std::size_t>(width) * height; ++i) {
+ImageRgb8 Heatmap(int width, int height, const std::vector<float>& values, float max_value) {
+  ImageRgb8 out{width, height, std::vector<std::uint8_t>(static_cast<std::size_t>(3) * width * height, 0)};
+  for (std::size_t i = 0; i < values.size() && i < out.pixels(); ++i) {
     const float v = values[i];
     if (!std::isfinite(v) || v < 0.f) continue;  // invalid / masked: black
     float c[3];
     Viridis(max_value > 0.f ? v / max_value : 0.f, c);
-    for (int k = 0; k < 3; ++k) rgb[3 * i + k] = static_cast<unsigned char>(std::lround(255.f * c[k]));
+    for (int k = 0; k < 3; ++k) out.data[3 * i + k] = static_cast<std::uint8_t>(std::lround(255.f * c[k]));
   }
-  WritePng8(path, width, height, rgb);
+  return out;
+}
+
+void WriteHeatmapPng(const fs::path& path, int width, int height, const std::vector<float>& values,
+                     float max_value) {
+  WriteRgb8Png(path, Heatmap(width, height, values, max_value));
 }
 
 }  // namespace lp

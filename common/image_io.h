@@ -55,8 +55,11 @@ void WriteMask(const std::filesystem::path& path, const Mask& mask);
 /// as displayed (sRGB-encoded values).
 void Viridis(float t, float rgb[3]);
 
-/// Maps a non-negative scalar image to a colour map (viridis-like) PNG,
-/// with `max_value` at the top of the scale.
+/// Maps a non-negative scalar image to the colour map (Viridis), `max_value` at the top of
+/// the scale; negative or non-finite values (masked) are black.
+ImageRgb8 Heatmap(int width, int height, const std::vector<float>& values, float max_value);
+
+/// Heatmap() written as a PNG.
 void WriteHeatmapPng(const std::filesystem::path& path, int width, int height,
                      const std::vector<float>& values, float max_value);
 

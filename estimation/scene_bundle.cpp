@@ -148,6 +148,13 @@ float WhiteLevel(const View& view) {
   return std::max(1e-12f, lum[k]);
 }
 
+std::vector<float> ErrorImage(const ImageRGB& render, const View& view) {
+  std::vector<float> err(render.pixels(), -1.f);
+  for (std::size_t i = 0; i < render.pixels() && i < view.valid.size(); ++i)
+    if (view.valid[i]) err[i] = PixelError(&render.data[3 * i], &view.image.data[3 * i]);
+  return err;
+}
+
 void MarkUnusablePixels(View* view) {
   View& v = *view;
   if (v.valid.size() != v.image.pixels()) v.valid.assign(v.image.pixels(), 1);

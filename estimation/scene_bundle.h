@@ -69,6 +69,10 @@ inline float PixelError(const float* rendered, const float* observed) {
   return std::sqrt(s / 3);
 }
 
+/// PixelError of `render` against the view per pixel; -1 where the view's pixel is not
+/// valid (Heatmap() shows those black).
+std::vector<float> ErrorImage(const ImageRGB& render, const View& view);
+
 struct SceneBundle {
   std::filesystem::path dir;
   std::string mesh_file = "mesh.ply";

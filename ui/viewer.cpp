@@ -607,17 +607,7 @@ void Viewer::PanelKeyframe() {
     if (have_render) {
       const ImageRGB& render = est_.result->renders[selected_keyframe_];
       compare_tex_[1].Upload(EncodeSrgb8(render, 1 / white));
-      ImageRgb8 err;
-      err.width = render.width;
-      err.height = render.height;
-      err.data.assign(render.data.size(), 0);
-      for (std::size_t i = 0; i < render.pixels(); ++i) {
-        if (!view.valid[i]) continue;
-        float h[3];
-        Viridis(PixelError(&render.data[3 * i], &view.image.data[3 * i]) / (kErrorDisplayFraction * white), h);
-        for (int k = 0; k < 3; ++k) err.data[3 * i + k] = static_cast<std::uint8_t>(255 * h[k]);
-      }
-      compare_tex_[2].Upload(err);
+      compare_tex_[2].Upload(Heatmap(render.width, render.height, ErrorImage(render, view), kErrorDisplayFraction * white));
     }
   }
   int win_w, win_h;

@@ -116,6 +116,17 @@ TEST(Bundle, WhiteLevelIsThe99thPercentileOfTheValidPixels) {
   EXPECT_EQ(WhiteLevel(v), 1.f);
   const float a[3] = {1, 2, 3}, b[3] = {1, 2, 0};
   EXPECT_NEAR(PixelError(a, b), std::sqrt(3.f), 1e-6);
+  // The error image: PixelError where valid, -1 (shown black) where masked.
+  v.valid[0] = 1;
+  ImageRGB render = v.image;
+  render.data[0] += 3;
+  const std::vector<float> err = ErrorImage(render, v);
+  ASSERT_EQ(err.size(), v.image.pixels());
+  EXPECT_NEAR(err[0], std::sqrt(3.f), 1e-5);
+  EXPECT_EQ(err[1], -1.f);
+  const ImageRgb8 heat = Heatmap(render.width, render.height, err, std::sqrt(3.f));
+  EXPECT_GT(heat.data[0], 200);  // top of the scale: viridis yellow
+  EXPECT_EQ(heat.data[3] + heat.data[4] + heat.data[5], 0);  // masked: black
 }
 
 TEST(Bundle, EverythingMaskedIsAClearError) {

@@ -117,7 +117,9 @@ TEST(VertexPhotometricError, ComparesWithTheNearestViewThatSeesTheVertex) {
     if (std::isnan(err[v])) continue;
     ++seen;
     // The near view sees the centre of the plane: |0.5 - 0.2| over its white level 0.2.
-    if (scene.mesh().positions[v].norm() < 0.5f) EXPECT_NEAR(err[v], 1.5, 1e-5);
+    if (scene.mesh().positions[v].norm() < 0.5f) {
+      EXPECT_NEAR(err[v], 1.5, 1e-5);
+    }
   }
   EXPECT_GT(seen, 10);
 
