@@ -8,6 +8,8 @@
 #include <random>
 #include <thread>
 
+#include <pthread.h>
+
 #include <gtest/gtest.h>
 
 #include "capture/capture_thread.h"
@@ -158,6 +160,20 @@ TEST_F(OpenNi, AThreadThatUsedOpenNiAndExitedDoesNotCrashTheNextOne) {
         while (started.load() < 12) std::this_thread::yield();
       });
     for (std::thread& t : flush) t.join();
+    // And 4 threads with 16 MiB stacks: they cannot reuse a cached 8 MiB stack, and once
+    // they exit the cache is over its 40 MiB, so glibc unmaps its oldest stacks first.
+    std::vector<pthread_t> big(4);
+    pthread_attr_t attr;
+    pthread_attr_init(&attr);
+    pthread_attr_setstacksize(&attr, 16u << 20);
+    for (pthread_t& t : big)
+      ASSERT_EQ(pthread_create(&t, &attr, [](void*) -> void* {
+        volatile char touch[1 << 16];
+        touch[0] = 1;
+        return reinterpret_cast<void*>(static_cast<std::intptr_t>(touch[0]));
+      }, nullptr), 0);
+    for (pthread_t t : big) pthread_join(t, nullptr);
+    pthread_attr_destroy(&attr);
   }
   std::thread(use_openni).join();
   std::thread([&] {
