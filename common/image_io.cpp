@@ -3,6 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <mutex>
+#include <streambuf>
+
+#include <unistd.h>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -29,26 +35,77 @@ std::string Lower(std::string s) {
   return s;
 }
 
-cv::Mat DecodeRaw(const std::string& bytes, const std::string& name, int flags) {
-  (void)kExrEnabled;
-  if (bytes.empty()) throw InputError(name, "empty file, expected an image");
-  cv::Mat m;
-  try {
-    const cv::Mat buf(1, static_cast<int>(bytes.size()), CV_8U, const_cast<char*>(bytes.data()));
-    m = cv::imdecode(buf, flags);
-  } catch (const cv::Exception& e) {
-    throw InputError(name, std::string("cannot decode image: ") + e.what());
+/// OpenCV prints a line to std::cerr for a file it cannot decode ("imread_(...): can't
+/// read header: ..."); our error says it once. While any decode runs, std::cerr writes go
+/// nowhere (a count, so overlapping decodes on several threads restore it once).
+class QuietCerr {
+ public:
+  QuietCerr() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (depth_++ == 0) saved_ = std::cerr.rdbuf(&null_);
   }
+  ~QuietCerr() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (--depth_ == 0) std::cerr.rdbuf(saved_);
+  }
+  QuietCerr(const QuietCerr&) = delete;
+  QuietCerr& operator=(const QuietCerr&) = delete;
+
+ private:
+  struct NullBuf : std::streambuf {
+    int overflow(int c) override { return traits_type::not_eof(c); }
+  };
+  static inline std::mutex mutex_;
+  static inline int depth_ = 0;
+  static inline std::streambuf* saved_ = nullptr;
+  static inline NullBuf null_;
+};
+
+cv::Mat Checked(cv::Mat m, const std::string& name) {
   if (m.empty()) throw InputError(name, "cannot decode image (unsupported or corrupt)");
   if (m.dims != 2 || m.rows <= 0 || m.cols <= 0) throw InputError(name, "image has no pixels");
   return m;
 }
 
-cv::Mat ReadRaw(const fs::path& path, int flags) {
+/// From a file itself: cv::imdecode would copy EXR and PFM bytes into a temporary file of
+/// its own, which OpenCV leaves in /tmp when the decoder refuses them.
+cv::Mat ReadRaw(const fs::path& path, int flags, const std::string& name) {
+  (void)kExrEnabled;
   std::error_code ec;
-  if (!fs::exists(path, ec)) throw InputError(path.string(), "file not found");
-  if (fs::is_directory(path, ec)) throw InputError(path.string(), "is a directory, expected an image");
-  return DecodeRaw(ReadTextFile(path), path.string(), flags);
+  if (!fs::exists(path, ec)) throw InputError(name, "file not found");
+  if (fs::is_directory(path, ec)) throw InputError(name, "is a directory, expected an image");
+  if (fs::file_size(path, ec) == 0 && !ec) throw InputError(name, "empty file, expected an image");
+  cv::Mat m;
+  try {
+    QuietCerr quiet;
+    m = cv::imread(path.string(), flags);
+  } catch (const cv::Exception& e) {
+    throw InputError(name, std::string("cannot decode image: ") + e.what());
+  }
+  return Checked(std::move(m), name);
+}
+cv::Mat ReadRaw(const fs::path& path, int flags) { return ReadRaw(path, flags, path.string()); }
+
+/// Bytes in memory: through a temporary file of ours, removed whatever happens.
+cv::Mat DecodeRaw(const std::string& bytes, const std::string& name, int flags) {
+  if (bytes.empty()) throw InputError(name, "empty file, expected an image");
+  std::string tmpl = (fs::temp_directory_path() / "lightprobe-decode-XXXXXX").string();
+  const int fd = ::mkstemp(tmpl.data());
+  if (fd < 0) throw InputError(name, "cannot create a temporary file to decode it");
+  ::close(fd);
+  struct Remove {
+    std::string path;
+    ~Remove() {
+      std::error_code ec;
+      fs::remove(path, ec);
+    }
+  } remove{tmpl};
+  {
+    std::ofstream out(tmpl, std::ios::binary);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    if (!out) throw InputError(name, "cannot write a temporary file to decode it");
+  }
+  return ReadRaw(tmpl, flags, name);
 }
 
 ImageRGB FromMat(const cv::Mat& m, const fs::path& path, ImageEncoding* enc_out) {

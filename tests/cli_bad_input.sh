@@ -35,5 +35,8 @@ expect "unknown-flag" "$exe" estimate "$tmp/s" --out "$tmp/o" --unknown-flag
 for sigma in -1 0 nan; do
   expect "sigma must be positive and finite" timeout 60 "$exe" estimate "$tmp/good" --out "$tmp/o" --sigma "$sigma" --quiet
 done
+# A truncated view image: OpenCV's own complaint is not printed, ours is the one line.
+cp -r "$tmp/good" "$tmp/trunc" && head -c 300 "$tmp/good/view0.exr" >"$tmp/trunc/view0.exr"
+expect "view0.exr: cannot decode image" "$exe" estimate "$tmp/trunc" --out "$tmp/o" --quiet
 [ ! -e "$tmp/o/report.json" ] || { echo "FAIL: output written on error"; fail=1; }
 exit $fail
