@@ -51,6 +51,14 @@ std::vector<float> SphereDepth(const Intrinsics& k, const Eigen::Matrix4d& T, co
   return d;
 }
 
+/// 8 mm voxels, 4 voxels of truncation: the sphere tests' volume.
+TsdfOptions SphereVolumeOptions() {
+  TsdfOptions o;
+  o.voxel = 0.008f;
+  o.truncation = 0.032f;
+  return o;
+}
+
 // A sphere fused from exact depth maps around it: the mesh lies on the sphere (within a
 // fraction of a voxel) with outward normals, and a raycast from a new viewpoint gives the
 // sphere's depth.
@@ -58,9 +66,7 @@ TEST(TsdfVolume, SphereFromExactDepthMapsMeshesAndRaycastsTheSphere) {
   const Eigen::Vector3d centre(0.1, -0.05, 0.3);
   const double r = 0.25;
   const Intrinsics k{160, 120, 140, 140, 79.5, 59.5};
-  TsdfOptions o;
-  o.voxel = 0.008f;
-  o.truncation = 0.032f;
+  const TsdfOptions o = SphereVolumeOptions();
   TsdfVolume volume(o);
   for (int i = 0; i < 8; ++i) {
     const double a = 2 * 3.14159265358979 * i / 8;
@@ -158,9 +164,7 @@ TEST(TsdfVolume, UnregisteredColourIsTakenThroughColourFromDepth) {
   color_from_depth.block<3, 3>(0, 0) = Eigen::AngleAxisd(3 * 3.14159265358979 / 180, Eigen::Vector3d::UnitY()).toRotationMatrix();
   color_from_depth.block<3, 1>(0, 3) = Eigen::Vector3d(-0.06, 0.01, 0);
   auto wrong_colours = [&](bool use_extrinsic) {
-    TsdfOptions o;
-    o.voxel = 0.008f;
-    o.truncation = 0.032f;
+    const TsdfOptions o = SphereVolumeOptions();
     TsdfVolume volume(o);
     for (int i = 0; i < 8; ++i) {
       const double a = 2 * 3.14159265358979 * i / 8;
