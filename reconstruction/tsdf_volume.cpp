@@ -226,6 +226,30 @@ std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrins
   const Eigen::Vector3f tcd = cfd.block<3, 1>(0, 3);
   const float cfx = static_cast<float>(color_k.fx), cfy = static_cast<float>(color_k.fy),
               ccx = static_cast<float>(color_k.cx), ccy = static_cast<float>(color_k.cy);
+  // Unregistered frames: what the colour camera sees is not what the depth camera sees. The
+  // depth map's points splatted into the colour camera (3x3, nearest kept) say how far its
+  // nearest surface is per colour pixel; a voxel more than a truncation behind it is hidden
+  // from the colour camera and takes no colour (else it took the colour in front of it).
+  std::vector<float> color_z;
+  if (color && color_from_depth) {
+    const int cw = color->width, ch = color->height;
+    color_z.assign(static_cast<std::size_t>(cw) * ch, std::numeric_limits<float>::infinity());
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x) {
+        const float z = depth[static_cast<std::size_t>(y) * w + x];
+        if (z <= 0) continue;
+        const Eigen::Vector3f q = Rcd * Eigen::Vector3f((x - cx) / fx * z, (y - cy) / fy * z, z) + tcd;
+        if (q.z() <= 0) continue;
+        const int u = static_cast<int>(std::lround(cfx * q.x() / q.z() + ccx));
+        const int v = static_cast<int>(std::lround(cfy * q.y() / q.z() + ccy));
+        for (int dv = -1; dv <= 1; ++dv)
+          for (int du = -1; du <= 1; ++du) {
+            if (u + du < 0 || v + dv < 0 || u + du >= cw || v + dv >= ch) continue;
+            float& zb = color_z[static_cast<std::size_t>(v + dv) * cw + u + du];
+            zb = std::min(zb, q.z());
+          }
+      }
+  }
   const int max_w = static_cast<int>(std::clamp(m.o.max_weight, 1.f, 65535.f));
   std::vector<float> inv(static_cast<std::size_t>(max_w) + 1);  // 1 / (weight + 1): no division per voxel
   for (std::size_t i = 0; i < inv.size(); ++i) inv[i] = 1.f / (i + 1);
@@ -268,6 +292,8 @@ std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrins
             const int cu = static_cast<int>(std::lround(cfx * pcol.x() / pcol.z() + ccx));
             const int cv = static_cast<int>(std::lround(cfy * pcol.y() / pcol.z() + ccy));
             if (cu < 0 || cv < 0 || cu >= color->width || cv >= color->height) continue;
+            if (!color_z.empty() && pcol.z() > color_z[static_cast<std::size_t>(cv) * color->width + cu] + trunc)
+              continue;
             const float* c = color->at(cu, cv);
             if (!(std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]))) continue;
             VoxelColor& vc = blk.c[li];
