@@ -159,6 +159,32 @@ void WriteCalibration(const std::filesystem::path& path, const Calibration& c) {
   WriteTextAtomically(path, j.dump(2) + "\n");
 }
 
+namespace {
+
+/// For each pixel of the undistorted (pinhole) image, where it lies in the distorted one.
+void UndistortMaps(const CameraModel& m, cv::Mat* map1, cv::Mat* map2) {
+  const cv::Mat K = (cv::Mat_<double>(3, 3) << m.fx, 0, m.cx, 0, m.fy, m.cy, 0, 0, 1);
+  const cv::Mat d(1, 5, CV_64F, const_cast<double*>(m.distortion.data()));
+  cv::initUndistortRectifyMap(K, d, cv::Mat(), K, cv::Size(m.width, m.height), CV_32FC1, *map1, *map2);
+}
+
+}  // namespace
+
+DepthImage UndistortRegisteredDepth(const DepthImage& depth, const CameraModel& model) {
+  if (depth.width != model.width || depth.height != model.height)
+    throw InputError("calibration is for " + std::to_string(model.width) + "x" + std::to_string(model.height) +
+                     " images, the registered depth is " + std::to_string(depth.width) + "x" +
+                     std::to_string(depth.height));
+  if (!model.distorted()) return depth;
+  cv::Mat map1, map2, dst;
+  UndistortMaps(model, &map1, &map2);
+  const cv::Mat src(depth.height, depth.width, CV_16UC1, const_cast<std::uint16_t*>(depth.data.data()));
+  cv::remap(src, dst, map1, map2, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
+  DepthImage out{depth.width, depth.height, std::vector<std::uint16_t>(depth.data.size())};
+  std::memcpy(out.data.data(), dst.ptr<std::uint16_t>(), out.data.size() * sizeof(std::uint16_t));
+  return out;
+}
+
 ImageRGB Linearize(const ImageRgb8& image, const Calibration& c, double exposure, double gain) {
   if (c.color && (c.color->width != image.width || c.color->height != image.height))
     throw InputError("calibration is for " + std::to_string(c.color->width) + "x" + std::to_string(c.color->height) +
@@ -172,12 +198,9 @@ ImageRGB Linearize(const ImageRgb8& image, const Calibration& c, double exposure
   for (std::size_t p = 0; p < image.pixels(); ++p)
     for (int ch = 0; ch < 3; ++ch) out.data[3 * p + ch] = table[ch][image.data[3 * p + ch]];
   if (c.color && c.color->distorted()) {
-    const CameraModel& m = *c.color;
-    const cv::Mat K = (cv::Mat_<double>(3, 3) << m.fx, 0, m.cx, 0, m.fy, m.cy, 0, 0, 1);
-    const cv::Mat d(1, 5, CV_64F, const_cast<double*>(m.distortion.data()));
     cv::Mat src(out.height, out.width, CV_32FC3, out.data.data()), dst, map1, map2;
+    UndistortMaps(*c.color, &map1, &map2);
     // Pixels with no source become NaN (never used), not black.
-    cv::initUndistortRectifyMap(K, d, cv::Mat(), K, src.size(), CV_32FC1, map1, map2);
     const float nan = std::numeric_limits<float>::quiet_NaN();
     cv::remap(src, dst, map1, map2, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(nan, nan, nan));
     std::memcpy(out.data.data(), dst.ptr<float>(), out.data.size() * sizeof(float));

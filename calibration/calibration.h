@@ -50,4 +50,10 @@ void WriteCalibration(const std::filesystem::path& path, const Calibration& cali
 /// camera's.
 ImageRGB Linearize(const ImageRgb8& image, const Calibration& calibration, double exposure = 0, double gain = 0);
 
+/// Depth registered to the colour camera lies on the colour camera's distorted pixel grid:
+/// the same undistortion as Linearize (nearest neighbour: depths are not blended across
+/// edges; pixels with no source are 0, invalid), so depth and colour share the model's
+/// pinhole intrinsics. Throws InputError when the sizes differ.
+DepthImage UndistortRegisteredDepth(const DepthImage& depth, const CameraModel& model);
+
 }  // namespace lp

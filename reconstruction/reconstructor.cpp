@@ -262,9 +262,19 @@ const TsdfVolume& Reconstructor::volume() const { return impl_->volume; }
 const StageTimes& Reconstructor::times() const { return impl_->times; }
 const std::vector<FrameReport>& Reconstructor::reports() const { return impl_->reports; }
 
-FrameReport Reconstructor::Process(const RgbdFrame& f) {
+FrameReport Reconstructor::Process(const RgbdFrame& input) {
   Impl& m = *impl_;
-  m.Validate(f);
+  m.Validate(input);
+  // Depth registered to a colour camera whose images the calibration undistorts lies on
+  // the distorted grid: undistorted the same way, it shares the colour model's pinhole
+  // intrinsics (back-projected as it was, walls bent towards the image corners).
+  std::optional<RgbdFrame> undistorted;
+  if (input.registered && m.o.calibration.color && m.o.calibration.color->distorted()) {
+    undistorted = input;
+    undistorted->depth = UndistortRegisteredDepth(input.depth, *m.o.calibration.color);
+    undistorted->depth_intrinsics = m.ColorK(input);
+  }
+  const RgbdFrame& f = undistorted ? *undistorted : input;
   FrameReport r;
   r.index = f.index;
   auto t0 = Clock::now();
