@@ -379,15 +379,7 @@ TEST(Reconstruction, RegisteredDepthIsUndistortedWithTheColour) {
     o.smooth_iterations = 0;
     if (calibrated) {
       const Intrinsics& k = frames[0].color_intrinsics;
-      CameraModel m;
-      m.width = k.width;
-      m.height = k.height;
-      m.fx = k.fx;
-      m.fy = k.fy;
-      m.cx = k.cx;
-      m.cy = k.cy;
-      m.distortion = {k1, 0, 0, 0, 0};
-      o.calibration.color = m;
+      o.calibration.color = CameraModel{k.width, k.height, k.fx, k.fy, k.cx, k.cy, {k1, 0, 0, 0, 0}};
     }
     Reconstructor rec(o);
     for (const RgbdFrame& f : frames) rec.Process(f);
