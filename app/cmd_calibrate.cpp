@@ -188,6 +188,11 @@ Run AddCalibrate(CLI::App& app) {
       if (vig_images->empty() == scene->empty())
         throw InputError("calibrate vignetting: give flat-field IMAGES or --scene SCENE_DIR");
       if (!scene->empty()) {
+        // Keyframes already divided by a vignetting model would measure only what is left.
+        const fs::path applied = fs::path(*scene) / "calibration.json";
+        if (fs::exists(applied) && !ReadCalibration(applied).vignetting.identity())
+          throw InputError(applied.string(), "the keyframes were already corrected for vignetting: reconstruct with "
+                                             "a calibration without it (or none) to measure it");
         const std::vector<VignettingPair> pairs = KeyframeVignettingPairs(LoadSceneBundle(*scene));
         std::printf("%zu pairs of sightings of the same surface points\n", pairs.size());
         c.vignetting = FitVignettingPairs(pairs);

@@ -154,6 +154,8 @@ Run AddReconstruct(CLI::App& app) {
     for (const FrameReport& r : rec.reports())
       if (r.state != TrackingState::kWaiting) trajectory.push_back(r.world_from_camera);
     WriteTextAtomically(fs::path(*out) / "trajectory.log", FormatTrajectoryLog(trajectory));
+    // What the keyframes were linearized with: `calibrate vignetting --scene` must know.
+    if (!calibration->empty()) WriteCalibration(fs::path(*out) / "calibration.json", ro.calibration);
 
     const StageTimes& t = rec.times();
     std::printf("%lld frames in %.1f s (%.1f frames/s): %lld tracked, %lld lost; per frame %.1f ms preprocess, "
