@@ -1,9 +1,12 @@
 #pragma once
 /// Outgoing radiance of every mesh vertex under an environment map, refined progressively:
-/// what the viewer's "lit" shading shows. Each Refine() adds samples per vertex of a
-/// cosine-weighted path (up to `bounces` surface interactions, Lambertian albedo) and
-/// averages them with the earlier ones, so the picture sharpens while the user looks.
+/// what the viewer's "lit" shading shows. Each Refine() adds samples per vertex of a path
+/// (up to `bounces` surface interactions, Lambertian albedo; at each, next-event estimation
+/// towards a cell drawn by the estimate's brightness and cosine sampling, combined by the
+/// power heuristic, as the path tracer) and averages them with the earlier ones, so the
+/// picture sharpens while the user looks.
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include <Eigen/Core>
@@ -14,6 +17,8 @@
 
 namespace lp {
 
+class CellSampler;
+
 class VertexRadiance {
  public:
   /// `lambda`: 3 * env.size() linear radiances (the estimate); `bounces` >= 1 (1 = direct
@@ -21,6 +26,7 @@ class VertexRadiance {
   /// vertices are shaded (its normals orient the hemispheres).
   VertexRadiance(const RayTracer& scene, const EnvMap& env, std::vector<double> lambda, int bounces = 3,
                  std::uint64_t seed = 1);
+  ~VertexRadiance();
 
   /// Adds `samples` paths per vertex (parallel over vertices; deterministic per seed).
   void Refine(int samples);
@@ -36,6 +42,7 @@ class VertexRadiance {
   int bounces_;
   std::uint64_t seed_;
   int samples_ = 0;
+  std::unique_ptr<CellSampler> sampler_;  ///< NEE over cells, by the estimate's brightness
   std::vector<Eigen::Vector3d> sum_;  ///< per vertex, incident radiance summed over samples
 };
 
