@@ -217,7 +217,7 @@ TEST(Session, RecordsTheCameraWhileItsPreviewsGoOn) {
     ASSERT_TRUE(s.live().is_camera);
     s.StartReconstruction();
     const fs::path timed = dir / "timed.oni";
-    s.Record(timed.string(), 0.5);
+    s.Record(timed.string(), 1.5);
     ASSERT_TRUE(WaitFor([&] { return s.live().recording; }, 10));
     const std::int64_t read_at_start = s.live().frames_read;
     ASSERT_TRUE(WaitFor([&] { return !s.busy() && !s.live().recording; }, 30));
@@ -225,9 +225,10 @@ TEST(Session, RecordsTheCameraWhileItsPreviewsGoOn) {
     EXPECT_EQ(l.record_message.rfind("recorded", 0), 0u) << l.record_message << " / " << l.error;
     EXPECT_TRUE(fs::exists(timed) && fs::exists(timed.string() + ".json"));
     EXPECT_TRUE(l.is_camera);  // the camera stays open
-    EXPECT_GT(l.frames_read, read_at_start + 5) << "the previews stopped while recording";
-    EXPECT_GT(l.frames_tracked + l.frames_lost, 5) << "the reconstruction stopped while recording";
-    EXPECT_GT(frames_in(timed), 5);  // 30 frames/s for 0.5 s
+    // The worker may run at a few frames/s on a loaded machine: some frames, not all.
+    EXPECT_GT(l.frames_read, read_at_start + 3) << "the previews stopped while recording";
+    EXPECT_GT(l.frames_tracked + l.frames_lost, 3) << "the reconstruction stopped while recording";
+    EXPECT_GT(frames_in(timed), 15);  // the Recorder takes all: 30 frames/s for 1.5 s
     const std::int64_t read_after = l.frames_read;
     ASSERT_TRUE(WaitFor([&] { return s.live().frames_read > read_after + 3; }, 10)) << "no frames after recording";
 
