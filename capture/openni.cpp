@@ -314,7 +314,9 @@ void PublishRecording(const fs::path& tmp, const std::string& out_file, openni::
   std::error_code ec;
   fs::remove(OniSideFile(out_file), ec);
   fs::rename(tmp, out_file, ec);
-  if (ec) throw InputError(out_file, "cannot move the recording into place: " + ec.message());
+  if (ec)
+    throw InputError(out_file, "cannot move the recording into place (" + ec.message() + "); it is kept as " +
+                                   tmp.string());
   WriteTextAtomically(OniSideFile(out_file), side.dump(2) + "\n");
 }
 
@@ -737,11 +739,11 @@ class DeviceSource : public FrameSource, private OpenNiStreams, private openni::
 
   SourceStatus Next(RgbdFrame* out, double timeout_seconds) override {
     std::lock_guard<std::mutex> lock(link_->read);
-    if (!broken_.empty()) throw InputError(uri_, broken_);
     if (lost_) {
       if (rec_) EndRecording("the device was unplugged");
       return SourceStatus::kDeviceLost;
     }
+    if (!broken_.empty()) throw InputError(uri_, broken_);
     openni::VideoFrameRef d, c;
     int dr = 0, cr = 0;
     if (!ReadPair(&d, &c, static_cast<int>(timeout_seconds * 1000), &dr, &cr, 1 << 30, 1 << 30)) {
@@ -788,12 +790,15 @@ class DeviceSource : public FrameSource, private OpenNiStreams, private openni::
       WaitForPairedFrames(depth_, color_, uri_);
       if (r->recorder.start() != openni::STATUS_OK) throw InputError(out_file, "cannot start recording: " + OpenNiError());
     } catch (...) {
-      // As when stopping: streams first (OpenNI2's Recorder deadlock), then the recorder.
-      StopStreams(depth_, color_);
-      if (r->recorder.isValid()) r->recorder.destroy();
+      // As when stopping: streams first (OpenNI2's Recorder deadlock), then the recorder;
+      // a recorder never created had nothing attached: the streams ran on untouched.
+      if (r->recorder.isValid()) {
+        StopStreams(depth_, color_);
+        r->recorder.destroy();
+        RestartStreams();
+      }
       std::error_code ec;
       fs::remove(r->tmp, ec);
-      RestartStreams();
       throw;
     }
     r->start = std::chrono::steady_clock::now();
@@ -816,13 +821,11 @@ class DeviceSource : public FrameSource, private OpenNiStreams, private openni::
       std::lock_guard<std::mutex> state(link_->state);
       link_->recording = false;
     }
-    std::exception_ptr failure;
+    std::exception_ptr failure;  // the recording itself stays in its temporary file then
     try {
       PublishRecording(r->tmp, r->out_file, device_, r->result, r->lossy_color);
     } catch (...) {
       failure = std::current_exception();
-      std::error_code ec;
-      fs::remove(r->tmp, ec);
     }
     if (restart && !lost_) RestartStreams();
     if (failure) std::rethrow_exception(failure);
@@ -859,6 +862,7 @@ class DeviceSource : public FrameSource, private OpenNiStreams, private openni::
   /// After a recording the streams run again with the exposure they had (read back at
   /// the start); a device that refuses is an error on the next read.
   void RestartStreams() {
+    if (lost_) return;
     if (depth_.start() != openni::STATUS_OK || color_.start() != openni::STATUS_OK) {
       broken_ = "cannot restart the streams after recording: " + OpenNiError();
       return;

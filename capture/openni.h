@@ -107,9 +107,11 @@ class LiveRecorder {
   /// Starts recording. Throws InputError when already recording, when the source is
   /// closed, or when OpenNI2 cannot create or start the recorder.
   virtual void Start(const std::string& out_file, bool lossy_color = false) = 0;
-  /// Stops and finishes the file; returns what was recorded (frames counted as read by
-  /// the source meanwhile). Throws InputError when not recording (or the file cannot be
-  /// moved into place).
+  /// Stops and finishes the file; returns what was recorded. Its frame counts (and the side
+  /// file's, with first_depth_frame_index) are the frames the source read meanwhile; the
+  /// Recorder itself takes every frame the device sends, read or not. Throws InputError
+  /// when not recording, or when the file cannot be moved into place (it is then kept
+  /// under its temporary name, which the message gives).
   virtual RecordResult Stop() = 0;
   virtual bool recording() const = 0;
   /// Depth frames the source read since Start and seconds since Start (0, 0 when idle).

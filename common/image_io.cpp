@@ -37,7 +37,8 @@ std::string Lower(std::string s) {
 
 /// OpenCV prints a line to std::cerr for a file it cannot decode ("imread_(...): can't
 /// read header: ..."); our error says it once. While any decode runs, std::cerr writes go
-/// nowhere (a count, so overlapping decodes on several threads restore it once).
+/// nowhere (a count, so overlapping decodes on several threads restore it once). Nothing
+/// of ours writes to std::cerr (messages go through stdio), so nothing else is lost.
 class QuietCerr {
  public:
   QuietCerr() {
@@ -89,7 +90,10 @@ cv::Mat ReadRaw(const fs::path& path, int flags) { return ReadRaw(path, flags, p
 /// Bytes in memory: through a temporary file of ours, removed whatever happens.
 cv::Mat DecodeRaw(const std::string& bytes, const std::string& name, int flags) {
   if (bytes.empty()) throw InputError(name, "empty file, expected an image");
-  std::string tmpl = (fs::temp_directory_path() / "lightprobe-decode-XXXXXX").string();
+  std::error_code ec;
+  const fs::path tmp_dir = fs::temp_directory_path(ec);
+  if (ec) throw InputError(name, "no temporary directory to decode it in: " + ec.message());
+  std::string tmpl = (tmp_dir / "lightprobe-decode-XXXXXX").string();
   const int fd = ::mkstemp(tmpl.data());
   if (fd < 0) throw InputError(name, "cannot create a temporary file to decode it");
   ::close(fd);
@@ -103,6 +107,7 @@ cv::Mat DecodeRaw(const std::string& bytes, const std::string& name, int flags) 
   {
     std::ofstream out(tmpl, std::ios::binary);
     out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    out.close();
     if (!out) throw InputError(name, "cannot write a temporary file to decode it");
   }
   return ReadRaw(tmpl, flags, name);

@@ -265,13 +265,15 @@ const std::vector<FrameReport>& Reconstructor::reports() const { return impl_->r
 FrameReport Reconstructor::Process(const RgbdFrame& input) {
   Impl& m = *impl_;
   m.Validate(input);
-  // Depth registered to a colour camera whose images the calibration undistorts lies on
-  // the distorted grid: undistorted the same way, it shares the colour model's pinhole
-  // intrinsics (back-projected as it was, walls bent towards the image corners).
+  // Depth registered to a calibrated colour camera lies on its pixel grid: it takes the
+  // colour model's intrinsics and, when the calibration undistorts the colour, the same
+  // undistortion (back-projected as delivered, walls bent towards the image corners).
+  // The relocalizer matches colour features to depth on the delivered grid: `input`.
   std::optional<RgbdFrame> undistorted;
-  if (input.registered && m.o.calibration.color && m.o.calibration.color->distorted()) {
+  const CameraModel* cm = m.o.calibration.color ? &*m.o.calibration.color : nullptr;
+  if (input.registered && cm && cm->width == input.depth.width && cm->height == input.depth.height) {
     undistorted = input;
-    undistorted->depth = UndistortRegisteredDepth(input.depth, *m.o.calibration.color);
+    if (cm->distorted()) undistorted->depth = UndistortRegisteredDepth(input.depth, *cm);
     undistorted->depth_intrinsics = m.ColorK(input);
   }
   const RgbdFrame& f = undistorted ? *undistorted : input;
@@ -310,7 +312,7 @@ FrameReport Reconstructor::Process(const RgbdFrame& input) {
       r.state = TrackingState::kTracking;
       r.world_from_camera = m.pose;
       m.Offer(f, m.pose);
-      m.MaybeRemember(f, m.pose, true);
+      m.MaybeRemember(input, m.pose, true);
     }
   } else {
     t0 = Clock::now();
@@ -326,7 +328,7 @@ FrameReport Reconstructor::Process(const RgbdFrame& input) {
       // pose from colour features too, and keep the better fit.
       if (m.o.relocalize &&
           (!tr.ok || tr.overlap < m.o.suspicious_overlap || tr.inlier_ratio < m.o.suspicious_inlier_ratio)) {
-        if (const std::optional<Eigen::Matrix4d> guess = m.relocalizer.Locate(f)) {
+        if (const std::optional<Eigen::Matrix4d> guess = m.relocalizer.Locate(input)) {
           const TrackResult again = TrackFrameToModel(levels, m.ModelFrom(f.depth_intrinsics, *guess), *guess, m.o.icp);
           if (again.ok && (!tr.ok || again.overlap * again.inlier_ratio > tr.overlap * tr.inlier_ratio)) {
             tr = again;
@@ -349,7 +351,7 @@ FrameReport Reconstructor::Process(const RgbdFrame& input) {
       }
       r.state = TrackingState::kTracking;
       m.Offer(f, m.pose);
-      if (!source_pose) m.MaybeRemember(f, m.pose, r.relocalized);
+      if (!source_pose) m.MaybeRemember(input, m.pose, r.relocalized);
     } else {
       r.state = TrackingState::kLost;
       r.reason = tr.reason;

@@ -69,11 +69,12 @@ struct Session::Impl {
   std::atomic<std::uint64_t> generation{0}, cancelled_generation{0};
   std::thread exporter;
   std::atomic<bool> exporting{false};
-  std::atomic<bool> record_stop{false};
+  std::atomic<int> record_stop_requests{0};  // StopRecording presses so far
   std::shared_ptr<LiveRecorder> recorder;  // worker-owned: the open camera's
   double record_seconds = 0;               // worker-owned: the recording's length (<= 0: no limit)
   std::string record_path;                 // worker-owned: the recording's file
   bool record_started = false;             // worker-owned: a recording this session has not reported
+  int record_stop_seen = 0;                // worker-owned: record_stop_requests when it started
 
   std::thread worker;
 
@@ -138,6 +139,8 @@ struct Session::Impl {
 
   void CloseSource() {
     if (recorder && recorder->recording()) FinishRecording();
+    else if (record_started) ReportEndedWithoutStop();  // unplugged, not yet polled
+    record_started = false;
     recorder.reset();
     capture.reset();
     queue.reset();
@@ -357,6 +360,7 @@ struct Session::Impl {
       if (command) {
         try {
           command();
+          PollRecording();  // its Stop and time limit do not wait for the queue to drain
         } catch (const std::exception& e) {
           Fail(e.what());
         }
@@ -529,6 +533,7 @@ struct Session::Impl {
       Fail("record: already recording");
       return;
     }
+    record_stop_seen = record_stop_requests.load();  // a Stop from now on ends this recording
     try {
       recorder->Start(path);
     } catch (const std::exception& e) {
@@ -563,16 +568,23 @@ struct Session::Impl {
         l.recorded_frames = frames;
         l.recorded_seconds = seconds;
       });
-      if (record_stop.load() || (record_seconds > 0 && seconds >= record_seconds)) FinishRecording();
+      if (record_stop_requests.load() != record_stop_seen || (record_seconds > 0 && seconds >= record_seconds))
+        FinishRecording();
     } else if (record_started) {
-      record_started = false;
-      const std::string ended = recorder->EndedWithoutStop();
-      UpdateLive([&](LiveStatus& l) {
-        l.recording = false;
-        l.record_message = ended;
-        if (ended.rfind("recorded", 0) != 0) l.error = ended;
-      });
+      ReportEndedWithoutStop();
     }
+  }
+
+  /// A recording the source finished by itself (the camera unplugged): its outcome.
+  void ReportEndedWithoutStop() {
+    record_started = false;
+    const std::string ended = recorder ? recorder->EndedWithoutStop() : std::string();
+    if (ended.empty()) return;
+    UpdateLive([&](LiveStatus& l) {
+      l.recording = false;
+      l.record_message = ended;
+      if (ended.rfind("recorded", 0) != 0) l.error = ended;
+    });
   }
 
   void FinishRecording() {
@@ -585,9 +597,11 @@ struct Session::Impl {
       message = line + record_path;
       ok = true;
     } catch (const std::exception& e) {
-      message = std::string("recording failed: ") + e.what();
+      // The source may have finished it first (unplugged while we asked): its outcome.
+      const std::string ended = recorder->EndedWithoutStop();
+      ok = ended.rfind("recorded", 0) == 0;
+      message = ended.empty() ? std::string("recording failed: ") + e.what() : ended;
     }
-    record_stop = false;
     record_started = false;
     UpdateLive([&](LiveStatus& l) {
       l.recording = false;
@@ -613,11 +627,10 @@ Session::~Session() {
 }
 
 void Session::Record(const std::string& path, double seconds) {
-  impl_->record_stop = false;
   impl_->Post([this, path, seconds] { impl_->DoRecord(path, seconds); });
 }
 
-void Session::StopRecording() { impl_->record_stop = true; }
+void Session::StopRecording() { ++impl_->record_stop_requests; }
 
 void Session::Open(const std::string& input) {
   impl_->Post([this, input] { impl_->DoOpen(input); });
