@@ -9,7 +9,12 @@ trap 'rm -rf "$out"' EXIT
 "$exe" synth one-light --frames 5 --width 64 --height 48 --spp 8 --out "$out/frames" >/dev/null
 [ -s "$out/frames/trajectory.log" ] && [ -s "$out/frames/intrinsics.json" ] || { echo "frame directory incomplete"; exit 1; }
 "$exe" record --source "lpsynth://$out/frames" --frames 8 --out "$out/rec.oni" >/dev/null
-"$exe" replay "$out/rec.oni" --out "$out/back" | grep -q "^8 frames\|^7 frames" || { echo "replay count"; exit 1; }
+# 8 depth frames read while recording; the Recorder keeps every frame the device sends until
+# its streams stop, so a loaded machine records more (the synthetic device catches up on a
+# stall in a burst, as a camera's driver delivers what queued): 7 .. 20 replayed pairs.
+"$exe" replay "$out/rec.oni" --out "$out/back" >"$out/replay.log"
+count=$(sed -n 's/^\([0-9]*\) frames in .*/\1/p' "$out/replay.log")
+[ "${count:-0}" -ge 7 ] && [ "${count:-0}" -le 20 ] || { echo "replay count: $(head -3 "$out/replay.log")"; exit 1; }
 n=$(ls "$out/back/depth" | wc -l)
 [ "$n" -ge 7 ] || { echo "exported $n frames"; exit 1; }
 "$exe" replay "$out/back" --start 2 --frames 3 | grep -q "^3 frames" || { echo "replay --start/--frames"; exit 1; }
