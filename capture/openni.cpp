@@ -145,13 +145,18 @@ void ReleaseStreams(openni::VideoStream& depth, openni::VideoStream& color) {
 
 /// OpenNI2's Recorder deadlocks when it is stopped while a frame arrives (the recorder's
 /// lock and the stream's are taken in opposite orders): stop the streams first, then
-/// stop and destroy the recorder, then the streams.
-void FinishRecording(openni::Recorder& recorder, openni::VideoStream& depth, openni::VideoStream& color) {
+/// stop and destroy the recorder. The streams stay (stopped).
+void StopRecorder(openni::Recorder& recorder, openni::VideoStream& depth, openni::VideoStream& color) {
   StopStreams(depth, color);
   if (recorder.isValid()) {
     recorder.stop();
     recorder.destroy();
   }
+}
+
+/// StopRecorder, then the streams are destroyed.
+void FinishRecording(openni::Recorder& recorder, openni::VideoStream& depth, openni::VideoStream& color) {
+  StopRecorder(recorder, depth, color);
   depth.destroy();
   color.destroy();
 }
@@ -397,6 +402,12 @@ RecordResult RecordOni(const std::string& out_file, const RecordOptions& o) {
 }
 
 std::string OniSideFile(const std::string& oni_file) { return oni_file + ".json"; }
+
+std::string DescribeRecording(const RecordResult& r, const std::string& file) {
+  char line[96];
+  std::snprintf(line, sizeof line, "recorded %d depth frames in %.1f s to ", r.depth_frames, r.seconds);
+  return line + file;
+}
 
 namespace {
 
@@ -793,8 +804,7 @@ class DeviceSource : public FrameSource, private OpenNiStreams, private openni::
       // As when stopping: streams first (OpenNI2's Recorder deadlock), then the recorder;
       // a recorder never created had nothing attached: the streams ran on untouched.
       if (r->recorder.isValid()) {
-        StopStreams(depth_, color_);
-        r->recorder.destroy();
+        StopRecorder(r->recorder, depth_, color_);
         RestartStreams();
       }
       std::error_code ec;
@@ -813,10 +823,7 @@ class DeviceSource : public FrameSource, private OpenNiStreams, private openni::
   RecordResult StopRecording(bool restart = true) {
     std::unique_ptr<Recording> r = std::move(rec_);
     r->result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - r->start).count();
-    // OpenNI2's Recorder deadlocks when it is stopped while a frame arrives: streams first.
-    StopStreams(depth_, color_);
-    r->recorder.stop();
-    r->recorder.destroy();
+    StopRecorder(r->recorder, depth_, color_);
     {
       std::lock_guard<std::mutex> state(link_->state);
       link_->recording = false;
@@ -848,10 +855,7 @@ class DeviceSource : public FrameSource, private OpenNiStreams, private openni::
     const std::string file = rec_->out_file;
     std::string ended;
     try {
-      const RecordResult r = StopRecording(false);
-      char line[160];
-      std::snprintf(line, sizeof line, "recorded %d depth frames in %.1f s to ", r.depth_frames, r.seconds);
-      ended = line + file + " (" + why + ")";
+      ended = DescribeRecording(StopRecording(false), file) + " (" + why + ")";
     } catch (const std::exception& e) {
       ended = std::string("recording failed: ") + e.what();
     }

@@ -60,6 +60,9 @@ struct RecordResult {
 /// driver) or recording fails; an existing file is then left as it was.
 RecordResult RecordOni(const std::string& out_file, const RecordOptions& options);
 
+/// "recorded N depth frames in T s to FILE": the one line that reports a finished recording.
+std::string DescribeRecording(const RecordResult& result, const std::string& file);
+
 /// `FILE.oni` -> `FILE.oni.json`, the side file of a recording.
 std::string OniSideFile(const std::string& oni_file);
 

@@ -51,6 +51,29 @@ int CellSampler::Sample(double u) const {
   return j;
 }
 
+NextEvent SampleNextEvent(const RayTracer& scene, const EnvMap& env, const CellSampler& sampler,
+                          const Eigen::Vector3d& n, const Eigen::Vector3d& g, const Eigen::Vector3d& origin, Rng& rng) {
+  NextEvent e;
+  const double u0 = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
+  e.cell = sampler.Sample(u0);
+  const Eigen::Vector3d w = env.SampleInCell(e.cell, u1, u2);
+  const double cos_s = n.dot(w);
+  if (!(cos_s > 0 && g.dot(w) > 0)) return e;
+  e.traced = true;
+  if (scene.Occluded(origin, w)) return e;
+  e.visible = true;
+  const double pdf_nee = sampler.Probability(e.cell) / env.solid_angle(e.cell);
+  const double pdf_bsdf = cos_s * kInvPi;
+  const double mis = PowerHeuristic(pdf_nee, pdf_bsdf);
+  e.weight = kInvPi * cos_s * mis / pdf_nee;
+  return e;
+}
+
+double EscapeWeight(const EnvMap& env, const CellSampler& sampler, int j, double cos_n) {
+  const double pdf_nee = sampler.Probability(j) / env.solid_angle(j);
+  return PowerHeuristic(cos_n * kInvPi, pdf_nee);
+}
+
 namespace {
 
 struct Counters {
@@ -79,19 +102,9 @@ void TracePath(const RayTracer& scene, const EnvMap& env, const CellSampler& sam
     const Eigen::Vector3d off = hit.position + hit.geometric * (4 * eps);
     // 1. Next-event estimation towards a cell.
     {
-      const double u0 = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
-      const int j = sampler.Sample(u0);
-      const Eigen::Vector3d w = env.SampleInCell(j, u1, u2);
-      const double cos_s = n.dot(w);
-      if (cos_s > 0 && hit.geometric.dot(w) > 0) {
-        ++cnt.rays;
-        if (!scene.Occluded(off, w)) {
-          const double pdf_nee = sampler.Probability(j) / env.solid_angle(j);
-          const double pdf_bsdf = cos_s * kInvPi;
-          const double mis = PowerHeuristic(pdf_nee, pdf_bsdf);
-          sink(j, T.cwiseProduct(rho) * (kInvPi * cos_s * mis / pdf_nee));
-        }
-      }
+      const NextEvent e = SampleNextEvent(scene, env, sampler, n, hit.geometric, off, rng);
+      cnt.rays += e.traced;
+      if (e.visible) sink(e.cell, T.cwiseProduct(rho) * e.weight);
     }
     // 2. BSDF sampling: cosine-weighted, throughput *= albedo.
     const Eigen::Vector3d w = SampleCosine(n, rng.Uniform(), rng.Uniform());
@@ -101,9 +114,7 @@ void TracePath(const RayTracer& scene, const EnvMap& env, const CellSampler& sam
     SurfacePoint next;
     if (!scene.Intersect(off, w, &next)) {
       const int j = env.Lookup(w);
-      const double pdf_nee = sampler.Probability(j) / env.solid_angle(j);
-      const double pdf_bsdf = n.dot(w) * kInvPi;
-      sink(j, T * PowerHeuristic(pdf_bsdf, pdf_nee));
+      sink(j, T * EscapeWeight(env, sampler, j, n.dot(w)));
       return;
     }
     if (bounce + 1 >= opt.bounces) {

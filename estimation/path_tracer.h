@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "common/image.h"
+#include "common/rng.h"
 #include "estimation/envmap.h"
 #include "estimation/ray_tracer.h"
 #include "estimation/scene_bundle.h"
@@ -51,6 +52,23 @@ class CellSampler {
  private:
   std::vector<double> prob_, cdf_;
 };
+
+/// Next-event estimation from a Lambertian surface point (shading normal `n`, geometric
+/// normal `g`, shadow rays from `origin`, already off the surface): a cell drawn by
+/// `sampler`, a direction uniform in it, and when it is above both normals and not
+/// occluded (`visible`), its weight cos/pi x the power heuristic against cosine sampling /
+/// the pdf. `traced`: a shadow ray was cast. Draws three numbers from `rng`.
+struct NextEvent {
+  int cell = 0;
+  double weight = 0;
+  bool traced = false, visible = false;
+};
+NextEvent SampleNextEvent(const RayTracer& scene, const EnvMap& env, const CellSampler& sampler,
+                          const Eigen::Vector3d& n, const Eigen::Vector3d& g, const Eigen::Vector3d& origin, Rng& rng);
+
+/// The power-heuristic weight of a cosine-sampled direction (cosine `cos_n` to the shading
+/// normal) that escapes through cell `j`, against next-event estimation.
+double EscapeWeight(const EnvMap& env, const CellSampler& sampler, int j, double cos_n);
 
 /// Traces every valid pixel of every view and returns A (rows in view, pixel order).
 TransportMatrix TraceTransport(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,

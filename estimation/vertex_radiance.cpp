@@ -33,33 +33,23 @@ void VertexRadiance::Refine(int samples) {
       for (int s = first; s < first + samples; ++s) {
         Rng rng(seed_, v, static_cast<std::uint64_t>(s));
         // The path tracer's conventions: leave a surface 4 epsilon along its geometric
-        // normal, and a direction the shading normal allows but the geometry faces away
-        // from is absorbed.
-        // As the path tracer: next-event estimation towards a cell drawn by the estimate's
-        // brightness, and cosine sampling, combined by the power heuristic (the lit shading
-        // of a small bright light converges in tens of samples, not thousands).
+        // normal, a direction the shading normal allows but the geometry faces away from is
+        // absorbed, and next-event estimation towards a cell drawn by the estimate's
+        // brightness is combined with cosine sampling by the power heuristic (the lit
+        // shading of a small bright light converges in tens of samples, not thousands).
         Eigen::Vector3d origin = mesh.positions[v].cast<double>() + n0 * (4 * scene_.epsilon());
         Eigen::Vector3d n = n0, geometric = n0, throughput = Eigen::Vector3d::Ones();
         auto cell = [&](int j) { return Eigen::Vector3d(lambda_[3 * j], lambda_[3 * j + 1], lambda_[3 * j + 2]); };
-        auto pdf_nee = [&](int j) { return sampler_->Probability(j) / env_.solid_angle(j); };
         for (int bounce = 0; bounce < bounces_; ++bounce) {
-          {
-            const double u0 = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
-            const int j = sampler_->Sample(u0);
-            const Eigen::Vector3d w = env_.SampleInCell(j, u1, u2);
-            const double cos_s = n.dot(w);
-            if (cos_s > 0 && geometric.dot(w) > 0 && !scene_.Occluded(origin, w)) {
-              const double pdf = pdf_nee(j);
-              sum_[v] += throughput.cwiseProduct(cell(j)) * (kInvPi * cos_s * PowerHeuristic(pdf, cos_s * kInvPi) / pdf);
-            }
-          }
+          const NextEvent ne = SampleNextEvent(scene_, env_, *sampler_, n, geometric, origin, rng);
+          if (ne.visible) sum_[v] += throughput.cwiseProduct(cell(ne.cell)) * ne.weight;
           const double u1 = rng.Uniform(), u2 = rng.Uniform();
           const Eigen::Vector3d dir = SampleCosine(n, u1, u2);
           if (geometric.dot(dir) <= 0) break;
           SurfacePoint hit;
           if (!scene_.Intersect(origin, dir, &hit)) {
             const int j = env_.Lookup(dir);
-            sum_[v] += throughput.cwiseProduct(cell(j)) * PowerHeuristic(n.dot(dir) * kInvPi, pdf_nee(j));
+            sum_[v] += throughput.cwiseProduct(cell(j)) * EscapeWeight(env_, *sampler_, j, n.dot(dir));
             break;
           }
           // Cosine sampling cancels cos/pi against the Lambertian albedo/pi: the weight is the albedo.

@@ -591,10 +591,7 @@ struct Session::Impl {
     std::string message;
     bool ok = false;
     try {
-      const RecordResult r = recorder->Stop();
-      char line[160];
-      std::snprintf(line, sizeof line, "recorded %d depth frames in %.1f s to ", r.depth_frames, r.seconds);
-      message = line + record_path;
+      message = DescribeRecording(recorder->Stop(), record_path);
       ok = true;
     } catch (const std::exception& e) {
       // The source may have finished it first (unplugged while we asked): its outcome.
