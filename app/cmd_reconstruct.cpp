@@ -148,14 +148,16 @@ Run AddReconstruct(CLI::App& app) {
     const fs::path in(*input);
     const fs::path truth_file = (fs::is_directory(in) ? in : in.parent_path()) / "truth.json";
     if (!truth.empty() && fs::exists(truth_file)) bundle.truth_json = ReadTextFile(truth_file);
-    WriteSceneBundle(*out, bundle);
-    WriteTextAtomically(fs::path(*out) / "reconstruction.csv", csv.str());
+    // The log, the trajectory and the calibration are part of the bundle, written with it
+    // as a whole (an interrupted write leaves the previous bundle, not a mix).
+    bundle.extra_files.emplace_back("reconstruction.csv", csv.str());
     std::vector<Eigen::Matrix4d> trajectory;
     for (const FrameReport& r : rec.reports())
       if (r.state != TrackingState::kWaiting) trajectory.push_back(r.world_from_camera);
-    WriteTextAtomically(fs::path(*out) / "trajectory.log", FormatTrajectoryLog(trajectory));
+    bundle.extra_files.emplace_back("trajectory.log", FormatTrajectoryLog(trajectory));
     // What the keyframes were linearized with: `calibrate vignetting --scene` must know.
-    if (!calibration->empty()) WriteCalibration(fs::path(*out) / "calibration.json", ro.calibration);
+    if (!calibration->empty()) bundle.extra_files.emplace_back("calibration.json", FormatCalibration(ro.calibration));
+    WriteSceneBundle(*out, bundle);
 
     const StageTimes& t = rec.times();
     std::printf("%lld frames in %.1f s (%.1f frames/s): %lld tracked, %lld lost; per frame %.1f ms preprocess, "

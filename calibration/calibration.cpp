@@ -132,6 +132,10 @@ Calibration ReadCalibration(const std::filesystem::path& path) {
 }
 
 void WriteCalibration(const std::filesystem::path& path, const Calibration& c) {
+  WriteTextAtomically(path, FormatCalibration(c));
+}
+
+std::string FormatCalibration(const Calibration& c) {
   nlohmann::json j;
   j["format"] = kFormat;
   j["version"] = kVersion;
@@ -156,7 +160,7 @@ void WriteCalibration(const std::filesystem::path& path, const Calibration& c) {
   }
   if (c.reference_exposure > 0)
     j["exposure"] = {{"reference_exposure", c.reference_exposure}, {"reference_gain", c.reference_gain}};
-  WriteTextAtomically(path, j.dump(2) + "\n");
+  return j.dump(2) + "\n";
 }
 
 namespace {

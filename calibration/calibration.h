@@ -42,6 +42,8 @@ struct Calibration {
 Calibration ReadCalibration(const std::filesystem::path& path);
 /// Writes it atomically.
 void WriteCalibration(const std::filesystem::path& path, const Calibration& calibration);
+/// The text WriteCalibration writes.
+std::string FormatCalibration(const Calibration& calibration);
 
 /// An 8-bit colour frame as linear irradiance: inverse response (sRGB without one),
 /// undistortion (with a camera model that has distortion), division by the vignetting,

@@ -248,6 +248,11 @@ void WriteSceneBundle(const fs::path& dir, const SceneBundle& bundle) {
     }
     WritePly(tmp / "mesh.ply", bundle.mesh);
     if (bundle.truth_json) WriteTextAtomically(tmp / "truth.json", *bundle.truth_json);
+    for (const auto& [name, text] : bundle.extra_files) {
+      LP_CHECK(!name.empty() && fs::path(name).filename() == name && name != "scene.json" && name != "mesh.ply",
+               "extra bundle file must be a plain file name not used by the bundle");
+      WriteTextAtomically(tmp / name, text);
+    }
     WriteTextAtomically(tmp / "scene.json", j.dump(2) + "\n");
   } catch (...) {
     fs::remove_all(tmp, ec);
@@ -256,9 +261,21 @@ void WriteSceneBundle(const fs::path& dir, const SceneBundle& bundle) {
   // Swap into place: the old bundle (if any) is removed only after the new one is complete.
   const fs::path old = parent / (".old." + dir.filename().string());
   fs::remove_all(old, ec);
-  if (fs::exists(dir)) fs::rename(dir, old, ec);
+  const bool replacing = fs::exists(dir);
+  if (replacing) {
+    fs::rename(dir, old, ec);
+    if (ec) {
+      fs::remove_all(tmp, ec);
+      throw InputError(dir.string(), "cannot replace the existing bundle: " + ec.message());
+    }
+  }
   fs::rename(tmp, dir, ec);
-  if (ec) throw InputError(dir.string(), "cannot move the bundle into place: " + ec.message());
+  if (ec) {
+    const std::string why = ec.message();
+    if (replacing) fs::rename(old, dir, ec);  // put the old bundle back
+    fs::remove_all(tmp, ec);
+    throw InputError(dir.string(), "cannot move the bundle into place: " + why);
+  }
   fs::remove_all(old, ec);
 }
 

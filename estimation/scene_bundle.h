@@ -7,6 +7,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <Eigen/Core>
@@ -81,6 +82,9 @@ struct SceneBundle {
   std::vector<View> views;
   int degenerate_triangles_removed = 0;
   std::optional<std::string> truth_json;  ///< raw text of truth.json when present
+  /// Other text files written with the bundle, as part of it (file name, text): the
+  /// reconstruction's log, trajectory and calibration. Not read back by LoadSceneBundle.
+  std::vector<std::pair<std::string, std::string>> extra_files;
 };
 
 /// Reads `dir/scene.json` and everything it names. Throws InputError naming the
@@ -93,8 +97,9 @@ SceneBundle LoadSceneBundle(const std::filesystem::path& dir);
 SceneBundle ParseSceneJson(const std::string& text, const std::string& name);
 
 /// Writes a bundle (scene.json, mesh.ply, view<k>.exr, mask<k>.png, truth.json
-/// when set) into `dir`, atomically as a whole: it is built in a sibling
-/// temporary directory and renamed into place, replacing an existing bundle.
+/// when set, the extra files) into `dir`, atomically as a whole: it is built in a
+/// sibling temporary directory and renamed into place, replacing an existing bundle
+/// (which is put back if the new one cannot move into place).
 void WriteSceneBundle(const std::filesystem::path& dir, const SceneBundle& bundle);
 
 }  // namespace lp

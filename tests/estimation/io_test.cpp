@@ -56,6 +56,30 @@ TEST(Bundle, RoundTrip) {
   EXPECT_TRUE((r.views[0].camera.world_from_camera - b.views[0].camera.world_from_camera).norm() < 1e-12);
 }
 
+TEST(Bundle, ExtraFilesAreWrittenAndReplacedWithTheBundle) {
+  const fs::path d = TempDir("extra") / "scene";
+  SceneBundle b = SmallBundle();
+  b.extra_files = {{"reconstruction.csv", "frame\n0\n"}, {"calibration.json", "{}\n"}};
+  WriteSceneBundle(d, b);
+  EXPECT_EQ(ReadTextFile(d / "reconstruction.csv"), "frame\n0\n");
+  EXPECT_EQ(ReadTextFile(d / "calibration.json"), "{}\n");
+  // A bundle written without them replaces them too: no stale calibration is left behind.
+  SceneBundle plain = SmallBundle();
+  plain.extra_files = {{"reconstruction.csv", "frame\n1\n"}};
+  WriteSceneBundle(d, plain);
+  EXPECT_EQ(ReadTextFile(d / "reconstruction.csv"), "frame\n1\n");
+  EXPECT_FALSE(fs::exists(d / "calibration.json"));
+  // A write that fails half way leaves the bundle as it was, and no temporary directory.
+  SceneBundle bad = SmallBundle();
+  bad.extra_files = {{"trajectory.log", "x"}, {"../escape.txt", "x"}};
+  EXPECT_THROW(WriteSceneBundle(d, bad), std::exception);
+  EXPECT_EQ(ReadTextFile(d / "reconstruction.csv"), "frame\n1\n");
+  EXPECT_FALSE(fs::exists(d / "trajectory.log"));
+  EXPECT_FALSE(fs::exists(d.parent_path() / "escape.txt"));
+  EXPECT_FALSE(fs::exists(d.parent_path() / ".tmp.scene"));
+  EXPECT_NO_THROW(LoadSceneBundle(d));
+}
+
 TEST(Bundle, ClearErrorsNameTheFile) {
   const fs::path d = TempDir("err") / "scene";
   EXPECT_NE(ErrorOf([&] { LoadSceneBundle(d); }).find("not found"), std::string::npos);
