@@ -363,46 +363,27 @@ FrameReport Reconstructor::Process(const RgbdFrame& input) {
   return r;
 }
 
-Eigen::Vector3d Reconstructor::EstimateUp(const Mesh& mesh, bool* from_plane) const {
-  // The first fused camera's -y is up unless a horizontal plane says better.
-  const Eigen::Matrix4d& first = impl_->first_pose;
+namespace {
+
+/// Up from the dominant horizontal plane of `mesh`, else the first camera's -y.
+Eigen::Vector3d UpOf(const Mesh& mesh, const Eigen::Matrix4d& first, double voxel, bool* from_plane) {
   const Eigen::Vector3d rough = -first.block<3, 1>(0, 1);
-  const std::optional<Plane> plane =
-      DominantPlane(mesh.positions, rough, first.block<3, 1>(0, 3), 30, 2 * impl_->o.tsdf.voxel + 0.01);
+  const std::optional<Plane> plane = DominantPlane(mesh.positions, rough, first.block<3, 1>(0, 3), 30, 2 * voxel + 0.01);
   if (from_plane) *from_plane = plane.has_value();
   return plane ? plane->normal : rough;
 }
 
-SceneBundle Reconstructor::Finish() const {
-  const Impl& m = *impl_;
-  if (!m.started) throw InputError("reconstruct: no frame had enough valid depth to build a model");
-  SceneBundle b;
-  b.mesh = m.volume.ExtractMesh(m.o.mesh_min_weight);
-  if (b.mesh.triangles.empty()) {
-    std::size_t fused = 0, lost = 0;
-    for (const FrameReport& r : m.reports) {
-      fused += r.state == TrackingState::kTracking;
-      lost += r.state == TrackingState::kLost;
-    }
-    throw InputError("reconstruct: the fused model has no surface seen at least " +
-                     std::to_string(static_cast<int>(m.o.mesh_min_weight)) + " times (" + std::to_string(fused) +
-                     " of " + std::to_string(m.reports.size()) + " frames fused, tracking lost in " +
-                     std::to_string(lost) + ": moving too fast between frames?)");
-  }
-  SmoothMesh(&b.mesh, m.o.smooth_iterations);
-  SanitizeMesh(&b.mesh, "reconstructed mesh");
-  b.up = EstimateUp(b.mesh);
-  FlattenAlbedo(&b.mesh, m.o.albedo);
-
-  // Keyframes: the sharpest candidate first, then the one farthest (in pose) from those
-  // chosen, weighted by sharpness, until `keyframes`.
+/// The sharpest candidate first, then the one farthest (in pose) from those chosen,
+/// weighted by sharpness, until `keyframes`; in frame order.
+std::vector<const Candidate*> ChooseKeyframes(const std::vector<Candidate>& candidates,
+                                              const std::optional<Candidate>& pending, int keyframes) {
   std::vector<const Candidate*> pool;
-  for (const Candidate& c : m.pool) pool.push_back(&c);
-  if (m.pending) pool.push_back(&*m.pending);
+  for (const Candidate& c : candidates) pool.push_back(&c);
+  if (pending) pool.push_back(&*pending);
   double best_sharp = 0;
   for (const Candidate* c : pool) best_sharp = std::max(best_sharp, c->sharpness);
   std::vector<const Candidate*> chosen;
-  while (static_cast<int>(chosen.size()) < m.o.keyframes && chosen.size() < pool.size()) {
+  while (static_cast<int>(chosen.size()) < keyframes && chosen.size() < pool.size()) {
     const Candidate* pick = nullptr;
     double best = -1;
     for (const Candidate* c : pool) {
@@ -421,6 +402,39 @@ SceneBundle Reconstructor::Finish() const {
     chosen.push_back(pick);
   }
   std::sort(chosen.begin(), chosen.end(), [](const Candidate* a, const Candidate* b) { return a->index < b->index; });
+  return chosen;
+}
+
+/// Frames processed, fused and lost, for the error when nothing can be meshed.
+struct FrameCounts {
+  std::size_t frames = 0, fused = 0, lost = 0;
+};
+
+FrameCounts CountFrames(const std::vector<FrameReport>& reports) {
+  FrameCounts n;
+  n.frames = reports.size();
+  for (const FrameReport& r : reports) {
+    n.fused += r.state == TrackingState::kTracking;
+    n.lost += r.state == TrackingState::kLost;
+  }
+  return n;
+}
+
+/// The bundle from a volume and the chosen keyframes (Reconstructor::Finish).
+SceneBundle FinishBundle(const ReconstructionOptions& o, const TsdfVolume& volume,
+                         const std::vector<const Candidate*>& chosen, const Eigen::Matrix4d& first_pose,
+                         const FrameCounts& counts) {
+  SceneBundle b;
+  b.mesh = volume.ExtractMesh(o.mesh_min_weight);
+  if (b.mesh.triangles.empty())
+    throw InputError("reconstruct: the fused model has no surface seen at least " +
+                     std::to_string(static_cast<int>(o.mesh_min_weight)) + " times (" + std::to_string(counts.fused) +
+                     " of " + std::to_string(counts.frames) + " frames fused, tracking lost in " +
+                     std::to_string(counts.lost) + ": moving too fast between frames?)");
+  SmoothMesh(&b.mesh, o.smooth_iterations);
+  SanitizeMesh(&b.mesh, "reconstructed mesh");
+  b.up = UpOf(b.mesh, first_pose, o.tsdf.voxel, nullptr);
+  FlattenAlbedo(&b.mesh, o.albedo);
 
   for (const Candidate* c : chosen) {
     View v;
@@ -434,15 +448,15 @@ SceneBundle Reconstructor::Finish() const {
     // The view is the colour camera's: moved from the depth camera's pose by the
     // calibrated extrinsics when depth was not registered to colour.
     v.camera.world_from_camera = c->pose;
-    if (!c->registered && m.o.calibration.color_from_depth)
-      v.camera.world_from_camera = c->pose * m.o.calibration.color_from_depth->inverse();
-    v.image = Linearize(c->color, m.o.calibration, c->exposure, c->gain);
+    if (!c->registered && o.calibration.color_from_depth)
+      v.camera.world_from_camera = c->pose * o.calibration.color_from_depth->inverse();
+    v.image = Linearize(c->color, o.calibration, c->exposure, c->gain);
     v.saturation = 1.0;  // 8-bit: the top code is clipped
     // Mask: the model is hit, away from its depth discontinuities, and (registered depth
     // of the same size) the measured depth agrees with it. The paper's discussion: pixels
     // at depth edges mix surfaces.
     TsdfVolume::Maps maps;
-    m.volume.Raycast(k, v.camera.world_from_camera, &maps);
+    volume.Raycast(k, v.camera.world_from_camera, &maps);
     const int w = k.width, h = k.height;
     const bool compare = c->registered && c->depth.width == w && c->depth.height == h;
     v.valid.assign(static_cast<std::size_t>(w) * h, 0);
@@ -465,7 +479,7 @@ SceneBundle Reconstructor::Finish() const {
         }
         v.valid[p] = 1;
       }
-    if (m.o.view_width > 0) Downsample(&v, std::max(1, static_cast<int>(std::lround(static_cast<double>(w) / m.o.view_width))));
+    if (o.view_width > 0) Downsample(&v, std::max(1, static_cast<int>(std::lround(static_cast<double>(w) / o.view_width))));
     char name[32];
     std::snprintf(name, sizeof name, "view%zu.exr", b.views.size());
     v.image_file = name;
@@ -474,6 +488,49 @@ SceneBundle Reconstructor::Finish() const {
     b.views.push_back(std::move(v));
   }
   return b;
+}
+
+}  // namespace
+
+struct ReconstructionSnapshot::Impl {
+  ReconstructionOptions o;
+  TsdfVolume volume;
+  std::vector<Candidate> chosen;
+  Eigen::Matrix4d first_pose = Eigen::Matrix4d::Identity();
+  FrameCounts counts;
+  bool started = false;
+  Impl(const ReconstructionOptions& opt, TsdfVolume v) : o(opt), volume(std::move(v)) {}
+};
+
+SceneBundle ReconstructionSnapshot::Finish() const {
+  if (!impl_ || !impl_->started) throw InputError("reconstruct: no frame had enough valid depth to build a model");
+  std::vector<const Candidate*> chosen;
+  for (const Candidate& c : impl_->chosen) chosen.push_back(&c);
+  return FinishBundle(impl_->o, impl_->volume, chosen, impl_->first_pose, impl_->counts);
+}
+
+ReconstructionSnapshot Reconstructor::Snapshot() const {
+  const Impl& m = *impl_;
+  auto s = std::make_shared<ReconstructionSnapshot::Impl>(m.o, m.volume.Clone());
+  for (const Candidate* c : ChooseKeyframes(m.pool, m.pending, m.o.keyframes)) s->chosen.push_back(*c);
+  s->first_pose = m.first_pose;
+  s->counts = CountFrames(m.reports);
+  s->started = m.started;
+  ReconstructionSnapshot out;
+  out.impl_ = std::move(s);
+  return out;
+}
+
+Eigen::Vector3d Reconstructor::EstimateUp(const Mesh& mesh, bool* from_plane) const {
+  // The first fused camera's -y is up unless a horizontal plane says better.
+  return UpOf(mesh, impl_->first_pose, impl_->o.tsdf.voxel, from_plane);
+}
+
+SceneBundle Reconstructor::Finish() const {
+  const Impl& m = *impl_;
+  if (!m.started) throw InputError("reconstruct: no frame had enough valid depth to build a model");
+  return FinishBundle(m.o, m.volume, ChooseKeyframes(m.pool, m.pending, m.o.keyframes), m.first_pose,
+                      CountFrames(m.reports));
 }
 
 }  // namespace lp

@@ -91,6 +91,22 @@ struct FrameReport {
   StageTimes times;
 };
 
+/// What Reconstructor::Finish needs, copied out of a running reconstruction: the volume,
+/// the keyframes chosen so far (their frames) and the options. Taking one costs a copy of
+/// the voxel blocks (milliseconds); Finish, the slow part (meshing, smoothing, albedo, up,
+/// keyframe masks), can then run on another thread while frames go on.
+class ReconstructionSnapshot {
+ public:
+  /// The bundle Reconstructor::Finish would have returned when the snapshot was taken.
+  /// Throws InputError when nothing was fused.
+  SceneBundle Finish() const;
+
+ private:
+  friend class Reconstructor;
+  struct Impl;
+  std::shared_ptr<const Impl> impl_;
+};
+
 class Reconstructor {
  public:
   /// Throws InputError for options out of range (voxel, truncation, keyframes).
@@ -110,6 +126,8 @@ class Reconstructor {
   /// (dominant horizontal plane, else the first camera's -y), and `keyframes` sharp,
   /// well-spread views with their masks. Throws InputError when nothing was fused.
   SceneBundle Finish() const;
+  /// A copy of what Finish needs, to finish elsewhere (see ReconstructionSnapshot).
+  ReconstructionSnapshot Snapshot() const;
 
   /// Up from the dominant horizontal plane of `mesh` (PCL RANSAC; normal within 30 degrees
   /// of the first camera's -y, turned towards that camera), else the first camera's -y;

@@ -156,6 +156,20 @@ TsdfVolume::~TsdfVolume() = default;
 TsdfVolume::TsdfVolume(TsdfVolume&&) noexcept = default;
 TsdfVolume& TsdfVolume::operator=(TsdfVolume&&) noexcept = default;
 
+TsdfVolume TsdfVolume::Clone() const {
+  TsdfVolume copy(impl_->o);
+  Impl& c = *copy.impl_;
+  const Impl& m = *impl_;
+  c.store.voxel = m.store.voxel;
+  c.store.hash = m.store.hash;
+  c.store.coords = m.store.coords;
+  c.store.blocks.reserve(m.store.blocks.size());
+  for (const auto& b : m.store.blocks) c.store.blocks.push_back(std::make_unique<VoxelBlock>(*b));
+  c.stamp = m.stamp;
+  c.frame = m.frame;
+  return copy;
+}
+
 const TsdfOptions& TsdfVolume::options() const { return impl_->o; }
 std::size_t TsdfVolume::BlockCount() const { return impl_->store.blocks.size(); }
 std::size_t TsdfVolume::MemoryBytes() const {

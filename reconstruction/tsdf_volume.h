@@ -51,6 +51,8 @@ class TsdfVolume {
   explicit TsdfVolume(const TsdfOptions& options);
   ~TsdfVolume();
   TsdfVolume(TsdfVolume&&) noexcept;
+  /// A deep copy (every voxel block).
+  TsdfVolume Clone() const;
   TsdfVolume& operator=(TsdfVolume&&) noexcept;
 
   /// Fuses a depth map (metres along the optical axis, 0 = invalid, camera `k`) taken from

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <mutex>
 #include <thread>
+#include <variant>
 
 #include "capture/capture_thread.h"
 #include "capture/frame_source.h"
@@ -378,19 +379,21 @@ struct Session::Impl {
 
   // ---- estimation ----
 
-  /// On the worker: the scene to estimate, from the reconstruction or the loaded bundle.
-  std::shared_ptr<const SceneBundle> Snapshot() {
+  /// On the worker, between frames: the scene to estimate. A loaded bundle is the scene; a
+  /// reconstruction gives a snapshot (a copy of its volume and keyframes, milliseconds),
+  /// finished into a bundle on the estimating thread so playback does not wait for meshing.
+  std::variant<std::shared_ptr<const SceneBundle>, ReconstructionSnapshot> Snapshot() {
     if (bundle) return bundle;
     if (!reconstructor || !fused_any)
       throw InputError("nothing reconstructed yet: start the reconstruction and play some frames first");
-    return std::make_shared<const SceneBundle>(reconstructor->Finish());
+    return reconstructor->Snapshot();
   }
 
   void DoEstimate(const EstimateOptions& options, double pressed_at, std::uint64_t gen) {
     if (Stopped(gen)) return;  // cancelled or replaced before it started
-    std::shared_ptr<const SceneBundle> scene;
+    std::variant<std::shared_ptr<const SceneBundle>, ReconstructionSnapshot> snapshot;
     try {
-      scene = Snapshot();
+      snapshot = Snapshot();
     } catch (const std::exception& e) {
       UpdateEstimate(gen, [&](EstimateStatus& s) {
         s.state = EstimateState::kFailed;
@@ -401,15 +404,37 @@ struct Session::Impl {
     UpdateEstimate(gen, [&](EstimateStatus& s) {
       Restart(&s);
       s.state = EstimateState::kRunning;
-      s.message = "tracing round 1";
+      s.message = "building the scene (mesh, keyframes)";
       s.options = options;
-      s.scene = scene;
     });
     // The previous estimate (already told to stop) is joined by the new thread, not here:
     // the worker keeps reading frames and commands meanwhile.
     std::thread previous = std::move(estimator);
-    estimator = std::thread([this, options, scene, pressed_at, gen, previous = std::move(previous)]() mutable {
+    estimator = std::thread([this, options, snapshot = std::move(snapshot), pressed_at, gen,
+                             previous = std::move(previous)]() mutable {
       if (previous.joinable()) previous.join();
+      std::shared_ptr<const SceneBundle> scene;
+      try {
+        if (auto* loaded = std::get_if<std::shared_ptr<const SceneBundle>>(&snapshot)) scene = *loaded;
+        else scene = std::make_shared<const SceneBundle>(std::get<ReconstructionSnapshot>(snapshot).Finish());
+      } catch (const std::exception& e) {
+        UpdateEstimate(gen, [&](EstimateStatus& s) {
+          s.state = EstimateState::kFailed;
+          s.message = e.what();
+        });
+        return;
+      }
+      if (Stopped(gen)) {
+        UpdateEstimate(gen, [&](EstimateStatus& s) {
+          s.state = EstimateState::kCancelled;
+          s.message = "cancelled";
+        });
+        return;
+      }
+      UpdateEstimate(gen, [&](EstimateStatus& s) {
+        s.message = "tracing round 1";
+        s.scene = scene;
+      });
       RunEstimate(options, scene, pressed_at, gen);
     });
   }

@@ -444,11 +444,46 @@ RgbdFrame FlatFrame(int w, int h, std::uint16_t mm) {
   return f;
 }
 
+// The viewer's Estimate takes a snapshot between frames and finishes it on another thread
+// while frames go on: the snapshot must be the reconstruction as it was, not as it becomes.
+TEST(Reconstruction, SnapshotFinishesAsTheReconstructionWasWhenTaken) {
+  SynthOptions so;
+  so.width = 160;
+  so.height = 120;
+  so.spp = 1;
+  const std::vector<RgbdFrame> frames = ToRgbdFrames(RenderSynthFrames("one-light", so, "", 12));
+  ReconstructionOptions o;
+  o.keyframes = 2;
+  Reconstructor rec(o);
+  for (int i = 0; i < 6; ++i) rec.Process(frames[i]);
+  const SceneBundle then = rec.Finish();
+  const ReconstructionSnapshot snapshot = rec.Snapshot();
+  for (int i = 6; i < 12; ++i) rec.Process(frames[i]);
+  const SceneBundle later = rec.Finish();
+  const SceneBundle finished = snapshot.Finish();
+  ASSERT_EQ(finished.mesh.positions.size(), then.mesh.positions.size());
+  EXPECT_EQ(finished.mesh.positions, then.mesh.positions);
+  EXPECT_EQ(finished.mesh.albedo, then.mesh.albedo);
+  EXPECT_EQ(finished.up, then.up);
+  ASSERT_EQ(finished.views.size(), then.views.size());
+  for (std::size_t k = 0; k < then.views.size(); ++k) {
+    EXPECT_EQ(finished.views[k].image.data, then.views[k].image.data);
+    EXPECT_EQ(finished.views[k].valid, then.views[k].valid);
+    EXPECT_EQ(finished.views[k].camera.world_from_camera, then.views[k].camera.world_from_camera);
+  }
+  // The frames after the snapshot did change the reconstruction.
+  EXPECT_NE(later.mesh.positions.size(), then.mesh.positions.size());
+  // Nothing fused yet: the snapshot's Finish is the same clear error.
+  Reconstructor empty(ReconstructionOptions{});
+  EXPECT_THROW(empty.Snapshot().Finish(), InputError);
+}
+
 TEST(Reconstruction, BadInputIsAClearError) {
   {  // all-zero depth: nothing to fuse
     Reconstructor rec(ReconstructionOptions{});
     for (int i = 0; i < 3; ++i) EXPECT_EQ(rec.Process(FlatFrame(64, 48, 0)).state, TrackingState::kWaiting);
     EXPECT_THROW(rec.Finish(), InputError);
+    EXPECT_THROW(rec.Snapshot().Finish(), InputError);
   }
   {  // a frame of another size mid-stream
     Reconstructor rec(ReconstructionOptions{});
