@@ -937,7 +937,14 @@ class OnOpenNiThreadSource : public FrameSource {
  public:
   explicit OnOpenNiThreadSource(std::unique_ptr<FrameSource> inner) : inner_(std::move(inner)) {}
   ~OnOpenNiThreadSource() override {
-    OnOpenNiThread([this] { inner_.reset(); });
+    try {
+      OnOpenNiThread([this] { inner_.reset(); });
+    } catch (...) {
+      // No pool thread could be started (the process is out of threads): leave the device
+      // open rather than close it from this thread, which may exit (see OpenNiThreads);
+      // a destructor that threw would end the process.
+      (void)inner_.release();
+    }
   }
   std::string Describe() const override { return inner_->Describe(); }
   std::optional<std::int64_t> FrameCount() const override { return inner_->FrameCount(); }
