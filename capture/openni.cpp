@@ -296,10 +296,35 @@ fs::path RecordingTempFile(const std::string& out_file) {
   return out.parent_path() / ("." + out.filename().string() + ".recording.oni");
 }
 
-/// Moves a finished recording into place and writes its side file (an old side file
-/// never describes the new recording: removed before the .oni moves in).
+/// The frames a finished recording holds per stream, from OpenNI2's own index of the file:
+/// the Recorder writes every frame the device sends while it is attached, which is not the
+/// number this process read (a reader that falls behind drops frames, and the streams run
+/// on for a moment after the last read). Keeps the counts read when the file cannot be opened.
+void CountRecordedFrames(const fs::path& file, RecordResult* result) {
+  openni::Device playback;
+  if (playback.open(file.c_str()) != openni::STATUS_OK) return;
+  openni::VideoStream depth, color;
+  if (openni::PlaybackControl* pc = playback.getPlaybackControl()) {
+    if (depth.create(playback, openni::SENSOR_DEPTH) == openni::STATUS_OK) {
+      const int n = pc->getNumberOfFrames(depth);
+      if (n > 0) result->depth_frames = n;
+      depth.destroy();
+    }
+    if (color.create(playback, openni::SENSOR_COLOR) == openni::STATUS_OK) {
+      const int n = pc->getNumberOfFrames(color);
+      if (n > 0) result->color_frames = n;
+      color.destroy();
+    }
+  }
+  playback.close();
+}
+
+/// Moves a finished recording into place and writes its side file (an old side file never
+/// describes the new recording: removed before the .oni moves in); `result` takes the
+/// frame counts the file holds.
 void PublishRecording(const fs::path& tmp, const std::string& out_file, openni::Device& device,
-                      const RecordResult& result, bool lossy_color) {
+                      RecordResult& result, bool lossy_color) {
+  CountRecordedFrames(tmp, &result);
   nlohmann::json side;
   side["format"] = "lightprobe-oni-side";
   side["version"] = 1;

@@ -45,6 +45,8 @@ struct RecordOptions {
 };
 
 struct RecordResult {
+  /// Frames the file holds per stream (counted in it; the frames read while recording if
+  /// it cannot be opened).
   int depth_frames = 0, color_frames = 0;
   double seconds = 0;
   CameraControls controls;  ///< as read back from the device (also in the side file)

@@ -401,12 +401,21 @@ struct Session::Impl {
       });
       return;
     }
+    bool cancelled = false;
     UpdateEstimate(gen, [&](EstimateStatus& s) {
+      // Checked under the status lock, as CancelEstimate sets it: a Cancel that came while
+      // the snapshot was taken is not overwritten.
+      if ((cancelled = Stopped(gen))) {
+        s.state = EstimateState::kCancelled;
+        s.message = "cancelled";
+        return;
+      }
       Restart(&s);
-      s.state = EstimateState::kRunning;
+      s.state = EstimateState::kPreparing;  // until the scene is built: Cancel ends it at once
       s.message = "building the scene (mesh, keyframes)";
       s.options = options;
     });
+    if (cancelled || Stopped(gen)) return;  // (replaced by a newer Estimate: not ours to update)
     // The previous estimate (already told to stop) is joined by the new thread, not here:
     // the worker keeps reading frames and commands meanwhile.
     std::thread previous = std::move(estimator);
@@ -432,6 +441,8 @@ struct Session::Impl {
         return;
       }
       UpdateEstimate(gen, [&](EstimateStatus& s) {
+        if (s.state == EstimateState::kCancelled) return;
+        s.state = EstimateState::kRunning;
         s.message = "tracing round 1";
         s.scene = scene;
       });

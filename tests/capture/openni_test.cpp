@@ -98,10 +98,11 @@ TEST_F(OpenNi, RecordThroughTheRecorderAndReplayExactly) {
   ro.uri = uri_;
   ro.frames = 12;
   const RecordResult rr = RecordOni(oni.string(), ro);
-  EXPECT_EQ(rr.depth_frames, 12);
+  EXPECT_GE(rr.depth_frames, 12);  // what the file holds: the streams run on a moment after 12 are read
   EXPECT_GT(rr.color_frames, 0);
   ASSERT_TRUE(fs::exists(oni));
   ASSERT_NO_THROW(ValidateOniFile(oni.string()));
+  EXPECT_EQ(rr.depth_frames + rr.color_frames, ValidateOniFile(oni.string()));
 
   auto src = OpenOniFile(oni.string());
   ASSERT_TRUE(src->FrameCount().has_value());
@@ -180,7 +181,7 @@ TEST_F(OpenNi, AThreadThatUsedOpenNiAndExitedDoesNotCrashTheNextOne) {
     RecordOptions ro;
     ro.uri = uri_;
     ro.frames = 2;
-    EXPECT_EQ(RecordOni((dir_ / "again.oni").string(), ro).depth_frames, 2);
+    EXPECT_GE(RecordOni((dir_ / "again.oni").string(), ro).depth_frames, 2);
   }).join();
 }
 
@@ -366,9 +367,10 @@ TEST_F(OpenNi, LiveRecorderRecordsWhileTheDeviceKeepsServing) {
     EXPECT_FALSE(fs::exists(oni));  // written under a temporary name until finished
     const RecordResult r = recorder->Stop();
     EXPECT_FALSE(recorder->recording());
-    EXPECT_EQ(r.depth_frames, 8);
+    EXPECT_GE(r.depth_frames, 8);  // the frames the file holds, not the 8 read
     EXPECT_EQ(r.controls.exposure, 42);
     ASSERT_TRUE(fs::exists(oni) && fs::exists(OniSideFile(oni.string())));
+    EXPECT_EQ(r.depth_frames + r.color_frames, ValidateOniFile(oni.string()));
     // The live view goes on after the recording, with the exposure it had.
     for (int n = 0; n < 3; ++n) {
       ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame) << "the live view did not resume after recording";
@@ -407,8 +409,13 @@ TEST_F(OpenNi, LiveRecorderFinishesTheFileWhenTheSourceCloses) {
   for (int n = 0; n < 4; ++n) ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame);
   src.reset();
   EXPECT_FALSE(recorder->recording());
-  EXPECT_EQ(recorder->EndedWithoutStop().rfind("recorded 4 depth frames", 0), 0u) << recorder->EndedWithoutStop();
   ASSERT_TRUE(fs::exists(oni) && fs::exists(OniSideFile(oni.string())));
+  // It tells the depth frames the file holds (4 were read; the streams ran on a moment).
+  const int held = *OpenOniFile(oni.string(), OniPlaybackOptions{})->FrameCount();
+  int depth_frames = -1;
+  ASSERT_EQ(std::sscanf(recorder->EndedWithoutStop().c_str(), "recorded %d depth frames", &depth_frames), 1)
+      << recorder->EndedWithoutStop();
+  EXPECT_GE(depth_frames, std::max(4, held));
   EXPECT_GE(*OpenOniFile(oni.string())->FrameCount(), 4);
   EXPECT_THROW(recorder->Start((dir_ / "after.oni").string()), InputError);
 }
