@@ -189,6 +189,8 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
                   {"kkt_violation", r.kkt_violation}, {"objective_increased", r.objective_increased},
                   {"dominant_directions", dominant}};
   if (!std::isnan(r.final_angular_error_deg)) rep["final"]["angular_error_deg"] = r.final_angular_error_deg;
+  rep["final"]["rendered_fraction"] = r.rendered_fraction;
+  rep["warnings"] = r.warnings;
   rep["envmap_convention"] =
       "equirectangular, width = 2*height; row y: polar angle (y+0.5)/H*pi from up (top = up); column x: azimuth "
       "(x+0.5)/W*2pi from frame_x towards frame_y = up x frame_x";
@@ -235,6 +237,8 @@ Run AddEstimate(CLI::App& app) {
     std::printf("\nresults in %s (envmap.exr, envmap_directions.csv, render_view*.png, error_view*.png, "
                 "convergence.csv/.png, report.json)\n",
                 fs::absolute(*out).lexically_normal().c_str());
+    std::fflush(stdout);
+    for (const std::string& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   };
 }
 

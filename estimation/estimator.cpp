@@ -182,6 +182,9 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
         nn += a_new[i] * a_new[i];
       }
       info.image_change = nn > 0 ? std::sqrt(dn / nn) : 0.0;
+      double rendered = 0;  // observations are normalized to mean 1
+      for (double v : a_new) rendered += v;
+      res.rendered_fraction = a_new.empty() ? 0.0 : rendered / a_new.size();
     }
     lambda.swap(next);
     info.lambda = lambda;
@@ -206,6 +209,17 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
   res.final_rmse = res.final_relative_rmse * mean;
   if (!truth.empty()) res.final_angular_error_deg = DominantAngularErrorDeg(env, res.lambda, truth);
   res.dominant = DominantDirections(env, res.lambda, 2);
+  // A fit that renders (almost) nothing is the activation penalty winning over data it no
+  // longer hears: a Cauchy scale far below the residuals makes every pixel an outlier.
+  if (res.rendered_fraction < 0.01) {
+    char line[320];
+    std::snprintf(line, sizeof line,
+                  "the estimate lights nothing (it renders %.2g of the images' mean): with --sigma %g every "
+                  "residual is in the Cauchy loss's flat tail, or --alpha %g outweighs the data; use a larger "
+                  "--sigma (default 0.5) or a smaller --alpha (default 3)",
+                  res.rendered_fraction, opt.objective.sigma, opt.objective.alpha);
+    res.warnings.push_back(line);
+  }
 
   if (opt.render) {
     check_cancel();

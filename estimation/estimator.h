@@ -100,6 +100,12 @@ struct EstimateResult {
   double kkt_violation = 0;
   bool objective_increased = false;
   std::vector<Eigen::Vector3d> dominant;
+  /// The rendered estimate's mean over the observed pixels, relative to theirs (1 = as
+  /// bright as the images); from the last round's A.
+  double rendered_fraction = 0;
+  /// What the user should know about this estimate (e.g. it lights nothing: a Cauchy scale
+  /// below the residuals, or a penalty that outweighs the data). One line each.
+  std::vector<std::string> warnings;
   ObjectiveParams objective_params;  ///< as solved: alpha scaled to the observed pixel count
 };
 

@@ -500,6 +500,7 @@ struct Session::Impl {
       ++s.version;
       s.seconds_total = t;
       s.message = "done in " + std::to_string(t).substr(0, 5) + " s";
+      for (const std::string& w : result->warnings) s.message += "; warning: " + w;
     });
     RefineLit(*scene, *result, options.tracer.bounces, gen);
   }

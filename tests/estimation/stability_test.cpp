@@ -272,13 +272,20 @@ TEST_P(ObjectiveParamsExtreme, StaysHealthy) {
   ExpectHealthy(r);
   const double ratio = PowerNear(r.env, r.lambda, env.direction(j), 45) / (2.0 * env.solid_angle(j));
   if (pc.alpha * pc.beta > 1e9) {
-    // The penalty outweighs any data: nothing is lit.
+    // The penalty outweighs any data: nothing is lit, and the result says so.
     EXPECT_EQ(TotalPower(r.env, r.lambda), 0.0);
+    EXPECT_LT(r.rendered_fraction, 0.01);
+    ASSERT_EQ(r.warnings.size(), 1u);
+    EXPECT_EQ(r.warnings[0].rfind("the estimate lights nothing", 0), 0u) << r.warnings[0];
   } else if (pc.sigma >= 0.5) {
     // A penalty that is weak or absent, or a Cauchy scale so wide it is least squares:
-    // the light comes back.
+    // the light comes back, and nothing is to be warned about.
     EXPECT_NEAR(ratio, 1.0, 0.15) << pc.name;
+    EXPECT_NEAR(r.rendered_fraction, 1.0, 0.2) << pc.name;
+    EXPECT_TRUE(r.warnings.empty()) << pc.name;
   }
+  // Whatever the parameters, a dark result is never silent.
+  if (TotalPower(r.env, r.lambda) == 0.0) EXPECT_FALSE(r.warnings.empty()) << pc.name;
 }
 
 INSTANTIATE_TEST_SUITE_P(Stability, ObjectiveParamsExtreme,
@@ -306,6 +313,7 @@ TEST_P(SmallSigma, ColdStartStillFindsTheLight) {
   ExpectHealthy(r);
   EXPECT_NEAR(PowerNear(r.env, r.lambda, env.direction(j), 45) / (2.0 * env.solid_angle(j)), 1.0, 0.15);
   EXPECT_GT(PowerNear(r.env, r.lambda, env.direction(j), 45), 0.8 * TotalPower(r.env, r.lambda));
+  EXPECT_TRUE(r.warnings.empty());
   // Round 1's log runs through the scales without restarting its iteration count.
   for (std::size_t i = 1; i < r.convergence.size(); ++i) {
     if (r.convergence[i].round == r.convergence[i - 1].round) {
@@ -315,6 +323,22 @@ TEST_P(SmallSigma, ColdStartStillFindsTheLight) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Stability, SmallSigma, ::testing::Values(0.1, 0.05));
+
+// Below the Monte Carlo noise of A every residual is an outlier and nothing is lit: the
+// result must say so and why, not hand back a black map in silence.
+TEST(Stability, ASigmaBelowTheNoiseSaysTheEstimateLightsNothing) {
+  SceneBundle b = Room();
+  const EnvMap env(9, b.up);
+  LightByCells(&b, env, Cells(env, {{CellAt(env, 30, 50), 2.0}}));
+  EstimateOptions eo = Small();
+  eo.objective.sigma = 0.02;
+  const EstimateResult r = Estimate(b, eo);
+  ExpectHealthy(r);
+  EXPECT_LT(r.rendered_fraction, 0.01);
+  ASSERT_EQ(r.warnings.size(), 1u);
+  EXPECT_NE(r.warnings[0].find("--sigma 0.02"), std::string::npos) << r.warnings[0];
+  EXPECT_EQ(r.warnings[0].find('\n'), std::string::npos);  // one line
+}
 
 TEST(Stability, SceneInMillimetresGivesTheSameLighting) {
   SceneBundle b = Room();
