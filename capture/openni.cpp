@@ -301,6 +301,11 @@ fs::path RecordingTempFile(const std::string& out_file) {
 /// number this process read (a reader that falls behind drops frames, and the streams run
 /// on for a moment after the last read). Keeps the counts read when the file cannot be opened.
 void CountRecordedFrames(const fs::path& file, RecordResult* result) {
+  try {
+    ValidateOniFile(file.string());  // a file cut short (a full disk) is not handed to OpenNI2
+  } catch (const InputError&) {
+    return;
+  }
   openni::Device playback;
   if (playback.open(file.c_str()) != openni::STATUS_OK) return;
   openni::VideoStream depth, color;
