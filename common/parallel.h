@@ -27,6 +27,17 @@ class ThreadLimit {
   std::unique_ptr<Impl> impl_;
 };
 
+/// Background work that must not take the CPU from an interactive thread (the viewer's
+/// window and its software rasterizer): lowers the OS priority (nice + `nice`, Linux
+/// per-thread nice) of the calling thread and of every worker that joins its parallel
+/// loops from now on. Lowering cannot be undone without privileges, so those workers stay
+/// lower for the rest of the process; call it only where everything parallel may yield to
+/// an interactive thread. Returns false where the priority could not be changed.
+bool RunThisThreadInBackground(int nice = 10);
+
+/// The calling thread's nice value (Linux per-thread; 0 elsewhere). For tests.
+int ThisThreadNice();
+
 /// Number of hardware threads.
 int HardwareThreads();
 

@@ -13,6 +13,7 @@
 #include "capture/frame_source.h"
 #include "capture/openni.h"
 #include "common/error.h"
+#include "common/parallel.h"
 #include "common/timer.h"
 #include "estimation/ray_tracer.h"
 #include "estimation/truth.h"
@@ -422,6 +423,9 @@ struct Session::Impl {
     estimator = std::thread([this, options, snapshot = std::move(snapshot), pressed_at, gen,
                              previous = std::move(previous)]() mutable {
       if (previous.joinable()) previous.join();
+      // The window (and Mesa's rasterizer threads) comes first: the estimate takes the CPU
+      // it leaves (its loops' workers too).
+      RunThisThreadInBackground();
       std::shared_ptr<const SceneBundle> scene;
       try {
         if (auto* loaded = std::get_if<std::shared_ptr<const SceneBundle>>(&snapshot)) scene = *loaded;
