@@ -285,7 +285,9 @@ TEST_P(ObjectiveParamsExtreme, StaysHealthy) {
     EXPECT_TRUE(r.warnings.empty()) << pc.name;
   }
   // Whatever the parameters, a dark result is never silent.
-  if (TotalPower(r.env, r.lambda) == 0.0) EXPECT_FALSE(r.warnings.empty()) << pc.name;
+  if (TotalPower(r.env, r.lambda) == 0.0) {
+    EXPECT_FALSE(r.warnings.empty()) << pc.name;
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Stability, ObjectiveParamsExtreme,

@@ -225,9 +225,10 @@ TEST(Session, RecordsTheCameraWhileItsPreviewsGoOn) {
     EXPECT_EQ(l.record_message.rfind("recorded", 0), 0u) << l.record_message << " / " << l.error;
     EXPECT_TRUE(fs::exists(timed) && fs::exists(timed.string() + ".json"));
     EXPECT_TRUE(l.is_camera);  // the camera stays open
-    // The worker may run at a few frames/s on a loaded machine: some frames, not all.
-    EXPECT_GT(l.frames_read, read_at_start + 3) << "the previews stopped while recording";
-    EXPECT_GT(l.frames_tracked + l.frames_lost, 3) << "the reconstruction stopped while recording";
+    // The worker may run at a few frames/s on a loaded machine (2 frames/s reconstructing
+    // under ASan): some frames, not all; none at all was the bug.
+    EXPECT_GT(l.frames_read, read_at_start + 1) << "the previews stopped while recording";
+    EXPECT_GT(l.frames_tracked + l.frames_lost, 1) << "the reconstruction stopped while recording";
     EXPECT_GT(frames_in(timed), 15);  // the Recorder takes all: 30 frames/s for 1.5 s
     const std::int64_t read_after = l.frames_read;
     ASSERT_TRUE(WaitFor([&] { return s.live().frames_read > read_after + 3; }, 10)) << "no frames after recording";
