@@ -421,9 +421,10 @@ FrameCounts CountFrames(const std::vector<FrameReport>& reports) {
 }
 
 /// The bundle from a volume and the chosen keyframes (Reconstructor::Finish).
-SceneBundle FinishBundle(const ReconstructionOptions& o, const TsdfVolume& volume,
+SceneBundle FinishBundle(bool started, const ReconstructionOptions& o, const TsdfVolume& volume,
                          const std::vector<const Candidate*>& chosen, const Eigen::Matrix4d& first_pose,
                          const FrameCounts& counts) {
+  if (!started) throw InputError("reconstruct: no frame had enough valid depth to build a model");
   SceneBundle b;
   b.mesh = volume.ExtractMesh(o.mesh_min_weight);
   if (b.mesh.triangles.empty())
@@ -503,10 +504,10 @@ struct ReconstructionSnapshot::Impl {
 };
 
 SceneBundle ReconstructionSnapshot::Finish() const {
-  if (!impl_ || !impl_->started) throw InputError("reconstruct: no frame had enough valid depth to build a model");
+  LP_CHECK(impl_ != nullptr, "a snapshot not taken from a reconstruction");
   std::vector<const Candidate*> chosen;
   for (const Candidate& c : impl_->chosen) chosen.push_back(&c);
-  return FinishBundle(impl_->o, impl_->volume, chosen, impl_->first_pose, impl_->counts);
+  return FinishBundle(impl_->started, impl_->o, impl_->volume, chosen, impl_->first_pose, impl_->counts);
 }
 
 ReconstructionSnapshot Reconstructor::Snapshot() const {
@@ -528,8 +529,7 @@ Eigen::Vector3d Reconstructor::EstimateUp(const Mesh& mesh, bool* from_plane) co
 
 SceneBundle Reconstructor::Finish() const {
   const Impl& m = *impl_;
-  if (!m.started) throw InputError("reconstruct: no frame had enough valid depth to build a model");
-  return FinishBundle(m.o, m.volume, ChooseKeyframes(m.pool, m.pending, m.o.keyframes), m.first_pose,
+  return FinishBundle(m.started, m.o, m.volume, ChooseKeyframes(m.pool, m.pending, m.o.keyframes), m.first_pose,
                       CountFrames(m.reports));
 }
 

@@ -380,10 +380,13 @@ struct Session::Impl {
 
   // ---- estimation ----
 
+  /// A scene to estimate: a loaded bundle, or a reconstruction's snapshot still to finish.
+  using SceneSource = std::variant<std::shared_ptr<const SceneBundle>, ReconstructionSnapshot>;
+
   /// On the worker, between frames: the scene to estimate. A loaded bundle is the scene; a
   /// reconstruction gives a snapshot (a copy of its volume and keyframes, milliseconds),
   /// finished into a bundle on the estimating thread so playback does not wait for meshing.
-  std::variant<std::shared_ptr<const SceneBundle>, ReconstructionSnapshot> Snapshot() {
+  SceneSource Snapshot() {
     if (bundle) return bundle;
     if (!reconstructor || !fused_any)
       throw InputError("nothing reconstructed yet: start the reconstruction and play some frames first");
@@ -392,7 +395,7 @@ struct Session::Impl {
 
   void DoEstimate(const EstimateOptions& options, double pressed_at, std::uint64_t gen) {
     if (Stopped(gen)) return;  // cancelled or replaced before it started
-    std::variant<std::shared_ptr<const SceneBundle>, ReconstructionSnapshot> snapshot;
+    SceneSource snapshot;
     try {
       snapshot = Snapshot();
     } catch (const std::exception& e) {
@@ -426,36 +429,13 @@ struct Session::Impl {
       // The window (and Mesa's rasterizer threads) comes first: the estimate takes the CPU
       // it leaves (its loops' workers too).
       RunThisThreadInBackground();
-      std::shared_ptr<const SceneBundle> scene;
-      try {
-        if (auto* loaded = std::get_if<std::shared_ptr<const SceneBundle>>(&snapshot)) scene = *loaded;
-        else scene = std::make_shared<const SceneBundle>(std::get<ReconstructionSnapshot>(snapshot).Finish());
-      } catch (const std::exception& e) {
-        UpdateEstimate(gen, [&](EstimateStatus& s) {
-          s.state = EstimateState::kFailed;
-          s.message = e.what();
-        });
-        return;
-      }
-      if (Stopped(gen)) {
-        UpdateEstimate(gen, [&](EstimateStatus& s) {
-          s.state = EstimateState::kCancelled;
-          s.message = "cancelled";
-        });
-        return;
-      }
-      UpdateEstimate(gen, [&](EstimateStatus& s) {
-        if (s.state == EstimateState::kCancelled) return;
-        s.state = EstimateState::kRunning;
-        s.message = "tracing round 1";
-        s.scene = scene;
-      });
-      RunEstimate(options, scene, pressed_at, gen);
+      RunEstimate(options, std::move(snapshot), pressed_at, gen);
     });
   }
 
-  void RunEstimate(EstimateOptions options, std::shared_ptr<const SceneBundle> scene, double pressed_at,
-                   std::uint64_t gen) {
+  /// On the estimator thread: builds the scene from a snapshot (a loaded bundle is one),
+  /// estimates its lighting, then refines the lit shading.
+  void RunEstimate(EstimateOptions options, SceneSource snapshot, double pressed_at, std::uint64_t gen) {
     options.cancelled = [this, gen] { return Stopped(gen); };
     options.progress = [this, gen](const std::string& line) {
       UpdateEstimate(gen, [&](EstimateStatus& s) { s.message = line; });
@@ -463,7 +443,6 @@ struct Session::Impl {
     options.on_convergence = [this, gen](const ConvergenceRow& row) {
       UpdateEstimate(gen, [&](EstimateStatus& s) { s.rows.push_back(row); });
     };
-    options.time_offset = clock.Seconds() - pressed_at;
     const int max_rounds = options.max_rounds;
     options.on_round = [this, pressed_at, max_rounds, gen](const RoundInfo& info, const EnvMap& env) {
       auto dominant = DominantDirections(env, info.lambda, 2);
@@ -477,8 +456,19 @@ struct Session::Impl {
         if (std::isnan(s.seconds_to_first)) s.seconds_to_first = t;
       });
     };
+    std::shared_ptr<const SceneBundle> scene;
     std::shared_ptr<const EstimateResult> result;
     try {
+      if (auto* loaded = std::get_if<std::shared_ptr<const SceneBundle>>(&snapshot)) scene = *loaded;
+      else scene = std::make_shared<const SceneBundle>(std::get<ReconstructionSnapshot>(snapshot).Finish());
+      if (Stopped(gen)) throw Cancelled();
+      UpdateEstimate(gen, [&](EstimateStatus& s) {
+        if (s.state == EstimateState::kCancelled) return;
+        s.state = EstimateState::kRunning;
+        s.message = "tracing round 1";
+        s.scene = scene;
+      });
+      options.time_offset = clock.Seconds() - pressed_at;
       result = std::make_shared<const EstimateResult>(lp::Estimate(*scene, options));
     } catch (const Cancelled&) {
       UpdateEstimate(gen, [&](EstimateStatus& s) {
