@@ -663,11 +663,14 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
       throw;
     }
     seeking_ = false;
-    device_.getPlaybackControl()->setSpeed(options_.real_time ? 1.0f : -1.0f);
+    // Paused stays paused: real time would run the file's clock on until the caller pauses
+    // again, and a frame or two later is where the reader would land.
+    device_.getPlaybackControl()->setSpeed(options_.real_time && !paused_ ? 1.0f : -1.0f);
   }
 
   /// Real-time playback runs on OpenNI2's clock: manual speed holds it while paused.
   void SetPaused(bool paused) override {
+    paused_ = paused;
     if (!options_.real_time) return;
     if (openni::PlaybackControl* pc = device_.getPlaybackControl()) pc->setSpeed(paused ? -1.0f : 1.0f);
   }
@@ -678,7 +681,7 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
       throw InputError(path_, "OpenNI2 cannot open it: " + OpenNiError());
     openni::PlaybackControl* pc = device_.getPlaybackControl();
     if (!pc) throw InputError(path_, "not a recording");
-    pc->setSpeed(options_.real_time && !seeking_ ? 1.0f : -1.0f);  // -1: manual, one frame per read, none lost
+    pc->setSpeed(options_.real_time && !seeking_ && !paused_ ? 1.0f : -1.0f);  // -1: manual, one frame per read, none lost
     pc->setRepeatEnabled(false);
     if (depth_.create(device_, openni::SENSOR_DEPTH) != openni::STATUS_OK ||
         color_.create(device_, openni::SENSOR_COLOR) != openni::STATUS_OK)
@@ -718,6 +721,7 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
   OniPlaybackOptions options_;
   std::optional<bool> side_registered_;
   bool seeking_ = false;
+  bool paused_ = false;  // SetPaused: a seek or a reopen keeps it
   double side_exposure_ = 0, side_gain_ = 0;
   int depth_count_ = 0, color_count_ = 0, depth_read_ = 0, color_read_ = 0;
   std::int64_t count_ = 0, produced_ = 0;
