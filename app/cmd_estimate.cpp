@@ -45,6 +45,11 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
       ->capture_default_str()
       ->check(CLI::Range(0.0, 1.0));
   cmd.add_option("--max-rounds", o->max_rounds, "sequential Monte Carlo rounds at most")->capture_default_str();
+  cmd.add_option("--albedo-passes", o->albedo_passes,
+                 "albedo refinements of a reconstructed mesh (de-lit by the estimate, segmented again, rounds "
+                 "go on; 0 = keep the bundle's albedo)")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 5));
   cmd.add_option("--render-spp", o->render_spp, "samples per pixel of the final relit render (0 = --spp)")
       ->capture_default_str();
   cmd.add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
@@ -169,12 +174,27 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
                      {"alpha", o.objective.alpha}, {"alpha_effective", r.objective_params.alpha}, {"beta", o.objective.beta}, {"sigma", o.objective.sigma},
                      {"max_rounds", o.max_rounds}, {"change_threshold", o.change_threshold},
                      {"seed", o.tracer.seed}, {"threads", HardwareThreads()}, {"nee_floor", o.tracer.nee_floor},
-                     {"min_throughput", o.tracer.min_throughput}, {"combine_rounds", o.combine_rounds}};
+                     {"min_throughput", o.tracer.min_throughput}, {"combine_rounds", o.combine_rounds},
+                     {"albedo_passes", o.albedo_passes}, {"albedo_samples", o.albedo_samples}};
   rep["seconds"] = {{"total", command_seconds}, {"bvh", r.bvh_seconds}, {"trace", r.trace.seconds},
                     {"render", r.render_seconds}, {"estimate", r.total_seconds}};
   double solve = 0;
   for (const auto& ri : r.rounds) solve += ri.solve_seconds;
   rep["seconds"]["solve"] = solve;
+  rep["seconds"]["albedo"] = r.albedo_seconds;
+  // Albedo refinement: done for a reconstructed mesh (it carries the colours seen), left
+  // out where the albedo is known (no shaded colours) or when turned off.
+  rep["albedo"] = {{"refined", !r.albedo.empty()}, {"passes", r.albedo_passes}, {"segments", r.albedo_segments}};
+  if (!r.albedo.empty()) {
+    Mesh mesh = bundle.mesh;
+    mesh.albedo = r.albedo;
+    mesh.shaded.clear();
+    WritePly(out / "albedo_mesh.ply", mesh);
+    rep["albedo"]["mesh"] = "albedo_mesh.ply";
+  } else {
+    rep["albedo"]["why_not"] = o.albedo_passes == 0 ? "--albedo-passes 0"
+                               : "the bundle's albedo is known (its mesh has no shaded colours)";
+  }
   rep["left_out"] = {{"directions_unreached", left_out},
                      {"pixels_not_traced", r.trace.pixels_skipped},
                      {"paths_stopped_roulette", r.trace.stopped_roulette},

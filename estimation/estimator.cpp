@@ -2,11 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 #include <sstream>
 
 #include "common/error.h"
 #include "common/timer.h"
+#include "estimation/albedo.h"
 #include "estimation/ray_tracer.h"
+#include "estimation/vertex_radiance.h"
 
 namespace lp {
 
@@ -66,7 +69,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
   res.objective_params.alpha = opt.objective.alpha * res.observations / kAlphaReferencePixels;
 
   Stopwatch bvh;
-  RayTracer scene(bundle.mesh);
+  auto scene = std::make_unique<RayTracer>(bundle.mesh);
   res.bvh_seconds = bvh.Seconds();
 
   std::vector<TruthLight> truth;
@@ -76,7 +79,10 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
   std::vector<double> lambda(3 * L, 1e-3);
   std::vector<std::uint8_t> reachable(L, 1);
   TransportMatrix A;
-  for (int round = 1; round <= opt.max_rounds; ++round) {
+  // Rounds first..last under the current scene's albedo: round 1 is the cold start; a
+  // later pass is warm-started from the estimate so far, with an A of its own.
+  auto run_rounds = [&](int first, int last) {
+  for (int round = first; round <= last; ++round) {
     check_cancel();
     RoundInfo info;
     info.round = round;
@@ -85,9 +91,9 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
     TracerOptions topt = opt.tracer;
     topt.seed = opt.tracer.seed * 1000003ull + round;
     topt.cancelled = opt.cancelled;  // a cancelled trace stops within 64 pixels
-    TransportMatrix Ar = TraceTransport(scene, env, bundle.views, sampler, topt, &res.trace);
+    TransportMatrix Ar = TraceTransport(*scene, env, bundle.views, sampler, topt, &res.trace);
     check_cancel();
-    A = (opt.combine_rounds && round > 1) ? Combine(A, Ar) : std::move(Ar);
+    A = (opt.combine_rounds && round > first) ? Combine(A, Ar) : std::move(Ar);
     info.trace_seconds = ts.Seconds();
     info.nonzeros = static_cast<std::int64_t>(A.nonzeros());
 
@@ -198,7 +204,36 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
                  sr.objective, info.change) +
              Fmt(" (in the image %.3g)", info.image_change) +
              Fmt(", KKT violation %.2g", sr.kkt_violation));
-    if (round > 1 && info.image_change < opt.change_threshold) break;
+    if (round > first && info.image_change < opt.change_threshold) break;
+  }
+  };
+  run_rounds(1, opt.max_rounds);
+  // Albedo refinement: the reconstruction's albedo is the colour seen, flattened per
+  // segment of one chromaticity, so each segment's mean still holds its mean shading (and
+  // two surfaces of one chromaticity share one albedo). Divided by the estimate's
+  // irradiance, the colour seen is the albedo the estimate implies; segmented again (now
+  // a brightness step is a material's) it is the albedo the next rounds are solved under.
+  if (opt.albedo_passes > 0 && bundle.mesh.shaded.size() == bundle.mesh.positions.size()) {
+    Mesh mesh = scene->mesh();
+    for (int pass = 1; pass <= opt.albedo_passes; ++pass) {
+      check_cancel();
+      Stopwatch as;
+      VertexRadiance radiance(*scene, env, lambda, opt.tracer.bounces, opt.tracer.seed * 7919 + pass);
+      for (int done = 0; done < opt.albedo_samples; done += 16) {
+        radiance.Refine(std::min(16, opt.albedo_samples - done));
+        check_cancel();
+      }
+      const std::vector<float> irradiance = radiance.Irradiance();
+      res.albedo_segments = DelightAlbedo(&mesh, irradiance);
+      scene = std::make_unique<RayTracer>(mesh);
+      res.albedo_seconds += as.Seconds();
+      res.albedo_passes = pass;
+      progress(Fmt("albedo pass %.0f: de-lit %.0f vertices into %.0f segments in %.2f s", pass,
+                   static_cast<double>(mesh.positions.size()), res.albedo_segments, as.Seconds()));
+      const int first = static_cast<int>(res.rounds.size()) + 1;
+      run_rounds(first, first + opt.max_rounds - 1);
+    }
+    res.albedo = scene->mesh().albedo;
   }
 
   res.left_out.assign(L, 0);
@@ -229,7 +264,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
     if (opt.render_spp > 0) topt.spp = opt.render_spp;
     topt.cancelled = opt.cancelled;
     CellSampler sampler(env, res.lambda, reachable, opt.tracer.nee_floor);
-    res.renders = RenderEnvironment(scene, env, bundle.views, res.lambda, sampler, topt, true);
+    res.renders = RenderEnvironment(*scene, env, bundle.views, res.lambda, sampler, topt, true);
     check_cancel();
     res.render_seconds = rs.Seconds();
     progress(Fmt("relit %.0f view(s) in %.2f s", bundle.views.size(), res.render_seconds));

@@ -13,8 +13,11 @@ namespace lp {
 void Mesh::Append(const Mesh& other) {
   const int offset = static_cast<int>(positions.size());
   const bool normals_ok = normals.size() == positions.size() && other.normals.size() == other.positions.size();
+  const bool shaded_ok = shaded.size() == positions.size() && other.shaded.size() == other.positions.size();
   positions.insert(positions.end(), other.positions.begin(), other.positions.end());
   albedo.insert(albedo.end(), other.albedo.begin(), other.albedo.end());
+  if (shaded_ok) shaded.insert(shaded.end(), other.shaded.begin(), other.shaded.end());
+  else shaded.clear();
   if (normals_ok) normals.insert(normals.end(), other.normals.begin(), other.normals.end());
   else normals.clear();
   for (const auto& t : other.triangles) triangles.push_back(t + Eigen::Vector3i::Constant(offset));
@@ -24,6 +27,7 @@ Mesh RefineMesh(const Mesh& mesh, int min_triangles) {
   Mesh out = mesh;
   const bool normals = out.normals.size() == out.positions.size();
   const bool albedo = out.albedo.size() == out.positions.size();
+  out.shaded.clear();  // a refined mesh is for display and timing
   auto area = [&](const Eigen::Vector3i& t) {
     return (out.positions[t[1]] - out.positions[t[0]]).cross(out.positions[t[2]] - out.positions[t[0]]).norm();
   };
@@ -197,6 +201,9 @@ int SanitizeMesh(Mesh* mesh, const std::string& name) {
     mesh->albedo.assign(mesh->positions.size(), Eigen::Vector3f::Constant(0.5f));
   for (auto& a : mesh->albedo)
     for (int c = 0; c < 3; ++c) a[c] = std::isfinite(a[c]) ? std::min(std::max(a[c], 0.f), 1.f) : 0.f;
+  if (!mesh->shaded.empty() && mesh->shaded.size() != mesh->positions.size()) mesh->shaded.clear();
+  for (auto& a : mesh->shaded)
+    for (int c = 0; c < 3; ++c) a[c] = std::isfinite(a[c]) ? std::max(a[c], 0.f) : 0.f;
   const int n = static_cast<int>(mesh->positions.size());
   std::vector<Eigen::Vector3i> kept;
   kept.reserve(mesh->triangles.size());

@@ -177,6 +177,7 @@ Mesh ParsePly(const std::string& bytes, const std::string& name) {
     const bool is_vertex = e.name == "vertex";
     const bool is_face = e.name == "face";
     int ix = -1, iy = -1, iz = -1, inx = -1, iny = -1, inz = -1, ir = -1, ig = -1, ib = -1, iface = -1;
+    int isr = -1, isg = -1, isb = -1;  // shaded_red ...: the colour seen, linear float
     for (int i = 0; i < static_cast<int>(e.props.size()); ++i) {
       const std::string& n = e.props[i].name;
       if (e.props[i].is_list) {
@@ -188,12 +189,15 @@ Mesh ParsePly(const std::string& bytes, const std::string& name) {
       else if (n == "red" || n == "r" || n == "diffuse_red") ir = i;
       else if (n == "green" || n == "g" || n == "diffuse_green") ig = i;
       else if (n == "blue" || n == "b" || n == "diffuse_blue") ib = i;
+      else if (n == "shaded_red") isr = i; else if (n == "shaded_green") isg = i; else if (n == "shaded_blue") isb = i;
     }
     if (is_vertex) {
       if (ix < 0 || iy < 0 || iz < 0) fail("vertex element lacks x, y, z");
       have_vertices = true;
       const bool has_n = inx >= 0 && iny >= 0 && inz >= 0;
       const bool has_c = ir >= 0 && ig >= 0 && ib >= 0;
+      const bool has_s = isr >= 0 && isg >= 0 && isb >= 0;
+      if (has_s) mesh.shaded.reserve(e.count);
       mesh.positions.reserve(e.count);
       if (has_n) mesh.normals.reserve(e.count);
       mesh.albedo.reserve(e.count);
@@ -212,6 +216,7 @@ Mesh ParsePly(const std::string& bytes, const std::string& name) {
         }
         mesh.positions.emplace_back(vals[ix], vals[iy], vals[iz]);
         if (has_n) mesh.normals.emplace_back(vals[inx], vals[iny], vals[inz]);
+        if (has_s) mesh.shaded.emplace_back(vals[isr], vals[isg], vals[isb]);
         if (has_c) {
           // uchar colours are 0..255 sRGB; float colours are taken as sRGB in [0, 1].
           const double scale = TypeSize(e.props[ir].type) == 1 ? 255.0 : 1.0;
@@ -281,7 +286,10 @@ void WritePly(const std::filesystem::path& path, const Mesh& mesh) {
      << "element vertex " << mesh.positions.size() << "\n"
      << "property float x\nproperty float y\nproperty float z\n";
   if (!mesh.normals.empty()) os << "property float nx\nproperty float ny\nproperty float nz\n";
-  os << "property uchar red\nproperty uchar green\nproperty uchar blue\n"
+  LP_CHECK(mesh.shaded.empty() || mesh.shaded.size() == mesh.positions.size(), "shaded size");
+  os << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+  if (!mesh.shaded.empty()) os << "property float shaded_red\nproperty float shaded_green\nproperty float shaded_blue\n";
+  os
      << "element face " << mesh.triangles.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
   std::string data = os.str();
   auto put = [&](const void* p, std::size_t n) { data.append(static_cast<const char*>(p), n); };
@@ -292,6 +300,7 @@ void WritePly(const std::filesystem::path& path, const Mesh& mesh) {
       const auto u = static_cast<unsigned char>(std::lround(255.f * LinearToSrgb(mesh.albedo[i][c])));
       put(&u, 1);
     }
+    if (!mesh.shaded.empty()) put(mesh.shaded[i].data(), 12);
   }
   for (const auto& t : mesh.triangles) {
     const unsigned char three = 3;

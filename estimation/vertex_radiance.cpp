@@ -74,6 +74,13 @@ std::vector<Eigen::Vector3f> VertexRadiance::Radiance() const {
   return out;
 }
 
+std::vector<float> VertexRadiance::Irradiance() const {
+  std::vector<float> out(sum_.size(), 0.f);
+  if (samples_ == 0) return out;
+  for (std::size_t v = 0; v < out.size(); ++v) out[v] = static_cast<float>(sum_[v].mean() / samples_);
+  return out;
+}
+
 std::vector<float> VertexPhotometricError(const RayTracer& scene, const std::vector<View>& views,
                                           const std::vector<Eigen::Vector3f>& radiance) {
   std::vector<float> white(views.size());

@@ -33,6 +33,9 @@ class VertexRadiance {
   /// Mean outgoing radiance per vertex (linear RGB, the estimate's units): albedo times the
   /// mean incident radiance over the cosine-weighted hemisphere.
   std::vector<Eigen::Vector3f> Radiance() const;
+  /// Mean incident radiance per vertex over the cosine-weighted hemisphere, as a grey
+  /// level (the mean of its channels): irradiance / pi.
+  std::vector<float> Irradiance() const;
   int samples() const { return samples_; }
 
  private:

@@ -435,6 +435,7 @@ SceneBundle FinishBundle(bool started, const ReconstructionOptions& o, const Tsd
   SmoothMesh(&b.mesh, o.smooth_iterations);
   SanitizeMesh(&b.mesh, "reconstructed mesh");
   b.up = UpOf(b.mesh, first_pose, o.tsdf.voxel, nullptr);
+  b.mesh.shaded = b.mesh.albedo;  // the colour seen: the estimator de-lights it (estimation/albedo.h)
   FlattenAlbedo(&b.mesh, o.albedo);
 
   for (const Candidate* c : chosen) {

@@ -13,7 +13,7 @@
 #include "calibration/calibration.h"
 #include "capture/frame.h"
 #include "estimation/scene_bundle.h"
-#include "reconstruction/albedo.h"
+#include "estimation/albedo.h"
 #include "reconstruction/depth_maps.h"
 #include "reconstruction/icp.h"
 #include "reconstruction/relocalizer.h"

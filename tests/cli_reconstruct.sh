@@ -22,6 +22,20 @@ err=$(grep -o '"angular_error_deg": [0-9.e+-]*' "$out/h/estimate/report.json" | 
 # 2 keyframes; 7.7-10.0 over seeds 1-3, docs/method.md).
 awk -v e="$err" 'BEGIN { exit !(e < 10) }' || { echo "dominant light error $err deg"; exit 1; }
 
+# Albedo refinement: the reconstructed mesh carries the colours seen; off by default, on
+# with --albedo-passes it de-lights them, segments again and writes the de-lit mesh. A
+# bundle with known albedo (no colours seen) leaves it out and says why.
+grep -a -q "property float shaded_red" "$out/scene/mesh.ply" || { echo "mesh.ply without the colours seen"; exit 1; }
+grep -q '"why_not": "--albedo-passes 0"' "$out/h/estimate/report.json" || { echo "refinement not reported off"; exit 1; }
+"$exe" estimate "$out/scene" --out "$out/refined" --albedo-passes 1 --max-rounds 1 --spp 8 --render-spp 8 --rings 9 \
+  >"$out/rlog" 2>&1 || { cat "$out/rlog"; exit 1; }
+grep -q "albedo pass 1: de-lit" "$out/rlog" && grep -q '"refined": true' "$out/refined/report.json" &&
+  [ -s "$out/refined/albedo_mesh.ply" ] || { cat "$out/rlog"; echo "albedo refinement did not run"; exit 1; }
+"$exe" estimate "$demo/../demo" --out "$out/known" --albedo-passes 1 --max-rounds 1 --spp 8 --render-spp 8 --rings 9 \
+  >"$out/klog" 2>&1 || { cat "$out/klog"; exit 1; }
+grep -q "albedo is known" "$out/known/report.json" && [ ! -e "$out/known/albedo_mesh.ply" ] ||
+  { echo "a bundle with known albedo was refined"; exit 1; }
+
 # No arguments and no display: the viewer says so and points to --headless.
 set +e; env -u DISPLAY -u WAYLAND_DISPLAY "$exe" >"$out/noargs" 2>&1; rc=$?; set -e
 [ "$rc" -eq 2 ] && grep -q -- "--headless" "$out/noargs" || { echo "no-argument run: exit $rc"; cat "$out/noargs"; exit 1; }

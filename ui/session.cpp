@@ -443,7 +443,7 @@ struct Session::Impl {
     options.on_convergence = [this, gen](const ConvergenceRow& row) {
       UpdateEstimate(gen, [&](EstimateStatus& s) { s.rows.push_back(row); });
     };
-    const int max_rounds = options.max_rounds;
+    const int max_rounds = options.max_rounds * (1 + std::max(0, options.albedo_passes));  // an upper bound
     options.on_round = [this, pressed_at, max_rounds, gen](const RoundInfo& info, const EnvMap& env) {
       auto dominant = DominantDirections(env, info.lambda, 2);
       const double t = clock.Seconds() - pressed_at;
@@ -502,7 +502,9 @@ struct Session::Impl {
   /// Progressive per-vertex radiance under the estimate, then the error against the keyframes.
   void RefineLit(const SceneBundle& scene, const EstimateResult& result, int bounces, std::uint64_t gen) {
     try {
-      const RayTracer tracer(scene.mesh);
+      Mesh mesh = scene.mesh;
+      if (result.albedo.size() == mesh.positions.size()) mesh.albedo = result.albedo;  // refined
+      const RayTracer tracer(std::move(mesh));
       VertexRadiance radiance(tracer, result.env, result.lambda, std::max(1, bounces));
       int step = 2;
       // The error shading follows the radiance's noise down: recomputed at 2 samples, then

@@ -193,6 +193,12 @@ TEST(Ply, DegenerateAndEmptyMeshes) {
             std::string::npos);
 }
 
+Mesh ReadPlyBack(const Mesh& m) {
+  const fs::path d = TempDir("plyback");
+  WritePly(d / "m.ply", m);
+  return ReadPly(d / "m.ply");
+}
+
 TEST(Ply, AsciiAndBinaryAgreeAndBadFilesAreRejected) {
   const std::string ascii =
       "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
@@ -217,6 +223,20 @@ TEST(Ply, AsciiAndBinaryAgreeAndBadFilesAreRejected) {
                         "property float y\nproperty float z\nend_header\n",
                         "huge.ply"),
                InputError);
+}
+
+TEST(Ply, ShadedColoursRoundTripAndAreOptional) {
+  Mesh m = UvSphere({0, 0, 0}, 1, {0.4f, 0.5f, 0.6f}, 6, 8);
+  EXPECT_TRUE(ReadPlyBack(m).shaded.empty()) << "a mesh without colours seen reads back without them";
+  for (std::size_t v = 0; v < m.positions.size(); ++v) m.shaded.push_back({0.1f * v, 2.5f, 1e-3f});  // > 1 allowed
+  const Mesh b = ReadPlyBack(m);
+  EXPECT_EQ(b.shaded, m.shaded) << "stored as float, exactly";
+  EXPECT_EQ(b.positions, m.positions);
+  // A reader of the scene-bundle format that ignores them still reads the albedo.
+  EXPECT_NEAR(b.albedo[0].y(), 0.5f, 0.01f);
+  Mesh appended = m;
+  appended.Append(UvSphere({3, 0, 0}, 1, {0.4f, 0.5f, 0.6f}, 6, 8));
+  EXPECT_TRUE(appended.shaded.empty()) << "half a mesh's colours seen are none";
 }
 
 TEST(Ply, ReadsTheRealFragment) {

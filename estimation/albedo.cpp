@@ -1,8 +1,10 @@
-#include "reconstruction/albedo.h"
+#include "estimation/albedo.h"
 
 #include <algorithm>
 #include <cmath>
 #include <numeric>
+
+#include "common/error.h"
 
 namespace lp {
 
@@ -61,6 +63,9 @@ int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& o) {
     const int ra = s.Find(e.a), rb = s.Find(e.b);
     if (ra == rb) continue;
     if ((Chroma(s.Mean(ra)) - Chroma(s.Mean(rb))).norm() > o.max_chroma_spread) continue;
+    if (std::abs(std::log(std::max(1e-4, s.Mean(ra).sum())) - std::log(std::max(1e-4, s.Mean(rb).sum()))) >
+        o.max_log_spread)
+      continue;
     const int big = s.count[ra] >= s.count[rb] ? ra : rb, small = big == ra ? rb : ra;
     s.parent[small] = big;
     s.sum[big] += s.sum[small];
@@ -75,6 +80,36 @@ int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& o) {
     if (!counted[r]) counted[r] = 1, ++flattened;
   }
   return flattened;
+}
+
+AlbedoOptions DelitAlbedoOptions() {
+  AlbedoOptions o;
+  o.max_log_spread = o.max_log_step;
+  return o;
+}
+
+int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options) {
+  const std::size_t n = mesh->positions.size();
+  LP_CHECK(mesh->shaded.size() == n && irradiance.size() == n && mesh->albedo.size() == n,
+           "DelightAlbedo: shaded colours and irradiance per vertex");
+  std::vector<float> sorted;
+  sorted.reserve(n);
+  for (float e : irradiance)
+    if (std::isfinite(e) && e > 0) sorted.push_back(e);
+  if (sorted.empty()) return 0;  // nothing lit: nothing to divide by
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
+  const float floor = 0.05f * sorted[sorted.size() / 2];
+  double before = 0, after = 0;
+  for (std::size_t v = 0; v < n; ++v) {
+    before += mesh->albedo[v].sum();
+    const float e = std::isfinite(irradiance[v]) ? std::max(floor, irradiance[v]) : floor;
+    mesh->albedo[v] = mesh->shaded[v] / e;  // grey: the colour seen keeps its chromaticity
+  }
+  const int segments = FlattenAlbedo(mesh, options);
+  for (const Eigen::Vector3f& a : mesh->albedo) after += a.sum();
+  const float scale = after > 0 ? static_cast<float>(before / after) : 1.f;
+  for (Eigen::Vector3f& a : mesh->albedo) a = (a * scale).cwiseMax(0.f).cwiseMin(0.95f);
+  return segments;
 }
 
 }  // namespace lp

@@ -15,11 +15,25 @@ struct AlbedoOptions {
   float max_chroma_step = 0.03f;  ///< join neighbours whose chromaticity differs less than this
   float max_log_step = 0.15f;     ///< ... and whose log luminance differs less than this
   float max_chroma_spread = 0.06f;  ///< segments whose mean chromaticities differ more stay apart
+  float max_log_spread = 1e9f;     ///< segments whose mean log luminances differ more stay apart
   int min_segment = 200;        ///< vertices: smaller segments keep their per-vertex colour
 };
 
 /// Replaces each segment's per-vertex albedo by the segment's mean; returns the number of
 /// segments flattened.
 int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& options = {});
+
+/// The segmentation of de-lit colours: as FlattenAlbedo's, and segments whose mean log
+/// luminances differ by more than max_log_step stay apart too (once the light is divided
+/// out, a step in brightness is a material's; in the shaded colours it may be the light's).
+AlbedoOptions DelitAlbedoOptions();
+
+/// Refines a mesh's albedo under an estimate of the light (intrinsic decomposition): each
+/// vertex's `shaded` colour divided by its grey irradiance `irradiance[v]` (any positive
+/// unit; below 5 % of the median it is taken as 5 % of the median: unlit vertices) is its
+/// albedo as the estimate explains it; that is segmented and flattened as FlattenAlbedo
+/// does with `options`, scaled so the mean albedo luminance is unchanged (the light's scale
+/// is tied to it), and clipped to [0, 0.95]. Needs mesh->shaded; returns the segments.
+int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options = DelitAlbedoOptions());
 
 }  // namespace lp

@@ -1,0 +1,151 @@
+// FlattenAlbedo and DelightAlbedo: shading baked into the fused colour is flattened per segment of one
+// chromaticity; different materials stay apart.
+#include <gtest/gtest.h>
+
+#include "estimation/albedo.h"
+
+namespace lp {
+namespace {
+
+/// A strip of n x 2 vertices along x, colour `rgb` scaled by shading(x).
+Mesh Strip(int n, float x0, const Eigen::Vector3f& rgb, float shade0, float shade1) {
+  Mesh m;
+  for (int i = 0; i < n; ++i)
+    for (int k = 0; k < 2; ++k) {
+      m.positions.push_back({x0 + 0.01f * i, 0.01f * k, 0});
+      const float s = shade0 + (shade1 - shade0) * i / (n - 1);
+      m.albedo.push_back(rgb * s);
+    }
+  for (int i = 0; i + 1 < n; ++i) {
+    const int a = 2 * i, b = 2 * i + 1, c = 2 * i + 2, d = 2 * i + 3;
+    m.triangles.push_back({a, c, b});
+    m.triangles.push_back({b, c, d});
+  }
+  return m;
+}
+
+TEST(FlattenAlbedo, ShadingInsideAMaterialIsFlattenedMaterialsStayApart) {
+  // Beige fading from full light to a third (smoothly: 1 % per vertex), then a blue strip
+  // joined to it (the same vertices' neighbours across the seam).
+  Mesh beige = Strip(300, 0, {0.6f, 0.5f, 0.35f}, 1.0f, 0.33f);
+  Mesh blue = Strip(300, 3.0f, {0.1f, 0.2f, 0.6f}, 0.5f, 0.9f);
+  const int seam_a = 2 * 299, seam_b = 2 * 299 + 1;
+  beige.Append(blue);
+  const int offset = 600;
+  beige.triangles.push_back({seam_a, offset, seam_b});  // connect the strips
+  beige.triangles.push_back({seam_b, offset, offset + 1});
+  AlbedoOptions o;
+  o.min_segment = 50;
+  ASSERT_EQ(FlattenAlbedo(&beige, o), 2);
+  // Each strip is one colour: the mean of its shaded colours.
+  for (int v = 1; v < 600; ++v) EXPECT_TRUE(beige.albedo[v].isApprox(beige.albedo[0], 1e-5f)) << v;
+  for (int v = 601; v < 1200; ++v) EXPECT_TRUE(beige.albedo[v].isApprox(beige.albedo[600], 1e-5f)) << v;
+  const float mean_shade = (1.0f + 0.33f) / 2;
+  EXPECT_NEAR(beige.albedo[0].x(), 0.6f * mean_shade, 1e-3f);
+  EXPECT_NEAR(beige.albedo[600].z(), 0.6f * 0.7f, 1e-3f);
+  // Its chromaticity is kept.
+  EXPECT_NEAR(beige.albedo[0].x() / beige.albedo[0].z(), 0.6f / 0.35f, 1e-3f);
+}
+
+TEST(FlattenAlbedo, AnAbruptBrightnessStepSplitsAndSmallSegmentsKeepTheirColour) {
+  Mesh dark = Strip(100, 0, Eigen::Vector3f::Constant(0.2f), 1, 1);
+  Mesh light = Strip(100, 1.0f, Eigen::Vector3f::Constant(0.8f), 1, 1);
+  Mesh tiny = Strip(5, 5.0f, Eigen::Vector3f(0.9f, 0.1f, 0.1f), 1, 0.5f);
+  dark.Append(light);
+  dark.triangles.push_back({198, 200, 199});  // a grey-level step of 4x across this edge
+  dark.Append(tiny);
+  const std::vector<Eigen::Vector3f> before = dark.albedo;
+  AlbedoOptions o;
+  o.min_segment = 50;
+  EXPECT_EQ(FlattenAlbedo(&dark, o), 2);
+  EXPECT_NEAR(dark.albedo[0].x(), 0.2f, 1e-5f);
+  EXPECT_NEAR(dark.albedo[399].x(), 0.8f, 1e-5f);
+  for (int v = 400; v < 410; ++v) EXPECT_EQ(dark.albedo[v], before[v]) << "segments under min_segment are kept";
+  // Off: nothing changes.
+  Mesh off = Strip(100, 0, {0.6f, 0.5f, 0.35f}, 1.0f, 0.5f);
+  const std::vector<Eigen::Vector3f> original = off.albedo;
+  o.segment = false;
+  EXPECT_EQ(FlattenAlbedo(&off, o), 0);
+  EXPECT_EQ(off.albedo, original);
+}
+
+/// A floor and a wall of one chromaticity, albedos 1.38 apart (the demo's floor and grey
+/// wall), lit so that the colour seen is continuous across their seam: the floor's
+/// irradiance falls from 1 to 0.725 towards the seam, the wall's from 1 at the seam to 0.6.
+struct FloorAndWall {
+  Mesh mesh;
+  std::vector<float> irradiance;
+  static constexpr float kFloor = 0.6f, kRatio = 1.38f;
+  FloorAndWall() {
+    const Eigen::Vector3f tint(1.0f, 0.9f, 0.8f);
+    mesh = Strip(300, 0, tint * kFloor, 1.0f, 0.725f);
+    Mesh wall = Strip(300, 3.0f, tint * (kFloor / kRatio), 1.0f, 0.6f);
+    const int seam_a = 2 * 299, seam_b = 2 * 299 + 1;
+    mesh.Append(wall);
+    mesh.triangles.push_back({seam_a, 600, seam_b});
+    mesh.triangles.push_back({seam_b, 600, 601});
+    mesh.shaded = mesh.albedo;  // Strip made albedo x shading: the colour seen
+    for (int i = 0; i < 300; ++i)
+      for (int k = 0; k < 2; ++k) irradiance.push_back(1.0f - 0.275f * i / 299);
+    for (int i = 0; i < 300; ++i)
+      for (int k = 0; k < 2; ++k) irradiance.push_back(1.0f - 0.4f * i / 299);
+  }
+};
+
+TEST(DelightAlbedo, TwoSurfacesOfOneChromaticityMergedByTheColourSeenAreSplitByTheirIrradiance) {
+  FloorAndWall s;
+  AlbedoOptions o;
+  o.min_segment = 50;
+  Mesh seen = s.mesh;
+  ASSERT_EQ(FlattenAlbedo(&seen, o), 1) << "the colour seen is continuous: one segment";
+  EXPECT_TRUE(seen.albedo[0].isApprox(seen.albedo[1199], 1e-5f));
+
+  AlbedoOptions d = DelitAlbedoOptions();
+  d.min_segment = 50;
+  double before = 0;
+  for (const auto& a : s.mesh.albedo) before += a.sum();
+  ASSERT_EQ(DelightAlbedo(&s.mesh, s.irradiance, d), 2);
+  const Eigen::Vector3f floor = s.mesh.albedo[0], wall = s.mesh.albedo[1199];
+  for (int v = 0; v < 600; ++v) EXPECT_TRUE(s.mesh.albedo[v].isApprox(floor, 1e-5f)) << v;
+  for (int v = 600; v < 1200; ++v) EXPECT_TRUE(s.mesh.albedo[v].isApprox(wall, 1e-5f)) << v;
+  EXPECT_NEAR(floor.sum() / wall.sum(), FloorAndWall::kRatio, 0.005 * FloorAndWall::kRatio);
+  EXPECT_NEAR(floor.x() / floor.z(), 1.0 / 0.8, 1e-3) << "chromaticity kept";
+  double after = 0;
+  for (const auto& a : s.mesh.albedo) after += a.sum();
+  EXPECT_NEAR(after, before, 1e-4 * before) << "the mean albedo (the light's scale) is unchanged";
+}
+
+TEST(DelightAlbedo, NoisyIrradianceStillSplitsAndUnlitVerticesStayFinite) {
+  FloorAndWall s;
+  std::uint32_t state = 12345;
+  for (float& e : s.irradiance) {  // 5 % multiplicative noise (an estimate's Monte Carlo)
+    state = state * 1664525u + 1013904223u;
+    e *= 1.0f + 0.1f * (static_cast<float>(state >> 8) / 16777216.0f - 0.5f);
+  }
+  AlbedoOptions d = DelitAlbedoOptions();
+  d.min_segment = 50;
+  Mesh m = s.mesh;
+  ASSERT_EQ(DelightAlbedo(&m, s.irradiance, d), 2);
+  EXPECT_NEAR(m.albedo[0].sum() / m.albedo[1199].sum(), FloorAndWall::kRatio, 0.03 * FloorAndWall::kRatio);
+
+  // Unlit (0), NaN and negative irradiance: 5 % of the median stands in; the albedo stays
+  // finite and clipped to 0.95 however bright the colour seen.
+  s.irradiance[10] = 0;
+  s.irradiance[11] = std::nanf("");
+  s.irradiance[700] = -1;
+  s.mesh.shaded[12] = Eigen::Vector3f::Constant(50.f);
+  DelightAlbedo(&s.mesh, s.irradiance, d);
+  for (const auto& a : s.mesh.albedo) {
+    EXPECT_TRUE(a.allFinite());
+    EXPECT_LE(a.maxCoeff(), 0.95f);
+    EXPECT_GE(a.minCoeff(), 0.f);
+  }
+  // Nothing lit at all: nothing to divide by, the albedo is left as it was.
+  Mesh dark = s.mesh;
+  const auto kept = dark.albedo;
+  EXPECT_EQ(DelightAlbedo(&dark, std::vector<float>(dark.positions.size(), 0.f), d), 0);
+  EXPECT_EQ(dark.albedo, kept);
+}
+
+}  // namespace
+}  // namespace lp
