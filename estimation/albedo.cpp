@@ -96,10 +96,11 @@ int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const Albedo
   sorted.reserve(n);
   for (float e : irradiance)
     if (std::isfinite(e) && e > 0) sorted.push_back(e);
-  if (sorted.empty()) return 0;  // nothing lit: nothing to divide by
+  if (sorted.empty()) return -1;  // nothing lit: nothing to divide by
   std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
   const float floor = 0.05f * sorted[sorted.size() / 2];
   double before = 0, after = 0;
+  const std::vector<Eigen::Vector3f> old = mesh->albedo;
   for (std::size_t v = 0; v < n; ++v) {
     before += mesh->albedo[v].sum();
     const float e = std::isfinite(irradiance[v]) ? std::max(floor, irradiance[v]) : floor;
@@ -107,7 +108,15 @@ int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const Albedo
   }
   const int segments = FlattenAlbedo(mesh, options);
   for (const Eigen::Vector3f& a : mesh->albedo) after += a.sum();
-  const float scale = after > 0 ? static_cast<float>(before / after) : 1.f;
+  if (!(after > 0) || !std::isfinite(after)) {  // nothing seen (black colours): keep the albedo
+    mesh->albedo = old;
+    return -1;
+  }
+  // The scale stays the reconstruction's (the mean colour seen): it sets the interreflections.
+  // The de-lit colours have a long tail (demo: 90th percentile 0.37, 99th 2.4 at this
+  // scale), which is clipped at 0.95; scaling everything down to fit the tail instead
+  // fitted the demo worse (docs/method.md).
+  const float scale = static_cast<float>(before / after);
   for (Eigen::Vector3f& a : mesh->albedo) a = (a * scale).cwiseMax(0.f).cwiseMin(0.95f);
   return segments;
 }

@@ -33,7 +33,8 @@ AlbedoOptions DelitAlbedoOptions();
 /// unit; below 5 % of the median it is taken as 5 % of the median: unlit vertices) is its
 /// albedo as the estimate explains it; that is segmented and flattened as FlattenAlbedo
 /// does with `options`, scaled so the mean albedo luminance is unchanged (the light's scale
-/// is tied to it), and clipped to [0, 0.95]. Needs mesh->shaded; returns the segments.
+/// is tied to it), and clipped to [0, 0.95]. Needs mesh->shaded; returns the segments, or
+/// -1 when it keeps the albedo as it was (no vertex lit, or every colour seen black).
 int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options = DelitAlbedoOptions());
 
 }  // namespace lp

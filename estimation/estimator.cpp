@@ -217,14 +217,26 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
     Mesh mesh = scene->mesh();
     for (int pass = 1; pass <= opt.albedo_passes; ++pass) {
       check_cancel();
+      if (res.rendered_fraction < 0.01) {  // lights nothing (warned below): no irradiance to divide by
+        progress("albedo pass " + std::to_string(pass) + ": the estimate lights nothing; albedo kept");
+        break;
+      }
+      progress(Fmt("albedo pass %.0f: de-lighting %.0f vertices (%.0f paths each)", pass,
+                   static_cast<double>(mesh.positions.size()), opt.albedo_samples));
       Stopwatch as;
       VertexRadiance radiance(*scene, env, lambda, opt.tracer.bounces, opt.tracer.seed * 7919 + pass);
-      for (int done = 0; done < opt.albedo_samples; done += 16) {
-        radiance.Refine(std::min(16, opt.albedo_samples - done));
+      for (int done = 0; done < opt.albedo_samples; done += 8) {  // Cancel is polled between steps
+        radiance.Refine(std::min(8, opt.albedo_samples - done));
         check_cancel();
       }
       const std::vector<float> irradiance = radiance.Irradiance();
-      res.albedo_segments = DelightAlbedo(&mesh, irradiance);
+      const int segments = DelightAlbedo(&mesh, irradiance);
+      if (segments < 0) {  // an estimate that lights nothing, or colours seen all black
+        progress("albedo pass " + std::to_string(pass) + ": nothing lit or seen to de-light; albedo kept");
+        res.albedo_seconds += as.Seconds();
+        break;
+      }
+      res.albedo_segments = segments;
       scene = std::make_unique<RayTracer>(mesh);
       res.albedo_seconds += as.Seconds();
       res.albedo_passes = pass;
@@ -233,7 +245,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
       const int first = static_cast<int>(res.rounds.size()) + 1;
       run_rounds(first, first + opt.max_rounds - 1);
     }
-    res.albedo = scene->mesh().albedo;
+    if (res.albedo_passes > 0) res.albedo = scene->mesh().albedo;
   }
 
   res.left_out.assign(L, 0);

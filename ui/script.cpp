@@ -147,6 +147,7 @@ bool ScriptRunner::Run(const ScriptLine& line) {
         else if (key == "bounces") o.tracer.bounces = static_cast<int>(x);
         else if (key == "rounds") o.max_rounds = static_cast<int>(x);
         else if (key == "render-spp") o.render_spp = static_cast<int>(x);
+        else if (key == "albedo-passes") o.albedo_passes = static_cast<int>(x);
         else if (key == "alpha") o.objective.alpha = x;
         else if (key == "beta") o.objective.beta = x;
         else if (key == "sigma") o.objective.sigma = x;

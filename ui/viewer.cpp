@@ -196,7 +196,13 @@ void Viewer::SyncModel() {
 void Viewer::SyncShading() {
   if (!shown_mesh_) return;
   const bool lit_ready = showing_snapshot_ && est_.lit && est_.lit->size() == shown_mesh_->positions.size();
-  if (shading_ == shaded_ && (shading_ == Shading::kAlbedo || shading_ == Shading::kNormals)) return;
+  // The albedo the estimate was made under, when it refined the reconstruction's (de-lit).
+  const std::vector<Eigen::Vector3f>* refined =
+      showing_snapshot_ && est_.result && est_.result->albedo.size() == shown_mesh_->positions.size()
+          ? &est_.result->albedo
+          : nullptr;
+  if (shading_ == shaded_ && shading_ == Shading::kNormals) return;
+  if (shading_ == shaded_ && shading_ == Shading::kAlbedo && shown_refined_albedo_ == (refined != nullptr)) return;
   if ((shading_ == Shading::kLit || shading_ == Shading::kError) && shading_ == shaded_ &&
       est_.lit_version == lit_version_)
     return;
@@ -214,8 +220,9 @@ void Viewer::SyncShading() {
       colors[i] = std::isnan(e) ? Eigen::Vector3f::Constant(0.05f) : Eigen::Vector3f(h.array().pow(2.2f));
     }
   } else {
-    colors = shown_mesh_->albedo;
+    colors = shading_ == Shading::kAlbedo && refined ? *refined : shown_mesh_->albedo;
   }
+  shown_refined_albedo_ = shading_ == Shading::kAlbedo && refined;
   colors.resize(shown_mesh_->positions.size(), Eigen::Vector3f::Constant(0.5f));
   mesh_.SetColors(colors);
   if (has_coarse_)
@@ -512,6 +519,9 @@ void Viewer::PanelEstimate() {
     ImGui::SliderInt("samples/pixel", &settings_.tracer.spp, 8, 256);
     ImGui::SliderInt("bounces", &settings_.tracer.bounces, 1, 5);
     ImGui::SliderInt("rounds", &settings_.max_rounds, 1, 6);
+    ImGui::SliderInt("albedo passes", &settings_.albedo_passes, 0, 3);
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("refine the reconstruction's albedo under the estimate (de-lit colours), then more rounds");
     float alpha = static_cast<float>(settings_.objective.alpha), beta = static_cast<float>(settings_.objective.beta),
           sigma = static_cast<float>(settings_.objective.sigma);
     if (ImGui::InputFloat("alpha", &alpha, 0, 0, "%.4g")) settings_.objective.alpha = std::max(0.f, alpha);
@@ -750,6 +760,8 @@ void Viewer::WriteState(const std::string& path) const {
                    {"message", est_.message},
                    {"rows", est_.rows.size()},
                    {"rounds", est_.result ? est_.result->rounds.size() : 0},
+                   {"albedo_refined", est_.result && !est_.result->albedo.empty()},
+                   {"albedo_shading_refined", shading_ == Shading::kAlbedo && shown_refined_albedo_},
                    {"lit_samples", est_.lit_samples},
                    {"seconds_to_first", std::isnan(est_.seconds_to_first) ? json() : json(est_.seconds_to_first)},
                    {"seconds_total", std::isnan(est_.seconds_total) ? json() : json(est_.seconds_total)},

@@ -86,6 +86,7 @@ class Viewer {
   Texture color_tex_, depth_tex_, env_tex_;
   std::array<Texture, 3> compare_tex_;  // reference, render, error of the selected keyframe
   std::uint64_t model_version_ = ~0ull, frame_version_ = ~0ull, env_version_ = ~0ull, lit_version_ = ~0ull;
+  bool shown_refined_albedo_ = false;  ///< the albedo shading shows the estimate's refined albedo
   std::shared_ptr<const Mesh> shown_mesh_;   // geometry in mesh_
   bool showing_snapshot_ = false;            // mesh_ holds the estimate's scene mesh
   Shading shading_ = Shading::kAlbedo, shaded_ = Shading::kAlbedo;

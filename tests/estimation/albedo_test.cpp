@@ -143,8 +143,13 @@ TEST(DelightAlbedo, NoisyIrradianceStillSplitsAndUnlitVerticesStayFinite) {
   // Nothing lit at all: nothing to divide by, the albedo is left as it was.
   Mesh dark = s.mesh;
   const auto kept = dark.albedo;
-  EXPECT_EQ(DelightAlbedo(&dark, std::vector<float>(dark.positions.size(), 0.f), d), 0);
+  EXPECT_EQ(DelightAlbedo(&dark, std::vector<float>(dark.positions.size(), 0.f), d), -1);
   EXPECT_EQ(dark.albedo, kept);
+  // Nothing seen (every colour seen black, a hand-made bundle): the same, not a black mesh.
+  Mesh unseen = s.mesh;
+  for (auto& c : unseen.shaded) c.setZero();
+  EXPECT_EQ(DelightAlbedo(&unseen, s.irradiance, d), -1);
+  EXPECT_EQ(unseen.albedo, kept);
 }
 
 }  // namespace

@@ -87,6 +87,10 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
                            "shading normals\n"
                            "frames 3\n"
                            "screenshot " << (a / "6-normals.png").string() << "\n"
+                           "shading albedo\n"
+                           "frames 3\n"
+                           "screenshot " << (a / "6-albedo-refined.png").string() << "\n"
+                           "state " << (a / "6-albedo.json").string() << "\n"
                            "shading lit\n"
                            "frames 3\n"
                            "screenshot " << (a / "6-lit-again.png").string() << "\n"
@@ -134,6 +138,11 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
   EXPECT_GT(std::abs(Stats(normals, view).mean - Stats(lit_again, view).mean) +
                 std::abs(Stats(normals, view).stddev - Stats(lit_again, view).stddev),
             2);
+  // The estimate refined the reconstruction's albedo (de-lit), and the albedo shading shows it.
+  EXPECT_TRUE(lit["estimate"]["albedo_refined"].get<bool>());
+  const nlohmann::json albedo = ReadJson(a / "6-albedo.json");
+  EXPECT_TRUE(albedo["estimate"]["albedo_shading_refined"].get<bool>());
+  EXPECT_GT(Stats(ReadRgb8(a / "6-albedo-refined.png"), view).distinct, 0.02) << "the de-lit albedo is drawn";
   // The keyframe window (reference | relit | error) covers part of the 3D view.
   const ImageRgb8 keyframe = ReadRgb8(a / "5-error-keyframe.png");
   EXPECT_GT(Stats(keyframe, nlohmann::json::array({view[0].get<float>() + 10, 85.f, 740.f, 175.f})).stddev, 20);
