@@ -78,6 +78,7 @@ static void WriteConvergencePlot(const fs::path& path, const std::vector<Converg
     // at other scales: each its own series.
     std::string label = "round " + std::to_string(row.round);
     if (row.sigma != rows.back().sigma) label += ", sigma " + Num(row.sigma);
+    if (row.albedo_pass > 0) label += ", albedo pass " + std::to_string(row.albedo_pass);
     for (PlotPanel* p : {&rmse, &objective, &angle})
       if (p->series.empty() || p->series.back().label != label) p->series.push_back({label, {}, {}, true, true});
     rmse.series.back().x.push_back(row.wall_seconds);
@@ -117,11 +118,11 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
   WriteTextAtomically(out / "envmap_directions.csv", dirs.str());
 
   std::ostringstream conv;
-  conv << "wall_seconds,round,iteration,objective,photometric_rmse,relative_rmse,angular_error_deg,sigma\n";
+  conv << "wall_seconds,round,iteration,objective,photometric_rmse,relative_rmse,angular_error_deg,sigma,albedo_pass\n";
   for (const auto& row : r.convergence)
     conv << Num(row.wall_seconds) << ',' << row.round << ',' << row.iteration << ',' << Num(row.objective) << ','
          << Num(row.photometric_rmse) << ',' << Num(row.relative_rmse) << ',' << Num(row.angular_error_deg) << ','
-         << Num(row.sigma) << '\n';
+         << Num(row.sigma) << ',' << row.albedo_pass << '\n';
   WriteTextAtomically(out / "convergence.csv", conv.str());
   WriteConvergencePlot(out / "convergence.png", r.convergence);
 
@@ -256,8 +257,8 @@ Run AddEstimate(CLI::App& app) {
                 sw.Seconds(), r.final_relative_rmse);
     if (!std::isnan(r.final_angular_error_deg)) std::printf("; dominant light error %.2f deg", r.final_angular_error_deg);
     std::printf("\nresults in %s (envmap.exr, envmap_directions.csv, render_view*.png, error_view*.png, "
-                "convergence.csv/.png, report.json)\n",
-                fs::absolute(*out).lexically_normal().c_str());
+                "convergence.csv/.png, report.json%s)\n",
+                fs::absolute(*out).lexically_normal().c_str(), r.albedo.empty() ? "" : ", albedo_mesh.ply");
     std::fflush(stdout);
     for (const std::string& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());
   };

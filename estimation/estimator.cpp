@@ -79,6 +79,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
   std::vector<double> lambda(3 * L, 1e-3);
   std::vector<std::uint8_t> reachable(L, 1);
   TransportMatrix A;
+  int albedo_pass = 0;  // the albedo the rounds run under (convergence rows say which)
   // Rounds first..last under the current scene's albedo: round 1 is the cold start; a
   // later pass is warm-started from the estimate so far, with an A of its own.
   auto run_rounds = [&](int first, int last) {
@@ -141,6 +142,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
       row.round = round;
       row.iteration = iteration_offset + it.iteration;
       row.sigma = step_sigma;
+      row.albedo_pass = albedo_pass;
       row.objective = it.objective;
       row.relative_rmse = it.Rmse();
       row.photometric_rmse = row.relative_rmse * mean;
@@ -239,7 +241,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
       res.albedo_segments = segments;
       scene = std::make_unique<RayTracer>(mesh);
       res.albedo_seconds += as.Seconds();
-      res.albedo_passes = pass;
+      res.albedo_passes = albedo_pass = pass;
       progress(Fmt("albedo pass %.0f: de-lit %.0f vertices into %.0f segments in %.2f s", pass,
                    static_cast<double>(mesh.positions.size()), res.albedo_segments, as.Seconds()));
       const int first = static_cast<int>(res.rounds.size()) + 1;

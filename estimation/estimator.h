@@ -78,6 +78,8 @@ struct ConvergenceRow {
   /// The Cauchy scale this iteration's objective is measured at (round 1 steps down to
   /// the requested one from kGraduatedSigmaStart; objectives at different scales differ).
   double sigma = 0;
+  /// The albedo pass the round runs under (0: the bundle's albedo; see albedo_passes).
+  int albedo_pass = 0;
 };
 
 struct RoundInfo {

@@ -28,6 +28,9 @@ awk -v e="$err" 'BEGIN { exit !(e < 10) }' || { echo "dominant light error $err 
 grep -a -q "property float shaded_red" "$out/scene/mesh.ply" || { echo "mesh.ply without the colours seen"; exit 1; }
 grep -q "albedo pass 1: de-lit" "$out/log" && grep -q '"refined": true' "$out/h/estimate/report.json" &&
   [ -s "$out/h/estimate/albedo_mesh.ply" ] || { echo "albedo refinement did not run"; exit 1; }
+# Its rounds are logged as such (error against run time through the refinement).
+head -1 "$out/h/estimate/convergence.csv" | grep -q ",albedo_pass$" && grep -q ",0$" "$out/h/estimate/convergence.csv" &&
+  grep -q ",1$" "$out/h/estimate/convergence.csv" || { echo "convergence.csv without the albedo pass"; exit 1; }
 "$exe" estimate "$out/scene" --out "$out/off" --albedo-passes 0 --max-rounds 1 --spp 8 --render-spp 8 --rings 9 \
   >"$out/olog" 2>&1 || { cat "$out/olog"; exit 1; }
 grep -q '"why_not": "--albedo-passes 0"' "$out/off/report.json" && [ ! -e "$out/off/albedo_mesh.ply" ] ||
