@@ -193,7 +193,7 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
     WritePly(out / "albedo_mesh.ply", mesh);
     rep["albedo"]["mesh"] = "albedo_mesh.ply";
   } else {
-    rep["albedo"]["why_not"] = o.albedo_passes == 0      ? "--albedo-passes 0"
+    rep["albedo"]["why_not"] = o.albedo_passes <= 0      ? "--albedo-passes 0"
                                : bundle.mesh.shaded.empty() ? "the bundle's albedo is known (its mesh has no shaded colours)"
                                                             : "the estimate lights nothing, or every colour seen is black";
   }

@@ -102,7 +102,7 @@ int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const Albedo
   double before = 0, after = 0;
   const std::vector<Eigen::Vector3f> old = mesh->albedo;
   for (std::size_t v = 0; v < n; ++v) {
-    before += mesh->albedo[v].sum();
+    before += mesh->shaded[v].sum();  // the scale of the colours seen, whatever earlier passes did
     const float e = std::isfinite(irradiance[v]) ? std::max(floor, irradiance[v]) : floor;
     mesh->albedo[v] = mesh->shaded[v] / e;  // grey: the colour seen keeps its chromaticity
   }
@@ -112,7 +112,8 @@ int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const Albedo
     mesh->albedo = old;
     return -1;
   }
-  // The scale stays the reconstruction's (the mean colour seen): it sets the interreflections.
+  // The scale stays the reconstruction's (the mean colour seen, which flattening keeps): it
+  // sets the interreflections.
   // The de-lit colours have a long tail (demo: 90th percentile 0.37, 99th 2.4 at this
   // scale), which is clipped at 0.95; scaling everything down to fit the tail instead
   // fitted the demo worse (docs/method.md).

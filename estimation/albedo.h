@@ -32,8 +32,9 @@ AlbedoOptions DelitAlbedoOptions();
 /// vertex's `shaded` colour divided by its grey irradiance `irradiance[v]` (any positive
 /// unit; below 5 % of the median it is taken as 5 % of the median: unlit vertices) is its
 /// albedo as the estimate explains it; that is segmented and flattened as FlattenAlbedo
-/// does with `options`, scaled so the mean albedo luminance is unchanged (the light's scale
-/// is tied to it), and clipped to [0, 0.95]. Needs mesh->shaded; returns the segments, or
+/// does with `options`, scaled so its mean luminance is that of the colours seen (as the
+/// reconstruction's flattened albedo; the light's scale and the interreflections are tied
+/// to it, and a second pass starts from the same scale), and clipped to [0, 0.95]. Needs mesh->shaded; returns the segments, or
 /// -1 when it keeps the albedo as it was (no vertex lit, or every colour seen black).
 int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options = DelitAlbedoOptions());
 

@@ -226,12 +226,15 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
       progress(Fmt("albedo pass %.0f: de-lighting %.0f vertices (%.0f paths each)", pass,
                    static_cast<double>(mesh.positions.size()), opt.albedo_samples));
       Stopwatch as;
-      VertexRadiance radiance(*scene, env, lambda, opt.tracer.bounces, opt.tracer.seed * 7919 + pass);
-      for (int done = 0; done < opt.albedo_samples; done += 8) {  // Cancel is polled between steps
-        radiance.Refine(std::min(8, opt.albedo_samples - done));
-        check_cancel();
-      }
-      const std::vector<float> irradiance = radiance.Irradiance();
+      std::vector<float> irradiance;
+      {
+        VertexRadiance radiance(*scene, env, lambda, opt.tracer.bounces, opt.tracer.seed * 7919 + pass);
+        for (int done = 0; done < opt.albedo_samples; done += 2) {  // Cancel is polled between steps
+          radiance.Refine(std::min(2, opt.albedo_samples - done));     // (~0.4 s each on the demo)
+          check_cancel();
+        }
+        irradiance = radiance.Irradiance();
+      }  // before the scene it refers to is replaced
       const int segments = DelightAlbedo(&mesh, irradiance);
       if (segments < 0) {  // an estimate that lights nothing, or colours seen all black
         progress("albedo pass " + std::to_string(pass) + ": nothing lit or seen to de-light; albedo kept");

@@ -14,7 +14,7 @@ struct Mesh {
   std::vector<Eigen::Vector3f> normals;    ///< unit, per vertex; empty = computed on load
   std::vector<Eigen::Vector3f> albedo;     ///< linear RGB in [0, 1], per vertex
   /// Optional, per vertex: the colour the camera saw (linear RGB in image units, shading
-  /// included), when `albedo` was derived from it (a reconstruction). The estimator then
+  /// included; a reconstruction fuses it in [0, 1]), when `albedo` was derived from it. The estimator then
   /// de-lights it under its estimate to refine the albedo (estimation/albedo.h); empty when
   /// the albedo is known.
   std::vector<Eigen::Vector3f> shaded;

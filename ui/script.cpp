@@ -1,5 +1,6 @@
 // The viewer's command file (docs/viewer.md): drives the window as a user would, one
 // command per line, for tests and benchmarks. Commands that wait keep the window live.
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <map>
@@ -147,7 +148,10 @@ bool ScriptRunner::Run(const ScriptLine& line) {
         else if (key == "bounces") o.tracer.bounces = static_cast<int>(x);
         else if (key == "rounds") o.max_rounds = static_cast<int>(x);
         else if (key == "render-spp") o.render_spp = static_cast<int>(x);
-        else if (key == "albedo-passes") o.albedo_passes = static_cast<int>(x);
+        else if (key == "albedo-passes") {
+          if (x < 0 || x > 5 || x != std::floor(x)) Fail(line, "albedo-passes is 0 .. 5, not " + value.words[0]);
+          o.albedo_passes = static_cast<int>(x);
+        }
         else if (key == "alpha") o.objective.alpha = x;
         else if (key == "beta") o.objective.beta = x;
         else if (key == "sigma") o.objective.sigma = x;

@@ -128,6 +128,19 @@ TEST(DelightAlbedo, NoisyIrradianceStillSplitsAndUnlitVerticesStayFinite) {
   ASSERT_EQ(DelightAlbedo(&m, s.irradiance, d), 2);
   EXPECT_NEAR(m.albedo[0].sum() / m.albedo[1199].sum(), FloorAndWall::kRatio, 0.03 * FloorAndWall::kRatio);
 
+  // A second pass from the first's output keeps the scale of the colours seen, clipped
+  // values and all: a dim patch (a tenth of the irradiance) de-lights past 0.95.
+  {
+    Mesh twice = s.mesh;
+    std::vector<float> irradiance = s.irradiance;
+    for (int v = 0; v < 60; ++v) irradiance[v] *= 0.1f;
+    ASSERT_GE(DelightAlbedo(&twice, irradiance, d), 2);
+    EXPECT_FLOAT_EQ(twice.albedo[0].maxCoeff(), 0.95f) << "the patch is clipped";
+    const std::vector<Eigen::Vector3f> first = twice.albedo;
+    DelightAlbedo(&twice, irradiance, d);
+    for (std::size_t v = 0; v < first.size(); ++v) ASSERT_TRUE(twice.albedo[v].isApprox(first[v], 1e-5f)) << v;
+  }
+
   // Unlit (0), NaN and negative irradiance: 5 % of the median stands in; the albedo stays
   // finite and clipped to 0.95 however bright the colour seen.
   s.irradiance[10] = 0;

@@ -237,6 +237,10 @@ TEST(Ply, ShadedColoursRoundTripAndAreOptional) {
   Mesh appended = m;
   appended.Append(UvSphere({3, 0, 0}, 1, {0.4f, 0.5f, 0.6f}, 6, 8));
   EXPECT_TRUE(appended.shaded.empty()) << "half a mesh's colours seen are none";
+  Mesh both = m;
+  both.Append(m);
+  ASSERT_EQ(both.shaded.size(), 2 * m.shaded.size());
+  EXPECT_EQ(both.shaded.back(), m.shaded.back());
 }
 
 TEST(Ply, ReadsTheRealFragment) {

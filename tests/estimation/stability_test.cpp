@@ -493,7 +493,7 @@ TEST(Stability, AlbedoRefinementComesCloserToTheTrueAlbedo) {
 
 // An estimate that lights nothing has no irradiance to de-light by: the albedo is kept, and
 // the warning says why the map is dark.
-TEST(Stability, AlbedoRefinementOfAnEstimateThatLightsNothingKeepsTheAlbedo) {
+TEST(Stability, AlbedoRefinementWithNothingLitOrSeenKeepsTheAlbedo) {
   SceneBundle b = Room();
   const EnvMap env(9, b.up);
   const std::vector<double> truth = Cells(env, {{CellAt(env, 30, 50), 2.0}});
@@ -506,6 +506,13 @@ TEST(Stability, AlbedoRefinementOfAnEstimateThatLightsNothingKeepsTheAlbedo) {
   EXPECT_TRUE(r.albedo.empty());
   EXPECT_EQ(r.albedo_passes, 0);
   EXPECT_EQ(r.warnings.size(), 1u);
+  // A lit estimate but every colour seen black (a hand-made bundle): nothing to de-light.
+  for (auto& c : b.mesh.shaded) c.setZero();
+  const EstimateResult black = Estimate(b, Small());
+  ExpectHealthy(black);
+  EXPECT_TRUE(black.albedo.empty());
+  EXPECT_EQ(black.albedo_passes, 0);
+  EXPECT_GT(black.rendered_fraction, 0.5);
 }
 
 }  // namespace
