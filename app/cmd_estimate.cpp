@@ -50,6 +50,9 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
                  "go on; 0 = keep the bundle's albedo)")
       ->capture_default_str()
       ->check(CLI::Range(0, 5));
+  cmd.add_option("--albedo-samples", o->albedo_samples, "paths per vertex for the irradiance an albedo pass de-lights by")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 4096));
   cmd.add_option("--render-spp", o->render_spp, "samples per pixel of the final relit render (0 = --spp)")
       ->capture_default_str();
   cmd.add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();

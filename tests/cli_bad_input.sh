@@ -28,6 +28,8 @@ expect "unknown solver" "$exe" estimate "$tmp/s" --out "$tmp/o" --solver newton 
 expect "unknown synthetic scene" "$exe" synth nope --out "$tmp/x"
 expect "exactly one of --envmap or --uniform" "$exe" render "$tmp/s" --out "$tmp/o"
 expect "nee-floor: Value 2 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --nee-floor 2 --quiet
+expect "albedo-passes: Value 9 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --albedo-passes 9 --quiet
+expect "albedo-samples: Value 0 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --albedo-samples 0 --quiet
 expect "smooth: Value -1 not in range" "$exe" reconstruct "$tmp/nope" --out "$tmp/o" --smooth -1
 expect "unknown-flag" "$exe" estimate "$tmp/s" --out "$tmp/o" --unknown-flag
 # A valid scene with bad settings: refused before any work (a negative sigma once looped).
