@@ -196,9 +196,7 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
     WritePly(out / "albedo_mesh.ply", mesh);
     rep["albedo"]["mesh"] = "albedo_mesh.ply";
   } else {
-    rep["albedo"]["why_not"] = o.albedo_passes <= 0      ? "--albedo-passes 0"
-                               : bundle.mesh.shaded.empty() ? "the bundle's albedo is known (its mesh has no shaded colours)"
-                                                            : "the estimate lights nothing, or every colour seen is black";
+    rep["albedo"]["why_not"] = r.albedo_left_out;
   }
   rep["left_out"] = {{"directions_unreached", left_out},
                      {"pixels_not_traced", r.trace.pixels_skipped},

@@ -99,19 +99,15 @@ int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const Albedo
   if (sorted.empty()) return -1;  // nothing lit: nothing to divide by
   std::nth_element(sorted.begin(), sorted.begin() + sorted.size() / 2, sorted.end());
   const float floor = 0.05f * sorted[sorted.size() / 2];
-  double before = 0, after = 0;
-  const std::vector<Eigen::Vector3f> old = mesh->albedo;
+  double before = 0, after = 0;  // the scale of the colours seen, whatever earlier passes did
+  for (const Eigen::Vector3f& c : mesh->shaded) before += c.sum();
+  if (!(before > 0) || !std::isfinite(before)) return -1;  // nothing seen (black colours)
   for (std::size_t v = 0; v < n; ++v) {
-    before += mesh->shaded[v].sum();  // the scale of the colours seen, whatever earlier passes did
     const float e = std::isfinite(irradiance[v]) ? std::max(floor, irradiance[v]) : floor;
     mesh->albedo[v] = mesh->shaded[v] / e;  // grey: the colour seen keeps its chromaticity
   }
-  const int segments = FlattenAlbedo(mesh, options);
+  const int segments = FlattenAlbedo(mesh, options);  // keeps each segment's sum: after > 0
   for (const Eigen::Vector3f& a : mesh->albedo) after += a.sum();
-  if (!(after > 0) || !std::isfinite(after)) {  // nothing seen (black colours): keep the albedo
-    mesh->albedo = old;
-    return -1;
-  }
   // The scale stays the reconstruction's (the mean colour seen, which flattening keeps): it
   // sets the interreflections.
   // The de-lit colours have a long tail (demo: 90th percentile 0.37, 99th 2.4 at this

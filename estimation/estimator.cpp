@@ -79,7 +79,6 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
   std::vector<double> lambda(3 * L, 1e-3);
   std::vector<std::uint8_t> reachable(L, 1);
   TransportMatrix A;
-  int albedo_pass = 0;  // the albedo the rounds run under (convergence rows say which)
   // Rounds first..last under the current scene's albedo: round 1 is the cold start; a
   // later pass is warm-started from the estimate so far, with an A of its own.
   auto run_rounds = [&](int first, int last) {
@@ -142,7 +141,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
       row.round = round;
       row.iteration = iteration_offset + it.iteration;
       row.sigma = step_sigma;
-      row.albedo_pass = albedo_pass;
+      row.albedo_pass = res.albedo_passes;  // the albedo the rounds run under
       row.objective = it.objective;
       row.relative_rmse = it.Rmse();
       row.photometric_rmse = row.relative_rmse * mean;
@@ -215,17 +214,19 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
   // two surfaces of one chromaticity share one albedo). Divided by the estimate's
   // irradiance, the colour seen is the albedo the estimate implies; segmented again (now
   // a brightness step is a material's) it is the albedo the next rounds are solved under.
-  if (opt.albedo_passes > 0 && bundle.mesh.shaded.size() == bundle.mesh.positions.size()) {
-    Mesh mesh = scene->mesh();
-    for (int pass = 1; pass <= opt.albedo_passes; ++pass) {
-      check_cancel();
-      if (res.rendered_fraction < 0.01) {  // lights nothing (warned below): no irradiance to divide by
-        progress("albedo pass " + std::to_string(pass) + ": the estimate lights nothing; albedo kept");
-        break;
-      }
+  const char* kNothingToDivide = "the estimate lights nothing, or every colour seen is black";
+  if (opt.albedo_passes <= 0) res.albedo_left_out = "--albedo-passes 0";
+  else if (bundle.mesh.shaded.size() != bundle.mesh.positions.size())
+    res.albedo_left_out = "the bundle's albedo is known (its mesh has no shaded colours)";
+  Mesh mesh;
+  if (res.albedo_left_out.empty()) mesh = scene->mesh();
+  for (int pass = 1; res.albedo_left_out.empty() && pass <= opt.albedo_passes; ++pass) {
+    check_cancel();
+    Stopwatch as;
+    int segments = -1;  // an estimate that lights nothing (warned below) has no irradiance
+    if (res.rendered_fraction >= 0.01) {
       progress(Fmt("albedo pass %.0f: de-lighting %.0f vertices (%.0f paths each)", pass,
                    static_cast<double>(mesh.positions.size()), opt.albedo_samples));
-      Stopwatch as;
       std::vector<float> irradiance;
       {
         VertexRadiance radiance(*scene, env, lambda, opt.tracer.bounces, opt.tracer.seed * 7919 + pass);
@@ -235,23 +236,23 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& opt) {
         }
         irradiance = radiance.Irradiance();
       }  // before the scene it refers to is replaced
-      const int segments = DelightAlbedo(&mesh, irradiance);
-      if (segments < 0) {  // an estimate that lights nothing, or colours seen all black
-        progress("albedo pass " + std::to_string(pass) + ": nothing lit or seen to de-light; albedo kept");
-        res.albedo_seconds += as.Seconds();
-        break;
-      }
-      res.albedo_segments = segments;
-      scene = std::make_unique<RayTracer>(mesh);
-      res.albedo_seconds += as.Seconds();
-      res.albedo_passes = albedo_pass = pass;
-      progress(Fmt("albedo pass %.0f: de-lit %.0f vertices into %.0f segments in %.2f s", pass,
-                   static_cast<double>(mesh.positions.size()), res.albedo_segments, as.Seconds()));
-      const int first = static_cast<int>(res.rounds.size()) + 1;
-      run_rounds(first, first + opt.max_rounds - 1);
+      segments = DelightAlbedo(&mesh, irradiance);
     }
-    if (res.albedo_passes > 0) res.albedo = scene->mesh().albedo;
+    res.albedo_seconds += as.Seconds();
+    if (segments < 0) {
+      if (res.albedo_passes == 0) res.albedo_left_out = kNothingToDivide;
+      progress("albedo pass " + std::to_string(pass) + ": " + kNothingToDivide + "; albedo kept");
+      break;
+    }
+    res.albedo_segments = segments;
+    scene = std::make_unique<RayTracer>(mesh);
+    res.albedo_passes = pass;
+    progress(Fmt("albedo pass %.0f: de-lit %.0f vertices into %.0f segments in %.2f s", pass,
+                 static_cast<double>(mesh.positions.size()), segments, as.Seconds()));
+    const int first = static_cast<int>(res.rounds.size()) + 1;
+    run_rounds(first, first + opt.max_rounds - 1);
   }
+  if (res.albedo_passes > 0) res.albedo = scene->mesh().albedo;
 
   res.left_out.assign(L, 0);
   for (int j = 0; j < L; ++j) res.left_out[j] = !reachable[j];

@@ -122,6 +122,7 @@ struct EstimateResult {
   std::vector<Eigen::Vector3f> albedo;
   int albedo_passes = 0, albedo_segments = 0;
   double albedo_seconds = 0;  ///< de-lighting and segmenting (the extra rounds are in `rounds`)
+  std::string albedo_left_out;  ///< why the albedo was not refined (empty when it was)
 };
 
 /// Runs the estimate on a loaded bundle. Throws InputError when nothing usable is
