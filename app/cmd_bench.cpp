@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <sstream>
 
 #include "app/commands.h"
@@ -16,7 +17,7 @@
 #include "common/parallel.h"
 #include "common/timer.h"
 #include "estimation/path_tracer.h"
-#include "estimation/ray_tracer.h"
+#include "scene/ray_tracer.h"
 #include "estimation/synth.h"
 
 namespace lp::app {
@@ -120,6 +121,182 @@ void ReplayBench(const fs::path& out, const Row& row) {
   }
 }
 
+struct BenchOptions {
+  std::string out = "out/bench";
+  std::vector<std::string> sizes = {"160x120", "320x240"};
+  double cap = 120;  ///< seconds the gradient solver may run per problem
+  EstimateOptions estimate;
+  std::string solver = "fast";
+  int threads = 0;
+  std::vector<std::string> parts = {"estimate", "solvers", "fd"};
+
+  bool Want(const char* part) const { return std::find(parts.begin(), parts.end(), part) != parts.end(); }
+};
+
+/// bench.md and bench.csv, one row per measurement (each row printed as it comes), and
+/// solver_traces.csv.
+class BenchTables {
+ public:
+  BenchTables() {
+    traces_ << "size,solver,seconds,objective\n";
+    csv_ << "size,method,seconds,relative_rmse,angular_error_deg,note\n";
+    md_ << "| size | method | seconds | relative RMSE | light error (deg) | note |\n|---|---|---|---|---|---|\n";
+  }
+
+  void Row(const std::string& size, const std::string& method, double s, double rmse, double ang,
+           const std::string& note) {
+    char buf[512];
+    std::snprintf(buf, sizeof buf, "| %s | %s | %.2f | %.4f | %.2f | %s |\n", size.c_str(), method.c_str(), s, rmse,
+                  ang, note.c_str());
+    md_ << buf;
+    csv_ << size << ',' << method << ',' << s << ',' << rmse << ',' << ang << ',' << note << '\n';
+    std::fputs(buf, stdout);
+    std::fflush(stdout);
+  }
+
+  /// Row as the benchmarks in other files take it.
+  BenchRow row() {
+    return [this](const std::string& size, const std::string& method, double s, double rmse, double ang,
+                  const std::string& note) { Row(size, method, s, rmse, ang, note); };
+  }
+
+  void Trace(const std::string& size, const char* solver, double seconds, double objective) {
+    traces_ << size << ',' << solver << ',' << seconds << ',' << Num(objective) << '\n';
+  }
+
+  void Write(const fs::path& out) const {
+    WriteTextAtomically(out / "bench.md", md_.str());
+    WriteTextAtomically(out / "bench.csv", csv_.str());
+    WriteTextAtomically(out / "solver_traces.csv", traces_.str());
+  }
+
+ private:
+  std::ostringstream md_, csv_, traces_;
+};
+
+/// 1. Full estimates (trace + solve, all sMC rounds), each solver.
+void BenchEstimates(const BenchOptions& o, const std::string& size, const SceneBundle& b, BenchTables* tables) {
+  for (SolverKind kind : {SolverKind::kFast, SolverKind::kGradient}) {
+    EstimateOptions eo = o.estimate;
+    eo.solver = kind;
+    eo.render = false;
+    eo.solver_options.max_seconds = o.cap;
+    Stopwatch sw;
+    const EstimateResult r = Estimate(b, eo);
+    tables->Row(size, std::string("estimate, ") + ToString(kind) + " solver", sw.Seconds(), r.final_relative_rmse,
+                r.final_angular_error_deg, std::to_string(r.rounds.size()) + " sMC rounds");
+  }
+}
+
+/// The objective as Estimate sets it up: alpha per 19,200 observed pixels, cells weighted by
+/// solid angle.
+ObjectiveParams EstimateObjectiveParams(const EstimateOptions& o, const EnvMap& env, const LinearProblem& problem) {
+  ObjectiveParams params = o.objective;
+  params.alpha *= problem.rows() / kAlphaReferencePixels;
+  params.cell_weight.resize(problem.unknown_cells);
+  for (int k = 0; k < problem.unknown_cells; ++k)
+    params.cell_weight[k] = env.solid_angle(problem.cell_of[k]) / kAlphaReferenceSolidAngle;
+  return params;
+}
+
+/// 2. Solvers on the same A (one round's trace). Each solver runs once to its own
+/// convergence (or the cap); the target is the worst of their final objectives (+1e-6
+/// relative), a value every one of them reaches: the objective is non-convex and they can
+/// stop in different minima.
+void BenchSolvers(const BenchOptions& o, const std::string& size, const EnvMap& env, const LinearProblem& problem,
+                  BenchTables* tables) {
+  const ObjectiveParams params = EstimateObjectiveParams(o.estimate, env, problem);
+  const Objective obj(problem, params);
+  struct Entry {
+    const char* name;
+    SolverTiming t;
+  };
+  std::vector<Entry> runs = {
+      {"fast", TimeSolver(SolverKind::kFast, obj, o.cap)},
+      {"gradient", TimeSolver(SolverKind::kGradient, obj, o.cap)},
+      {"gradient, adaptive step", TimeSolver(SolverKind::kGradient, obj, o.cap, true)},
+  };
+  double worst = -1e300, best = 1e300;
+  for (const Entry& e : runs) {
+    worst = std::max(worst, e.t.final_objective);
+    best = std::min(best, e.t.final_objective);
+  }
+  const double target = worst * (1 + 1e-6);
+  double fast_seconds = 0;
+  for (Entry& e : runs) {
+    for (const auto& [sec, obj_value] : e.t.trace) {
+      tables->Trace(size, e.name, sec, obj_value);
+      if (e.t.seconds_to_target < 0 && obj_value <= target) e.t.seconds_to_target = sec;
+    }
+    if (e.t.seconds_to_target < 0) e.t.seconds_to_target = e.t.total_seconds;
+    if (&e == &runs[0]) fast_seconds = e.t.seconds_to_target;
+    char note[256];
+    std::snprintf(note, sizeof note,
+                  "%d iterations; %.1fx the fast solver; final E/E_best - 1 = %.1e after %.2f s, KKT %.1e",
+                  e.t.iterations, e.t.seconds_to_target / std::max(1e-9, fast_seconds),
+                  e.t.final_objective / best - 1, e.t.total_seconds, e.t.kkt);
+    tables->Row(size, std::string(e.name) + " solver to E_common", e.t.seconds_to_target, 0, NAN, note);
+  }
+}
+
+/// 3. Finite-difference Jacobian: one render per unknown cell plus the base render (common
+/// random numbers and frozen importance make it exact for a linear render), extrapolated
+/// from a few measured renders and compared with one trace of A (trace_s seconds).
+void BenchFd(const BenchOptions& o, const std::string& size, const RayTracer& scene, const EnvMap& env,
+             const SceneBundle& b, double trace_s, BenchTables* tables) {
+  const int probes = 3;
+  const double per_render = SecondsPerCellRender(scene, env, b.views, o.estimate.tracer, probes);
+  char fd[160];
+  std::snprintf(fd, sizeof fd, "%d renders x %.2f s (measured %d, extrapolated); %.0fx one trace of A",
+                env.size() + 1, per_render, probes, per_render * (env.size() + 1) / trace_s);
+  tables->Row(size, "finite-difference Jacobian", per_render * (env.size() + 1), 0, NAN, fd);
+}
+
+/// The observed pixels of the views, divided by their mean.
+std::vector<double> NormalizedObservations(const std::vector<View>& views) {
+  std::vector<double> y = CollectObservations(views);
+  double mean = 0;
+  for (double v : y) mean += v;
+  mean /= y.size();
+  for (double& v : y) v /= mean;
+  return y;
+}
+
+/// The estimate, solver and FD parts at one image size of the synthetic one-light scene.
+void BenchSize(const BenchOptions& o, const std::string& size, BenchTables* tables) {
+  SynthOptions so;
+  if (std::sscanf(size.c_str(), "%dx%d", &so.width, &so.height) != 2) throw InputError("--sizes: bad size " + size);
+  so.spp = 256;
+  const SceneBundle b = MakeSynthScene("one-light", so, DefaultDataDir());
+  if (o.Want("estimate")) BenchEstimates(o, size, b, tables);
+  if (!o.Want("solvers") && !o.Want("fd")) return;
+  RayTracer scene(b.mesh);
+  const EnvMap env(o.estimate.rings, b.up);
+  Stopwatch ts;
+  const TransportMatrix A =
+      TraceTransport(scene, env, b.views, CellSampler(env, {}, {}, o.estimate.tracer.nee_floor), o.estimate.tracer);
+  const double trace_s = ts.Seconds();
+  const std::vector<double> y = NormalizedObservations(b.views);
+  tables->Row(size, "trace A once", trace_s, 0, NAN, std::to_string(A.nonzeros()) + " non-zeros");
+  const LinearProblem problem = MakeLinearProblem(A, y);
+  if (o.Want("solvers")) BenchSolvers(o, size, env, problem, tables);
+  if (o.Want("fd")) BenchFd(o, size, scene, env, b, trace_s, tables);
+}
+
+void RunBench(const BenchOptions& o) {
+  ThreadLimit limit(o.threads);
+  BenchTables tables;
+  if (o.Want("replay")) ReplayBench(fs::path(o.out), tables.row());
+  if (o.Want("reconstruct")) ReconstructionBench(tables.row());
+  if (o.Want("estimate") || o.Want("solvers") || o.Want("fd"))
+    for (const std::string& size : o.sizes) BenchSize(o, size, &tables);
+  char mem[64];
+  std::snprintf(mem, sizeof mem, "%.0f MiB (whole run)", PeakMemoryMiB());
+  tables.Row("all", "peak memory (RSS)", 0, 0, NAN, mem);
+  tables.Write(fs::path(o.out));
+  std::printf("results in %s (bench.md, bench.csv)\n", fs::absolute(o.out).lexically_normal().c_str());
+}
+
 }  // namespace
 
 double SecondsPerCellRender(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
@@ -137,133 +314,17 @@ double SecondsPerCellRender(const RayTracer& scene, const EnvMap& env, const std
 
 Run AddBench(CLI::App& app) {
   auto* cmd = app.add_subcommand("bench", "time the solvers and the finite-difference baseline (synthetic one-light)");
-  auto out = std::make_shared<std::string>("out/bench");
-  auto sizes = std::make_shared<std::vector<std::string>>(std::vector<std::string>{"160x120", "320x240"});
-  auto cap = std::make_shared<double>(120);
-  auto o = std::make_shared<EstimateOptions>();
-  auto solver = std::make_shared<std::string>("fast");
-  auto threads = std::make_shared<int>(0);
-  auto parts = std::make_shared<std::vector<std::string>>(std::vector<std::string>{"estimate", "solvers", "fd"});
-  cmd->add_option("--parts", *parts,
+  auto o = std::make_shared<BenchOptions>();
+  cmd->add_option("--parts", o->parts,
                   "which parts to run: estimate (full estimates), solvers (same A), fd, replay (.oni throughput), "
                   "reconstruct (frames/s by stage, OpenCV baseline, meshing a room)")
       ->capture_default_str()
       ->check(CLI::IsMember({"estimate", "solvers", "fd", "replay", "reconstruct"}));
-  cmd->add_option("--out", *out, "directory for bench.csv and bench.md")->capture_default_str();
-  cmd->add_option("--sizes", *sizes, "image sizes WxH")->capture_default_str();
-  cmd->add_option("--gradient-cap", *cap, "seconds the gradient solver may run per problem")->capture_default_str();
-  AddEstimateOptions(*cmd, o.get(), solver.get(), threads.get());
-  return [=] {
-    ThreadLimit limit(*threads);
-    auto want = [&](const char* part) { return std::find(parts->begin(), parts->end(), part) != parts->end(); };
-    std::ostringstream traces;
-    traces << "size,solver,seconds,objective\n";
-    std::ostringstream md, csv;
-    csv << "size,method,seconds,relative_rmse,angular_error_deg,note\n";
-    md << "| size | method | seconds | relative RMSE | light error (deg) | note |\n|---|---|---|---|---|---|\n";
-    auto row = [&](const std::string& size, const std::string& method, double s, double rmse, double ang,
-                   const std::string& note) {
-      char buf[512];
-      std::snprintf(buf, sizeof buf, "| %s | %s | %.2f | %.4f | %.2f | %s |\n", size.c_str(), method.c_str(), s,
-                    rmse, ang, note.c_str());
-      md << buf;
-      csv << size << ',' << method << ',' << s << ',' << rmse << ',' << ang << ',' << note << '\n';
-      std::fputs(buf, stdout);
-      std::fflush(stdout);
-    };
-    if (want("replay")) ReplayBench(fs::path(*out), row);
-    if (want("reconstruct")) ReconstructionBench(row);
-    for (const std::string& size : *sizes) {
-      if (!want("estimate") && !want("solvers") && !want("fd")) break;
-      SynthOptions so;
-      if (std::sscanf(size.c_str(), "%dx%d", &so.width, &so.height) != 2) throw InputError("--sizes: bad size " + size);
-      so.spp = 256;
-      const SceneBundle b = MakeSynthScene("one-light", so, DefaultDataDir());
-      // 1. Full estimates (trace + solve, all sMC rounds), each solver.
-      for (SolverKind kind : {SolverKind::kFast, SolverKind::kGradient}) {
-        if (!want("estimate")) break;
-        EstimateOptions eo = *o;
-        eo.solver = kind;
-        eo.render = false;
-        eo.solver_options.max_seconds = *cap;
-        Stopwatch sw;
-        const EstimateResult r = Estimate(b, eo);
-        row(size, std::string("estimate, ") + ToString(kind) + " solver", sw.Seconds(), r.final_relative_rmse,
-            r.final_angular_error_deg, std::to_string(r.rounds.size()) + " sMC rounds");
-      }
-      if (!want("solvers") && !want("fd")) continue;
-      // 2. Solvers on the same A (one round's trace).
-      RayTracer scene(b.mesh);
-      const EnvMap env(o->rings, b.up);
-      Stopwatch ts;
-      const TransportMatrix A = TraceTransport(scene, env, b.views, CellSampler(env, {}, {}, o->tracer.nee_floor), o->tracer);
-      const double trace_s = ts.Seconds();
-      std::vector<double> y = CollectObservations(b.views);
-      double mean = 0;
-      for (double v : y) mean += v;
-      mean /= y.size();
-      for (double& v : y) v /= mean;
-      row(size, "trace A once", trace_s, 0, NAN, std::to_string(A.nonzeros()) + " non-zeros");
-      const LinearProblem problem = MakeLinearProblem(A, y);
-      if (want("solvers")) {
-      ObjectiveParams params = o->objective;  // alpha per 19,200 observed pixels, as in Estimate
-      params.alpha *= problem.rows() / kAlphaReferencePixels;
-      params.cell_weight.resize(problem.unknown_cells);  // per solid angle, as in Estimate
-      for (int k = 0; k < problem.unknown_cells; ++k)
-        params.cell_weight[k] = env.solid_angle(problem.cell_of[k]) / kAlphaReferenceSolidAngle;
-      const Objective obj(problem, params);
-      // Each solver runs once to its own convergence (or the cap); the target is the
-      // worst of their final objectives (+1e-6 relative), a value every one of them
-      // reaches: the objective is non-convex and they can stop in different minima.
-      struct Entry {
-        const char* name;
-        SolverTiming t;
-      };
-      std::vector<Entry> runs = {
-          {"fast", TimeSolver(SolverKind::kFast, obj, *cap)},
-          {"gradient", TimeSolver(SolverKind::kGradient, obj, *cap)},
-          {"gradient, adaptive step", TimeSolver(SolverKind::kGradient, obj, *cap, true)},
-      };
-      double worst = -1e300, best = 1e300;
-      for (const Entry& e : runs) {
-        worst = std::max(worst, e.t.final_objective);
-        best = std::min(best, e.t.final_objective);
-      }
-      const double target = worst * (1 + 1e-6);
-      double fast_seconds = 0;
-      for (Entry& e : runs) {
-        for (const auto& [sec, obj_value] : e.t.trace) {
-          traces << size << ',' << e.name << ',' << sec << ',' << Num(obj_value) << '\n';
-          if (e.t.seconds_to_target < 0 && obj_value <= target) e.t.seconds_to_target = sec;
-        }
-        if (e.t.seconds_to_target < 0) e.t.seconds_to_target = e.t.total_seconds;
-        if (&e == &runs[0]) fast_seconds = e.t.seconds_to_target;
-        char note[256];
-        std::snprintf(note, sizeof note,
-                      "%d iterations; %.1fx the fast solver; final E/E_best - 1 = %.1e after %.2f s, KKT %.1e",
-                      e.t.iterations, e.t.seconds_to_target / std::max(1e-9, fast_seconds),
-                      e.t.final_objective / best - 1, e.t.total_seconds, e.t.kkt);
-        row(size, std::string(e.name) + " solver to E_common", e.t.seconds_to_target, 0, NAN, note);
-      }
-      }
-      // 3. Finite-difference Jacobian: one render per unknown cell plus the base render
-      //    (common random numbers and frozen importance make it exact for a linear render).
-      if (!want("fd")) continue;
-      const int probes = 3;
-      const double per_render = SecondsPerCellRender(scene, env, b.views, o->tracer, probes);
-      char fd[160];
-      std::snprintf(fd, sizeof fd, "%d renders x %.2f s (measured %d, extrapolated); %.0fx one trace of A",
-                    env.size() + 1, per_render, probes, per_render * (env.size() + 1) / trace_s);
-      row(size, "finite-difference Jacobian", per_render * (env.size() + 1), 0, NAN, fd);
-    }
-    char mem[64];
-    std::snprintf(mem, sizeof mem, "%.0f MiB (whole run)", PeakMemoryMiB());
-    row("all", "peak memory (RSS)", 0, 0, NAN, mem);
-    WriteTextAtomically(fs::path(*out) / "bench.md", md.str());
-    WriteTextAtomically(fs::path(*out) / "bench.csv", csv.str());
-    WriteTextAtomically(fs::path(*out) / "solver_traces.csv", traces.str());
-    std::printf("results in %s (bench.md, bench.csv)\n", fs::absolute(*out).lexically_normal().c_str());
-  };
+  cmd->add_option("--out", o->out, "directory for bench.csv and bench.md")->capture_default_str();
+  cmd->add_option("--sizes", o->sizes, "image sizes WxH")->capture_default_str();
+  cmd->add_option("--gradient-cap", o->cap, "seconds the gradient solver may run per problem")->capture_default_str();
+  AddEstimateOptions(*cmd, &o->estimate, &o->solver, &o->threads);
+  return [o] { RunBench(*o); };
 }
 
 }  // namespace lp::app

@@ -9,9 +9,9 @@
 #include <ctime>
 #include <filesystem>
 #include <fstream>
-#include <functional>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "app/commands.h"
@@ -20,7 +20,7 @@
 #include "common/plot.h"
 #include "common/timer.h"
 #include "estimation/path_tracer.h"
-#include "estimation/ray_tracer.h"
+#include "scene/ray_tracer.h"
 #include "estimation/synth.h"
 #include "estimation/truth.h"
 
@@ -182,6 +182,369 @@ std::string MachineLine() {
   return model + ", " + std::to_string(HardwareThreads()) + " hardware threads";
 }
 
+/// The knob settings swept (the default setting's point is taken from the forced fast run).
+struct Knobs {
+  std::vector<int> spps = {4, 16, 64, 256}, rings = {9, 15, 31}, bounces = {1, 2, 4};
+};
+
+using Cases = std::vector<std::unique_ptr<Case>>;
+
+/// The synthetic render settings of one image size "WxH" (one fitted view, one held out).
+SynthOptions ReferenceOptions(const std::string& size, int spp) {
+  SynthOptions so;
+  if (std::sscanf(size.c_str(), "%dx%d", &so.width, &so.height) != 2) throw InputError("--sizes: bad size " + size);
+  so.spp = spp;
+  so.held_out_views = 1;
+  return so;
+}
+
+// ---- the plots and their CSVs ----
+
+struct Metric {
+  const char* key;
+  const char* title;
+  const char* y_label;
+  double Point::*field;
+  bool per_iteration;  // methods plotted per solver iteration (fitted RMSE, angle)
+};
+
+const Metric kMetrics[] = {
+    {"fitted_rmse", "(a) photometric RMSE on the fitted view", "relative RMSE", &Point::fitted, true},
+    {"relit_error", "(b) relighting error on the held-out view", "relative RMSE", &Point::relit, false},
+    {"light_angle", "(c) dominant light direction error", "degrees", &Point::angle, true},
+    {"envmap_error", "(d) environment map error vs the true map per cell", "relative L2", &Point::envmap, false},
+};
+
+/// One curve of case c as a series of metric m (per solver iteration or per point); its
+/// values are appended to the plot's CSV.
+PlotSeries MetricSeries(const Metric& m, const Case& c, const std::string& name, const Curve& cv, bool per_iteration,
+                        std::ostream& csv) {
+  PlotSeries s;
+  s.label = name;
+  if (per_iteration) {
+    s.markers = false;
+    for (const IterPoint& it : cv.iterations) {
+      const double v = m.field == &Point::fitted ? it.fitted : it.angle;
+      s.x.push_back(it.seconds);
+      s.y.push_back(v);
+      csv << c.scene << ',' << c.size << ",\"" << name << "\",," << it.round << ',' << it.iteration << ','
+          << Num(it.seconds) << ',' << Num(v) << '\n';
+    }
+  } else {
+    for (const Point& pt : cv.points) {
+      s.x.push_back(pt.seconds);
+      s.y.push_back(pt.*(m.field));
+      csv << c.scene << ',' << c.size << ",\"" << name << "\"," << pt.setting << ',' << pt.round << ",,"
+          << Num(pt.seconds) << ',' << Num(pt.*(m.field)) << '\n';
+    }
+  }
+  return s;
+}
+
+/// Case c's panel of metric m (its values appended to the plot's CSV); none where it has no
+/// finite value.
+std::optional<PlotPanel> MetricPanel(const Metric& m, const Case& c, std::ostream& csv) {
+  PlotPanel p;
+  p.title = c.scene;
+  p.x_label = "wall-clock seconds";
+  p.y_label = m.y_label;
+  if (m.field == &Point::relit && std::isfinite(c.relit_floor)) p.reference_y.push_back(c.relit_floor);
+  for (const Curve& cv : c.curves)
+    p.series.push_back(MetricSeries(m, c, cv.name, cv, m.per_iteration && !cv.iterations.empty(), csv));
+  // The sMC-rounds knob is the fast run after each round: a series of its own where
+  // the fast run is drawn per iteration (per round it is the fast curve itself).
+  if (m.per_iteration && c.swept)
+    p.series.push_back(MetricSeries(m, c, "fast: sMC rounds", c.curves.front(), false, csv));
+  for (const PlotSeries& s : p.series)
+    for (double v : s.y)
+      if (std::isfinite(v)) return p;
+  return std::nullopt;
+}
+
+/// The plot of metric m at one size (PNG + CSV, none without a panel); returns its part of
+/// report.md.
+std::string WritePlot(const fs::path& out, const Metric& m, const std::string& size, const Cases& cases) {
+  std::vector<PlotPanel> panels;
+  std::ostringstream csv;
+  csv << "scene,size,curve,setting,round,iteration,seconds,value\n";
+  for (const auto& c : cases)
+    if (c->size == size)
+      if (std::optional<PlotPanel> p = MetricPanel(m, *c, csv)) panels.push_back(std::move(*p));
+  if (panels.empty()) return "";
+  const std::string stem = std::string(m.key) + "_" + size;
+  WritePlotPng(out / (stem + ".png"), std::string(m.title) + ", " + size, panels, 3);
+  WriteTextAtomically(out / (stem + ".csv"), csv.str());
+  std::ostringstream figure;
+  figure << "### " << m.title << ", " << size << "\n\n![" << m.title << "](" << stem << ".png)\n\nData: [" << stem
+         << ".csv](" << stem << ".csv)\n\n";
+  return figure.str();
+}
+
+/// Every metric's plot at every size; returns their part of report.md.
+std::string WritePlots(const fs::path& out, const std::vector<std::string>& sizes, const Cases& cases) {
+  std::string figures;
+  for (const Metric& m : kMetrics)
+    for (const std::string& size : sizes) figures += WritePlot(out, m, size, cases);
+  return figures;
+}
+
+// ---- the summary table: time to reach a stated error ----
+
+std::string TimeCell(double s) { return std::isfinite(s) ? Fmt("%.2f", s) : std::string("not reached"); }
+
+std::string Ratio(double a, double b) {
+  return std::isfinite(a) && std::isfinite(b) && b > 0 ? Fmt("%.1fx", a / b) : std::string("-");
+}
+
+/// (seconds, fitted RMSE) per solver iteration.
+std::vector<std::pair<double, double>> FittedSeries(const Curve& cv) {
+  std::vector<std::pair<double, double>> s;
+  for (const IterPoint& p : cv.iterations) s.emplace_back(p.seconds, p.fitted);
+  return s;
+}
+
+/// (seconds, relit error) per point.
+std::vector<std::pair<double, double>> RelitSeries(const Curve& cv) {
+  std::vector<std::pair<double, double>> s;
+  for (const Point& p : cv.points) s.emplace_back(p.seconds, p.relit);
+  return s;
+}
+
+const Curve& FindCurve(const Case& c, const char* name) {
+  const Curve* found = nullptr;
+  for (const Curve& cv : c.curves)
+    if (cv.name == name) found = &cv;
+  return *found;
+}
+
+/// One row: the time fast, PGD and FD took to reach the fitted and the relit targets.
+std::string SummaryRow(const Case& c) {
+  const Curve &f = FindCurve(c, kFast), &g = FindCurve(c, kPgd), &d = FindCurve(c, kFd);
+  const double fit_target = 1.01 * std::max(f.iterations.back().fitted, g.iterations.back().fitted);
+  double relit_target = 0;
+  for (const Curve* cv : {&f, &g}) {
+    double best = 1e300;
+    for (const Point& p : cv->points) best = std::min(best, p.relit);
+    relit_target = std::max(relit_target, best);
+  }
+  relit_target *= 1.05;
+  const double tf = TimeToReach(FittedSeries(f), fit_target), tg = TimeToReach(FittedSeries(g), fit_target),
+               td = TimeToReach(FittedSeries(d), fit_target);
+  const double rf = TimeToReach(RelitSeries(f), relit_target), rg = TimeToReach(RelitSeries(g), relit_target),
+               rd = TimeToReach(RelitSeries(d), relit_target);
+  std::ostringstream row;
+  row << "| " << c.scene << " | " << c.size << " | " << Fmt("%.4f", fit_target) << " | " << TimeCell(tf) << " | "
+      << TimeCell(tg) << " | " << TimeCell(td) << " | " << Ratio(tg, tf) << " | " << Ratio(td, tf) << " | "
+      << Fmt("%.4f", relit_target) << " | " << TimeCell(rf) << " | " << TimeCell(rg) << " | " << TimeCell(rd)
+      << " |\n";
+  return row.str();
+}
+
+std::string SummaryTable(const Cases& cases) {
+  std::ostringstream table;
+  table << "| scene | size | target fitted RMSE | fast (s) | paper PGD (s) | FD (s) | PGD / fast | FD / fast | "
+           "target relit error | fast (s) | paper PGD (s) | FD (s) |\n"
+        << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  for (const auto& c : cases) table << SummaryRow(*c);
+  return table.str();
+}
+
+// ---- report.md ----
+
+/// report.md: what was run and measured, the summary table and the plots. `total` times
+/// the whole run; `fd_check` is the FD extrapolation's check (empty: not run).
+std::string ReportMarkdown(const ReportOptions& o, const Stopwatch& total, const std::string& fd_check,
+                           const std::string& table, const std::string& figures) {
+  std::ostringstream md;
+  const std::time_t now = std::time(nullptr);
+  char date[64];
+  std::strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
+  md << "# Error against run time\n\n"
+     << "Generated by `lightprobe bench-report --out " << o.out << "` on " << date << ", " << MachineLine()
+     << "; the whole run took " << Fmt("%.0f", total.Seconds()) << " s.\n"
+     << "Sizes: ";
+  for (const auto& s : o.sizes) md << s << ' ';
+  md << "; knob sweeps at " << (o.sweep_all_sizes ? std::string("every size") : o.sizes.front())
+     << (o.quick ? " (quick smoke run: reduced settings)" : "") << ".\n\n"
+     << "## What is measured\n\n"
+     << "Every scene is synthetic with known lighting (`lightprobe synth --list`), rendered at " << o.synth_spp
+     << " spp with two views: the estimate fits the first, the second is held out.\n\n"
+     << "- **fast**: the default estimator (majorize-minimize solver), forced through every sMC round so the "
+        "rounds curve is complete. **paper PGD**: the same estimator with the paper's projected gradient descent, "
+     << Fmt("capped at %.0f s per round. ", o.gradient_cap)
+     << "**FD Jacobian (extrapolated)**: the same estimate with each round's trace of A replaced by one render "
+        "per unknown cell plus one; with common random numbers and frozen importance its A is the traced A "
+        "(transport_test checks A lambda = render), so its errors are fast's and its time is fast's plus "
+        "(cells + 1) x the measured time of one render minus the trace. "
+     << (fd_check.empty() ? std::string() : fd_check) << "\n"
+     << "- **fast: spp / rings / bounces**: one full default estimate per setting (default stopping rule); "
+        "the default setting's point is the fast run where that rule would have stopped. **fast: sMC rounds**: "
+        "the fast run after each round.\n"
+     << "- (a) relative RMSE of the fit on the fitted view (per solver iteration for the methods); (b) relative "
+        "RMSE of the held-out view re-rendered under the estimate (" << o.eval_spp
+     << " spp, evaluation time not counted; the dashed line is the same measure for the true lighting "
+        "integrated over the default 21-ring cells and rendered the same way: what the cell model does with the "
+        "exact answer, not a lower bound, since one cell moves a small light to the cell's centre); (c) mean "
+        "angle between "
+        "the strongest (up to 2) true lights and the estimate's dominant directions; (d) solid-angle weighted "
+        "relative L2 error of the estimated map against the true lighting integrated over each cell, over the "
+        "cells some path reached (scenes lit by a sky or an HDR map).\n"
+     << "- Times are wall-clock seconds from the start of the estimate (BVH, traces, solves), one process, "
+        "all cores. Machines here are noisy: compare ratios within one run.\n\n"
+     << "## Time to reach a stated error\n\n"
+     << "Fitted target: 1.01 x the worse of fast's and PGD's final fitted RMSE. Relit target: 1.05 x the worse "
+        "of their best relit errors (relit is measured once per round).\n\n"
+     << table << "\n## Plots\n\n" << figures;
+  return md.str();
+}
+
+// ---- the run ----
+
+/// One bench-report run: a case per size and scene (methods, knob sweeps), then the plots,
+/// the summary table and report.md.
+class ReportRun {
+ public:
+  explicit ReportRun(const ReportOptions& o) : o_(o), out_(o.out) {
+    if (o.quick) knobs_.spps = {4}, knobs_.rings = {9}, knobs_.bounces = {1};
+  }
+
+  void Run() {
+    std::error_code ec;
+    fs::create_directories(out_, ec);
+    if (ec) throw InputError(o_.out, "cannot create report directory: " + ec.message());
+    for (std::size_t si = 0; si < o_.sizes.size(); ++si) {
+      const SynthOptions so = ReferenceOptions(o_.sizes[si], o_.synth_spp);
+      for (const std::string& scene : o_.scenes) AddCase(scene, o_.sizes[si], so, si == 0 || o_.sweep_all_sizes);
+    }
+    const std::string figures = WritePlots(out_, o_.sizes, cases_);
+    const std::string table = SummaryTable(cases_);
+    WriteTextAtomically(out_ / "report.md", ReportMarkdown(o_, total_, fd_check_, table, figures));
+    std::printf("report in %s (report.md, %s) after %.0f s\n",
+                fs::absolute(out_ / "report.md").lexically_normal().c_str(), "PNG + CSV per plot", total_.Seconds());
+  }
+
+ private:
+  /// One progress line, after the seconds since the start.
+  void Progress(const std::string& text) const {
+    std::printf("[%6.0f s] %s\n", total_.Seconds(), text.c_str());
+    std::fflush(stdout);
+  }
+
+  void AddCase(const std::string& scene, const std::string& size, const SynthOptions& so, bool sweep) {
+    std::unique_ptr<Case> c = MakeCase(scene, size, so);
+    const EstimateResult fast = RunMethods(c.get());
+    if (sweep) SweepKnobs(c.get(), fast);
+    // The FD extrapolation checked once against a real FD Jacobian at 9 rings.
+    if (fd_check_.empty() && !o_.quick) fd_check_ = CheckFdExtrapolation(*c);
+    cases_.push_back(std::move(c));
+  }
+
+  /// The reference views rendered, the true lighting on the cells of every ring count swept,
+  /// its relit error and FD's unit of work.
+  std::unique_ptr<Case> MakeCase(const std::string& scene, const std::string& size, const SynthOptions& so) const {
+    auto c = std::make_unique<Case>();
+    c->scene = scene;
+    c->size = size;
+    Progress(scene + " " + size + ": rendering the reference views");
+    c->synth = MakeSynth(scene, so, o_.data);
+    c->fit = c->synth.bundle;
+    c->held_out = c->fit.views[1];
+    c->fit.views.resize(1);
+    c->tracer = std::make_unique<RayTracer>(c->fit.mesh);
+    c->truth = ParseTruthLights(*c->fit.truth_json, scene + "/truth.json");
+    for (int r : knobs_.rings) c->true_cells[r] = TrueCellRadiance(c->synth.lighting, EnvMap(r, c->fit.up));
+    const EnvMap env(defaults_.rings, c->fit.up);
+    c->true_cells[defaults_.rings] = TrueCellRadiance(c->synth.lighting, env);
+    const std::vector<double>& true_cells = c->true_cells[defaults_.rings];
+    if (!true_cells.empty()) c->relit_floor = RelitError(*c, env, true_cells, defaults_.tracer, o_.eval_spp);
+    // FD's unit of work: one render of the fitted view (same settings as a trace).
+    c->render_seconds = SecondsPerCellRender(*c->tracer, env, c->fit.views, defaults_.tracer, 2);
+    return c;
+  }
+
+  /// The methods' curves: fast, FD (from fast's run) and the paper's PGD, every run forced
+  /// through all sMC rounds so the rounds curve is complete. Returns fast's run.
+  EstimateResult RunMethods(Case* c) const {
+    EstimateOptions fast = defaults_;
+    fast.max_rounds = o_.quick ? 2 : 4;
+    fast.change_threshold = 0;
+    EstimateResult rf = RunEstimate(*c, fast);
+    c->curves.push_back(MethodCurve(*c, kFast, rf, fast, o_.eval_spp));
+    c->curves.push_back(FdCurve(c->curves.back(), rf, c->render_seconds));
+    Progress(Fmt("  fast %.1f s, relit error %.4f (true lighting on the cells %.4f)", rf.rounds.back().end_seconds,
+                 c->curves[0].points.back().relit, c->relit_floor));
+    EstimateOptions pgd = fast;
+    pgd.solver = SolverKind::kGradient;
+    pgd.solver_options.max_seconds = o_.quick ? 1 : o_.gradient_cap;
+    const EstimateResult rg = RunEstimate(*c, pgd);
+    c->curves.push_back(MethodCurve(*c, kPgd, rg, pgd, o_.eval_spp));
+    Progress(Fmt("  paper PGD %.1f s", rg.rounds.back().end_seconds));
+    return rf;
+  }
+
+  /// Knobs of the fast solver: one final point per setting; the default setting's point is
+  /// the forced fast run where the default stopping rule would have stopped it.
+  void SweepKnobs(Case* c, const EstimateResult& fast) const {
+    const Point dflt = c->curves[0].points[DefaultStopRound(fast, defaults_.change_threshold)];
+    SweepKnob(c, "spp", knobs_.spps, defaults_.tracer.spp, dflt, [](EstimateOptions* e, int v) { e->tracer.spp = v; });
+    SweepKnob(c, "rings", knobs_.rings, defaults_.rings, dflt, [](EstimateOptions* e, int v) { e->rings = v; });
+    SweepKnob(c, "bounces", knobs_.bounces, defaults_.tracer.bounces, dflt,
+              [](EstimateOptions* e, int v) { e->tracer.bounces = v; });
+    c->swept = true;
+  }
+
+  /// One knob's curve: a full default estimate per value, with `dflt` at the default `def`.
+  void SweepKnob(Case* c, const std::string& knob, const std::vector<int>& values, int def, const Point& dflt,
+                 void (*set)(EstimateOptions*, int)) const {
+    std::vector<std::pair<int, Point>> pts = {{def, dflt}};
+    for (int v : values) {
+      EstimateOptions eo = defaults_;
+      set(&eo, v);
+      const EstimateResult r = RunEstimate(*c, eo);
+      Point p = Evaluate(*c, r.env, r.lambda, r.left_out, eo.tracer, o_.eval_spp);
+      p.seconds = r.rounds.back().end_seconds;
+      p.fitted = r.final_relative_rmse;
+      p.round = static_cast<int>(r.rounds.size());
+      pts.emplace_back(v, p);
+    }
+    std::sort(pts.begin(), pts.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    Curve cv;
+    cv.name = "fast: " + knob;
+    for (auto& [v, p] : pts) {
+      p.setting = knob + " " + std::to_string(v);
+      cv.points.push_back(p);
+    }
+    c->curves.push_back(cv);
+    Progress("  swept " + knob);
+  }
+
+  /// A real FD Jacobian at 9 rings, timed against the extrapolation from 2 probe renders.
+  std::string CheckFdExtrapolation(const Case& c) const {
+    const EnvMap env9(9, c.fit.up);
+    const CellSampler uniform(env9, {}, {}, defaults_.tracer.nee_floor);
+    std::vector<double> unit(3 * env9.size(), 0.0);
+    const double per = SecondsPerCellRender(*c.tracer, env9, c.fit.views, defaults_.tracer, 2);
+    Stopwatch all;
+    for (int j = -1; j < env9.size(); ++j) {  // base render + one per cell
+      std::fill(unit.begin(), unit.end(), 0.0);
+      if (j >= 0) unit[3 * j] = unit[3 * j + 1] = unit[3 * j + 2] = 1;
+      RenderEnvironment(*c.tracer, env9, c.fit.views, unit, uniform, defaults_.tracer, false);
+    }
+    return Fmt("A real FD Jacobian at 9 rings (%.0f renders) took %.1f s; the extrapolation from 2 probe "
+               "renders predicted %.1f s",
+               env9.size() + 1, all.Seconds(), per * (env9.size() + 1)) +
+           " (" + c.scene + ", " + c.size + ").";
+  }
+
+  const ReportOptions& o_;
+  const fs::path out_;
+  const Stopwatch total_;
+  const EstimateOptions defaults_;
+  Knobs knobs_;
+  Cases cases_;
+  std::string fd_check_;
+};
+
 }  // namespace
 
 Run AddBenchReport(CLI::App& app) {
@@ -202,264 +565,7 @@ Run AddBenchReport(CLI::App& app) {
   cmd->add_option("--threads", o->threads, "worker threads (0 = all cores)")->capture_default_str();
   return [o] {
     ThreadLimit limit(o->threads);
-    Stopwatch total;
-    const fs::path out(o->out);
-    std::error_code ec;
-    fs::create_directories(out, ec);
-    if (ec) throw InputError(o->out, "cannot create report directory: " + ec.message());
-    const EstimateOptions defaults;
-    std::vector<int> spps = {4, 16, 64, 256}, rings = {9, 15, 31}, bounces = {1, 2, 4};
-    if (o->quick) spps = {4}, rings = {9}, bounces = {1};
-    std::vector<std::unique_ptr<Case>> cases;
-    std::string fd_check;
-
-    for (std::size_t si = 0; si < o->sizes.size(); ++si) {
-      const std::string& size = o->sizes[si];
-      SynthOptions so;
-      if (std::sscanf(size.c_str(), "%dx%d", &so.width, &so.height) != 2) throw InputError("--sizes: bad size " + size);
-      so.spp = o->synth_spp;
-      so.held_out_views = 1;
-      for (const std::string& scene : o->scenes) {
-        auto c = std::make_unique<Case>();
-        c->scene = scene;
-        c->size = size;
-        std::printf("[%6.0f s] %s %s: rendering the reference views\n", total.Seconds(), scene.c_str(), size.c_str());
-        std::fflush(stdout);
-        c->synth = MakeSynth(scene, so, o->data);
-        c->fit = c->synth.bundle;
-        c->held_out = c->fit.views[1];
-        c->fit.views.resize(1);
-        c->tracer = std::make_unique<RayTracer>(c->fit.mesh);
-        c->truth = ParseTruthLights(*c->fit.truth_json, scene + "/truth.json");
-        for (int r : rings) c->true_cells[r] = TrueCellRadiance(c->synth.lighting, EnvMap(r, c->fit.up));
-        const EnvMap env(defaults.rings, c->fit.up);
-        c->true_cells[defaults.rings] = TrueCellRadiance(c->synth.lighting, env);
-        const std::vector<double>& true_cells = c->true_cells[defaults.rings];
-        if (!true_cells.empty()) c->relit_floor = RelitError(*c, env, true_cells, defaults.tracer, o->eval_spp);
-        // FD's unit of work: one render of the fitted view (same settings as a trace).
-        c->render_seconds = SecondsPerCellRender(*c->tracer, env, c->fit.views, defaults.tracer, 2);
-        // Methods: every run forced through all sMC rounds so the rounds curve is complete.
-        EstimateOptions fast = defaults;
-        fast.max_rounds = o->quick ? 2 : 4;
-        fast.change_threshold = 0;
-        const EstimateResult rf = RunEstimate(*c, fast);
-        c->curves.push_back(MethodCurve(*c, kFast, rf, fast, o->eval_spp));
-        c->curves.push_back(FdCurve(c->curves.back(), rf, c->render_seconds));
-        std::printf("[%6.0f s]   fast %.1f s, relit error %.4f (true lighting on the cells %.4f)\n", total.Seconds(),
-                    rf.rounds.back().end_seconds, c->curves[0].points.back().relit, c->relit_floor);
-        std::fflush(stdout);
-        EstimateOptions pgd = fast;
-        pgd.solver = SolverKind::kGradient;
-        pgd.solver_options.max_seconds = o->quick ? 1 : o->gradient_cap;
-        const EstimateResult rg = RunEstimate(*c, pgd);
-        c->curves.push_back(MethodCurve(*c, kPgd, rg, pgd, o->eval_spp));
-        std::printf("[%6.0f s]   paper PGD %.1f s\n", total.Seconds(), rg.rounds.back().end_seconds);
-        std::fflush(stdout);
-        // Knobs of the fast solver: one final point per setting; the default setting's point
-        // is the forced run where the default stopping rule would have stopped it.
-        if (si == 0 || o->sweep_all_sizes) {
-          const std::size_t stop = DefaultStopRound(rf, defaults.change_threshold);
-          Point dflt = c->curves[0].points[stop];
-          auto sweep = [&](const std::string& knob, const std::vector<int>& values, int def,
-                           const std::function<void(EstimateOptions*, int)>& set) {
-            Curve cv;
-            cv.name = "fast: " + knob;
-            std::vector<std::pair<int, Point>> pts = {{def, dflt}};
-            for (int v : values) {
-              EstimateOptions eo = defaults;
-              set(&eo, v);
-              const EstimateResult r = RunEstimate(*c, eo);
-              Point p = Evaluate(*c, r.env, r.lambda, r.left_out, eo.tracer, o->eval_spp);
-              p.seconds = r.rounds.back().end_seconds;
-              p.fitted = r.final_relative_rmse;
-              p.round = static_cast<int>(r.rounds.size());
-              pts.emplace_back(v, p);
-            }
-            std::sort(pts.begin(), pts.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-            for (auto& [v, p] : pts) {
-              p.setting = knob + " " + std::to_string(v);
-              cv.points.push_back(p);
-            }
-            c->curves.push_back(cv);
-            std::printf("[%6.0f s]   swept %s\n", total.Seconds(), knob.c_str());
-            std::fflush(stdout);
-          };
-          sweep("spp", spps, defaults.tracer.spp, [](EstimateOptions* e, int v) { e->tracer.spp = v; });
-          sweep("rings", rings, defaults.rings, [](EstimateOptions* e, int v) { e->rings = v; });
-          sweep("bounces", bounces, defaults.tracer.bounces, [](EstimateOptions* e, int v) { e->tracer.bounces = v; });
-          c->swept = true;
-        }
-        // The FD extrapolation checked once against a real FD Jacobian at 9 rings.
-        if (fd_check.empty() && !o->quick) {
-          const EnvMap env9(9, c->fit.up);
-          const CellSampler uniform(env9, {}, {}, defaults.tracer.nee_floor);
-          std::vector<double> unit(3 * env9.size(), 0.0);
-          const double per = SecondsPerCellRender(*c->tracer, env9, c->fit.views, defaults.tracer, 2);
-          Stopwatch all;
-          for (int j = -1; j < env9.size(); ++j) {  // base render + one per cell
-            std::fill(unit.begin(), unit.end(), 0.0);
-            if (j >= 0) unit[3 * j] = unit[3 * j + 1] = unit[3 * j + 2] = 1;
-            RenderEnvironment(*c->tracer, env9, c->fit.views, unit, uniform, defaults.tracer, false);
-          }
-          fd_check = Fmt("A real FD Jacobian at 9 rings (%.0f renders) took %.1f s; the extrapolation from 2 probe "
-                         "renders predicted %.1f s",
-                         env9.size() + 1, all.Seconds(), per * (env9.size() + 1)) +
-                     " (" + scene + ", " + size + ").";
-        }
-        cases.push_back(std::move(c));
-      }
-    }
-
-    // ---- plots and their CSVs ----
-    struct Metric {
-      const char* key;
-      const char* title;
-      const char* y_label;
-      double Point::*field;
-      bool per_iteration;  // methods plotted per solver iteration (fitted RMSE, angle)
-    };
-    const Metric metrics[] = {
-        {"fitted_rmse", "(a) photometric RMSE on the fitted view", "relative RMSE", &Point::fitted, true},
-        {"relit_error", "(b) relighting error on the held-out view", "relative RMSE", &Point::relit, false},
-        {"light_angle", "(c) dominant light direction error", "degrees", &Point::angle, true},
-        {"envmap_error", "(d) environment map error vs the true map per cell", "relative L2", &Point::envmap, false},
-    };
-    std::ostringstream figures;
-    for (const Metric& m : metrics) {
-      for (const std::string& size : o->sizes) {
-        std::vector<PlotPanel> panels;
-        std::ostringstream csv;
-        csv << "scene,size,curve,setting,round,iteration,seconds,value\n";
-        for (const auto& c : cases) {
-          if (c->size != size) continue;
-          PlotPanel p;
-          p.title = c->scene;
-          p.x_label = "wall-clock seconds";
-          p.y_label = m.y_label;
-          if (m.field == &Point::relit && std::isfinite(c->relit_floor)) p.reference_y.push_back(c->relit_floor);
-          bool any = false;
-          auto add_series = [&](const std::string& name, const Curve& cv, bool per_iteration) {
-            PlotSeries s;
-            s.label = name;
-            if (per_iteration) {
-              s.markers = false;
-              for (const IterPoint& it : cv.iterations) {
-                const double v = m.field == &Point::fitted ? it.fitted : it.angle;
-                s.x.push_back(it.seconds);
-                s.y.push_back(v);
-                csv << c->scene << ',' << size << ",\"" << name << "\",," << it.round << ',' << it.iteration << ','
-                    << Num(it.seconds) << ',' << Num(v) << '\n';
-              }
-            } else {
-              for (const Point& pt : cv.points) {
-                s.x.push_back(pt.seconds);
-                s.y.push_back(pt.*(m.field));
-                csv << c->scene << ',' << size << ",\"" << name << "\"," << pt.setting << ',' << pt.round << ",,"
-                    << Num(pt.seconds) << ',' << Num(pt.*(m.field)) << '\n';
-              }
-            }
-            for (double v : s.y) any = any || std::isfinite(v);
-            p.series.push_back(std::move(s));
-          };
-          for (const Curve& cv : c->curves) add_series(cv.name, cv, m.per_iteration && !cv.iterations.empty());
-          // The sMC-rounds knob is the fast run after each round: a series of its own where
-          // the fast run is drawn per iteration (per round it is the fast curve itself).
-          if (m.per_iteration && c->swept) add_series("fast: sMC rounds", c->curves.front(), false);
-          if (any) panels.push_back(std::move(p));
-        }
-        if (panels.empty()) continue;
-        const std::string stem = std::string(m.key) + "_" + size;
-        WritePlotPng(out / (stem + ".png"), std::string(m.title) + ", " + size, panels, 3);
-        WriteTextAtomically(out / (stem + ".csv"), csv.str());
-        figures << "### " << m.title << ", " << size << "\n\n![" << m.title << "](" << stem << ".png)\n\nData: [" << stem
-                << ".csv](" << stem << ".csv)\n\n";
-      }
-    }
-
-    // ---- the summary table: time to reach a stated error ----
-    std::ostringstream table;
-    table << "| scene | size | target fitted RMSE | fast (s) | paper PGD (s) | FD (s) | PGD / fast | FD / fast | "
-             "target relit error | fast (s) | paper PGD (s) | FD (s) |\n"
-          << "|---|---|---|---|---|---|---|---|---|---|---|---|\n";
-    auto cell = [](double s) { return std::isfinite(s) ? Fmt("%.2f", s) : std::string("not reached"); };
-    auto ratio = [](double a, double b) { return std::isfinite(a) && std::isfinite(b) && b > 0 ? Fmt("%.1fx", a / b) : std::string("-"); };
-    for (const auto& c : cases) {
-      const Curve *f = nullptr, *g = nullptr, *d = nullptr;
-      for (const Curve& cv : c->curves) {
-        if (cv.name == kFast) f = &cv;
-        if (cv.name == kPgd) g = &cv;
-        if (cv.name == kFd) d = &cv;
-      }
-      auto iters = [](const Curve* cv) {
-        std::vector<std::pair<double, double>> s;
-        for (const IterPoint& p : cv->iterations) s.emplace_back(p.seconds, p.fitted);
-        return s;
-      };
-      auto rounds = [](const Curve* cv) {
-        std::vector<std::pair<double, double>> s;
-        for (const Point& p : cv->points) s.emplace_back(p.seconds, p.relit);
-        return s;
-      };
-      const double fit_target = 1.01 * std::max(f->iterations.back().fitted, g->iterations.back().fitted);
-      double relit_target = 0;
-      for (const Curve* cv : {f, g}) {
-        double best = 1e300;
-        for (const Point& p : cv->points) best = std::min(best, p.relit);
-        relit_target = std::max(relit_target, best);
-      }
-      relit_target *= 1.05;
-      const double tf = TimeToReach(iters(f), fit_target), tg = TimeToReach(iters(g), fit_target),
-                   td = TimeToReach(iters(d), fit_target);
-      const double rf = TimeToReach(rounds(f), relit_target), rg = TimeToReach(rounds(g), relit_target),
-                   rd = TimeToReach(rounds(d), relit_target);
-      table << "| " << c->scene << " | " << c->size << " | " << Fmt("%.4f", fit_target) << " | " << cell(tf) << " | "
-            << cell(tg) << " | " << cell(td) << " | " << ratio(tg, tf) << " | " << ratio(td, tf) << " | "
-            << Fmt("%.4f", relit_target) << " | " << cell(rf) << " | " << cell(rg) << " | " << cell(rd) << " |\n";
-    }
-
-    std::ostringstream md;
-    const std::time_t now = std::time(nullptr);
-    char date[64];
-    std::strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", std::gmtime(&now));
-    md << "# Error against run time\n\n"
-       << "Generated by `lightprobe bench-report --out " << o->out << "` on " << date << ", " << MachineLine()
-       << "; the whole run took " << Fmt("%.0f", total.Seconds()) << " s.\n"
-       << "Sizes: ";
-    for (const auto& s : o->sizes) md << s << ' ';
-    md << "; knob sweeps at " << (o->sweep_all_sizes ? std::string("every size") : o->sizes.front())
-       << (o->quick ? " (quick smoke run: reduced settings)" : "") << ".\n\n"
-       << "## What is measured\n\n"
-       << "Every scene is synthetic with known lighting (`lightprobe synth --list`), rendered at " << o->synth_spp
-       << " spp with two views: the estimate fits the first, the second is held out.\n\n"
-       << "- **fast**: the default estimator (majorize-minimize solver), forced through every sMC round so the "
-          "rounds curve is complete. **paper PGD**: the same estimator with the paper's projected gradient descent, "
-       << Fmt("capped at %.0f s per round. ", o->gradient_cap)
-       << "**FD Jacobian (extrapolated)**: the same estimate with each round's trace of A replaced by one render "
-          "per unknown cell plus one; with common random numbers and frozen importance its A is the traced A "
-          "(transport_test checks A lambda = render), so its errors are fast's and its time is fast's plus "
-          "(cells + 1) x the measured time of one render minus the trace. "
-       << (fd_check.empty() ? std::string() : fd_check) << "\n"
-       << "- **fast: spp / rings / bounces**: one full default estimate per setting (default stopping rule); "
-          "the default setting's point is the fast run where that rule would have stopped. **fast: sMC rounds**: "
-          "the fast run after each round.\n"
-       << "- (a) relative RMSE of the fit on the fitted view (per solver iteration for the methods); (b) relative "
-          "RMSE of the held-out view re-rendered under the estimate (" << o->eval_spp
-       << " spp, evaluation time not counted; the dashed line is the same measure for the true lighting "
-          "integrated over the default 21-ring cells and rendered the same way: what the cell model does with the "
-          "exact answer, not a lower bound, since one cell moves a small light to the cell's centre); (c) mean "
-          "angle between "
-          "the strongest (up to 2) true lights and the estimate's dominant directions; (d) solid-angle weighted "
-          "relative L2 error of the estimated map against the true lighting integrated over each cell, over the "
-          "cells some path reached (scenes lit by a sky or an HDR map).\n"
-       << "- Times are wall-clock seconds from the start of the estimate (BVH, traces, solves), one process, "
-          "all cores. Machines here are noisy: compare ratios within one run.\n\n"
-       << "## Time to reach a stated error\n\n"
-       << "Fitted target: 1.01 x the worse of fast's and PGD's final fitted RMSE. Relit target: 1.05 x the worse "
-          "of their best relit errors (relit is measured once per round).\n\n"
-       << table.str() << "\n## Plots\n\n" << figures.str();
-    WriteTextAtomically(out / "report.md", md.str());
-    std::printf("report in %s (report.md, %s) after %.0f s\n", fs::absolute(out / "report.md").lexically_normal().c_str(),
-                "PNG + CSV per plot", total.Seconds());
+    ReportRun(*o).Run();
   };
 }
 

@@ -13,6 +13,7 @@
 #include "common/parallel.h"
 #include "common/plot.h"
 #include "common/timer.h"
+#include "estimation/error_display.h"
 
 namespace lp::app {
 namespace fs = std::filesystem;
@@ -28,7 +29,9 @@ std::string DefaultDataDir() {
 }
 
 void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, int* threads) {
-  cmd.add_option("--rings", o->rings, "rings of the environment map (21 -> 522 directions)")->capture_default_str();
+  cmd.add_option("--rings", o->rings, "rings of the environment map (21 -> 522 directions)")
+      ->capture_default_str()
+      ->check(CLI::Range(kMinRings, kMaxRings));
   cmd.add_option("--spp", o->tracer.spp, "path samples per pixel per round")->capture_default_str();
   cmd.add_option("--bounces", o->tracer.bounces, "surface interactions per path (1 = direct only)")
       ->capture_default_str();
@@ -49,7 +52,7 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
                  "albedo refinements of a reconstructed mesh (de-lit by the estimate, segmented again, rounds "
                  "go on; 0 = keep the bundle's albedo)")
       ->capture_default_str()
-      ->check(CLI::Range(0, 5));
+      ->check(CLI::Range(0, kMaxAlbedoPasses));
   cmd.add_option("--albedo-samples", o->albedo_samples, "paths per vertex for the irradiance an albedo pass de-lights by")
       ->capture_default_str()
       ->check(CLI::Range(1, 4096));
@@ -97,19 +100,13 @@ static void WriteConvergencePlot(const fs::path& path, const std::vector<Converg
   WritePlotPng(path, "lightprobe estimate: error against run time", panels, static_cast<int>(panels.size()));
 }
 
-void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle, const EstimateOptions& o,
-                          const EstimateResult& r, double command_seconds) {
-  const fs::path out(out_dir);
-  std::error_code ec;
-  fs::create_directories(out, ec);
-  if (ec) throw InputError(out_dir, "cannot create output directory: " + ec.message());
+/// envmap.exr, envmap.png (scaled to the brightest cell) and envmap_directions.csv.
+static void WriteEnvMap(const fs::path& out, const EstimateResult& r) {
   const EnvMap& env = r.env;
   WriteExr(out / "envmap.exr", env.ToEquirect(r.lambda, 128));
-  {
-    double peak = 0;
-    for (double v : r.lambda) peak = std::max(peak, v);
-    WritePngSrgb(out / "envmap.png", env.ToEquirect(r.lambda, 128), peak > 0 ? static_cast<float>(1 / peak) : 1.f);
-  }
+  double peak = 0;
+  for (double v : r.lambda) peak = std::max(peak, v);
+  WritePngSrgb(out / "envmap.png", env.ToEquirect(r.lambda, 128), peak > 0 ? static_cast<float>(1 / peak) : 1.f);
   std::ostringstream dirs;
   dirs << "x,y,z,solid_angle,r,g,b,left_out\n";
   for (int j = 0; j < env.size(); ++j) {
@@ -119,7 +116,10 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
          << int(r.left_out[j]) << '\n';
   }
   WriteTextAtomically(out / "envmap_directions.csv", dirs.str());
+}
 
+/// convergence.csv and convergence.png.
+static void WriteConvergence(const fs::path& out, const EstimateResult& r) {
   std::ostringstream conv;
   conv << "wall_seconds,round,iteration,objective,photometric_rmse,relative_rmse,angular_error_deg,sigma,albedo_pass\n";
   for (const auto& row : r.convergence)
@@ -128,98 +128,146 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
          << Num(row.sigma) << ',' << row.albedo_pass << '\n';
   WriteTextAtomically(out / "convergence.csv", conv.str());
   WriteConvergencePlot(out / "convergence.png", r.convergence);
+}
 
-  json views = json::array();
-  for (std::size_t k = 0; k < r.renders.size(); ++k) {
-    const View& v = bundle.views[k];
-    const ImageRGB& img = r.renders[k];
-    const std::string name = "render_view" + std::to_string(k);
-    WriteExr(out / (name + ".exr"), img);
-    // Same exposure for render and error image: the observed image's white level.
-    const float white = WhiteLevel(v);
-    WritePngSrgb(out / (name + ".png"), img, 1 / white);
-    const std::vector<float> err = ErrorImage(img, v);
-    double se = 0;
-    for (float e : err)
-      if (e >= 0) se += 3.0 * e * e;
-    WriteHeatmapPng(out / ("error_view" + std::to_string(k) + ".png"), img.width, img.height, err,
-                    kErrorDisplayFraction * white);
-    const int n = static_cast<int>(std::count(v.valid.begin(), v.valid.end(), 1));
-    double mean_obs = 0;
-    for (std::size_t i = 0; i < v.valid.size(); ++i)
-      if (v.valid[i]) mean_obs += (v.image.data[3 * i] + v.image.data[3 * i + 1] + v.image.data[3 * i + 2]) / 3.0;
-    mean_obs = n > 0 ? mean_obs / n : 0.0;
-    const double render_rmse = n > 0 ? std::sqrt(se / (3.0 * n)) : 0.0;
-    views.push_back({{"render", name + ".exr"},
-                     {"error_image", "error_view" + std::to_string(k) + ".png"},
-                     {"valid_pixels", n},
-                     {"masked_out", v.masked_out},
-                     {"non_finite", v.non_finite},
-                     {"negative", v.negative},
-                     {"saturated", v.saturated},
-                     {"render_rmse", render_rmse},
-                     {"render_relative_rmse", mean_obs > 0 ? render_rmse / mean_obs : 0.0}});
-  }
+/// render_view<k>.exr/.png and error_view<k>.png of view k; returns its entry of report.json.
+static json WriteView(const fs::path& out, std::size_t k, const View& v, const ImageRGB& img) {
+  const std::string name = "render_view" + std::to_string(k);
+  WriteExr(out / (name + ".exr"), img);
+  // Same exposure for render and error image: the observed image's white level.
+  const float white = WhiteLevel(v);
+  WritePngSrgb(out / (name + ".png"), img, 1 / white);
+  const std::vector<float> err = ErrorImage(img, v);
+  double se = 0;
+  for (float e : err)
+    if (e >= 0) se += 3.0 * e * e;
+  WriteHeatmapPng(out / ("error_view" + std::to_string(k) + ".png"), img.width, img.height, err,
+                  kErrorDisplayFraction * white);
+  const int n = static_cast<int>(std::count(v.valid.begin(), v.valid.end(), 1));
+  double mean_obs = 0;
+  for (std::size_t i = 0; i < v.valid.size(); ++i)
+    if (v.valid[i]) mean_obs += (v.image.data[3 * i] + v.image.data[3 * i + 1] + v.image.data[3 * i + 2]) / 3.0;
+  mean_obs = n > 0 ? mean_obs / n : 0.0;
+  const double render_rmse = n > 0 ? std::sqrt(se / (3.0 * n)) : 0.0;
+  return {{"render", name + ".exr"},
+          {"error_image", "error_view" + std::to_string(k) + ".png"},
+          {"valid_pixels", n},
+          {"masked_out", v.masked_out},
+          {"non_finite", v.non_finite},
+          {"negative", v.negative},
+          {"saturated", v.saturated},
+          {"render_rmse", render_rmse},
+          {"render_relative_rmse", mean_obs > 0 ? render_rmse / mean_obs : 0.0}};
+}
 
-  int left_out = 0;
-  for (auto v : r.left_out) left_out += v;
-  json rounds = json::array();
-  for (const auto& ri : r.rounds)
-    rounds.push_back({{"round", ri.round}, {"trace_seconds", ri.trace_seconds}, {"solve_seconds", ri.solve_seconds},
-                      {"solver_iterations", ri.solver_iterations}, {"objective", ri.objective},
-                      {"change", ri.change}, {"image_change", ri.image_change}, {"kkt_violation", ri.kkt_violation}, {"nonzeros", ri.nonzeros},
-                      {"unknown_cells", ri.unknown_cells}});
-  json dominant = json::array();
-  for (const auto& d : r.dominant) dominant.push_back({d.x(), d.y(), d.z()});
-  json rep;
-  rep["scene"] = fs::absolute(bundle.dir).lexically_normal().string();
-  rep["settings"] = {{"rings", o.rings}, {"directions", env.size()}, {"spp", o.tracer.spp},
-                     {"bounces", o.tracer.bounces}, {"solver", ToString(o.solver)},
-                     {"alpha", o.objective.alpha}, {"alpha_effective", r.objective_params.alpha}, {"beta", o.objective.beta}, {"sigma", o.objective.sigma},
-                     {"max_rounds", o.max_rounds}, {"change_threshold", o.change_threshold},
-                     {"seed", o.tracer.seed}, {"threads", HardwareThreads()}, {"nee_floor", o.tracer.nee_floor},
-                     {"min_throughput", o.tracer.min_throughput}, {"combine_rounds", o.combine_rounds},
-                     {"albedo_passes", o.albedo_passes}, {"albedo_samples", o.albedo_samples}};
-  rep["seconds"] = {{"total", command_seconds}, {"bvh", r.bvh_seconds}, {"trace", r.trace.seconds},
-                    {"render", r.render_seconds}, {"estimate", r.total_seconds}};
+/// report.json's "settings": the options the estimate ran with.
+static json SettingsJson(const EstimateOptions& o, const EstimateResult& r) {
+  return {{"rings", o.rings}, {"directions", r.env.size()}, {"spp", o.tracer.spp},
+          {"bounces", o.tracer.bounces}, {"solver", ToString(o.solver)},
+          {"alpha", o.objective.alpha}, {"alpha_effective", r.objective_params.alpha},
+          {"beta", o.objective.beta}, {"sigma", o.objective.sigma},
+          {"max_rounds", o.max_rounds}, {"change_threshold", o.change_threshold},
+          {"seed", o.tracer.seed}, {"threads", HardwareThreads()}, {"nee_floor", o.tracer.nee_floor},
+          {"min_throughput", o.tracer.min_throughput}, {"combine_rounds", o.combine_rounds},
+          {"albedo_passes", o.albedo_passes}, {"albedo_samples", o.albedo_samples}};
+}
+
+/// report.json's "seconds": where the time went.
+static json SecondsJson(const EstimateResult& r, double command_seconds) {
+  json seconds = {{"total", command_seconds}, {"bvh", r.bvh_seconds}, {"trace", r.trace.seconds},
+                  {"render", r.render_seconds}, {"estimate", r.total_seconds}};
   double solve = 0;
   for (const auto& ri : r.rounds) solve += ri.solve_seconds;
-  rep["seconds"]["solve"] = solve;
-  rep["seconds"]["albedo"] = r.albedo_seconds;
-  // Albedo refinement: done for a reconstructed mesh (it carries the colours seen), left
-  // out where the albedo is known (no shaded colours) or when turned off.
-  rep["albedo"] = {{"refined", !r.albedo.empty()}, {"passes", r.albedo_passes}, {"segments", r.albedo_segments}};
+  seconds["solve"] = solve;
+  seconds["albedo"] = r.albedo_seconds;
+  return seconds;
+}
+
+/// Albedo refinement: done for a reconstructed mesh (it carries the colours seen), left out
+/// where the albedo is known (no shaded colours) or when turned off. Writes albedo_mesh.ply
+/// when done; returns report.json's "albedo".
+static json WriteAlbedo(const fs::path& out, const SceneBundle& bundle, const EstimateResult& r) {
+  json albedo = {{"refined", !r.albedo.empty()}, {"passes", r.albedo_passes}, {"segments", r.albedo_segments}};
   if (!r.albedo.empty()) {
     Mesh mesh = bundle.mesh;
     mesh.albedo = r.albedo;
     mesh.shaded.clear();
     WritePly(out / "albedo_mesh.ply", mesh);
-    rep["albedo"]["mesh"] = "albedo_mesh.ply";
+    albedo["mesh"] = "albedo_mesh.ply";
   } else {
-    rep["albedo"]["why_not"] = r.albedo_left_out;
+    // The reason as the command line says it (the library names no flags).
+    albedo["why_not"] = r.albedo_left_out == AlbedoLeftOut::kNoPasses ? "--albedo-passes 0"
+                                                                     : ToString(r.albedo_left_out);
   }
-  rep["left_out"] = {{"directions_unreached", left_out},
-                     {"pixels_not_traced", r.trace.pixels_skipped},
-                     {"paths_stopped_roulette", r.trace.stopped_roulette},
-                     {"paths_stopped_negligible", r.trace.stopped_negligible},
-                     {"paths_stopped_max_bounces", r.trace.stopped_max_bounces},
-                     {"degenerate_triangles_removed", bundle.degenerate_triangles_removed}};
+  return albedo;
+}
+
+/// report.json's "left_out": what the estimate did not use.
+static json LeftOutJson(const SceneBundle& bundle, const EstimateResult& r) {
+  int left_out = 0;
+  for (auto v : r.left_out) left_out += v;
+  return {{"directions_unreached", left_out},
+          {"pixels_not_traced", r.trace.pixels_skipped},
+          {"paths_stopped_roulette", r.trace.stopped_roulette},
+          {"paths_stopped_negligible", r.trace.stopped_negligible},
+          {"paths_stopped_max_bounces", r.trace.stopped_max_bounces},
+          {"degenerate_triangles_removed", bundle.degenerate_triangles_removed}};
+}
+
+static json RoundsJson(const EstimateResult& r) {
+  json rounds = json::array();
+  for (const auto& ri : r.rounds)
+    rounds.push_back({{"round", ri.round}, {"trace_seconds", ri.trace_seconds}, {"solve_seconds", ri.solve_seconds},
+                      {"solver_iterations", ri.solver_iterations}, {"objective", ri.objective},
+                      {"change", ri.change}, {"image_change", ri.image_change}, {"kkt_violation", ri.kkt_violation},
+                      {"nonzeros", ri.nonzeros}, {"unknown_cells", ri.unknown_cells}});
+  return rounds;
+}
+
+/// report.json's "final": the estimate's fit and dominant directions.
+static json FinalJson(const EstimateResult& r) {
+  json dominant = json::array();
+  for (const auto& d : r.dominant) dominant.push_back({d.x(), d.y(), d.z()});
+  json result = {{"photometric_rmse", r.final_rmse}, {"relative_rmse", r.final_relative_rmse},
+                 {"kkt_violation", r.kkt_violation}, {"objective_increased", r.objective_increased},
+                 {"dominant_directions", dominant}};
+  if (!std::isnan(r.final_angular_error_deg)) result["angular_error_deg"] = r.final_angular_error_deg;
+  result["rendered_fraction"] = r.rendered_fraction;
+  return result;
+}
+
+static json EnvMapFrameJson(const EnvMap& env) {
+  return {{"up", {env.up().x(), env.up().y(), env.up().z()}},
+          {"frame_x", {env.frame_x().x(), env.frame_x().y(), env.frame_x().z()}},
+          {"frame_y", {env.frame_y().x(), env.frame_y().y(), env.frame_y().z()}}};
+}
+
+void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle, const EstimateOptions& o,
+                          const EstimateResult& r, double command_seconds) {
+  const fs::path out(out_dir);
+  std::error_code ec;
+  fs::create_directories(out, ec);
+  if (ec) throw InputError(out_dir, "cannot create output directory: " + ec.message());
+  WriteEnvMap(out, r);
+  WriteConvergence(out, r);
+  json views = json::array();
+  for (std::size_t k = 0; k < r.renders.size(); ++k) views.push_back(WriteView(out, k, bundle.views[k], r.renders[k]));
+  json rep;
+  rep["scene"] = fs::absolute(bundle.dir).lexically_normal().string();
+  rep["settings"] = SettingsJson(o, r);
+  rep["seconds"] = SecondsJson(r, command_seconds);
+  rep["albedo"] = WriteAlbedo(out, bundle, r);
+  rep["left_out"] = LeftOutJson(bundle, r);
   rep["trace"] = {{"paths", r.trace.paths}, {"rays", r.trace.rays}};
-  rep["rounds"] = rounds;
+  rep["rounds"] = RoundsJson(r);
   rep["views"] = views;
   rep["image_mean"] = r.image_mean;
-  rep["final"] = {{"photometric_rmse", r.final_rmse}, {"relative_rmse", r.final_relative_rmse},
-                  {"kkt_violation", r.kkt_violation}, {"objective_increased", r.objective_increased},
-                  {"dominant_directions", dominant}};
-  if (!std::isnan(r.final_angular_error_deg)) rep["final"]["angular_error_deg"] = r.final_angular_error_deg;
-  rep["final"]["rendered_fraction"] = r.rendered_fraction;
+  rep["final"] = FinalJson(r);
   rep["warnings"] = r.warnings;
   rep["envmap_convention"] =
       "equirectangular, width = 2*height; row y: polar angle (y+0.5)/H*pi from up (top = up); column x: azimuth "
       "(x+0.5)/W*2pi from frame_x towards frame_y = up x frame_x";
-  rep["envmap_frame"] = {{"up", {env.up().x(), env.up().y(), env.up().z()}},
-                         {"frame_x", {env.frame_x().x(), env.frame_x().y(), env.frame_x().z()}},
-                         {"frame_y", {env.frame_y().x(), env.frame_y().y(), env.frame_y().z()}}};
+  rep["envmap_frame"] = EnvMapFrameJson(r.env);
   WriteTextAtomically(out / "report.json", rep.dump(2) + "\n");
 }
 

@@ -8,7 +8,7 @@
 #include "common/parallel.h"
 #include "common/timer.h"
 #include "estimation/path_tracer.h"
-#include "estimation/ray_tracer.h"
+#include "scene/ray_tracer.h"
 
 namespace lp::app {
 namespace fs = std::filesystem;

@@ -3,6 +3,7 @@
 #include <filesystem>
 
 #include "app/commands.h"
+#include "calibration/calibration.h"
 #include "ui/viewer.h"
 
 namespace lp::app {
@@ -40,8 +41,15 @@ Run AddView(CLI::App& app) {
   cmd->add_option("--script", o->script, "a command file to run in the window (tests, benchmarks; docs/viewer.md)");
   cmd->add_option("--size", o->width, "window width (the height is 9/16 of it)")->capture_default_str();
   cmd->add_option("--rings", o->estimate.rings, "the Estimate panel's default rings")->capture_default_str();
-  return [o] {
+  auto calibration = std::make_shared<std::string>();
+  cmd->add_option("--calibration", *calibration,
+                  "calibration file (lightprobe calibrate) for the reconstruction, as reconstruct takes it");
+  return [o, calibration] {
     ui::ViewerOptions v = *o;
+    if (!calibration->empty()) {
+      v.session.reconstruction.reconstruction.calibration = ReadCalibration(*calibration);
+      v.session.reconstruction.calibrated = true;
+    }
     v.height = v.width * 9 / 16;
     const int code = ui::RunViewer(v);
     if (code != 0) throw InputError("the viewer's script failed (see above)");

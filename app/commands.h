@@ -10,6 +10,7 @@
 #include "common/error.h"
 #include "estimation/estimator.h"
 #include "estimation/path_tracer.h"
+#include "reconstruction/reconstruction_run.h"
 #include "ui/viewer.h"
 
 namespace lp::app {
@@ -32,6 +33,22 @@ Run AddView(CLI::App& app);
 /// the estimate writer for Export.
 ui::ViewerOptions DefaultViewerOptions();
 
+/// What `reconstruct` (and `--headless`) take besides the input and the output.
+struct ReconstructSettings {
+  ReconstructionOptions options;
+  float truncation = 0;  ///< 0 = 4 voxels
+  int max_frames = 0;    ///< 0 = all
+  std::string poses, calibration;  ///< files; "" = none
+  int threads = 0;
+};
+/// Registers reconstruct's options (shared with --headless).
+void AddReconstructOptions(CLI::App& cmd, ReconstructSettings* settings);
+/// The run's options from the settings: the calibration and pose files read, truth.json
+/// beside `input` when there is one.
+ReconstructionRunOptions MakeRunOptions(const ReconstructSettings& settings, const std::string& input);
+/// Reconstructs `input` (an .oni recording or a frame directory) into the bundle `out`,
+/// with progress on stderr and a summary on stdout.
+void Reconstruct(const std::string& input, const std::string& out, const ReconstructSettings& settings);
 /// `lightprobe --headless INPUT --out DIR ...` (args without the program name).
 int RunHeadless(const std::vector<std::string>& args);
 

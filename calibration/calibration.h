@@ -14,13 +14,13 @@
 #include "calibration/response.h"
 #include "calibration/vignetting.h"
 #include "common/image.h"
+#include "scene/camera.h"
 
 namespace lp {
 
-/// Colour camera intrinsics with OpenCV's distortion (k1, k2, p1, p2, k3).
-struct CameraModel {
-  int width = 0, height = 0;
-  double fx = 0, fy = 0, cx = 0, cy = 0;
+/// The colour camera: its pinhole intrinsics (the pose is unused) with OpenCV's
+/// distortion (k1, k2, p1, p2, k3).
+struct CameraModel : Camera {
   std::array<double, 5> distortion{};
   bool distorted() const;
 };

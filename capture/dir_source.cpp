@@ -75,7 +75,7 @@ double ParseNumber(const std::string& s, const fs::path& file, std::size_t line)
   throw InputError(file.string(), "line " + std::to_string(line) + ": '" + s + "' is not a number");
 }
 
-std::optional<Intrinsics> IntrinsicsJson(const fs::path& path) {
+std::optional<Camera> IntrinsicsJson(const fs::path& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) return std::nullopt;
   nlohmann::json j;
@@ -84,7 +84,7 @@ std::optional<Intrinsics> IntrinsicsJson(const fs::path& path) {
   } catch (const nlohmann::json::exception& e) {
     throw InputError(path.string(), std::string("malformed JSON: ") + e.what());
   }
-  Intrinsics k;
+  Camera k;
   auto num = [&](const nlohmann::json& v) {
     if (!v.is_number()) throw InputError(path.string(), "intrinsics must be numbers");
     return v.get<double>();
@@ -110,7 +110,7 @@ std::optional<Intrinsics> IntrinsicsJson(const fs::path& path) {
   return k;
 }
 
-Intrinsics PrimeSenseDefault() { return {640, 480, 525.0, 525.0, 319.5, 239.5}; }
+Camera PrimeSenseDefault() { return {640, 480, 525.0, 525.0, 319.5, 239.5}; }
 
 void RequireFile(const fs::path& p, const fs::path& index) {
   std::error_code ec;
@@ -256,7 +256,7 @@ class DirectorySource : public FrameSource {
       throw InputError(e.depth.string(), "depth is " + std::to_string(f.depth.width) + "x" +
                                              std::to_string(f.depth.height) + " but colour is " +
                                              std::to_string(f.color.width) + "x" + std::to_string(f.color.height));
-    Intrinsics k = intrinsics_;
+    Camera k = intrinsics_;
     if (k.width == 0 || k.width != f.color.width) {  // scale the default to the image size
       const double s = k.width > 0 ? static_cast<double>(f.color.width) / k.width : 1.0;
       k = {f.color.width, f.color.height, k.fx * s, k.fy * s, (k.cx + 0.5) * s - 0.5, (k.cy + 0.5) * s - 0.5};
@@ -279,7 +279,7 @@ class DirectorySource : public FrameSource {
   std::string layout_;
   std::vector<Entry> entries_;
   double depth_scale_ = 1.0;  // file units to millimetres
-  Intrinsics intrinsics_;
+  Camera intrinsics_;
   std::size_t next_ = 0;
   std::int64_t produced_ = 0;
 };
@@ -381,7 +381,7 @@ void WriteFrameDirectory(const std::string& dir_name, const std::vector<RgbdFram
     if (poses) trajectory.push_back(*f.world_from_camera);
   }
   if (poses) WriteTextAtomically(tmp / "trajectory.log", FormatTrajectoryLog(trajectory));
-  const Intrinsics& k0 = frames[0].color_intrinsics;
+  const Camera& k0 = frames[0].color_intrinsics;
   nlohmann::json j = {{"fx", k0.fx}, {"fy", k0.fy}, {"cx", k0.cx}, {"cy", k0.cy}, {"width", k0.width}, {"height", k0.height}};
   WriteTextAtomically(tmp / "intrinsics.json", j.dump(2) + "\n");
   fs::remove_all(dir, ec);

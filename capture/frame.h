@@ -6,14 +6,9 @@
 #include <Eigen/Core>
 
 #include "common/image.h"
+#include "scene/camera.h"
 
 namespace lp {
-
-/// Pinhole intrinsics of one stream (pixels, OpenCV convention, pixel centres at integers).
-struct Intrinsics {
-  int width = 0, height = 0;
-  double fx = 0, fy = 0, cx = 0, cy = 0;
-};
 
 struct RgbdFrame {
   std::int64_t index = 0;        ///< 0-based, in the order the source produced them
@@ -21,7 +16,8 @@ struct RgbdFrame {
   ImageRgb8 color;               ///< 8-bit sRGB as the camera encodes it
   double depth_timestamp = 0;    ///< seconds, the device's clock (or the file's)
   double color_timestamp = 0;
-  Intrinsics depth_intrinsics, color_intrinsics;
+  /// Each stream's pinhole intrinsics (the pose is unused: the identity).
+  Camera depth_intrinsics, color_intrinsics;
   /// Depth is registered to colour: depth pixel (x, y) sees what colour pixel (x, y) sees,
   /// and depth_intrinsics == color_intrinsics.
   bool registered = false;

@@ -106,6 +106,18 @@ struct OpenNiDeviceOptions {
 /// it the same way, so a finished file is never lost. Any thread may call it; the calls
 /// wait for the source's current read (at most its timeout). Pausing the source does not
 /// pause a recording (the Recorder takes every frame the device sends).
+/// How a recording ended without LiveRecorder::Stop (the source closed, the device lost).
+struct RecordingEnd {
+  enum class How {
+    kNotEnded,  ///< still recording, never started, or ended by Stop
+    kSaved,     ///< finished with the frames so far and moved into place
+    kFailed,    ///< the file could not be finished
+  };
+  How how = How::kNotEnded;
+  RecordResult result;  ///< kSaved: what the file holds
+  std::string message;  ///< one line: "recorded N depth frames in S s to FILE (why)" or "recording failed: ..."
+};
+
 class LiveRecorder {
  public:
   virtual ~LiveRecorder() = default;
@@ -123,7 +135,7 @@ class LiveRecorder {
   virtual void Progress(int* depth_frames, double* seconds) const = 0;
   /// Set when the source's destruction or a lost device finished the recording: what
   /// was recorded, or the reason it failed. Cleared by Start.
-  virtual std::string EndedWithoutStop() const = 0;
+  virtual RecordingEnd EndedWithoutStop() const = 0;
 };
 
 /// A live OpenNI2 device as a FrameSource: depth + colour paired by timestamp, kTimeout

@@ -18,7 +18,7 @@ std::vector<RgbdFrame> ToRgbdFrames(const std::vector<SynthFrame>& frames) {
       f.depth.data[i] =
           s.depth[i] > 0 && s.depth[i] < 65.535f ? static_cast<std::uint16_t>(std::lround(s.depth[i] * 1000)) : 0;
     const Camera& c = s.camera;
-    f.color_intrinsics = f.depth_intrinsics = {c.width, c.height, c.fx, c.fy, c.cx, c.cy};
+    f.color_intrinsics = f.depth_intrinsics = c.Intrinsics();
     f.registered = true;
     f.world_from_camera = c.world_from_camera;
     f.depth_timestamp = f.color_timestamp = k / 30.0;

@@ -9,7 +9,7 @@
 
 #include "estimation/objective.h"
 #include "estimation/path_tracer.h"
-#include "estimation/scene_bundle.h"
+#include "scene/scene_bundle.h"
 #include "estimation/solver.h"
 #include "estimation/truth.h"
 
@@ -25,6 +25,12 @@ constexpr double kAlphaReferenceSolidAngle = 4 * 3.14159265358979323846 / 522;
 /// non-convexity; see Estimate).
 constexpr double kGraduatedSigmaStart = 0.5;
 
+/// The most albedo passes an estimate takes (EstimateOptions::albedo_passes is 0 .. this):
+/// the command line, the viewer's setting and its script check against it.
+constexpr int kMaxAlbedoPasses = 5;
+/// EstimateOptions::rings is kMinRings .. kMaxRings.
+constexpr int kMinRings = 2, kMaxRings = 181;
+
 struct ConvergenceRow;
 struct RoundInfo;
 
@@ -35,13 +41,12 @@ struct EstimateOptions {
   SolverKind solver = SolverKind::kFast;
   SolverOptions solver_options;
   int max_rounds = 4;
-  /// Albedo refinement (intrinsic decomposition, estimation/albedo.h), when the mesh has
+  /// Albedo refinement (intrinsic decomposition, scene/albedo.h), when the mesh has
   /// `shaded` colours (a reconstruction; a bundle with known albedo needs none): after the
   /// rounds settle, the colours seen are de-lit by the estimate's irradiance at every vertex
   /// (albedo_samples paths each), segmented again and flattened, and the rounds go on
-  /// warm-started under the new albedo (at most max_rounds more); this many times. On the
-  /// demo it lowers the relit error on held-out views by a third (0.093 -> 0.061) for ~1.6x
-  /// the estimate's time; the light's direction moves by less than its spread (method.md).
+  /// warm-started under the new albedo (at most max_rounds more); this many times, 0 ..
+  /// kMaxAlbedoPasses (what it gains and costs: docs/method.md).
   int albedo_passes = 1;
   int albedo_samples = 64;
   /// Stop when the rendered estimate changes by less than this between rounds:
@@ -95,6 +100,16 @@ struct RoundInfo {
   std::vector<double> lambda;  ///< the estimate after this round (3 * cells, image units)
 };
 
+/// Why an estimate did not refine the albedo.
+enum class AlbedoLeftOut {
+  kRefined,      ///< it did
+  kNoPasses,     ///< EstimateOptions::albedo_passes is 0
+  kKnownAlbedo,  ///< the bundle's albedo is known (its mesh has no shaded colours)
+  kNothingLit,   ///< the estimate lights nothing, or every colour seen is black
+};
+/// One line saying why ("" for kRefined).
+const char* ToString(AlbedoLeftOut why);
+
 struct EstimateResult {
   EnvMap env{2, Eigen::Vector3d::UnitZ()};
   std::vector<double> lambda;  ///< 3 * env.size(), linear radiance in image units; 0 for left-out cells
@@ -122,7 +137,7 @@ struct EstimateResult {
   std::vector<Eigen::Vector3f> albedo;
   int albedo_passes = 0, albedo_segments = 0;
   double albedo_seconds = 0;  ///< de-lighting and segmenting (the extra rounds are in `rounds`)
-  std::string albedo_left_out;  ///< why the albedo was not refined (empty when it was)
+  AlbedoLeftOut albedo_left_out = AlbedoLeftOut::kRefined;  ///< why the albedo was not refined
 };
 
 /// Runs the estimate on a loaded bundle. Throws InputError when nothing usable is

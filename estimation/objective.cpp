@@ -79,9 +79,9 @@ void LinearProblem::MultiplyTransposed(const std::vector<double>& v, std::vector
 }
 
 Objective::Objective(const LinearProblem& problem, const ObjectiveParams& params) : p_(problem), params_(params) {
-  if (!(params.sigma > 0) || !std::isfinite(params.sigma)) throw InputError("--sigma must be positive and finite");
-  if (!(params.alpha >= 0) || !std::isfinite(params.alpha)) throw InputError("--alpha must be >= 0 and finite");
-  if (!(params.beta >= 0) || !std::isfinite(params.beta)) throw InputError("--beta must be >= 0 and finite");
+  if (!(params.sigma > 0) || !std::isfinite(params.sigma)) throw InputError("sigma must be positive and finite");
+  if (!(params.alpha >= 0) || !std::isfinite(params.alpha)) throw InputError("alpha must be >= 0 and finite");
+  if (!(params.beta >= 0) || !std::isfinite(params.beta)) throw InputError("beta must be >= 0 and finite");
   if (!params.cell_weight.empty()) {
     LP_CHECK(static_cast<int>(params.cell_weight.size()) == problem.unknown_cells, "one weight per unknown cell");
     for (double w : params.cell_weight) LP_CHECK(w >= 0 && std::isfinite(w), "cell weights must be finite, >= 0");

@@ -177,8 +177,8 @@ void ForEachPixel(const std::vector<PixelRef>& pixels, const TracerOptions& opt,
 }
 
 void CheckOptions(const TracerOptions& o) {
-  if (o.spp < 1) throw InputError("--spp must be at least 1");
-  if (o.bounces < 1) throw InputError("--bounces must be at least 1");
+  if (o.spp < 1) throw InputError("spp must be at least 1");
+  if (o.bounces < 1) throw InputError("bounces must be at least 1");
 }
 
 }  // namespace

@@ -8,8 +8,8 @@
 #include "common/image.h"
 #include "common/rng.h"
 #include "estimation/envmap.h"
-#include "estimation/ray_tracer.h"
-#include "estimation/scene_bundle.h"
+#include "scene/ray_tracer.h"
+#include "scene/scene_bundle.h"
 #include "estimation/transport.h"
 
 namespace lp {

@@ -12,7 +12,7 @@
 #include "common/rng.h"
 #include "common/image_io.h"
 #include "estimation/path_tracer.h"
-#include "estimation/ray_tracer.h"
+#include "scene/ray_tracer.h"
 #include "estimation/sampling.h"
 #include "estimation/truth.h"
 
@@ -365,7 +365,7 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::p
 
 std::vector<SynthFrame> RenderSynthFrames(const std::string& name, const SynthOptions& o, const fs::path& data_dir,
                                           int frames, std::string* truth_json) {
-  if (frames < 1 || frames > 10000) throw InputError("synth: --frames must be between 1 and 10000");
+  if (frames < 1 || frames > 10000) throw InputError("synthetic frames: the frame count must be between 1 and 10000");
   SynthOptions first = o;
   first.spp = 1;  // only the geometry, the lighting and the first camera are needed here
   first.held_out_views = 0;

@@ -10,7 +10,7 @@
 #include <Eigen/Core>
 
 #include "estimation/envmap.h"
-#include "estimation/scene_bundle.h"
+#include "scene/scene_bundle.h"
 
 namespace lp {
 

@@ -5,6 +5,7 @@
 #include "common/error.h"
 #include "common/parallel.h"
 #include "common/rng.h"
+#include "estimation/error_display.h"
 #include "estimation/path_tracer.h"
 #include "estimation/sampling.h"
 

@@ -12,8 +12,8 @@
 #include <Eigen/Core>
 
 #include "estimation/envmap.h"
-#include "estimation/ray_tracer.h"
-#include "estimation/scene_bundle.h"
+#include "scene/ray_tracer.h"
+#include "scene/scene_bundle.h"
 
 namespace lp {
 

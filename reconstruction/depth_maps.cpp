@@ -12,8 +12,8 @@ namespace {
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 }
 
-Intrinsics ScaleIntrinsics(const Intrinsics& k, int level) {
-  Intrinsics s = k;
+Camera ScaleIntrinsics(const Camera& k, int level) {
+  Camera s = k;
   for (int l = 0; l < level; ++l) {
     s.width /= 2;
     s.height /= 2;
@@ -74,7 +74,7 @@ std::vector<float> BilateralFilter(const std::vector<float>& depth, int w, int h
 }
 
 void ComputeVertexNormalMaps(DepthLevel* l, int normal_radius) {
-  const Intrinsics& k = l->k;
+  const Camera& k = l->k;
   const int w = k.width, h = k.height;
   l->vertex.assign(l->depth.size(), Eigen::Vector3f::Constant(kNaN));
   l->normal.assign(l->depth.size(), Eigen::Vector3f::Constant(kNaN));
@@ -115,7 +115,7 @@ void ComputeVertexNormalMaps(DepthLevel* l, int normal_radius) {
   });
 }
 
-std::vector<DepthLevel> PreprocessDepth(const DepthImage& depth, const Intrinsics& k, const PreprocessOptions& o) {
+std::vector<DepthLevel> PreprocessDepth(const DepthImage& depth, const Camera& k, const PreprocessOptions& o) {
   std::vector<DepthLevel> levels(static_cast<std::size_t>(std::max(1, o.levels)));
   const std::size_t first = static_cast<std::size_t>(std::clamp(o.first_level, 0, static_cast<int>(levels.size()) - 1));
   levels[0].k = k;

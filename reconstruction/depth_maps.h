@@ -26,7 +26,7 @@ struct PreprocessOptions {
 
 /// One pyramid level, camera frame. Invalid entries: depth 0, vertex / normal NaN.
 struct DepthLevel {
-  Intrinsics k;                         ///< scaled to this level
+  Camera k;                         ///< scaled to this level
   std::vector<float> depth;             ///< metres along the optical axis
   std::vector<Eigen::Vector3f> vertex;  ///< camera frame, metres
   std::vector<Eigen::Vector3f> normal;  ///< camera frame, unit, facing the camera
@@ -50,9 +50,9 @@ void ComputeVertexNormalMaps(DepthLevel* level, int normal_radius = 1);
 /// The whole measurement stage: metres, then each coarser level by 2x2 averaging of depths
 /// within 3 sigma_depth of the block's first valid one; the bilateral filter at
 /// `first_level`, and vertex and normal maps from there on.
-std::vector<DepthLevel> PreprocessDepth(const DepthImage& depth, const Intrinsics& k, const PreprocessOptions& options);
+std::vector<DepthLevel> PreprocessDepth(const DepthImage& depth, const Camera& k, const PreprocessOptions& options);
 
 /// Intrinsics of pyramid level `level` (each level halves the size).
-Intrinsics ScaleIntrinsics(const Intrinsics& k, int level);
+Camera ScaleIntrinsics(const Camera& k, int level);
 
 }  // namespace lp

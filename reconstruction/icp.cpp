@@ -33,7 +33,7 @@ struct Normal {
 /// One Gauss-Newton system at one level for the current pose.
 Normal Accumulate(const DepthLevel& f, const ModelMaps& model, int level, const Eigen::Matrix4f& pose,
                   const IcpOptions& o) {
-  const Intrinsics& mk = model.k[level];
+  const Camera& mk = model.k[level];
   const auto& mv = model.vertex[level];
   const auto& mn = model.normal[level];
   const Eigen::Matrix4f model_from_world = model.world_from_camera.inverse().cast<float>();
@@ -104,7 +104,7 @@ double RotationAngle(const Eigen::Matrix4d& t) {
   return std::acos(std::clamp((t.block<3, 3>(0, 0).trace() - 1) / 2, -1.0, 1.0));
 }
 
-ModelMaps MakeModelMaps(const Intrinsics& k, const std::vector<Eigen::Vector3f>& vertex,
+ModelMaps MakeModelMaps(const Camera& k, const std::vector<Eigen::Vector3f>& vertex,
                         const std::vector<Eigen::Vector3f>& normal, const Eigen::Matrix4d& world_from_camera,
                         int levels, int first_level) {
   ModelMaps m;
@@ -119,10 +119,10 @@ ModelMaps MakeModelMaps(const Intrinsics& k, const std::vector<Eigen::Vector3f>&
       m.normal.push_back(m.normal.back());
       continue;
     }
-    const Intrinsics& fk = m.k.back();
+    const Camera& fk = m.k.back();
     // Every second pixel (not 2x2 means: a vertex map does not average): pixel x here is
     // pixel 2x there.
-    Intrinsics ck = fk;
+    Camera ck = fk;
     ck.width /= 2;
     ck.height /= 2;
     ck.fx *= 0.5;

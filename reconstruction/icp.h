@@ -28,7 +28,7 @@ struct IcpOptions {
 /// The model as the last good camera saw it: world-frame vertex and normal maps (NaN =
 /// nothing) per pyramid level, and that camera.
 struct ModelMaps {
-  std::vector<Intrinsics> k;
+  std::vector<Camera> k;
   std::vector<std::vector<Eigen::Vector3f>> vertex, normal;
   Eigen::Matrix4d world_from_camera = Eigen::Matrix4d::Identity();
 };
@@ -39,7 +39,7 @@ double RotationAngle(const Eigen::Matrix4d& transform);
 /// Model maps for `levels` pyramid levels from a raycast (world frame) made at pyramid
 /// level `first_level` of the frame (0 = full size, 1 = half): levels up to first_level
 /// share the raycast, coarser ones take every second pixel of the one before.
-ModelMaps MakeModelMaps(const Intrinsics& k, const std::vector<Eigen::Vector3f>& vertex,
+ModelMaps MakeModelMaps(const Camera& k, const std::vector<Eigen::Vector3f>& vertex,
                         const std::vector<Eigen::Vector3f>& normal, const Eigen::Matrix4d& world_from_camera,
                         int levels, int first_level = 0);
 

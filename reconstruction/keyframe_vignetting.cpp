@@ -5,7 +5,7 @@
 
 #include "common/parallel.h"
 #include "common/rng.h"
-#include "estimation/ray_tracer.h"
+#include "scene/ray_tracer.h"
 
 namespace lp {
 

@@ -6,7 +6,7 @@
 #include <vector>
 
 #include "calibration/vignetting.h"
-#include "estimation/scene_bundle.h"
+#include "scene/scene_bundle.h"
 
 namespace lp {
 

@@ -26,12 +26,12 @@ struct Candidate {
   double sharpness = 0;
   ImageRgb8 color;
   DepthImage depth;
-  Intrinsics depth_k, color_k;
+  Camera depth_k, color_k;
   bool registered = false;
   double exposure = 0, gain = 0;
 };
 
-bool GoodIntrinsics(const Intrinsics& k) {
+bool GoodIntrinsics(const Camera& k) {
   return std::isfinite(k.fx) && std::isfinite(k.fy) && std::isfinite(k.cx) && std::isfinite(k.cy) && k.fx > 0 &&
          k.fy > 0 && k.width > 0 && k.height > 0;
 }
@@ -125,7 +125,7 @@ struct Reconstructor::Impl {
   bool started = false;
   Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();  // last good
   Eigen::Matrix4d first_pose = Eigen::Matrix4d::Identity();
-  Intrinsics first_depth_k, first_color_k;
+  Camera first_depth_k, first_color_k;
   StageTimes times;
   std::vector<FrameReport> reports;
   // Keyframe candidates: the sharpest tracked frame of each window of `window` frames;
@@ -141,11 +141,11 @@ struct Reconstructor::Impl {
 
   /// The model as a camera at `pose` sees it, for tracking (raycast at model_level);
   /// `hint` bounds the search (TsdfVolume::Raycast), `raycast` receives the maps if asked.
-  ModelMaps ModelFrom(const Intrinsics& depth_k, const Eigen::Matrix4d& pose, const TsdfVolume::Maps* hint = nullptr,
+  ModelMaps ModelFrom(const Camera& depth_k, const Eigen::Matrix4d& pose, const TsdfVolume::Maps* hint = nullptr,
                       TsdfVolume::Maps* raycast = nullptr) const {
     TsdfVolume::Maps maps;
     const int level = std::clamp(o.model_level, 0, std::max(0, o.preprocess.levels - 1));
-    const Intrinsics k = ScaleIntrinsics(depth_k, level);
+    const Camera k = ScaleIntrinsics(depth_k, level);
     volume.Raycast(k, pose, &maps, false, hint);
     ModelMaps model_maps = MakeModelMaps(k, maps.vertex, maps.normal, pose, o.preprocess.levels, level);
     if (raycast) *raycast = std::move(maps);
@@ -188,10 +188,9 @@ struct Reconstructor::Impl {
   }
 
   /// The colour camera: the calibrated model (for undistorted images) when there is one.
-  Intrinsics ColorK(const RgbdFrame& f) const {
+  Camera ColorK(const RgbdFrame& f) const {
     if (!o.calibration.color) return f.color_intrinsics;
-    const CameraModel& c = *o.calibration.color;
-    return {c.width, c.height, c.fx, c.fy, c.cx, c.cy};
+    return *o.calibration.color;  // its pinhole part
   }
 
   void Fuse(const RgbdFrame& f, const Eigen::Matrix4d& world_from_camera, FrameReport* r) {
@@ -247,10 +246,10 @@ struct Reconstructor::Impl {
 
 Reconstructor::Reconstructor(const ReconstructionOptions& o) : impl_(std::make_unique<Impl>(o)) {
   if (!(o.tsdf.voxel >= 0.001f && o.tsdf.voxel <= 0.1f))
-    throw InputError("reconstruct: --voxel must be between 0.001 and 0.1 m");
+    throw InputError("reconstruction: the voxel size must be between 0.001 and 0.1 m");
   if (!(o.tsdf.truncation >= 2 * o.tsdf.voxel && o.tsdf.truncation <= 1.f))
-    throw InputError("reconstruct: --truncation must be at least two voxels and at most 1 m");
-  if (o.keyframes < 1 || o.keyframes > 64) throw InputError("reconstruct: --keyframes must be between 1 and 64");
+    throw InputError("reconstruction: the truncation distance must be at least two voxels and at most 1 m");
+  if (o.keyframes < 1 || o.keyframes > 64) throw InputError("reconstruction: the keyframe count must be between 1 and 64");
   if (!(o.preprocess.sigma_depth > 0) || !(o.preprocess.sigma_space > 0) || o.preprocess.bilateral_radius < 0 ||
       o.preprocess.normal_radius < 1 || o.preprocess.levels < 1 || o.relocalizer.min_inliers < 4)
     throw InputError("reconstruct: preprocessing / relocalization options out of range");
@@ -435,18 +434,13 @@ SceneBundle FinishBundle(bool started, const ReconstructionOptions& o, const Tsd
   SmoothMesh(&b.mesh, o.smooth_iterations);
   SanitizeMesh(&b.mesh, "reconstructed mesh");
   b.up = UpOf(b.mesh, first_pose, o.tsdf.voxel, nullptr);
-  b.mesh.shaded = b.mesh.albedo;  // the colour seen: the estimator de-lights it (estimation/albedo.h)
+  b.mesh.shaded = b.mesh.albedo;  // the colour seen: the estimator de-lights it (scene/albedo.h)
   FlattenAlbedo(&b.mesh, o.albedo);
 
   for (const Candidate* c : chosen) {
     View v;
-    const Intrinsics& k = c->color_k;
-    v.camera.width = k.width;
-    v.camera.height = k.height;
-    v.camera.fx = k.fx;
-    v.camera.fy = k.fy;
-    v.camera.cx = k.cx;
-    v.camera.cy = k.cy;
+    const Camera& k = c->color_k;
+    v.camera = k;
     // The view is the colour camera's: moved from the depth camera's pose by the
     // calibrated extrinsics when depth was not registered to colour.
     v.camera.world_from_camera = c->pose;

@@ -12,8 +12,8 @@
 
 #include "calibration/calibration.h"
 #include "capture/frame.h"
-#include "estimation/scene_bundle.h"
-#include "estimation/albedo.h"
+#include "scene/scene_bundle.h"
+#include "scene/albedo.h"
 #include "reconstruction/depth_maps.h"
 #include "reconstruction/icp.h"
 #include "reconstruction/relocalizer.h"
@@ -54,8 +54,8 @@ struct ReconstructionOptions {
   /// level costs 4x and adds little; fusion always uses the full-size depth).
   int track_half_from_width = 600;
   /// Fuse every Nth tracked frame (all are tracked): at 30 frames/s neighbours are nearly
-  /// the same view, and fusion is the costliest stage; 2 keeps up with a 30 Hz camera at
-  /// 320x240 on 2 cores with the same accuracy (docs/benchmarks.md).
+  /// the same view, and fusion is the costliest stage; 2 keeps up with a live camera with
+  /// the same accuracy (measured in docs/benchmarks.md).
   int fuse_every = 2;
   /// Makes colour frames linear (response, undistortion, vignetting, exposure); without
   /// one, sRGB is assumed (Calibration{}.Describe() says so). A calibrated camera model

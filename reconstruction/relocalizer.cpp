@@ -65,7 +65,7 @@ void ComputeFeatures(cv::ORB& orb, Memory* m) {
   std::vector<cv::KeyPoint> keys;
   cv::Mat desc;
   orb.detectAndCompute(Grey(f.color), cv::noArray(), keys, desc);
-  const Intrinsics& k = f.color_intrinsics;
+  const Camera& k = f.color_intrinsics;
   for (std::size_t i = 0; i < keys.size(); ++i) {
     // Corners sit on edges, where depth is often missing: the nearest surface within
     // 2 pixels (the smallest valid depth: a corner belongs to the front object).
@@ -112,7 +112,7 @@ std::optional<Eigen::Matrix4d> Relocalizer::Locate(const RgbdFrame& f) {
       }
   }
   if (world.size() < static_cast<std::size_t>(impl_->o.min_inliers)) return std::nullopt;
-  const Intrinsics& k = f.color_intrinsics;
+  const Camera& k = f.color_intrinsics;
   const cv::Mat K = (cv::Mat_<double>(3, 3) << k.fx, 0, k.cx, 0, k.fy, k.cy, 0, 0, 1);
   cv::Mat rvec, tvec;
   std::vector<int> inliers;

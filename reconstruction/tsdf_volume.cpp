@@ -177,31 +177,33 @@ std::size_t TsdfVolume::MemoryBytes() const {
          impl_->store.hash.Bytes();
 }
 
-std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrinsics& k, const ImageRGB* color,
-                                  const Intrinsics& color_k, const Eigen::Matrix4d& world_from_camera,
-                                  const Eigen::Matrix4d* color_from_depth) {
-  Impl& m = *impl_;
-  VolumeStore& st = m.store;
-  const float voxel = m.o.voxel, trunc = m.o.truncation, block = voxel * kBlockSide;
-  const Eigen::Matrix4f wfc = world_from_camera.cast<float>();
-  const Eigen::Matrix3f R = wfc.block<3, 3>(0, 0);
-  const Eigen::Vector3f t = wfc.block<3, 1>(0, 3);
-  const int w = k.width, h = k.height;
-  const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy), cx = static_cast<float>(k.cx),
-              cy = static_cast<float>(k.cy);
+namespace {
 
-  // 1. Blocks within the truncation band of each measurement (every second pixel: a
-  //    block spans many pixels at any useful depth).
-  const std::size_t rows = static_cast<std::size_t>((h + 1) / 2);
+/// A depth camera's pinhole in floats, for the per-pixel and per-voxel loops.
+struct Pinhole {
+  float fx, fy, cx, cy;
+  int w, h;
+  explicit Pinhole(const Camera& k)
+      : fx(static_cast<float>(k.fx)), fy(static_cast<float>(k.fy)), cx(static_cast<float>(k.cx)),
+        cy(static_cast<float>(k.cy)), w(k.width), h(k.height) {}
+  Eigen::Vector3f Ray(int x, int y) const { return {(x - cx) / fx, (y - cy) / fy, 1.f}; }
+};
+
+/// Blocks within the truncation band of each measurement (every second pixel: a block
+/// spans many pixels at any useful depth), per row pair, in ray order.
+std::vector<std::vector<Eigen::Vector3i>> BandBlocks(const std::vector<float>& depth, const Pinhole& k,
+                                                      const Eigen::Matrix3f& R, const Eigen::Vector3f& t, float trunc,
+                                                      float block) {
+  const std::size_t rows = static_cast<std::size_t>((k.h + 1) / 2);
   std::vector<std::vector<Eigen::Vector3i>> found(rows);
   ParallelForChunks(0, rows, 8, [&](std::size_t r0, std::size_t r1) {
     for (std::size_t r = r0; r < r1; ++r) {
       const int y = static_cast<int>(2 * r);
       Eigen::Vector3i last(INT32_MIN, 0, 0);
-      for (int x = 0; x < w; x += 2) {
-        const float z = depth[static_cast<std::size_t>(y) * w + x];
+      for (int x = 0; x < k.w; x += 2) {
+        const float z = depth[static_cast<std::size_t>(y) * k.w + x];
         if (z <= 0) continue;
-        const Eigen::Vector3f ray((x - cx) / fx, (y - cy) / fy, 1.f);
+        const Eigen::Vector3f ray = k.Ray(x, y);
         const float len = ray.norm(), dz = trunc / len;  // the band is +-trunc along the ray
         const int steps = static_cast<int>(std::ceil(2 * trunc / (0.5f * block))) + 1;
         for (int s = 0; s <= steps; ++s) {
@@ -217,6 +219,133 @@ std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrins
       }
     }
   });
+  return found;
+}
+
+/// Unregistered frames: what the colour camera sees is not what the depth camera sees. The
+/// depth map's points splatted into the colour camera (3x3, nearest kept) say how far its
+/// nearest surface is per colour pixel; a voxel more than a truncation behind it is hidden
+/// from the colour camera and takes no colour (else it took the colour in front of it).
+std::vector<float> ColorCameraDepth(const std::vector<float>& depth, const Pinhole& k, const Pinhole& ck,
+                                    const Eigen::Matrix3f& Rcd, const Eigen::Vector3f& tcd, int cw, int ch) {
+  std::vector<float> color_z(static_cast<std::size_t>(cw) * ch, std::numeric_limits<float>::infinity());
+  for (int y = 0; y < k.h; ++y)
+    for (int x = 0; x < k.w; ++x) {
+      const float z = depth[static_cast<std::size_t>(y) * k.w + x];
+      if (z <= 0) continue;
+      const Eigen::Vector3f q = Rcd * (k.Ray(x, y) * z) + tcd;
+      if (q.z() <= 0) continue;
+      const int u = static_cast<int>(std::lround(ck.fx * q.x() / q.z() + ck.cx));
+      const int v = static_cast<int>(std::lround(ck.fy * q.y() / q.z() + ck.cy));
+      for (int dv = -1; dv <= 1; ++dv)
+        for (int du = -1; du <= 1; ++du) {
+          if (u + du < 0 || v + dv < 0 || u + du >= cw || v + dv >= ch) continue;
+          float& zb = color_z[static_cast<std::size_t>(v + dv) * cw + u + du];
+          zb = std::min(zb, q.z());
+        }
+    }
+  return color_z;
+}
+
+/// Step 2 of integration: every voxel of a touched block takes the projective signed
+/// distance along its pixel's ray (a running average) and, near the surface, the colour.
+struct VoxelUpdate {
+  const std::vector<float>& depth;
+  Pinhole k, ck;
+  const ImageRGB* color;
+  bool extrinsics;  ///< colour from another camera (Rcd, tcd)
+  Eigen::Matrix3f Rt, Rcd;
+  Eigen::Vector3f tc, tcd;
+  float voxel, trunc;
+  int max_w;
+  std::vector<float> inv;         ///< 1 / (weight + 1): no division per voxel
+  std::vector<float> lambda;      ///< per pixel: ray length per unit depth (no square root per voxel)
+  std::vector<float> color_z;     ///< ColorCameraDepth, or empty
+
+  VoxelUpdate(const std::vector<float>& depth_, const Camera& k_, const ImageRGB* color_, const Camera& color_k,
+              const Eigen::Matrix4f& wfc, const Eigen::Matrix4d* color_from_depth, float voxel_, float trunc_,
+              float max_weight)
+      : depth(depth_), k(k_), ck(color_k), color(color_), extrinsics(color_from_depth != nullptr), voxel(voxel_),
+        trunc(trunc_) {
+    const Eigen::Matrix3f R = wfc.block<3, 3>(0, 0);
+    Rt = R.transpose();
+    tc = -Rt * wfc.block<3, 1>(0, 3);  // camera_from_world
+    const Eigen::Matrix4f cfd = color_from_depth ? Eigen::Matrix4f(color_from_depth->cast<float>())
+                                                 : Eigen::Matrix4f(Eigen::Matrix4f::Identity());
+    Rcd = cfd.block<3, 3>(0, 0);
+    tcd = cfd.block<3, 1>(0, 3);
+    if (color && color_from_depth) color_z = ColorCameraDepth(depth, k, ck, Rcd, tcd, color->width, color->height);
+    max_w = static_cast<int>(std::clamp(max_weight, 1.f, 65535.f));
+    inv.resize(static_cast<std::size_t>(max_w) + 1);
+    for (std::size_t i = 0; i < inv.size(); ++i) inv[i] = 1.f / (i + 1);
+    lambda.resize(static_cast<std::size_t>(k.w) * k.h);
+    for (int y = 0; y < k.h; ++y)
+      for (int x = 0; x < k.w; ++x)
+        lambda[static_cast<std::size_t>(y) * k.w + x] =
+            std::sqrt(1 + ((x - k.cx) / k.fx) * ((x - k.cx) / k.fx) + ((y - k.cy) / k.fy) * ((y - k.cy) / k.fy));
+  }
+
+  void Block(VoxelBlock& blk, const Eigen::Vector3i& origin) const {
+    for (int lz = 0; lz < kBlockSide; ++lz)
+      for (int ly = 0; ly < kBlockSide; ++ly) {
+        const Eigen::Vector3f row_start = Rt * (Eigen::Vector3f(origin.x(), origin.y() + ly, origin.z() + lz) * voxel) + tc;
+        const Eigen::Vector3f step = Rt.col(0) * voxel;
+        for (int lx = 0; lx < kBlockSide; ++lx)
+          UpdateVoxel(blk, VolumeStore::LocalIndex(lx, ly, lz), row_start + step * static_cast<float>(lx));
+      }
+  }
+
+  void UpdateVoxel(VoxelBlock& blk, int li, const Eigen::Vector3f& pc) const {
+    if (pc.z() <= 0) return;
+    const float iz = 1.f / pc.z();
+    // +0.5 and truncation round to nearest for the in-image (non-negative) range.
+    const float uf = k.fx * pc.x() * iz + k.cx + 0.5f, vf = k.fy * pc.y() * iz + k.cy + 0.5f;
+    if (!(uf >= 0 && vf >= 0 && uf < k.w && vf < k.h)) return;  // NaN fails too
+    const std::size_t pix = static_cast<std::size_t>(static_cast<int>(vf)) * k.w + static_cast<int>(uf);
+    const float d = depth[pix];
+    if (d <= 0) return;
+    const float sdf = (d - pc.z()) * lambda[pix];
+    if (sdf < -trunc) return;
+    const float tsdf = std::min(1.f, sdf / trunc);
+    Voxel& vx = blk.v[li];
+    vx.set_sdf((vx.sdf() * vx.weight + tsdf) * inv[vx.weight]);
+    vx.weight = static_cast<std::uint16_t>(std::min<int>(vx.weight + 1, max_w));
+    if (!color || std::abs(sdf) > 0.5f * trunc) return;
+    Color(blk.c[li], extrinsics ? Eigen::Vector3f(Rcd * pc + tcd) : pc);
+  }
+
+  void Color(VoxelColor& vc, const Eigen::Vector3f& pcol) const {
+    if (pcol.z() <= 0) return;
+    const int cu = static_cast<int>(std::lround(ck.fx * pcol.x() / pcol.z() + ck.cx));
+    const int cv = static_cast<int>(std::lround(ck.fy * pcol.y() / pcol.z() + ck.cy));
+    if (cu < 0 || cv < 0 || cu >= color->width || cv >= color->height) return;
+    if (!color_z.empty() && pcol.z() > color_z[static_cast<std::size_t>(cv) * color->width + cu] + trunc) return;
+    const float* c = color->at(cu, cv);
+    if (!(std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]))) return;
+    const float cw = vc.weight;
+    auto mix = [&](std::uint16_t old, float value) {
+      const float v = (old * (1.f / 65535.f) * cw + std::clamp(value, 0.f, 1.f)) / (cw + 1);
+      return static_cast<std::uint16_t>(v * 65535.f + 0.5f);
+    };
+    vc.r = mix(vc.r, c[0]);
+    vc.g = mix(vc.g, c[1]);
+    vc.b = mix(vc.b, c[2]);
+    vc.weight = static_cast<std::uint16_t>(std::min<int>(vc.weight + 1, max_w));
+  }
+};
+
+}  // namespace
+
+std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Camera& k, const ImageRGB* color,
+                                  const Camera& color_k, const Eigen::Matrix4d& world_from_camera,
+                                  const Eigen::Matrix4d* color_from_depth) {
+  Impl& m = *impl_;
+  VolumeStore& st = m.store;
+  const float voxel = m.o.voxel, trunc = m.o.truncation, block = voxel * kBlockSide;
+  const Eigen::Matrix4f wfc = world_from_camera.cast<float>();
+
+  // 1. The blocks within the band, allocated; each touched once.
+  const auto found = BandBlocks(depth, Pinhole(k), wfc.block<3, 3>(0, 0), wfc.block<3, 1>(0, 3), trunc, block);
   ++m.frame;
   std::vector<int> touched;
   constexpr int kMaxBlock = 1 << 16;  // keys hold +-2^20; edge keys of the mesh +-2^19 voxels
@@ -231,98 +360,10 @@ std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Intrins
       touched.push_back(index);
     }
 
-  // 2. Update every voxel of the touched blocks (projective signed distance along the ray).
-  const Eigen::Matrix3f Rt = R.transpose();
-  const Eigen::Vector3f tc = -Rt * t;  // camera_from_world
-  const Eigen::Matrix4f cfd =
-      color_from_depth ? Eigen::Matrix4f(color_from_depth->cast<float>()) : Eigen::Matrix4f(Eigen::Matrix4f::Identity());
-  const Eigen::Matrix3f Rcd = cfd.block<3, 3>(0, 0);
-  const Eigen::Vector3f tcd = cfd.block<3, 1>(0, 3);
-  const float cfx = static_cast<float>(color_k.fx), cfy = static_cast<float>(color_k.fy),
-              ccx = static_cast<float>(color_k.cx), ccy = static_cast<float>(color_k.cy);
-  // Unregistered frames: what the colour camera sees is not what the depth camera sees. The
-  // depth map's points splatted into the colour camera (3x3, nearest kept) say how far its
-  // nearest surface is per colour pixel; a voxel more than a truncation behind it is hidden
-  // from the colour camera and takes no colour (else it took the colour in front of it).
-  std::vector<float> color_z;
-  if (color && color_from_depth) {
-    const int cw = color->width, ch = color->height;
-    color_z.assign(static_cast<std::size_t>(cw) * ch, std::numeric_limits<float>::infinity());
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) {
-        const float z = depth[static_cast<std::size_t>(y) * w + x];
-        if (z <= 0) continue;
-        const Eigen::Vector3f q = Rcd * Eigen::Vector3f((x - cx) / fx * z, (y - cy) / fy * z, z) + tcd;
-        if (q.z() <= 0) continue;
-        const int u = static_cast<int>(std::lround(cfx * q.x() / q.z() + ccx));
-        const int v = static_cast<int>(std::lround(cfy * q.y() / q.z() + ccy));
-        for (int dv = -1; dv <= 1; ++dv)
-          for (int du = -1; du <= 1; ++du) {
-            if (u + du < 0 || v + dv < 0 || u + du >= cw || v + dv >= ch) continue;
-            float& zb = color_z[static_cast<std::size_t>(v + dv) * cw + u + du];
-            zb = std::min(zb, q.z());
-          }
-      }
-  }
-  const int max_w = static_cast<int>(std::clamp(m.o.max_weight, 1.f, 65535.f));
-  std::vector<float> inv(static_cast<std::size_t>(max_w) + 1);  // 1 / (weight + 1): no division per voxel
-  for (std::size_t i = 0; i < inv.size(); ++i) inv[i] = 1.f / (i + 1);
-  // Per pixel: length of its ray per unit depth, so the distance along the ray is
-  // (d - z) * lambda without a square root per voxel.
-  std::vector<float> lambda(static_cast<std::size_t>(w) * h);
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x)
-      lambda[static_cast<std::size_t>(y) * w + x] =
-          std::sqrt(1 + ((x - cx) / fx) * ((x - cx) / fx) + ((y - cy) / fy) * ((y - cy) / fy));
+  // 2. Every voxel of the touched blocks (projective signed distance along the ray).
+  const VoxelUpdate update(depth, k, color, color_k, wfc, color_from_depth, voxel, trunc, m.o.max_weight);
   ParallelForChunks(0, touched.size(), 16, [&](std::size_t i0, std::size_t i1) {
-    for (std::size_t i = i0; i < i1; ++i) {
-      VoxelBlock& blk = *st.blocks[touched[i]];
-      const Eigen::Vector3i origin = st.coords[touched[i]] * kBlockSide;
-      for (int lz = 0; lz < kBlockSide; ++lz)
-        for (int ly = 0; ly < kBlockSide; ++ly) {
-          const Eigen::Vector3f row_start =
-              Rt * (Eigen::Vector3f(origin.x(), origin.y() + ly, origin.z() + lz) * voxel) + tc;
-          const Eigen::Vector3f step = Rt.col(0) * voxel;
-          for (int lx = 0; lx < kBlockSide; ++lx) {
-            const Eigen::Vector3f pc = row_start + step * static_cast<float>(lx);
-            if (pc.z() <= 0) continue;
-            const float iz = 1.f / pc.z();
-            // +0.5 and truncation round to nearest for the in-image (non-negative) range.
-            const float uf = fx * pc.x() * iz + cx + 0.5f, vf = fy * pc.y() * iz + cy + 0.5f;
-            if (!(uf >= 0 && vf >= 0 && uf < w && vf < h)) continue;  // NaN fails too
-            const std::size_t pix = static_cast<std::size_t>(static_cast<int>(vf)) * w + static_cast<int>(uf);
-            const float d = depth[pix];
-            if (d <= 0) continue;
-            const float sdf = (d - pc.z()) * lambda[pix];
-            if (sdf < -trunc) continue;
-            const float tsdf = std::min(1.f, sdf / trunc);
-            const int li = VolumeStore::LocalIndex(lx, ly, lz);
-            Voxel& vx = blk.v[li];
-            vx.set_sdf((vx.sdf() * vx.weight + tsdf) * inv[vx.weight]);
-            vx.weight = static_cast<std::uint16_t>(std::min<int>(vx.weight + 1, max_w));
-            if (!color || std::abs(sdf) > 0.5f * trunc) continue;
-            const Eigen::Vector3f pcol = color_from_depth ? Eigen::Vector3f(Rcd * pc + tcd) : pc;
-            if (pcol.z() <= 0) continue;
-            const int cu = static_cast<int>(std::lround(cfx * pcol.x() / pcol.z() + ccx));
-            const int cv = static_cast<int>(std::lround(cfy * pcol.y() / pcol.z() + ccy));
-            if (cu < 0 || cv < 0 || cu >= color->width || cv >= color->height) continue;
-            if (!color_z.empty() && pcol.z() > color_z[static_cast<std::size_t>(cv) * color->width + cu] + trunc)
-              continue;
-            const float* c = color->at(cu, cv);
-            if (!(std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]))) continue;
-            VoxelColor& vc = blk.c[li];
-            const float cw = vc.weight;
-            auto mix = [&](std::uint16_t old, float value) {
-              const float v = (old * (1.f / 65535.f) * cw + std::clamp(value, 0.f, 1.f)) / (cw + 1);
-              return static_cast<std::uint16_t>(v * 65535.f + 0.5f);
-            };
-            vc.r = mix(vc.r, c[0]);
-            vc.g = mix(vc.g, c[1]);
-            vc.b = mix(vc.b, c[2]);
-            vc.weight = static_cast<std::uint16_t>(std::min<int>(vc.weight + 1, max_w));
-          }
-        }
-    }
+    for (std::size_t i = i0; i < i1; ++i) update.Block(*st.blocks[touched[i]], st.coords[touched[i]] * kBlockSide);
   });
   return touched.size();
 }
@@ -333,7 +374,188 @@ float TsdfVolume::SignedDistance(const Eigen::Vector3f& p) const {
   return s * impl_->o.truncation;
 }
 
-void TsdfVolume::Raycast(const Intrinsics& k, const Eigen::Matrix4d& world_from_camera, Maps* out, bool with_color,
+namespace {
+
+constexpr int kTile = 8;
+
+/// Depth range per 8x8 tile of the image where a ray may meet the model.
+struct TileRanges {
+  int tw, th;
+  std::vector<float> zmin, zmax;
+  TileRanges(int w, int h)
+      : tw((w + kTile - 1) / kTile), th((h + kTile - 1) / kTile),
+        zmin(static_cast<std::size_t>(tw) * th, std::numeric_limits<float>::max()), zmax(zmin.size(), 0) {}
+  std::size_t Tile(int x, int y) const { return static_cast<std::size_t>(y / kTile) * tw + x / kTile; }
+};
+
+/// From the allocated blocks' bounding spheres, so rays start near the model instead of
+/// marching through empty space.
+void AddBlockRanges(const VolumeStore& st, const Pinhole& k, const Eigen::Matrix3f& Rt, const Eigen::Vector3f& tc,
+                    float block, TileRanges* r) {
+  const float radius = 0.5f * std::sqrt(3.f) * block;
+  for (std::size_t b = 0; b < st.coords.size(); ++b) {
+    const Eigen::Vector3f centre = (st.coords[b].cast<float>() + Eigen::Vector3f::Constant(0.5f)) * block;
+    const Eigen::Vector3f pc = Rt * centre + tc;
+    if (pc.z() + radius < 0.05f) continue;
+    const float z = std::max(pc.z(), 0.05f + radius);
+    const float u = k.fx * pc.x() / z + k.cx, v = k.fy * pc.y() / z + k.cy;
+    const float ru = k.fx * radius / (z - radius) + 1, rv = k.fy * radius / (z - radius) + 1;
+    const int tx0 = std::max(0, static_cast<int>(std::floor((u - ru) / kTile)));
+    const int tx1 = std::min(r->tw - 1, static_cast<int>(std::floor((u + ru) / kTile)));
+    const int ty0 = std::max(0, static_cast<int>(std::floor((v - rv) / kTile)));
+    const int ty1 = std::min(r->th - 1, static_cast<int>(std::floor((v + rv) / kTile)));
+    for (int ty = ty0; ty <= ty1; ++ty)
+      for (int tx = tx0; tx <= tx1; ++tx) {
+        float& lo = r->zmin[static_cast<std::size_t>(ty) * r->tw + tx];
+        float& hi = r->zmax[static_cast<std::size_t>(ty) * r->tw + tx];
+        lo = std::min(lo, std::max(0.05f, pc.z() - radius));
+        hi = std::max(hi, pc.z() + radius);
+      }
+  }
+}
+
+/// Tiles fully hit in the hint (the previous raycast there): its depth range, grown by
+/// one tile each way (the view moved a little) and by the truncation plus 5 cm in depth.
+void NarrowByHint(const TsdfVolume::Maps& hint, int w, int h, float trunc, TileRanges* r) {
+  const int tw = r->tw, th = r->th;
+  std::vector<float> lo(r->zmin.size(), std::numeric_limits<float>::max()), hi(r->zmin.size(), 0);
+  std::vector<char> full(r->zmin.size(), 1);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const std::size_t tile = r->Tile(x, y);
+      const float z = hint.depth[static_cast<std::size_t>(y) * w + x];
+      if (z <= 0) {
+        full[tile] = 0;
+        continue;
+      }
+      lo[tile] = std::min(lo[tile], z);
+      hi[tile] = std::max(hi[tile], z);
+    }
+  const float margin = trunc + 0.05f;
+  for (int ty = 0; ty < th; ++ty)
+    for (int tx = 0; tx < tw; ++tx) {
+      float a = std::numeric_limits<float>::max(), b = 0;
+      bool ok = true;
+      for (int dy = -1; dy <= 1 && ok; ++dy)
+        for (int dx = -1; dx <= 1 && ok; ++dx) {
+          const int nx = std::clamp(tx + dx, 0, tw - 1), ny = std::clamp(ty + dy, 0, th - 1);
+          const std::size_t n = static_cast<std::size_t>(ny) * tw + nx;
+          ok = full[n] != 0;
+          a = std::min(a, lo[n]);
+          b = std::max(b, hi[n]);
+        }
+      if (!ok) continue;
+      const std::size_t tile = static_cast<std::size_t>(ty) * tw + tx;
+      r->zmin[tile] = std::max(r->zmin[tile], a - margin);
+      r->zmax[tile] = std::min(r->zmax[tile], b + margin);
+    }
+}
+
+/// One pixel's ray through the volume: the first zero crossing from the front.
+struct RayMarch {
+  const VolumeStore& st;
+  Pinhole k;
+  Eigen::Matrix3f R;
+  Eigen::Vector3f t;
+  float voxel, trunc;
+  bool with_color;
+
+  /// Distance along the unit ray `dir` from `t` where an unallocated block is left.
+  float BlockExit(const Eigen::Vector3f& p, const Eigen::Vector3f& dir, int ix, int iy, int iz) const {
+    float exit = std::numeric_limits<float>::max();
+    for (int a = 0; a < 3; ++a) {
+      if (dir[a] == 0) continue;
+      const int b = ((a == 0 ? ix : a == 1 ? iy : iz) >> kBlockShift) + (dir[a] > 0 ? 1 : 0);
+      // Voxel i covers [i - 0.5, i + 0.5) in voxel units (nearest voxel).
+      const float boundary = (b * kBlockSide - 0.5f) * voxel;
+      exit = std::min(exit, (boundary - p[a]) / dir[a]);
+    }
+    return exit;
+  }
+
+  /// The crossing between `a` (in front, value prev_s) and `b` (behind, value s), placed
+  /// with trilinear values; writes the pixel when the gradient is usable.
+  void Hit(float a, float b, float prev_s, float s, bool prev_precise, bool precise, const Eigen::Vector3f& dir,
+           float len, std::size_t p_idx, BlockCache* cache, TsdfVolume::Maps* out) const {
+    float fa = prev_s, fb = s;
+    if (!prev_precise) st.Trilinear(t + dir * a, &fa, nullptr, nullptr, cache);
+    if (!precise || !(fa > 0)) {
+      fa = prev_s;
+      fb = s;
+    }
+    if (b - a > voxel) {  // one regula falsi step on a long bracket
+      const float m = a + (b - a) * fa / (fa - fb);
+      float fm;
+      if (st.Trilinear(t + dir * m, &fm, nullptr, nullptr, cache)) {
+        if (fm > 0) {
+          a = m;
+          fa = fm;
+        } else {
+          b = m;
+          fb = fm;
+        }
+      }
+    }
+    const float th = a + (b - a) * fa / (fa - fb);
+    const Eigen::Vector3f hit = t + dir * th;
+    float sh;
+    Eigen::Vector3f grad, col;
+    if (st.Trilinear(hit, &sh, &grad, with_color ? &col : nullptr, cache) && grad.norm() > 0) {
+      out->vertex[p_idx] = hit;
+      out->normal[p_idx] = grad.normalized();
+      out->depth[p_idx] = th / len;
+      if (with_color) out->color[p_idx] = col;
+    }
+  }
+
+  void Cast(int x, int y, float zmin, float zmax, TsdfVolume::Maps* out) const {
+    const Eigen::Vector3f ray_c((x - k.cx) / k.fx, (y - k.cy) / k.fy, 1.f);
+    const float len = ray_c.norm();
+    const Eigen::Vector3f dir = R * (ray_c / len);
+    // Distance along the ray from depth along the axis: t = z * len.
+    float tr = zmin * len;
+    const float t_end = zmax * len;
+    float prev_t = -1, prev_s = kNaN;
+    bool prev_precise = false;
+    BlockCache cache;
+    while (tr <= t_end) {
+      const Eigen::Vector3f p = t + dir * tr;
+      const Eigen::Vector3f g = p / voxel;
+      const int ix = static_cast<int>(std::floor(g.x() + 0.5f)), iy = static_cast<int>(std::floor(g.y() + 0.5f)),
+                iz = static_cast<int>(std::floor(g.z() + 0.5f));
+      const Voxel* v = st.VoxelAt(ix, iy, iz, &cache);
+      if (!v) {  // unallocated: on to where the ray leaves this block
+        prev_s = kNaN;
+        tr += std::max(BlockExit(p, dir, ix, iy, iz), 0.f) + 0.01f * voxel;
+        continue;
+      }
+      if (v->weight == 0) {
+        prev_s = kNaN;
+        tr += voxel;
+        continue;
+      }
+      // The nearest voxel is enough to step; near the surface the trilinear value decides
+      // where the crossing is.
+      float s = v->sdf();
+      bool precise = false;
+      if (s < 0.5f) precise = st.Trilinear(p, &s, nullptr, nullptr, &cache);
+      if (s < 0) {
+        if (prev_s > 0)  // a zero crossing from the front
+          Hit(prev_t, tr, prev_s, s, prev_precise, precise, dir, len, static_cast<std::size_t>(y) * k.w + x, &cache,
+              out);
+        return;  // behind a surface (or entered from behind): stop
+      }
+      prev_precise = precise;
+      prev_t = tr;
+      prev_s = s;
+      tr += std::max(voxel, 0.8f * s * trunc);
+    }
+  }
+};
+
+}  // namespace
+
+void TsdfVolume::Raycast(const Camera& k, const Eigen::Matrix4d& world_from_camera, Maps* out, bool with_color,
                          const Maps* hint) const {
   const VolumeStore& st = impl_->store;
   const float voxel = impl_->o.voxel, trunc = impl_->o.truncation, block = voxel * kBlockSide;
@@ -347,156 +569,21 @@ void TsdfVolume::Raycast(const Intrinsics& k, const Eigen::Matrix4d& world_from_
   const Eigen::Matrix4f wfc = world_from_camera.cast<float>();
   const Eigen::Matrix3f R = wfc.block<3, 3>(0, 0);
   const Eigen::Vector3f t = wfc.block<3, 1>(0, 3);
-  const float fx = static_cast<float>(k.fx), fy = static_cast<float>(k.fy), cx = static_cast<float>(k.cx),
-              cy = static_cast<float>(k.cy);
+  const Pinhole pin(k);
 
-  // Depth range per 8x8 tile from the allocated blocks' bounding spheres, so rays start
-  // near the model instead of marching through empty space.
-  constexpr int kTile = 8;
-  const int tw = (w + kTile - 1) / kTile, th = (h + kTile - 1) / kTile;
-  std::vector<float> zmin(static_cast<std::size_t>(tw) * th, std::numeric_limits<float>::max()), zmax(zmin.size(), 0);
+  TileRanges ranges(w, h);
   const Eigen::Matrix3f Rt = R.transpose();
-  const Eigen::Vector3f tc = -Rt * t;
-  const float radius = 0.5f * std::sqrt(3.f) * block;
-  for (std::size_t b = 0; b < st.coords.size(); ++b) {
-    const Eigen::Vector3f centre = (st.coords[b].cast<float>() + Eigen::Vector3f::Constant(0.5f)) * block;
-    const Eigen::Vector3f pc = Rt * centre + tc;
-    if (pc.z() + radius < 0.05f) continue;
-    const float z = std::max(pc.z(), 0.05f + radius);
-    const float u = fx * pc.x() / z + cx, v = fy * pc.y() / z + cy;
-    const float ru = fx * radius / (z - radius) + 1, rv = fy * radius / (z - radius) + 1;
-    const int tx0 = std::max(0, static_cast<int>(std::floor((u - ru) / kTile)));
-    const int tx1 = std::min(tw - 1, static_cast<int>(std::floor((u + ru) / kTile)));
-    const int ty0 = std::max(0, static_cast<int>(std::floor((v - rv) / kTile)));
-    const int ty1 = std::min(th - 1, static_cast<int>(std::floor((v + rv) / kTile)));
-    for (int ty = ty0; ty <= ty1; ++ty)
-      for (int tx = tx0; tx <= tx1; ++tx) {
-        float& lo = zmin[static_cast<std::size_t>(ty) * tw + tx];
-        float& hi = zmax[static_cast<std::size_t>(ty) * tw + tx];
-        lo = std::min(lo, std::max(0.05f, pc.z() - radius));
-        hi = std::max(hi, pc.z() + radius);
-      }
-  }
+  AddBlockRanges(st, pin, Rt, -Rt * t, block, &ranges);
+  if (hint && hint->k.width == w && hint->k.height == h && hint->depth.size() == n)
+    NarrowByHint(*hint, w, h, trunc, &ranges);
 
-  if (hint && hint->k.width == w && hint->k.height == h && hint->depth.size() == static_cast<std::size_t>(w) * h) {
-    // Tiles fully hit in the hint: its depth range there, grown by one tile each way (the
-    // view moved a little) and by the truncation plus 5 cm in depth.
-    std::vector<float> lo(zmin.size(), std::numeric_limits<float>::max()), hi(zmin.size(), 0);
-    std::vector<char> full(zmin.size(), 1);
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) {
-        const std::size_t tile = static_cast<std::size_t>(y / kTile) * tw + x / kTile;
-        const float z = hint->depth[static_cast<std::size_t>(y) * w + x];
-        if (z <= 0) {
-          full[tile] = 0;
-          continue;
-        }
-        lo[tile] = std::min(lo[tile], z);
-        hi[tile] = std::max(hi[tile], z);
-      }
-    const float margin = trunc + 0.05f;
-    for (int ty = 0; ty < th; ++ty)
-      for (int tx = 0; tx < tw; ++tx) {
-        float a = std::numeric_limits<float>::max(), b = 0;
-        bool ok = true;
-        for (int dy = -1; dy <= 1 && ok; ++dy)
-          for (int dx = -1; dx <= 1 && ok; ++dx) {
-            const int nx = std::clamp(tx + dx, 0, tw - 1), ny = std::clamp(ty + dy, 0, th - 1);
-            const std::size_t n = static_cast<std::size_t>(ny) * tw + nx;
-            ok = full[n] != 0;
-            a = std::min(a, lo[n]);
-            b = std::max(b, hi[n]);
-          }
-        if (!ok) continue;
-        const std::size_t tile = static_cast<std::size_t>(ty) * tw + tx;
-        zmin[tile] = std::max(zmin[tile], a - margin);
-        zmax[tile] = std::min(zmax[tile], b + margin);
-      }
-  }
-
+  const RayMarch march{st, pin, R, t, voxel, trunc, with_color};
   ParallelForChunks(0, static_cast<std::size_t>(h), 4, [&](std::size_t y0, std::size_t y1) {
     for (int y = static_cast<int>(y0); y < static_cast<int>(y1); ++y)
       for (int x = 0; x < w; ++x) {
-        const std::size_t tile = static_cast<std::size_t>(y / kTile) * tw + x / kTile;
-        if (zmax[tile] <= 0) continue;
-        const Eigen::Vector3f ray_c((x - cx) / fx, (y - cy) / fy, 1.f);
-        const float len = ray_c.norm();
-        const Eigen::Vector3f dir = R * (ray_c / len);
-        // Distance along the ray from depth along the axis: t = z * len.
-        float tr = zmin[tile] * len;
-        const float t_end = zmax[tile] * len;
-        float prev_t = -1, prev_s = kNaN;
-        bool prev_precise = false;
-        BlockCache cache;
-        while (tr <= t_end) {
-          const Eigen::Vector3f p = t + dir * tr;
-          const Eigen::Vector3f g = p / voxel;
-          const int ix = static_cast<int>(std::floor(g.x() + 0.5f)), iy = static_cast<int>(std::floor(g.y() + 0.5f)),
-                    iz = static_cast<int>(std::floor(g.z() + 0.5f));
-          const Voxel* v = st.VoxelAt(ix, iy, iz, &cache);
-          if (!v) {  // unallocated: on to where the ray leaves this block
-            prev_s = kNaN;
-            float exit = std::numeric_limits<float>::max();
-            for (int a = 0; a < 3; ++a) {
-              if (dir[a] == 0) continue;
-              const int b = ((a == 0 ? ix : a == 1 ? iy : iz) >> kBlockShift) + (dir[a] > 0 ? 1 : 0);
-              // Voxel i covers [i - 0.5, i + 0.5) in voxel units (nearest voxel).
-              const float boundary = (b * kBlockSide - 0.5f) * voxel;
-              exit = std::min(exit, (boundary - p[a]) / dir[a]);
-            }
-            tr += std::max(exit, 0.f) + 0.01f * voxel;
-            continue;
-          }
-          if (v->weight == 0) {
-            prev_s = kNaN;
-            tr += voxel;
-            continue;
-          }
-          // The nearest voxel is enough to step; near the surface the trilinear value decides
-          // where the crossing is.
-          float s = v->sdf();
-          bool precise = false;
-          if (s < 0.5f) precise = st.Trilinear(p, &s, nullptr, nullptr, &cache);
-          if (s < 0) {
-            if (prev_s > 0) {  // a zero crossing from the front
-              float a = prev_t, b = tr, fa = prev_s, fb = s;
-              if (!prev_precise) st.Trilinear(t + dir * a, &fa, nullptr, nullptr, &cache);
-              if (!precise || !(fa > 0)) {
-                fa = prev_s;
-                fb = s;
-              }
-              if (b - a > voxel) {  // one regula falsi step on a long bracket
-                const float m = a + (b - a) * fa / (fa - fb);
-                float fm;
-                if (st.Trilinear(t + dir * m, &fm, nullptr, nullptr, &cache)) {
-                  if (fm > 0) {
-                    a = m;
-                    fa = fm;
-                  } else {
-                    b = m;
-                    fb = fm;
-                  }
-                }
-              }
-              const float th = a + (b - a) * fa / (fa - fb);
-              const Eigen::Vector3f hit = t + dir * th;
-              float sh;
-              Eigen::Vector3f grad, col;
-              if (st.Trilinear(hit, &sh, &grad, with_color ? &col : nullptr, &cache) && grad.norm() > 0) {
-                const std::size_t p_idx = static_cast<std::size_t>(y) * w + x;
-                out->vertex[p_idx] = hit;
-                out->normal[p_idx] = grad.normalized();
-                out->depth[p_idx] = th / len;
-                if (with_color) out->color[p_idx] = col;
-              }
-            }
-            break;  // behind a surface (or entered from behind): stop
-          }
-          prev_precise = precise;
-          prev_t = tr;
-          prev_s = s;
-          tr += std::max(voxel, 0.8f * s * trunc);
-        }
+        const std::size_t tile = ranges.Tile(x, y);
+        if (ranges.zmax[tile] <= 0) continue;
+        march.Cast(x, y, ranges.zmin[tile], ranges.zmax[tile], out);
       }
   });
 }

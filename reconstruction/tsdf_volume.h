@@ -12,7 +12,7 @@
 
 #include "capture/frame.h"
 #include "common/image.h"
-#include "estimation/mesh.h"
+#include "scene/mesh.h"
 
 namespace lp {
 
@@ -61,13 +61,13 @@ class TsdfVolume {
   /// colour of voxels within half the truncation of the surface; the colour camera is at
   /// the depth camera's pose, or moved by `color_from_depth` when given (unregistered
   /// frames). Returns the number of blocks updated.
-  std::size_t Integrate(const std::vector<float>& depth, const Intrinsics& k, const ImageRGB* color,
-                        const Intrinsics& color_k, const Eigen::Matrix4d& world_from_camera,
+  std::size_t Integrate(const std::vector<float>& depth, const Camera& k, const ImageRGB* color,
+                        const Camera& color_k, const Eigen::Matrix4d& world_from_camera,
                         const Eigen::Matrix4d* color_from_depth = nullptr);
 
   /// What a camera sees of the model, world frame; NaN where a ray hits nothing.
   struct Maps {
-    Intrinsics k;
+    Camera k;
     std::vector<Eigen::Vector3f> vertex, normal, color;
     std::vector<float> depth;  ///< along the optical axis, 0 = nothing
   };
@@ -76,7 +76,7 @@ class TsdfVolume {
   /// `hint`, a raycast of the same camera from a nearby pose (the previous frame), each
   /// 8x8 tile whose neighbourhood was fully hit there searches only around those depths
   /// (+-(truncation + 5 cm)): fewer steps through the volume.
-  void Raycast(const Intrinsics& k, const Eigen::Matrix4d& world_from_camera, Maps* out, bool with_color = false,
+  void Raycast(const Camera& k, const Eigen::Matrix4d& world_from_camera, Maps* out, bool with_color = false,
                const Maps* hint = nullptr) const;
 
   /// Marching cubes over the allocated blocks (cubes whose 8 corners have weight >=

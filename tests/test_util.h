@@ -2,7 +2,7 @@
 // Small scenes built in code for closed-form tests.
 #include <vector>
 
-#include "estimation/scene_bundle.h"
+#include "scene/scene_bundle.h"
 
 namespace lp::test {
 

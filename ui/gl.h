@@ -12,7 +12,7 @@
 #include <Eigen/Core>
 
 #include "common/image.h"
-#include "estimation/mesh.h"
+#include "scene/mesh.h"
 
 namespace lp::ui {
 

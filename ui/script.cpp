@@ -3,6 +3,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <sstream>
 
@@ -13,18 +14,9 @@ namespace lp::ui {
 
 namespace {
 
-/// Command name -> the number of words it takes (min, max), checked before anything runs.
-const std::map<std::string, std::pair<int, int>>& Commands() {
-  static const std::map<std::string, std::pair<int, int>> commands = {
-      {"open", {1, 1}},          {"play", {0, 0}},        {"pause", {0, 0}},       {"seek", {1, 1}},
-      {"speed", {1, 1}},         {"reconstruct", {1, 1}}, {"wait-end", {0, 1}},    {"wait-open", {0, 1}},
-      {"estimate", {0, 20}},     {"cancel", {0, 0}},      {"wait-estimate", {0, 1}}, {"wait-lit", {1, 2}},
-      {"wait-first", {0, 1}},    {"shading", {1, 1}},     {"keyframe", {1, 1}},    {"orbit", {2, 2}},
-      {"frames", {1, 1}},        {"screenshot", {1, 1}},  {"bench-frames", {1, 2}}, {"export", {1, 1}},
-      {"wait-export", {0, 1}},   {"state", {1, 1}},       {"expect-estimate", {1, 1}}, {"quit", {0, 0}},
-      {"close", {0, 0}},         {"record", {2, 2}},      {"stop-recording", {0, 0}}, {"wait-record", {0, 1}},
-  };
-  return commands;
+/// The error for one line of the script at `path`.
+InputError LineError(const std::string& path, const ScriptLine& line, const std::string& why) {
+  return InputError(path, "line " + std::to_string(line.number) + " (" + line.words[0] + "): " + why);
 }
 
 double Number(const ScriptLine& line, std::size_t i, double fallback) {
@@ -36,6 +28,282 @@ double Number(const ScriptLine& line, std::size_t i, double fallback) {
   } catch (const std::exception&) {
   }
   throw InputError("line " + std::to_string(line.number) + ": not a number: " + line.words[i]);
+}
+
+/// The viewer as the script's commands see it: the session they post to, the statuses they
+/// wait on and the window's own state they change. ScriptRunner, the viewer's friend, lends
+/// these out line by line (ScriptRunner::Run).
+struct ViewerParts {
+  Session& session;
+  const LiveStatus& live;
+  const EstimateStatus& est;
+  EstimateOptions& settings;  ///< what the Estimate panel shows
+  Shading& shading;
+  int& selected_keyframe;
+  OrbitCamera& camera;
+  const std::string& pending_screenshot;
+  std::function<void(const std::string&)> screenshot, write_state;
+  // The frame-time benchmark.
+  std::vector<double>& bench_seconds;
+  bool& bench_orbit;
+  std::uint64_t& bench_scene_renders_start;
+  const std::uint64_t& scene_renders;
+  int& bench_frames_left;
+  bool& quit;
+  GLFWwindow* window;
+};
+
+/// One script line while it runs.
+struct Call {
+  const std::string& path;  ///< the script
+  const ScriptLine& line;
+  int frames_waited;  ///< frames drawn since the line started
+  double waited;      ///< seconds since the line started
+  ViewerParts& v;
+
+  bool first() const { return frames_waited == 0; }
+  const std::string& word(std::size_t i) const { return line.words[i]; }
+  double Arg(std::size_t i, double fallback) const { return Number(line, i, fallback); }
+  [[noreturn]] void Fail(const std::string& why) const { throw LineError(path, line, why); }
+  void Timeout(double seconds, const char* what) const {
+    if (waited > seconds) Fail(std::string("timed out after ") + std::to_string(seconds) + " s waiting for " + what);
+  }
+  /// A command posted to the session is done once the worker has taken and handled it.
+  bool Handled() const { return !v.session.busy() && frames_waited > 0; }
+};
+
+// ---- the source ----
+
+bool Open(const Call& c) {
+  if (c.first()) c.v.session.Open(c.word(1));
+  return c.Handled();
+}
+
+bool WaitOpen(const Call& c) {
+  c.Timeout(c.Arg(1, 60), "the source to open");
+  if (!c.v.live.error.empty() && !c.v.live.open) c.Fail(c.v.live.error);
+  return c.v.live.open && !c.v.session.busy();
+}
+
+bool PlayOrPause(const Call& c) {
+  if (c.first()) c.v.session.SetPlaying(c.word(0) == "play");
+  return c.Handled();
+}
+
+bool Seek(const Call& c) {
+  if (c.first()) c.v.session.Seek(static_cast<std::int64_t>(c.Arg(1, 0)));
+  return c.Handled();
+}
+
+bool Speed(const Call& c) {
+  if (c.first()) c.v.session.SetSpeed(c.Arg(1, 1));
+  return c.Handled();
+}
+
+bool Reconstruct(const Call& c) {
+  const std::string& what = c.word(1);
+  if (c.first()) {
+    if (what == "start") c.v.session.StartReconstruction();
+    else if (what == "stop") c.v.session.StopReconstruction();
+    else if (what == "reset") c.v.session.ResetReconstruction();
+    else c.Fail("start, stop or reset, not " + what);
+  }
+  return c.Handled();
+}
+
+bool WaitEnd(const Call& c) {
+  c.Timeout(c.Arg(1, 300), "the end of the source");
+  return c.frames_waited > 1 && !c.v.session.busy() && !c.v.live.playing;
+}
+
+bool Record(const Call& c) {
+  if (c.first()) c.v.session.Record(c.word(1), c.Arg(2, 0));
+  return true;
+}
+
+bool StopRecording(const Call& c) {
+  c.v.session.StopRecording();
+  return true;
+}
+
+/// The recording finished (its file in place).
+bool WaitRecord(const Call& c) {
+  c.Timeout(c.Arg(1, 120), "the recording");
+  const LiveStatus& live = c.v.live;
+  if (live.record_state == RecordState::kFailed) c.Fail(live.record_message);
+  return live.record_state == RecordState::kRecorded && !c.v.session.busy();
+}
+
+// ---- the estimate ----
+
+/// One `key=value` of an estimate line into `o`.
+void ApplySetting(const Call& c, const std::string& w, EstimateOptions* o) {
+  const std::size_t eq = w.find('=');
+  if (eq == std::string::npos) c.Fail("settings are key=value: " + w);
+  const std::string key = w.substr(0, eq);
+  ScriptLine value{c.line.number, {w.substr(eq + 1)}};
+  const double x = key == "solver" ? 0 : Number(value, 0, 0);
+  if (key == "rings") o->rings = static_cast<int>(x);
+  else if (key == "spp") o->tracer.spp = static_cast<int>(x);
+  else if (key == "bounces") o->tracer.bounces = static_cast<int>(x);
+  else if (key == "rounds") o->max_rounds = static_cast<int>(x);
+  else if (key == "render-spp") o->render_spp = static_cast<int>(x);
+  else if (key == "albedo-passes") {
+    if (x < 0 || x > kMaxAlbedoPasses || x != std::floor(x))
+      c.Fail("albedo-passes is 0 .. " + std::to_string(kMaxAlbedoPasses) + ", not " + value.words[0]);
+    o->albedo_passes = static_cast<int>(x);
+  }
+  else if (key == "alpha") o->objective.alpha = x;
+  else if (key == "beta") o->objective.beta = x;
+  else if (key == "sigma") o->objective.sigma = x;
+  else if (key == "solver") o->solver = value.words[0] == "gradient" ? SolverKind::kGradient : SolverKind::kFast;
+  else c.Fail("unknown setting " + key);
+}
+
+bool StartEstimate(const Call& c) {
+  if (c.first()) {
+    EstimateOptions o = c.v.settings;
+    for (std::size_t i = 1; i < c.line.words.size(); ++i) ApplySetting(c, c.word(i), &o);
+    c.v.settings = o;  // the panel shows what was pressed
+    c.v.session.Estimate(o);
+  }
+  return true;
+}
+
+bool Cancel(const Call& c) {
+  c.v.session.CancelEstimate();
+  return true;
+}
+
+bool WaitFirst(const Call& c) {
+  c.Timeout(c.Arg(1, 300), "the first estimate");
+  if (c.v.est.state == EstimateState::kFailed) c.Fail(c.v.est.message);
+  return !std::isnan(c.v.est.seconds_to_first);
+}
+
+bool WaitEstimate(const Call& c) {
+  c.Timeout(c.Arg(1, 600), "the estimate");
+  const EstimateState s = c.v.est.state;
+  return c.frames_waited > 1 && s != EstimateState::kRunning && s != EstimateState::kPreparing && !c.v.session.busy();
+}
+
+bool ExpectEstimate(const Call& c) {
+  if (c.word(1) != ToString(c.v.est.state))
+    c.Fail(std::string("the estimate is ") + ToString(c.v.est.state) + " (" + c.v.est.message + ")");
+  return true;
+}
+
+bool WaitLit(const Call& c) {
+  c.Timeout(c.Arg(2, 300), "the lit shading");
+  return c.v.est.lit_samples >= c.Arg(1, 1);
+}
+
+bool Export(const Call& c) {
+  if (c.first()) c.v.session.Export(c.word(1));
+  return true;
+}
+
+bool WaitExport(const Call& c) {
+  c.Timeout(c.Arg(1, 120), "the export");
+  if (c.v.est.export_state == ExportState::kFailed) c.Fail(c.v.est.export_message);
+  return c.v.est.export_state == ExportState::kExported;
+}
+
+// ---- the window ----
+
+bool SetShading(const Call& c) {
+  for (Shading s : {Shading::kAlbedo, Shading::kLit, Shading::kError, Shading::kNormals})
+    if (c.word(1) == ToString(s)) {
+      c.v.shading = s;
+      return true;
+    }
+  c.Fail("albedo, lit, error or normals, not " + c.word(1));
+}
+
+bool SelectKeyframe(const Call& c) {
+  c.v.selected_keyframe = static_cast<int>(c.Arg(1, 0));
+  return true;
+}
+
+bool Orbit(const Call& c) {
+  c.v.camera.yaw += static_cast<float>(c.Arg(1, 0));
+  c.v.camera.pitch += static_cast<float>(c.Arg(2, 0));
+  return true;
+}
+
+bool Frames(const Call& c) { return c.frames_waited >= c.Arg(1, 1); }
+
+bool Screenshot(const Call& c) {
+  if (c.first()) c.v.screenshot(c.word(1));
+  return c.frames_waited > 0 && c.v.pending_screenshot.empty();
+}
+
+bool BenchFrames(const Call& c) {
+  if (c.first()) {
+    if (c.line.words.size() > 2 && c.word(2) != "orbit") c.Fail("the second word can only be orbit");
+    c.v.bench_seconds.clear();
+    c.v.bench_orbit = c.line.words.size() > 2;
+    c.v.bench_scene_renders_start = c.v.scene_renders;
+    c.v.bench_frames_left = static_cast<int>(c.Arg(1, 100));
+  }
+  return c.v.bench_frames_left == 0;
+}
+
+bool State(const Call& c) {
+  c.v.write_state(c.word(1));
+  return true;
+}
+
+bool Quit(const Call& c) {
+  c.v.quit = true;
+  return true;
+}
+
+/// As if the user closed the window (whatever runs is stopped).
+bool Close(const Call& c) {
+  glfwSetWindowShouldClose(c.v.window, GLFW_TRUE);
+  return true;
+}
+
+/// One command: the number of words it takes (checked before anything runs) and what
+/// runs it (true = done with the line, false = wait another frame).
+struct Command {
+  int min_args, max_args;
+  bool (*run)(const Call&);
+};
+
+const std::map<std::string, Command>& Commands() {
+  static const std::map<std::string, Command> commands = {
+      {"open", {1, 1, Open}},
+      {"wait-open", {0, 1, WaitOpen}},
+      {"play", {0, 0, PlayOrPause}},
+      {"pause", {0, 0, PlayOrPause}},
+      {"seek", {1, 1, Seek}},
+      {"speed", {1, 1, Speed}},
+      {"reconstruct", {1, 1, Reconstruct}},
+      {"wait-end", {0, 1, WaitEnd}},
+      {"record", {2, 2, Record}},
+      {"stop-recording", {0, 0, StopRecording}},
+      {"wait-record", {0, 1, WaitRecord}},
+      {"estimate", {0, 20, StartEstimate}},
+      {"cancel", {0, 0, Cancel}},
+      {"wait-first", {0, 1, WaitFirst}},
+      {"wait-estimate", {0, 1, WaitEstimate}},
+      {"expect-estimate", {1, 1, ExpectEstimate}},
+      {"wait-lit", {1, 2, WaitLit}},
+      {"export", {1, 1, Export}},
+      {"wait-export", {0, 1, WaitExport}},
+      {"shading", {1, 1, SetShading}},
+      {"keyframe", {1, 1, SelectKeyframe}},
+      {"orbit", {2, 2, Orbit}},
+      {"frames", {1, 1, Frames}},
+      {"screenshot", {1, 1, Screenshot}},
+      {"bench-frames", {1, 2, BenchFrames}},
+      {"state", {1, 1, State}},
+      {"quit", {0, 0, Quit}},
+      {"close", {0, 0, Close}},
+  };
+  return commands;
 }
 
 }  // namespace
@@ -57,15 +325,13 @@ ScriptRunner::ScriptRunner(const std::string& path, Viewer* viewer) : path_(path
     const auto it = Commands().find(line.words[0]);
     if (it == Commands().end()) throw InputError(path, "line " + std::to_string(number) + ": unknown command " + line.words[0]);
     const int args = static_cast<int>(line.words.size()) - 1;
-    if (args < it->second.first || args > it->second.second)
+    if (args < it->second.min_args || args > it->second.max_args)
       throw InputError(path, "line " + std::to_string(number) + ": wrong number of arguments for " + line.words[0]);
     lines_.push_back(line);
   }
 }
 
-void ScriptRunner::Fail(const ScriptLine& line, const std::string& why) const {
-  throw InputError(path_, "line " + std::to_string(line.number) + " (" + line.words[0] + "): " + why);
-}
+void ScriptRunner::Fail(const ScriptLine& line, const std::string& why) const { throw LineError(path_, line, why); }
 
 bool ScriptRunner::Step() {
   while (next_ < lines_.size()) {
@@ -89,171 +355,28 @@ bool ScriptRunner::Step() {
 }
 
 bool ScriptRunner::Run(const ScriptLine& line) {
-  Viewer& v = *viewer_;
-  const std::string& cmd = line.words[0];
   const double waited = glfwGetTime() - line_started_;
-  auto timeout = [&](double seconds, const char* what) {
-    if (waited > seconds) Fail(line, std::string("timed out after ") + std::to_string(seconds) + " s waiting for " + what);
-  };
-  const bool first = frames_waited_ == 0;
-  // A command posted to the session is done once the worker has taken and handled it.
-  auto handled = [&] { return !v.session_.busy() && frames_waited_ > 0; };
-  if (cmd == "open") {
-    if (first) v.session_.Open(line.words[1]);
-    return handled();
-  }
-  if (cmd == "wait-open") {
-    timeout(Number(line, 1, 60), "the source to open");
-    if (!v.live_.error.empty() && !v.live_.open) Fail(line, v.live_.error);
-    return v.live_.open && !v.session_.busy();
-  }
-  if (cmd == "play" || cmd == "pause") {
-    if (first) v.session_.SetPlaying(cmd == "play");
-    return handled();
-  }
-  if (cmd == "seek") {
-    if (first) v.session_.Seek(static_cast<std::int64_t>(Number(line, 1, 0)));
-    return handled();
-  }
-  if (cmd == "speed") {
-    if (first) v.session_.SetSpeed(Number(line, 1, 1));
-    return handled();
-  }
-  if (cmd == "reconstruct") {
-    const std::string& what = line.words[1];
-    if (first) {
-      if (what == "start") v.session_.StartReconstruction();
-      else if (what == "stop") v.session_.StopReconstruction();
-      else if (what == "reset") v.session_.ResetReconstruction();
-      else Fail(line, "start, stop or reset, not " + what);
-    }
-    return handled();
-  }
-  if (cmd == "wait-end") {
-    timeout(Number(line, 1, 300), "the end of the source");
-    return frames_waited_ > 1 && !v.session_.busy() && !v.live_.playing;
-  }
-  if (cmd == "estimate") {
-    if (first) {
-      EstimateOptions o = v.settings_;
-      for (std::size_t i = 1; i < line.words.size(); ++i) {
-        const std::string& w = line.words[i];
-        const std::size_t eq = w.find('=');
-        if (eq == std::string::npos) Fail(line, "settings are key=value: " + w);
-        const std::string key = w.substr(0, eq);
-        ScriptLine value{line.number, {w.substr(eq + 1)}};
-        const double x = key == "solver" ? 0 : Number(value, 0, 0);
-        if (key == "rings") o.rings = static_cast<int>(x);
-        else if (key == "spp") o.tracer.spp = static_cast<int>(x);
-        else if (key == "bounces") o.tracer.bounces = static_cast<int>(x);
-        else if (key == "rounds") o.max_rounds = static_cast<int>(x);
-        else if (key == "render-spp") o.render_spp = static_cast<int>(x);
-        else if (key == "albedo-passes") {
-          if (x < 0 || x > 5 || x != std::floor(x)) Fail(line, "albedo-passes is 0 .. 5, not " + value.words[0]);
-          o.albedo_passes = static_cast<int>(x);
-        }
-        else if (key == "alpha") o.objective.alpha = x;
-        else if (key == "beta") o.objective.beta = x;
-        else if (key == "sigma") o.objective.sigma = x;
-        else if (key == "solver") o.solver = value.words[0] == "gradient" ? SolverKind::kGradient : SolverKind::kFast;
-        else Fail(line, "unknown setting " + key);
-      }
-      v.settings_ = o;  // the panel shows what was pressed
-      v.session_.Estimate(o);
-    }
-    return true;
-  }
-  if (cmd == "cancel") {
-    v.session_.CancelEstimate();
-    return true;
-  }
-  if (cmd == "wait-first") {
-    timeout(Number(line, 1, 300), "the first estimate");
-    if (v.est_.state == EstimateState::kFailed) Fail(line, v.est_.message);
-    return !std::isnan(v.est_.seconds_to_first);
-  }
-  if (cmd == "wait-estimate") {
-    timeout(Number(line, 1, 600), "the estimate");
-    const EstimateState s = v.est_.state;
-    return frames_waited_ > 1 && s != EstimateState::kRunning && s != EstimateState::kPreparing && !v.session_.busy();
-  }
-  if (cmd == "expect-estimate") {
-    if (line.words[1] != ToString(v.est_.state))
-      Fail(line, std::string("the estimate is ") + ToString(v.est_.state) + " (" + v.est_.message + ")");
-    return true;
-  }
-  if (cmd == "wait-lit") {
-    timeout(Number(line, 2, 300), "the lit shading");
-    return v.est_.lit_samples >= Number(line, 1, 1);
-  }
-  if (cmd == "shading") {
-    for (Shading s : {Shading::kAlbedo, Shading::kLit, Shading::kError, Shading::kNormals})
-      if (line.words[1] == ToString(s)) {
-        v.shading_ = s;
-        return true;
-      }
-    Fail(line, "albedo, lit, error or normals, not " + line.words[1]);
-  }
-  if (cmd == "keyframe") {
-    v.selected_keyframe_ = static_cast<int>(Number(line, 1, 0));
-    return true;
-  }
-  if (cmd == "orbit") {
-    v.camera_.yaw += static_cast<float>(Number(line, 1, 0));
-    v.camera_.pitch += static_cast<float>(Number(line, 2, 0));
-    return true;
-  }
-  if (cmd == "frames") return frames_waited_ >= Number(line, 1, 1);
-  if (cmd == "screenshot") {
-    if (first) v.Screenshot(line.words[1]);
-    return frames_waited_ > 0 && v.pending_screenshot_.empty();
-  }
-  if (cmd == "bench-frames") {
-    if (first) {
-      if (line.words.size() > 2 && line.words[2] != "orbit") Fail(line, "the second word can only be orbit");
-      v.bench_seconds_.clear();
-      v.bench_orbit_ = line.words.size() > 2;
-      v.bench_scene_renders_start_ = v.scene_renders_;
-      v.bench_frames_left_ = static_cast<int>(Number(line, 1, 100));
-    }
-    return v.bench_frames_left_ == 0;
-  }
-  if (cmd == "record") {
-    if (first) v.session_.Record(line.words[1], Number(line, 2, 0));
-    return true;
-  }
-  if (cmd == "stop-recording") {
-    v.session_.StopRecording();
-    return true;
-  }
-  if (cmd == "wait-record") {  // the recording finished (its file in place)
-    timeout(Number(line, 1, 120), "the recording");
-    if (v.live_.record_message.rfind("recording failed", 0) == 0) Fail(line, v.live_.record_message);
-    return !v.live_.recording && !v.session_.busy() && v.live_.record_message.rfind("recorded", 0) == 0;
-  }
-  if (cmd == "export") {
-    if (first) v.session_.Export(line.words[1]);
-    return true;
-  }
-  if (cmd == "wait-export") {
-    timeout(Number(line, 1, 120), "the export");
-    const std::string& m = v.est_.export_message;
-    if (m.rfind("export failed", 0) == 0) Fail(line, m);
-    return m.rfind("exported", 0) == 0;
-  }
-  if (cmd == "state") {
-    v.WriteState(line.words[1]);
-    return true;
-  }
-  if (cmd == "quit") {
-    v.quit_ = true;
-    return true;
-  }
-  if (cmd == "close") {  // as if the user closed the window (whatever runs is stopped)
-    glfwSetWindowShouldClose(v.window_, GLFW_TRUE);
-    return true;
-  }
-  Fail(line, "not handled");
+  const auto it = Commands().find(line.words[0]);
+  if (it == Commands().end()) Fail(line, "not handled");
+  Viewer& v = *viewer_;
+  ViewerParts parts{v.session_,
+                    v.live_,
+                    v.est_,
+                    v.settings_,
+                    v.shading_,
+                    v.selected_keyframe_,
+                    v.camera_,
+                    v.pending_screenshot_,
+                    [&v](const std::string& path) { v.Screenshot(path); },
+                    [&v](const std::string& path) { v.WriteState(path); },
+                    v.bench_seconds_,
+                    v.bench_orbit_,
+                    v.bench_scene_renders_start_,
+                    v.scene_renders_,
+                    v.bench_frames_left_,
+                    v.quit_,
+                    v.window_};
+  return it->second.run({path_, line, frames_waited_, waited, parts});
 }
 
 }  // namespace lp::ui

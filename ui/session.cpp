@@ -15,9 +15,8 @@
 #include "common/error.h"
 #include "common/parallel.h"
 #include "common/timer.h"
-#include "estimation/ray_tracer.h"
-#include "estimation/truth.h"
-#include "estimation/vertex_radiance.h"
+#include "ui/estimate_job.h"
+#include "ui/recording.h"
 
 namespace lp::ui {
 namespace fs = std::filesystem;
@@ -40,7 +39,6 @@ struct Session::Impl {
   // Published state (read by the main thread).
   mutable std::mutex mutex;
   LiveStatus live;
-  EstimateStatus est;
 
   // Commands for the worker.
   std::mutex command_mutex;
@@ -54,8 +52,8 @@ struct Session::Impl {
   std::shared_ptr<FrameQueue> queue;          // a camera: through a capture thread
   std::unique_ptr<CaptureThread> capture;
   std::shared_ptr<const SceneBundle> bundle;  // a loaded scene bundle
-  std::unique_ptr<Reconstructor> reconstructor;
-  ReconstructionOptions rec_options;
+  std::unique_ptr<ReconstructionRun> run;  // the reconstruction, as `reconstruct` runs it
+  ReconstructionRunOptions rec_options;
   bool playing = false, reconstructing = false, fused_any = false;
   double speed = 1;
   double pace_wall0 = 0, pace_stamp0 = -1;  // playback clock: wall time of the frame stamp0
@@ -63,20 +61,19 @@ struct Session::Impl {
   Stopwatch since_mesh;
   std::deque<double> read_times, processed_times;
 
-  // Estimation worker.
-  // Each Estimate press is a generation; an estimate stops when a newer one is pressed,
-  // when its own generation is cancelled, or at shutdown, and its reports are dropped
-  // once it is not the latest.
-  std::thread estimator;
-  std::atomic<std::uint64_t> generation{0}, cancelled_generation{0};
+  // Estimation: one job per press of Estimate (its thread, cancel token and status).
+  // `job` is replaced under `mutex` by the main thread (Estimate) and the worker (a new
+  // source); replaced jobs are cancelled and handed to the next job's thread to be joined
+  // there (`retired` until one starts), so neither thread waits for an estimate to stop.
+  std::unique_ptr<EstimateJob> job;
+  std::vector<std::unique_ptr<EstimateJob>> retired;
+  EstimateStatus idle;  // what estimate() shows without a job (its counters go on)
+  // Export: one at a time, on its own thread.
   std::thread exporter;
   std::atomic<bool> exporting{false};
-  std::atomic<int> record_stop_requests{0};  // StopRecording presses so far
-  std::shared_ptr<LiveRecorder> recorder;  // worker-owned: the open camera's
-  double record_seconds = 0;               // worker-owned: the recording's length (<= 0: no limit)
-  std::string record_path;                 // worker-owned: the recording's file
-  bool record_started = false;             // worker-owned: a recording this session has not reported
-  int record_stop_seen = 0;                // worker-owned: record_stop_requests when it started
+  ExportState export_state = ExportState::kIdle;  // under `mutex`
+  std::string export_message;                     // under `mutex`
+  Recording recording;  // worker-owned (RequestStop from any thread)
 
   std::thread worker;
 
@@ -94,36 +91,28 @@ struct Session::Impl {
     std::lock_guard<std::mutex> lock(mutex);
     f(live);
   }
-  template <typename F>
-  void UpdateEstimate(F f) {
-    std::lock_guard<std::mutex> lock(mutex);
-    f(est);
+  /// The status a new job (or none) starts from: the counters go on from the current one,
+  /// so the window re-uploads what changed. Call under `mutex`.
+  EstimateStatus Fresh() const {
+    const EstimateStatus current = job ? job->status() : idle;
+    EstimateStatus fresh;
+    fresh.version = current.version + 1;
+    fresh.lit_version = current.lit_version + 1;
+    return fresh;
   }
-  /// The same, only while `gen` is the latest estimate.
-  template <typename F>
-  void UpdateEstimate(std::uint64_t gen, F f) {
-    std::lock_guard<std::mutex> lock(mutex);
-    if (gen == generation.load()) f(est);
-  }
-  bool Stopped(std::uint64_t gen) const {
-    return stop.load() || gen != generation.load() || cancelled_generation.load() >= gen;
+  /// Replaces the job (under `mutex`): the old one is cancelled and retired.
+  void ReplaceJob(std::unique_ptr<EstimateJob> next) {
+    idle = Fresh();
+    if (job) {
+      job->Cancel();
+      retired.push_back(std::move(job));
+    }
+    job = std::move(next);
   }
   /// Forgets the estimate (a new source or a reset model): the 3D view shows the live model.
   void ClearEstimate() {
     std::lock_guard<std::mutex> lock(mutex);
-    const std::uint64_t gen = ++generation;
-    cancelled_generation = gen;
-    Restart(&est);
-  }
-
-  /// An empty status that still counts versions up (the window re-uploads what changed)
-  /// and keeps the last export's outcome.
-  static void Restart(EstimateStatus* s) {
-    EstimateStatus fresh;
-    fresh.version = s->version + 1;
-    fresh.lit_version = s->lit_version + 1;
-    fresh.export_message = s->export_message;
-    *s = std::move(fresh);
+    ReplaceJob(nullptr);
   }
 
   void Fail(const std::string& what) {
@@ -140,10 +129,7 @@ struct Session::Impl {
   }
 
   void CloseSource() {
-    if (recorder && recorder->recording()) FinishRecording();
-    else if (record_started) ReportEndedWithoutStop();  // unplugged, not yet polled
-    record_started = false;
-    recorder.reset();
+    if (auto u = recording.Close()) Publish(*u);  // a recording finishes with the frames so far
     capture.reset();
     queue.reset();
     source.reset();
@@ -153,10 +139,10 @@ struct Session::Impl {
 
   void ResetModel() {
     ClearEstimate();
-    reconstructor.reset();
+    run.reset();
     fused_any = false;
     try {
-      reconstructor = std::make_unique<Reconstructor>(rec_options);
+      run = std::make_unique<ReconstructionRun>(rec_options);
     } catch (const std::exception& e) {
       Fail(e.what());
     }
@@ -177,10 +163,12 @@ struct Session::Impl {
     UpdateLive([&](LiveStatus& l) {
       const std::uint64_t model_version = l.model_version, frame_version = l.frame_version;
       std::string record_message = std::move(l.record_message);
+      const RecordState record_state = l.record_state;
       l = LiveStatus{};
       l.model_version = model_version + 1;
       l.frame_version = frame_version + 1;
       l.record_message = std::move(record_message);
+      l.record_state = record_state;
     });
     std::string note;
     if (input == "auto") {  // an attached camera, else the bundled demo
@@ -201,7 +189,9 @@ struct Session::Impl {
       if (input == "camera" || input.rfind("camera:", 0) == 0) {
         OpenNiDeviceOptions o;
         if (input.size() > 7) o.uri = input.substr(7);
+        std::shared_ptr<LiveRecorder> recorder;
         auto dev = OpenOpenNiDevice(o, nullptr, &recorder);
+        recording.Attach(std::move(recorder));
         description = dev->Describe();
         queue = std::make_shared<FrameQueue>(4);
         capture = std::make_unique<CaptureThread>(std::move(dev), queue);
@@ -248,8 +238,9 @@ struct Session::Impl {
   }
 
   void PublishModel() {
-    if (!reconstructor || !fused_any) return;
-    auto mesh = std::make_shared<Mesh>(reconstructor->volume().ExtractMesh(rec_options.mesh_min_weight));
+    if (!run || !fused_any) return;
+    auto mesh = std::make_shared<Mesh>(
+        run->reconstructor().volume().ExtractMesh(rec_options.reconstruction.mesh_min_weight));
     if (mesh->normals.size() != mesh->positions.size()) ComputeVertexNormals(mesh.get());
     UpdateLive([&](LiveStatus& l) {
       l.model = std::move(mesh);
@@ -296,9 +287,9 @@ struct Session::Impl {
     auto shared = std::make_shared<const RgbdFrame>(std::move(frame));
     FrameReport report;
     bool processed = false;
-    if (reconstructing && reconstructor) {
+    if (reconstructing && run) {
       try {
-        report = reconstructor->Process(*shared);
+        report = run->Process(*shared);
         processed = true;
         if (report.state == TrackingState::kTracking) fused_any = true;
       } catch (const std::exception& e) {
@@ -362,7 +353,7 @@ struct Session::Impl {
       if (command) {
         try {
           command();
-          PollRecording();  // its Stop and time limit do not wait for the queue to drain
+          PollRecording();  // its stop and time limit do not wait for the queue to drain
         } catch (const std::exception& e) {
           Fail(e.what());
         }
@@ -380,157 +371,31 @@ struct Session::Impl {
 
   // ---- estimation ----
 
-  /// A scene to estimate: a loaded bundle, or a reconstruction's snapshot still to finish.
-  using SceneSource = std::variant<std::shared_ptr<const SceneBundle>, ReconstructionSnapshot>;
-
   /// On the worker, between frames: the scene to estimate. A loaded bundle is the scene; a
   /// reconstruction gives a snapshot (a copy of its volume and keyframes, milliseconds),
-  /// finished into a bundle on the estimating thread so playback does not wait for meshing.
+  /// finished into a bundle on the job's thread so playback does not wait for meshing.
   SceneSource Snapshot() {
     if (bundle) return bundle;
-    if (!reconstructor || !fused_any)
+    if (!run || !fused_any)
       throw InputError("nothing reconstructed yet: start the reconstruction and play some frames first");
-    return reconstructor->Snapshot();
+    return run->Snapshot();
   }
 
-  void DoEstimate(const EstimateOptions& options, double pressed_at, std::uint64_t gen) {
-    if (Stopped(gen)) return;  // cancelled or replaced before it started
+  /// On the worker: starts `target` (if it is still the current job) on a snapshot.
+  void StartJob(EstimateJob* target) {
     SceneSource snapshot;
+    std::string error;
     try {
       snapshot = Snapshot();
     } catch (const std::exception& e) {
-      UpdateEstimate(gen, [&](EstimateStatus& s) {
-        s.state = EstimateState::kFailed;
-        s.message = e.what();
-      });
-      return;
+      error = e.what();
     }
-    bool cancelled = false;
-    UpdateEstimate(gen, [&](EstimateStatus& s) {
-      // Checked under the status lock, as CancelEstimate sets it: a Cancel that came while
-      // the snapshot was taken is not overwritten.
-      if ((cancelled = Stopped(gen))) {
-        s.state = EstimateState::kCancelled;
-        s.message = "cancelled";
-        return;
-      }
-      Restart(&s);
-      s.state = EstimateState::kPreparing;  // until the scene is built: Cancel ends it at once
-      s.message = "building the scene (mesh, keyframes)";
-      s.options = options;
-    });
-    if (cancelled || Stopped(gen)) return;  // (replaced by a newer Estimate: not ours to update)
-    // The previous estimate (already told to stop) is joined by the new thread, not here:
-    // the worker keeps reading frames and commands meanwhile.
-    std::thread previous = std::move(estimator);
-    estimator = std::thread([this, options, snapshot = std::move(snapshot), pressed_at, gen,
-                             previous = std::move(previous)]() mutable {
-      if (previous.joinable()) previous.join();
-      // The window (and Mesa's rasterizer threads) comes first: the estimate takes the CPU
-      // it leaves (its loops' workers too).
-      RunThisThreadInBackground();
-      RunEstimate(options, std::move(snapshot), pressed_at, gen);
-    });
-  }
-
-  /// On the estimator thread: builds the scene from a snapshot (a loaded bundle is one),
-  /// estimates its lighting, then refines the lit shading.
-  void RunEstimate(EstimateOptions options, SceneSource snapshot, double pressed_at, std::uint64_t gen) {
-    options.cancelled = [this, gen] { return Stopped(gen); };
-    options.progress = [this, gen](const std::string& line) {
-      UpdateEstimate(gen, [&](EstimateStatus& s) { s.message = line; });
-    };
-    options.on_convergence = [this, gen](const ConvergenceRow& row) {
-      UpdateEstimate(gen, [&](EstimateStatus& s) { s.rows.push_back(row); });
-    };
-    const int max_rounds = options.max_rounds * (1 + std::max(0, options.albedo_passes));  // an upper bound
-    options.on_round = [this, pressed_at, max_rounds, gen](const RoundInfo& info, const EnvMap& env) {
-      auto dominant = DominantDirections(env, info.lambda, 2);
-      const double t = clock.Seconds() - pressed_at;
-      UpdateEstimate(gen, [&](EstimateStatus& s) {
-        if (!s.env) s.env = std::make_shared<const EnvMap>(env);
-        s.lambda = info.lambda;
-        s.dominant = dominant;
-        ++s.version;
-        s.progress = static_cast<double>(info.round) / (max_rounds + 1);
-        if (std::isnan(s.seconds_to_first)) s.seconds_to_first = t;
-      });
-    };
-    std::shared_ptr<const SceneBundle> scene;
-    std::shared_ptr<const EstimateResult> result;
-    try {
-      if (auto* loaded = std::get_if<std::shared_ptr<const SceneBundle>>(&snapshot)) scene = *loaded;
-      else scene = std::make_shared<const SceneBundle>(std::get<ReconstructionSnapshot>(snapshot).Finish());
-      if (Stopped(gen)) throw Cancelled();
-      UpdateEstimate(gen, [&](EstimateStatus& s) {
-        if (s.state == EstimateState::kCancelled) return;
-        s.state = EstimateState::kRunning;
-        s.message = "tracing round 1";
-        s.scene = scene;
-      });
-      options.time_offset = clock.Seconds() - pressed_at;
-      result = std::make_shared<const EstimateResult>(lp::Estimate(*scene, options));
-    } catch (const Cancelled&) {
-      UpdateEstimate(gen, [&](EstimateStatus& s) {
-        s.state = EstimateState::kCancelled;
-        s.message = "cancelled";
-      });
-      return;
-    } catch (const std::exception& e) {
-      UpdateEstimate(gen, [&](EstimateStatus& s) {
-        s.state = EstimateState::kFailed;
-        s.message = e.what();
-      });
-      return;
-    }
-    const double t = clock.Seconds() - pressed_at;
-    UpdateEstimate(gen, [&](EstimateStatus& s) {
-      s.state = EstimateState::kDone;
-      s.progress = 1;
-      s.result = result;
-      s.lambda = result->lambda;
-      s.dominant = result->dominant;
-      if (!s.env) s.env = std::make_shared<const EnvMap>(result->env);
-      ++s.version;
-      s.seconds_total = t;
-      s.message = "done in " + std::to_string(t).substr(0, 5) + " s";
-      for (const std::string& w : result->warnings) s.message += "; warning: " + w;
-    });
-    RefineLit(*scene, *result, options.tracer.bounces, gen);
-  }
-
-  /// Progressive per-vertex radiance under the estimate, then the error against the keyframes.
-  void RefineLit(const SceneBundle& scene, const EstimateResult& result, int bounces, std::uint64_t gen) {
-    try {
-      Mesh mesh = scene.mesh;
-      if (result.albedo.size() == mesh.positions.size()) mesh.albedo = result.albedo;  // refined
-      const RayTracer tracer(std::move(mesh));
-      VertexRadiance radiance(tracer, result.env, result.lambda, std::max(1, bounces));
-      int step = 2;
-      // The error shading follows the radiance's noise down: recomputed at 2 samples, then
-      // each time they have grown 4-fold (~1 s each on the demo), and at the end.
-      int error_at = 2;
-      while (radiance.samples() < options.lit_samples && !Stopped(gen)) {
-        radiance.Refine(std::min(step, options.lit_samples - radiance.samples()));
-        step = std::min(step * 2, 32);
-        auto lit = std::make_shared<const std::vector<Eigen::Vector3f>>(radiance.Radiance());
-        std::shared_ptr<const std::vector<float>> error;
-        if (radiance.samples() >= options.lit_samples || radiance.samples() >= error_at) {
-          error = std::make_shared<const std::vector<float>>(
-              VertexPhotometricError(tracer, scene.views, *lit));
-          error_at = 4 * radiance.samples();
-        }
-        const int samples = radiance.samples();
-        UpdateEstimate(gen, [&](EstimateStatus& s) {
-          s.lit = lit;
-          if (error) s.error = error;
-          s.lit_samples = samples;
-          ++s.lit_version;
-        });
-      }
-    } catch (const std::exception& e) {
-      UpdateEstimate(gen, [&](EstimateStatus& s) { s.message = std::string("lit shading: ") + e.what(); });
-    }
+    std::lock_guard<std::mutex> lock(mutex);
+    if (job.get() != target) return;  // replaced (or cleared) before it started
+    if (!error.empty()) return job->Fail(error);
+    std::vector<std::unique_ptr<EstimateJob>> joined_there;
+    joined_there.swap(retired);
+    job->Start(std::move(snapshot), std::move(joined_there));
   }
 
   void DoExport(const std::string& dir) {
@@ -539,11 +404,15 @@ struct Session::Impl {
     EstimateOptions used;
     {
       std::lock_guard<std::mutex> lock(mutex);
-      scene = est.scene;
-      result = est.result;
-      used = est.options;
+      if (job) {
+        const EstimateStatus st = job->status();
+        scene = st.scene;
+        result = st.result;
+        used = st.options;
+      }
     }
     std::string message;
+    bool ok = false;
     try {
       if (!scene || !result) throw InputError("nothing to export yet: run Estimate first");
       SceneBundle written = *scene;
@@ -551,93 +420,35 @@ struct Session::Impl {
       WriteSceneBundle(written.dir, written);
       if (options.write_estimate) options.write_estimate((fs::path(dir) / "estimate").string(), written, used, *result);
       message = "exported " + (fs::path(dir) / "scene").string() + " and " + (fs::path(dir) / "estimate").string();
+      ok = true;
     } catch (const std::exception& e) {
       message = std::string("export failed: ") + e.what();
     }
-    UpdateEstimate([&](EstimateStatus& s) { s.export_message = message; });
+    std::lock_guard<std::mutex> lock(mutex);
+    export_state = ok ? ExportState::kExported : ExportState::kFailed;
+    export_message = message;
   }
 
-  void DoRecord(const std::string& path, double seconds) {
-    if (!recorder) {  // only a camera has one
-      Fail("record: open a camera first (recording needs a live device)");
-      return;
-    }
-    if (recorder->recording()) {
-      Fail("record: already recording");
-      return;
-    }
-    record_stop_seen = record_stop_requests.load();  // a Stop from now on ends this recording
-    try {
-      recorder->Start(path);
-    } catch (const std::exception& e) {
-      const std::string message = std::string("recording failed: ") + e.what();
-      UpdateLive([&](LiveStatus& l) {
-        l.record_message = message;
-        l.error = message;
-      });
-      return;
-    }
-    record_seconds = seconds;
-    record_path = path;
-    record_started = true;
+  /// The recording's state as the live panel shows it.
+  void Publish(const RecordingUpdate& u) {
     UpdateLive([&](LiveStatus& l) {
-      l.recording = true;
-      l.recorded_frames = 0;
-      l.recorded_seconds = 0;
-      l.record_message = "recording to " + path;
-      l.error.clear();
+      l.record_state = u.state;
+      l.recording = u.state == RecordState::kRecording;
+      l.recorded_frames = u.frames;
+      l.recorded_seconds = u.seconds;
+      if (u.message.empty()) return;  // progress
+      l.record_message = u.message;
+      if (u.state == RecordState::kFailed) l.error = u.message;
+      if (u.state == RecordState::kRecording) l.error.clear();
     });
   }
+
+  void DoRecord(const std::string& path, double seconds) { Publish(recording.Start(path, seconds)); }
 
   /// On the worker, between frames: the recording's progress, its end (its time is up or
   /// StopRecording was called), or its end without us (the camera was unplugged).
   void PollRecording() {
-    if (!recorder) return;
-    if (recorder->recording()) {
-      int frames = 0;
-      double seconds = 0;
-      recorder->Progress(&frames, &seconds);
-      UpdateLive([&](LiveStatus& l) {
-        l.recorded_frames = frames;
-        l.recorded_seconds = seconds;
-      });
-      if (record_stop_requests.load() != record_stop_seen || (record_seconds > 0 && seconds >= record_seconds))
-        FinishRecording();
-    } else if (record_started) {
-      ReportEndedWithoutStop();
-    }
-  }
-
-  /// A recording the source finished by itself (the camera unplugged): its outcome.
-  void ReportEndedWithoutStop() {
-    record_started = false;
-    const std::string ended = recorder ? recorder->EndedWithoutStop() : std::string();
-    if (ended.empty()) return;
-    UpdateLive([&](LiveStatus& l) {
-      l.recording = false;
-      l.record_message = ended;
-      if (ended.rfind("recorded", 0) != 0) l.error = ended;
-    });
-  }
-
-  void FinishRecording() {
-    std::string message;
-    bool ok = false;
-    try {
-      message = DescribeRecording(recorder->Stop(), record_path);
-      ok = true;
-    } catch (const std::exception& e) {
-      // The source may have finished it first (unplugged while we asked): its outcome.
-      const std::string ended = recorder->EndedWithoutStop();
-      ok = ended.rfind("recorded", 0) == 0;
-      message = ended.empty() ? std::string("recording failed: ") + e.what() : ended;
-    }
-    record_started = false;
-    UpdateLive([&](LiveStatus& l) {
-      l.recording = false;
-      l.record_message = message;
-      if (!ok) l.error = message;
-    });
+    if (auto u = recording.Poll()) Publish(*u);
   }
 };
 
@@ -651,7 +462,11 @@ Session::~Session() {
   impl_->stop = true;
   impl_->command_cv.notify_all();
   if (impl_->worker.joinable()) impl_->worker.join();
-  if (impl_->estimator.joinable()) impl_->estimator.join();
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    impl_->ReplaceJob(nullptr);  // cancelled, joined below
+  }
+  impl_->retired.clear();
   if (impl_->exporter.joinable()) impl_->exporter.join();  // an export finishes: nothing half-written
   impl_->CloseSource();  // a recording finishes its file with the frames so far
 }
@@ -660,7 +475,7 @@ void Session::Record(const std::string& path, double seconds) {
   impl_->Post([this, path, seconds] { impl_->DoRecord(path, seconds); });
 }
 
-void Session::StopRecording() { ++impl_->record_stop_requests; }
+void Session::StopRecording() { impl_->recording.RequestStop(); }
 
 void Session::Open(const std::string& input) {
   impl_->Post([this, input] { impl_->DoOpen(input); });
@@ -706,7 +521,7 @@ void Session::StartReconstruction() {
   impl_->Post([this] {
     Impl& s = *impl_;
     if (s.bundle) throw InputError("a loaded scene bundle is already reconstructed");
-    if (!s.reconstructor) s.ResetModel();
+    if (!s.run) s.ResetModel();
     s.reconstructing = true;
     s.UpdateLive([&](LiveStatus& l) { l.reconstructing = true; });
   });
@@ -725,43 +540,46 @@ void Session::ResetReconstruction() {
 }
 
 void Session::SetReconstructionOptions(const ReconstructionOptions& options) {
-  impl_->Post([this, options] { impl_->rec_options = options; });
+  impl_->Post([this, options] { impl_->rec_options.reconstruction = options; });
 }
 
 void Session::Estimate(const EstimateOptions& options) {
-  const double pressed = impl_->clock.Seconds();
-  std::uint64_t gen;
+  Impl& m = *impl_;
+  EstimateJob* started;
   {
-    std::lock_guard<std::mutex> lock(impl_->mutex);
-    gen = ++impl_->generation;  // a running estimate stops at its next check
-    EstimateStatus& s = impl_->est;
-    s.state = EstimateState::kPreparing;
-    s.message = "taking a snapshot of the scene";
-    s.rows.clear();
-    s.progress = 0;
-    s.seconds_to_first = s.seconds_total = std::nan("");
-    s.lit_samples = 0;
+    std::lock_guard<std::mutex> lock(m.mutex);
+    EstimateJob::Settings settings;
+    settings.options = options;
+    settings.lit_samples = m.options.lit_samples;
+    settings.clock = &m.clock;
+    settings.pressed_at = m.clock.Seconds();
+    const EstimateStatus fresh = m.Fresh();
+    settings.version = fresh.version;
+    settings.lit_version = fresh.lit_version;
+    auto job = std::make_unique<EstimateJob>(std::move(settings));
+    started = job.get();
+    m.ReplaceJob(std::move(job));  // a running estimate stops at its next check
   }
-  impl_->Post([this, options, pressed, gen] { impl_->DoEstimate(options, pressed, gen); });
+  m.Post([this, started] { impl_->StartJob(started); });
 }
 
 void Session::CancelEstimate() {
-  Impl& m = *impl_;
-  std::lock_guard<std::mutex> lock(m.mutex);
-  m.cancelled_generation = m.generation.load();
-  if (m.est.state == EstimateState::kPreparing) {
-    m.est.state = EstimateState::kCancelled;
-    m.est.message = "cancelled";
-  }
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  if (impl_->job) impl_->job->Cancel();
 }
 
 void Session::Export(const std::string& dir) {
   if (impl_->exporting.exchange(true)) {
-    impl_->UpdateEstimate([&](EstimateStatus& s) { s.export_message = "exporting: wait for the export in progress"; });
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    impl_->export_message = "exporting: wait for the export in progress";
     return;
   }
   if (impl_->exporter.joinable()) impl_->exporter.join();  // finished: exporting was false
-  impl_->UpdateEstimate([&](EstimateStatus& s) { s.export_message = "exporting to " + dir; });
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    impl_->export_state = ExportState::kExporting;
+    impl_->export_message = "exporting to " + dir;
+  }
   impl_->exporter = std::thread([this, dir] {
     impl_->DoExport(dir);
     impl_->exporting = false;
@@ -775,7 +593,10 @@ LiveStatus Session::live() const {
 
 EstimateStatus Session::estimate() const {
   std::lock_guard<std::mutex> lock(impl_->mutex);
-  return impl_->est;
+  EstimateStatus s = impl_->job ? impl_->job->status() : impl_->idle;
+  s.export_state = impl_->export_state;
+  s.export_message = impl_->export_message;
+  return s;
 }
 
 bool Session::busy() const { return impl_->pending.load() > 0; }

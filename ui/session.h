@@ -16,67 +16,10 @@
 
 #include "capture/frame.h"
 #include "estimation/estimator.h"
-#include "reconstruction/reconstructor.h"
+#include "ui/status.h"
+#include "reconstruction/reconstruction_run.h"
 
 namespace lp::ui {
-
-/// What the live panel shows (copied out under a lock; the images are shared, immutable).
-struct LiveStatus {
-  std::string source;  ///< the source's one-line description ("" = nothing open)
-  std::string error;   ///< the last error (opening, a frame, reconstruction); "" = none
-  bool open = false, is_camera = false, is_bundle = false;
-  bool playing = false, at_end = false;
-  std::int64_t position = 0;      ///< the next frame's index in the source
-  std::int64_t frame_count = -1;  ///< -1 = unknown (a camera)
-  double speed = 1;               ///< playback speed for files (0 = as fast as processed)
-  double source_fps = 0;          ///< frames delivered per second (over the last second)
-  double processed_fps = 0;       ///< frames reconstructed per second
-  std::int64_t frames_read = 0, dropped = 0;  ///< dropped: by the camera queue (live only)
-  bool reconstructing = false;
-  TrackingState tracking = TrackingState::kWaiting;
-  std::string tracking_reason;
-  std::int64_t frames_tracked = 0, frames_lost = 0;
-  std::shared_ptr<const RgbdFrame> frame;  ///< the latest frame (previews)
-  std::uint64_t frame_version = 0;
-  std::shared_ptr<const Mesh> model;  ///< the growing model (or the loaded bundle's mesh)
-  std::uint64_t model_version = 0;
-  bool has_pose = false;
-  /// Recording the camera to an .oni file (Session::Record).
-  bool recording = false;
-  int recorded_frames = 0;        ///< depth frames so far
-  double recorded_seconds = 0;
-  std::string record_message;     ///< the last recording's outcome
-  Eigen::Matrix4d camera_pose = Eigen::Matrix4d::Identity();  ///< world_from_camera of the latest frame
-};
-
-enum class EstimateState { kIdle, kPreparing, kRunning, kDone, kCancelled, kFailed };
-const char* ToString(EstimateState s);
-
-/// What the estimate panel, the lit mesh and the environment-map view show.
-struct EstimateStatus {
-  EstimateState state = EstimateState::kIdle;
-  std::string message;  ///< the last progress line or the error
-  double progress = 0;  ///< 0..1: rounds done of the most allowed
-  EstimateOptions options;
-  std::vector<ConvergenceRow> rows;  ///< the convergence log so far
-  std::shared_ptr<const SceneBundle> scene;     ///< the snapshot being estimated
-  std::shared_ptr<const EnvMap> env;            ///< set with the first round
-  std::vector<double> lambda;                   ///< the latest estimate (3 per cell)
-  std::vector<Eigen::Vector3d> dominant;        ///< its dominant light directions
-  std::uint64_t version = 0;                    ///< bumps with every new lambda
-  std::shared_ptr<const EstimateResult> result; ///< when done (relit renders of the keyframes)
-  /// Seconds from pressing Estimate to the first finished round (the first usable
-  /// estimate) and to the end; NaN until then.
-  double seconds_to_first = std::nan(""), seconds_total = std::nan("");
-  /// Lit shading of the snapshot's mesh under the estimate (per vertex, image units),
-  /// refined progressively after the estimate; photometric error per vertex against the
-  /// nearest keyframe that sees it (|lit - observed| / mean observed; NaN = unseen).
-  std::shared_ptr<const std::vector<Eigen::Vector3f>> lit;
-  std::shared_ptr<const std::vector<float>> error;
-  int lit_samples = 0;
-  std::uint64_t lit_version = 0;
-  std::string export_message;  ///< the last export's result
-};
 
 /// Writes an estimate's outputs into a directory (the app's estimate writer).
 using EstimateWriter = std::function<void(const std::string& dir, const SceneBundle&, const EstimateOptions&,
@@ -84,7 +27,8 @@ using EstimateWriter = std::function<void(const std::string& dir, const SceneBun
 
 struct SessionOptions {
   std::string demo_input;  ///< what Open("demo") opens (the bundled recording)
-  ReconstructionOptions reconstruction;
+  /// The reconstruction run's options (the calibration from `view --calibration`).
+  ReconstructionRunOptions reconstruction;
   EstimateWriter write_estimate;  ///< used by Export
   int lit_samples = 256;          ///< lit shading stops refining here
 };
@@ -123,7 +67,8 @@ class Session {
   /// its lighting on a background thread; an estimate still running is cancelled first.
   void Estimate(const EstimateOptions& options);
   void CancelEstimate();
-  /// Writes DIR/scene (the bundle: mesh with albedo, keyframes) and DIR/estimate
+  /// Writes DIR/scene (the bundle: mesh with albedo, keyframes; from a reconstruction also
+  /// its log, trajectory and calibration, as `reconstruct` writes them) and DIR/estimate
   /// (envmap.exr, convergence.csv, ...) of the last finished estimate, on a background
   /// thread; each file atomically. The outcome lands in EstimateStatus::export_message.
   void Export(const std::string& dir);

@@ -18,6 +18,8 @@
 #include "common/color.h"
 #include "common/error.h"
 #include "common/image_io.h"
+#include "estimation/error_display.h"
+#include "ui/mesh_display.h"
 #include "ui/viewer_internal.h"
 
 namespace lp::ui {
@@ -27,7 +29,7 @@ namespace {
 constexpr float kPanelWidth = 380;
 constexpr float kEnvHeight = 250;
 /// While the view moves, meshes larger than this are drawn from a coarse copy (Mesa
-/// rasterizes on the CPU: 200k triangles take ~60 ms there on 2 cores), at half resolution.
+/// rasterizes on the CPU; docs/benchmarks.md), at half resolution.
 constexpr int kMovingTriangles = 20000;
 
 std::string g_glfw_error;
@@ -292,14 +294,7 @@ void Viewer::DrawScene(const Rect& r) {
       frustum(est_.scene->views[k].camera, static_cast<int>(k) == selected_keyframe_ ? Eigen::Vector3f(1, 0.55f, 0)
                                                                                     : Eigen::Vector3f(0.3f, 0.8f, 1));
   if (live_.has_pose && live_.frame && !showing_snapshot_) {
-    Camera cam;
-    const Intrinsics& in = live_.frame->depth_intrinsics;
-    cam.width = in.width;
-    cam.height = in.height;
-    cam.fx = in.fx;
-    cam.fy = in.fy;
-    cam.cx = in.cx;
-    cam.cy = in.cy;
+    Camera cam = live_.frame->depth_intrinsics;
     cam.world_from_camera = live_.camera_pose;
     if (cam.fx > 0) frustum(cam, Eigen::Vector3f(0.3f, 1, 0.3f));
   }
@@ -502,7 +497,7 @@ void Viewer::PanelEstimate() {
     ImGui::SetNextItemWidth(140);
     ImGui::InputText("##export", export_field_, sizeof export_field_);
     ImGui::SameLine();
-    const bool exporting = est_.export_message.rfind("exporting", 0) == 0;
+    const bool exporting = est_.export_state == ExportState::kExporting;
     if (!exporting && ImGui::Button("Export") && est_.result) session_.Export(export_field_);
   }
   char overlay[64];
@@ -519,7 +514,7 @@ void Viewer::PanelEstimate() {
     ImGui::SliderInt("samples/pixel", &settings_.tracer.spp, 8, 256);
     ImGui::SliderInt("bounces", &settings_.tracer.bounces, 1, 5);
     ImGui::SliderInt("rounds", &settings_.max_rounds, 1, 6);
-    ImGui::SliderInt("albedo passes", &settings_.albedo_passes, 0, 3);
+    ImGui::SliderInt("albedo passes", &settings_.albedo_passes, 0, kMaxAlbedoPasses);
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip("refine the reconstruction's albedo under the estimate (de-lit colours), then more rounds");
     float alpha = static_cast<float>(settings_.objective.alpha), beta = static_cast<float>(settings_.objective.beta),

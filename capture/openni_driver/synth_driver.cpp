@@ -72,7 +72,7 @@ bool Get(const void* data, int size, T* value) {
 
 class SynthStream : public oni::driver::StreamBase {
  public:
-  SynthStream(OniSensorType type, const OniVideoMode& mode, const lp::Intrinsics& k)
+  SynthStream(OniSensorType type, const OniVideoMode& mode, const lp::Camera& k)
       : type_(type), mode_(mode), k_(k) {
     cropping_.enabled = 0;
     cropping_.originX = cropping_.originY = 0;
@@ -215,7 +215,7 @@ class SynthStream : public oni::driver::StreamBase {
 
   const OniSensorType type_;
   const OniVideoMode mode_;
-  const lp::Intrinsics k_;
+  const lp::Camera k_;
   std::atomic<bool> running_{false};
   std::mutex mutex_;
   OniCropping cropping_{};
@@ -284,7 +284,7 @@ class SynthDevice : public oni::driver::DeviceBase {
   SynthDriver* driver_;
   std::unique_ptr<lp::FrameSource> source_;
   lp::RgbdFrame first_;
-  lp::Intrinsics k_;
+  lp::Camera k_;
   OniVideoMode depth_mode_{}, color_mode_{};
   OniSensorInfo sensors_[2]{};
   OniImageRegistrationMode registration_ = ONI_IMAGE_REGISTRATION_OFF;

@@ -14,7 +14,7 @@
 #include "common/color.h"
 #include "common/error.h"
 #include "common/rng.h"
-#include "estimation/scene_bundle.h"
+#include "scene/scene_bundle.h"
 
 namespace lp {
 namespace {
@@ -235,7 +235,7 @@ TEST(Calibration, LinearizeUndoesResponseVignettingAndExposure) {
   EXPECT_NE(Calibration{}.Describe().find("uncalibrated"), std::string::npos);
   // Undistortion: pixels with no source are NaN (never used), not black.
   Calibration d;
-  d.color = CameraModel{w, h, 40, 40, 31.5, 23.5, {0.4, 0.1, 0, 0, 0}};  // pincushion: corners from outside
+  d.color = CameraModel{{w, h, 40, 40, 31.5, 23.5}, {0.4, 0.1, 0, 0, 0}};  // pincushion: corners from outside
   const ImageRGB und = Linearize(ImageRgb8{w, h, std::vector<std::uint8_t>(static_cast<std::size_t>(w) * h * 3, 200)}, d);
   EXPECT_TRUE(std::isnan(und.at(0, 0)[0])) << und.at(0, 0)[0];
   EXPECT_NEAR(und.at(w / 2, h / 2)[0], SrgbToLinear(200 / 255.f), 1e-3);
@@ -248,7 +248,7 @@ TEST(Calibration, FileRoundTripAndClearErrors) {
   const fs::path dir = fs::temp_directory_path() / ("lp_calib_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   Calibration c;
-  c.color = CameraModel{640, 480, 520.5, 521.25, 318.4, 242.1, {0.05, -0.1, 0.001, -0.002, 0.02}};
+  c.color = CameraModel{{640, 480, 520.5, 521.25, 318.4, 242.1}, {0.05, -0.1, 0.001, -0.002, 0.02}};
   Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
   T(0, 3) = -0.025;
   c.color_from_depth = T;

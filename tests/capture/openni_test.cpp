@@ -18,7 +18,7 @@
 #include "common/color.h"
 #include "common/error.h"
 #include "common/image_io.h"
-#include "estimation/ray_tracer.h"
+#include "scene/ray_tracer.h"
 #include "estimation/synth.h"
 
 namespace lp {
@@ -412,10 +412,11 @@ TEST_F(OpenNi, LiveRecorderFinishesTheFileWhenTheSourceCloses) {
   ASSERT_TRUE(fs::exists(oni) && fs::exists(OniSideFile(oni.string())));
   // It tells the depth frames the file holds (4 were read; the streams ran on a moment).
   const int held = *OpenOniFile(oni.string(), OniPlaybackOptions{})->FrameCount();
-  int depth_frames = -1;
-  ASSERT_EQ(std::sscanf(recorder->EndedWithoutStop().c_str(), "recorded %d depth frames", &depth_frames), 1)
-      << recorder->EndedWithoutStop();
-  EXPECT_GE(depth_frames, std::max(4, held));
+  const RecordingEnd ended = recorder->EndedWithoutStop();
+  ASSERT_EQ(ended.how, RecordingEnd::How::kSaved) << ended.message;
+  EXPECT_EQ(ended.message.rfind("recorded " + std::to_string(ended.result.depth_frames) + " depth frames", 0), 0u)
+      << ended.message;
+  EXPECT_GE(ended.result.depth_frames, std::max(4, held));
   EXPECT_GE(*OpenOniFile(oni.string())->FrameCount(), 4);
   EXPECT_THROW(recorder->Start((dir_ / "after.oni").string()), InputError);
 }
@@ -433,9 +434,9 @@ TEST_F(OpenNi, LiveRecorderKeepsTheFramesWhenTheDeviceIsUnplugged) {
   for (int k = 0; k < 40 && st != SourceStatus::kDeviceLost; ++k) st = src->Next(&f, 0.5);
   ASSERT_EQ(st, SourceStatus::kDeviceLost);
   EXPECT_FALSE(recorder->recording());
-  const std::string ended = recorder->EndedWithoutStop();
-  EXPECT_EQ(ended.rfind("recorded", 0), 0u) << ended;
-  EXPECT_NE(ended.find("unplugged"), std::string::npos) << ended;
+  const RecordingEnd ended = recorder->EndedWithoutStop();
+  EXPECT_EQ(ended.how, RecordingEnd::How::kSaved) << ended.message;
+  EXPECT_NE(ended.message.find("unplugged"), std::string::npos) << ended.message;
   ASSERT_TRUE(fs::exists(oni) && fs::exists(OniSideFile(oni.string())));
   EXPECT_GE(*OpenOniFile(oni.string())->FrameCount(), 1);
   EXPECT_THROW(recorder->Start((dir_ / "after.oni").string()), InputError);
@@ -481,7 +482,7 @@ TEST(DemoRecording, ReplaysRegisteredWithThePosesOfItsFrames) {
   const SynthScene scene = MakeSynth("one-light", so, "");
   const RayTracer tracer(scene.bundle.mesh);
   auto median_error = [&](const RgbdFrame& f, const Eigen::Matrix4d& pose) {
-    const Intrinsics& k = f.depth_intrinsics;
+    const Camera& k = f.depth_intrinsics;
     std::vector<double> err;
     for (int y = 0; y < k.height; y += 4)
       for (int x = 0; x < k.width; x += 4) {

@@ -104,7 +104,7 @@ TEST(SynthFrames, FrameDirectoryRoundTrip) {
     f.depth = {s.color.width, s.color.height, std::vector<std::uint16_t>(s.depth.size())};
     for (std::size_t i = 0; i < s.depth.size(); ++i) f.depth.data[i] = static_cast<std::uint16_t>(s.depth[i] * 1000);
     const Camera& c = s.camera;
-    f.color_intrinsics = f.depth_intrinsics = {c.width, c.height, c.fx, c.fy, c.cx, c.cy};
+    f.color_intrinsics = f.depth_intrinsics = c.Intrinsics();
     f.registered = true;
     f.world_from_camera = c.world_from_camera;
     frames.push_back(f);

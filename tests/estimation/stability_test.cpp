@@ -8,7 +8,7 @@
 
 #include "common/color.h"
 #include "common/error.h"
-#include "estimation/albedo.h"
+#include "scene/albedo.h"
 #include "estimation/estimator.h"
 #include "estimation/path_tracer.h"
 #include "estimation/synth.h"
@@ -340,7 +340,7 @@ TEST(Stability, ASigmaBelowTheNoiseSaysTheEstimateLightsNothing) {
   ExpectHealthy(r);
   EXPECT_LT(r.rendered_fraction, 0.01);
   ASSERT_EQ(r.warnings.size(), 1u);
-  EXPECT_NE(r.warnings[0].find("--sigma 0.02"), std::string::npos) << r.warnings[0];
+  EXPECT_NE(r.warnings[0].find("sigma of 0.02"), std::string::npos) << r.warnings[0];
   EXPECT_EQ(r.warnings[0].find('\n'), std::string::npos);  // one line
 }
 

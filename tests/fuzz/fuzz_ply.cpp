@@ -4,7 +4,7 @@
 #include <string>
 
 #include "common/error.h"
-#include "estimation/mesh.h"
+#include "scene/mesh.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   try {

@@ -35,7 +35,7 @@ Eigen::Matrix4d LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target
 }
 
 /// Depth (metres along the axis) of a sphere seen by camera k at pose T; 0 = background.
-std::vector<float> SphereDepth(const Intrinsics& k, const Eigen::Matrix4d& T, const Eigen::Vector3d& c, double r) {
+std::vector<float> SphereDepth(const Camera& k, const Eigen::Matrix4d& T, const Eigen::Vector3d& c, double r) {
   std::vector<float> d(static_cast<std::size_t>(k.width) * k.height, 0.f);
   const Eigen::Vector3d o = T.block<3, 1>(0, 3);
   for (int y = 0; y < k.height; ++y)
@@ -65,7 +65,7 @@ TsdfOptions SphereVolumeOptions() {
 TEST(TsdfVolume, SphereFromExactDepthMapsMeshesAndRaycastsTheSphere) {
   const Eigen::Vector3d centre(0.1, -0.05, 0.3);
   const double r = 0.25;
-  const Intrinsics k{160, 120, 140, 140, 79.5, 59.5};
+  const Camera k{160, 120, 140, 140, 79.5, 59.5};
   const TsdfOptions o = SphereVolumeOptions();
   TsdfVolume volume(o);
   for (int i = 0; i < 8; ++i) {
@@ -136,7 +136,7 @@ double SectorBoundaryDistance(const Eigen::Vector3d& p, const Eigen::Vector3d& c
 
 /// Depth of the painted sphere (centre c, radius r) and a green ball (b, rb) in front of
 /// it, camera k at pose T.
-std::vector<float> TwoSpheresDepth(const Intrinsics& k, const Eigen::Matrix4d& T, const Eigen::Vector3d& c, double r,
+std::vector<float> TwoSpheresDepth(const Camera& k, const Eigen::Matrix4d& T, const Eigen::Vector3d& c, double r,
                                    const Eigen::Vector3d& b, double rb) {
   std::vector<float> d = SphereDepth(k, T, c, r);
   const std::vector<float> db = SphereDepth(k, T, b, rb);
@@ -147,7 +147,7 @@ std::vector<float> TwoSpheresDepth(const Intrinsics& k, const Eigen::Matrix4d& T
 
 /// The colour camera's image (linear RGB, black where the rays miss) of the painted sphere
 /// (RedSector) and the green ball, the camera at `world_from_color`.
-ImageRGB PaintedSpheres(const Intrinsics& k, const Eigen::Matrix4d& world_from_color, const Eigen::Vector3d& c,
+ImageRGB PaintedSpheres(const Camera& k, const Eigen::Matrix4d& world_from_color, const Eigen::Vector3d& c,
                         double r, const Eigen::Vector3d& b, double rb) {
   ImageRGB img(k.width, k.height);
   const std::vector<float> d = TwoSpheresDepth(k, world_from_color, c, r, b, rb);
@@ -171,7 +171,7 @@ ImageRGB PaintedSpheres(const Intrinsics& k, const Eigen::Matrix4d& world_from_c
 TEST(TsdfVolume, UnregisteredColourIsTakenThroughColourFromDepth) {
   const Eigen::Vector3d centre(0.1, -0.05, 0.3), ball = centre + Eigen::Vector3d(0.36, 0.0, 0.0);
   const double r = 0.25, rb = 0.05;
-  const Intrinsics k{160, 120, 140, 140, 79.5, 59.5};
+  const Camera k{160, 120, 140, 140, 79.5, 59.5};
   Eigen::Matrix4d color_from_depth = Eigen::Matrix4d::Identity();
   color_from_depth.block<3, 3>(0, 0) = Eigen::AngleAxisd(3 * 3.14159265358979 / 180, Eigen::Vector3d::UnitY()).toRotationMatrix();
   color_from_depth.block<3, 1>(0, 3) = Eigen::Vector3d(-0.06, 0.01, 0);
@@ -334,7 +334,7 @@ INSTANTIATE_TEST_SUITE_P(FuseEvery, SyntheticRoom, ::testing::Values(1, 2));
 /// pinhole intrinsics still reported.
 RgbdFrame Distort(const RgbdFrame& f, double k1) {
   RgbdFrame out = f;
-  const Intrinsics& k = f.color_intrinsics;
+  const Camera& k = f.color_intrinsics;
   std::fill(out.depth.data.begin(), out.depth.data.end(), 0);
   std::fill(out.color.data.begin(), out.color.data.end(), 0);
   for (int v = 0; v < k.height; ++v)
@@ -378,8 +378,8 @@ TEST(Reconstruction, RegisteredDepthIsUndistortedWithTheColour) {
     o.fuse_every = 1;
     o.smooth_iterations = 0;
     if (calibrated) {
-      const Intrinsics& k = frames[0].color_intrinsics;
-      o.calibration.color = CameraModel{k.width, k.height, k.fx, k.fy, k.cx, k.cy, {k1, 0, 0, 0, 0}};
+      const Camera& k = frames[0].color_intrinsics;
+      o.calibration.color = CameraModel{k, {k1, 0, 0, 0, 0}};
     }
     Reconstructor rec(o);
     for (const RgbdFrame& f : frames) rec.Process(f);

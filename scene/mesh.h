@@ -15,7 +15,7 @@ struct Mesh {
   std::vector<Eigen::Vector3f> albedo;     ///< linear RGB in [0, 1], per vertex
   /// Optional, per vertex: the colour the camera saw (linear RGB in image units, shading
   /// included; a reconstruction fuses it in [0, 1]), when `albedo` was derived from it. The estimator then
-  /// de-lights it under its estimate to refine the albedo (estimation/albedo.h); empty when
+  /// de-lights it under its estimate to refine the albedo (scene/albedo.h); empty when
   /// the albedo is known.
   std::vector<Eigen::Vector3f> shaded;
   std::vector<Eigen::Vector3i> triangles;  ///< vertex indices
@@ -59,20 +59,6 @@ int SanitizeMesh(Mesh* mesh, const std::string& name);
 /// interpolated; the neighbour is not split, so the new vertex is a T-junction on a
 /// surface that does not change). For scaling tests and benchmarks.
 Mesh RefineMesh(const Mesh& mesh, int min_triangles);
-
-/// A coarse version for display: vertices clustered on a grid of cubes of side `cell`
-/// (metres), each cluster one vertex at its mean position with the mean normal and albedo;
-/// triangles that collapse are dropped. `cluster_of` (optional) receives each input
-/// vertex's output vertex, to carry per-vertex values over (AverageOverClusters).
-Mesh ClusterMesh(const Mesh& mesh, float cell, std::vector<int>* cluster_of = nullptr);
-
-/// The coarse mesh with at most about `max_triangles` triangles (the cell is grown until
-/// it fits); the mesh itself when it already does.
-Mesh SimplifyForDisplay(const Mesh& mesh, int max_triangles, std::vector<int>* cluster_of);
-
-/// Per-output-vertex mean of `values` over the input vertices of each cluster.
-std::vector<Eigen::Vector3f> AverageOverClusters(const std::vector<Eigen::Vector3f>& values,
-                                                 const std::vector<int>& cluster_of, int clusters);
 
 /// Axis-aligned bounds of the vertices used by triangles.
 void MeshBounds(const Mesh& mesh, Eigen::Vector3f* lo, Eigen::Vector3f* hi);

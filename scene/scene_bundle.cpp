@@ -1,4 +1,4 @@
-#include "estimation/scene_bundle.h"
+#include "scene/scene_bundle.h"
 
 #include <algorithm>
 #include <cmath>
@@ -14,41 +14,6 @@
 namespace lp {
 namespace fs = std::filesystem;
 using nlohmann::json;
-
-Eigen::Vector3d Camera::RayDirection(double u, double v) const {
-  const Eigen::Vector3d d_cam((u - cx) / fx, (v - cy) / fy, 1.0);
-  return (world_from_camera.block<3, 3>(0, 0) * d_cam).normalized();
-}
-
-Camera Camera::LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, const Eigen::Vector3d& up_in, int w,
-                      int h, double hfov_deg) {
-  Camera c;
-  c.width = w;
-  c.height = h;
-  c.fx = c.fy = 0.5 * w / std::tan(0.5 * hfov_deg * 3.14159265358979323846 / 180);
-  c.cx = 0.5 * (w - 1);
-  c.cy = 0.5 * (h - 1);
-  const Eigen::Vector3d z = (target - eye).normalized();
-  Eigen::Vector3d up = up_in.normalized();
-  if (std::abs(z.dot(up)) > 0.99) up = std::abs(z.y()) < 0.9 ? Eigen::Vector3d::UnitY() : Eigen::Vector3d::UnitX();
-  const Eigen::Vector3d x = z.cross(up).normalized();  // right
-  const Eigen::Vector3d y = z.cross(x);                // down
-  c.world_from_camera.setIdentity();
-  c.world_from_camera.block<3, 1>(0, 0) = x;
-  c.world_from_camera.block<3, 1>(0, 1) = y;
-  c.world_from_camera.block<3, 1>(0, 2) = z;
-  c.world_from_camera.block<3, 1>(0, 3) = eye;
-  return c;
-}
-
-bool Camera::Project(const Eigen::Vector3d& world, double* u, double* v) const {
-  const Eigen::Matrix3d R = world_from_camera.block<3, 3>(0, 0);
-  const Eigen::Vector3d p = R.transpose() * (world - center());
-  if (p.z() <= 1e-9) return false;
-  *u = fx * p.x() / p.z() + cx;
-  *v = fy * p.y() / p.z() + cy;
-  return true;
-}
 
 namespace {
 
@@ -133,26 +98,6 @@ SceneBundle ParseSceneJson(const std::string& text, const std::string& name) {
     b.views.push_back(std::move(view));
   }
   return b;
-}
-
-float WhiteLevel(const View& view) {
-  std::vector<float> lum;
-  for (std::size_t i = 0; i < view.valid.size(); ++i)
-    if (view.valid[i]) {
-      const float* p = &view.image.data[3 * i];
-      lum.push_back(static_cast<float>(Luminance(p[0], p[1], p[2])));
-    }
-  if (lum.empty()) return 1;
-  const std::size_t k = lum.size() * 99 / 100;
-  std::nth_element(lum.begin(), lum.begin() + k, lum.end());
-  return std::max(1e-12f, lum[k]);
-}
-
-std::vector<float> ErrorImage(const ImageRGB& render, const View& view) {
-  std::vector<float> err(render.pixels(), -1.f);
-  for (std::size_t i = 0; i < render.pixels() && i < view.valid.size(); ++i)
-    if (view.valid[i]) err[i] = PixelError(&render.data[3 * i], &view.image.data[3 * i]);
-  return err;
 }
 
 void MarkUnusablePixels(View* view) {

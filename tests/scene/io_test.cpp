@@ -8,8 +8,9 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/image_io.h"
+#include "estimation/error_display.h"
 #include "estimation/estimator.h"
-#include "estimation/scene_bundle.h"
+#include "scene/scene_bundle.h"
 #include "tests/test_util.h"
 
 namespace lp {

@@ -6,7 +6,7 @@
 /// (joined across edges whose colour changes smoothly) and each segment gets its mean
 /// colour: the shading's variation within a segment is then left for the estimator to
 /// explain with light.
-#include "estimation/mesh.h"
+#include "scene/mesh.h"
 
 namespace lp {
 

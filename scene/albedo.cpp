@@ -1,4 +1,4 @@
-#include "estimation/albedo.h"
+#include "scene/albedo.h"
 
 #include <algorithm>
 #include <cmath>

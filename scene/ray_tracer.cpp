@@ -1,4 +1,4 @@
-#include "estimation/ray_tracer.h"
+#include "scene/ray_tracer.h"
 
 #include <cmath>
 #include <limits>

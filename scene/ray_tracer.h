@@ -5,7 +5,7 @@
 
 #include <Eigen/Core>
 
-#include "estimation/mesh.h"
+#include "scene/mesh.h"
 
 namespace lp {
 

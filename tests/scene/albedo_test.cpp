@@ -2,7 +2,7 @@
 // chromaticity; different materials stay apart.
 #include <gtest/gtest.h>
 
-#include "estimation/albedo.h"
+#include "scene/albedo.h"
 
 namespace lp {
 namespace {

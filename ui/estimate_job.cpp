@@ -1,0 +1,175 @@
+#include "ui/estimate_job.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/error.h"
+#include "common/parallel.h"
+#include "estimation/truth.h"
+#include "estimation/vertex_radiance.h"
+#include "scene/ray_tracer.h"
+
+namespace lp::ui {
+
+EstimateJob::EstimateJob(Settings settings) : settings_(std::move(settings)) {
+  status_.state = EstimateState::kPreparing;
+  status_.message = "taking a snapshot of the scene";
+  status_.version = settings_.version;
+  status_.lit_version = settings_.lit_version;
+}
+
+EstimateJob::~EstimateJob() {
+  Cancel();
+  if (thread_.joinable()) thread_.join();
+}
+
+void EstimateJob::Start(SceneSource scene, std::vector<std::unique_ptr<EstimateJob>> retired) {
+  bool cancelled = false;
+  Update([&](EstimateStatus& s) {
+    // Checked under the status lock, as Cancel sets it: a Cancel that came while the
+    // snapshot was taken is not overwritten.
+    if ((cancelled = cancel_.load())) return;
+    s.message = "building the scene (mesh, keyframes)";  // still kPreparing: Cancel ends it at once
+    s.options = settings_.options;
+  });
+  if (cancelled) {  // nothing to run: the replaced jobs still finish off the caller's thread
+    thread_ = std::thread([retired = std::move(retired)]() mutable { retired.clear(); });
+    return;
+  }
+  thread_ = std::thread([this, scene = std::move(scene), retired = std::move(retired)]() mutable {
+    retired.clear();  // the jobs this one replaced finish on this thread, not the caller's
+    // The window (and Mesa's rasterizer threads) comes first: the estimate takes the CPU
+    // it leaves (its loops' workers too).
+    RunThisThreadInBackground();
+    Run(std::move(scene));
+  });
+}
+
+void EstimateJob::Fail(const std::string& message) {
+  Update([&](EstimateStatus& s) {
+    if (s.state == EstimateState::kCancelled) return;
+    s.state = EstimateState::kFailed;
+    s.message = message;
+  });
+}
+
+void EstimateJob::Cancel() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  cancel_ = true;
+  if (status_.state == EstimateState::kPreparing) {
+    status_.state = EstimateState::kCancelled;
+    status_.message = "cancelled";
+  }
+}
+
+EstimateStatus EstimateJob::status() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return status_;
+}
+
+/// The estimate's options with the job's cancel token and its live reports.
+EstimateOptions EstimateJob::Callbacks() const {
+  EstimateOptions options = settings_.options;
+  EstimateJob* self = const_cast<EstimateJob*>(this);
+  options.cancelled = [self] { return self->cancelled(); };
+  options.progress = [self](const std::string& line) { self->Update([&](EstimateStatus& s) { s.message = line; }); };
+  options.on_convergence = [self](const ConvergenceRow& row) {
+    self->Update([&](EstimateStatus& s) { s.rows.push_back(row); });
+  };
+  const int max_rounds = options.max_rounds * (1 + std::max(0, options.albedo_passes));  // an upper bound
+  options.on_round = [self, max_rounds](const RoundInfo& info, const EnvMap& env) {
+    auto dominant = DominantDirections(env, info.lambda, 2);
+    const double t = self->SincePressed();
+    self->Update([&](EstimateStatus& s) {
+      if (!s.env) s.env = std::make_shared<const EnvMap>(env);
+      s.lambda = info.lambda;
+      s.dominant = dominant;
+      ++s.version;
+      s.progress = static_cast<double>(info.round) / (max_rounds + 1);
+      if (std::isnan(s.seconds_to_first)) s.seconds_to_first = t;
+    });
+  };
+  return options;
+}
+
+std::shared_ptr<const EstimateResult> EstimateJob::EstimateScene(SceneSource source,
+                                                                 std::shared_ptr<const SceneBundle>* scene) {
+  try {
+    if (auto* loaded = std::get_if<std::shared_ptr<const SceneBundle>>(&source)) *scene = *loaded;
+    else *scene = std::make_shared<const SceneBundle>(std::get<ReconstructionRunSnapshot>(source).Finish());
+    if (cancelled()) throw Cancelled();
+    Update([&](EstimateStatus& s) {
+      if (s.state == EstimateState::kCancelled) return;
+      s.state = EstimateState::kRunning;
+      s.message = "tracing round 1";
+      s.scene = *scene;
+    });
+    EstimateOptions options = Callbacks();
+    options.time_offset = SincePressed();
+    return std::make_shared<const EstimateResult>(lp::Estimate(**scene, options));
+  } catch (const Cancelled&) {
+    Update([&](EstimateStatus& s) {
+      s.state = EstimateState::kCancelled;
+      s.message = "cancelled";
+    });
+  } catch (const std::exception& e) {
+    Fail(e.what());
+  }
+  return nullptr;
+}
+
+void EstimateJob::Run(SceneSource source) {
+  std::shared_ptr<const SceneBundle> scene;
+  const std::shared_ptr<const EstimateResult> result = EstimateScene(std::move(source), &scene);
+  if (!result) return;
+  const double t = SincePressed();
+  Update([&](EstimateStatus& s) {
+    s.state = EstimateState::kDone;
+    s.progress = 1;
+    s.result = result;
+    s.lambda = result->lambda;
+    s.dominant = result->dominant;
+    if (!s.env) s.env = std::make_shared<const EnvMap>(result->env);
+    ++s.version;
+    s.seconds_total = t;
+    s.message = "done in " + std::to_string(t).substr(0, 5) + " s";
+    for (const std::string& w : result->warnings) s.message += "; warning: " + w;
+  });
+  RefineLit(*scene, *result);
+}
+
+/// Progressive per-vertex radiance under the estimate, then the error against the keyframes.
+void EstimateJob::RefineLit(const SceneBundle& scene, const EstimateResult& result) {
+  try {
+    Mesh mesh = scene.mesh;
+    if (result.albedo.size() == mesh.positions.size()) mesh.albedo = result.albedo;  // refined
+    const RayTracer tracer(std::move(mesh));
+    VertexRadiance radiance(tracer, result.env, result.lambda, std::max(1, settings_.options.tracer.bounces));
+    const int target = settings_.lit_samples;
+    int step = 2;
+    // The error shading follows the radiance's noise down: recomputed at 2 samples, then
+    // each time they have grown 4-fold, and at the end.
+    int error_at = 2;
+    while (radiance.samples() < target && !cancelled()) {
+      radiance.Refine(std::min(step, target - radiance.samples()));
+      step = std::min(step * 2, 32);
+      auto lit = std::make_shared<const std::vector<Eigen::Vector3f>>(radiance.Radiance());
+      std::shared_ptr<const std::vector<float>> error;
+      if (radiance.samples() >= target || radiance.samples() >= error_at) {
+        error = std::make_shared<const std::vector<float>>(VertexPhotometricError(tracer, scene.views, *lit));
+        error_at = 4 * radiance.samples();
+      }
+      const int samples = radiance.samples();
+      Update([&](EstimateStatus& s) {
+        s.lit = lit;
+        if (error) s.error = error;
+        s.lit_samples = samples;
+        ++s.lit_version;
+      });
+    }
+  } catch (const std::exception& e) {
+    Update([&](EstimateStatus& s) { s.message = std::string("lit shading: ") + e.what(); });
+  }
+}
+
+}  // namespace lp::ui
