@@ -5,13 +5,14 @@
 # frames were encoded with. Then the file drives reconstruct; bad input is one line, exit 2.
 set -eu
 exe="$1"
+. "$(dirname "$0")/check_number.sh"
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 "$exe" synth one-light --frames 1 --width 160 --height 120 --spp 16 --out "$out/static" >/dev/null
 "$exe" calibrate response --device --source "lpsynth://$out/static" --size 160x120 --exposures 25 50 100 200 400 \
   --out "$out/cal.json" >"$out/log"
 diff=$(sed -n 's/.*differs from sRGB by \([0-9.]*\) %.*/\1/p' "$out/log")
-awk -v d="$diff" 'BEGIN { exit !(d < 1) }' || { cat "$out/log"; echo "response differs from sRGB by $diff %"; exit 1; }
+check_below "response's difference from sRGB (%)" "$diff" 1 || { cat "$out/log"; exit 1; }
 grep -q '"format": "lightprobe-calibration"' "$out/cal.json"
 grep -q "mitsunaga-nayar" "$out/cal.json"
 

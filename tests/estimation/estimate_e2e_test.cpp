@@ -33,7 +33,9 @@ TEST(EstimateEndToEnd, OneLightDirectionAndRelighting) {
   eo.render_spp = 512;
   const EstimateResult r = Estimate(b, eo);
   ASSERT_FALSE(std::isnan(r.final_angular_error_deg));
-  EXPECT_LT(r.final_angular_error_deg, 10.0);
+  // Measured over seeds 1-5 at these settings: 0.85, 0.33, 1.10, 0.66, 0.89 degrees (this
+  // test runs seed 1); a light one 21-ring cell off is 9 degrees away.
+  EXPECT_LT(r.final_angular_error_deg, 2.5);
   // Re-render relative RMSE below 5 % (the target). Measured 4.7 %, of which ~3 %
   // is the floor of the comparison itself (Monte Carlo noise of both images, cell
   // discretization: the true light projected onto the cells re-renders at 3.3 %).

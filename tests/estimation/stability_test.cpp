@@ -96,6 +96,16 @@ double PowerNear(const EnvMap& env, const std::vector<double>& lambda, const Eig
 
 double TotalPower(const EnvMap& env, const std::vector<double>& lambda) { return PowerNear(env, lambda, {0, 0, 1}, 181); }
 
+/// The estimate's dominant light is at `d`, not in a neighbouring cell of `grid` (the map
+/// the truth was made on): within `cells` of its ring spacing (a neighbour is one spacing
+/// away). The power checks use a 45-degree cone, which a light one or two cells off passes.
+void ExpectLightAt(const EstimateResult& r, const EnvMap& grid, const Eigen::Vector3d& d, double cells = 0.5) {
+  ASSERT_FALSE(r.dominant.empty());
+  const double bound = cells * 180.0 / (grid.rings() - 1), angle = AngleDeg(r.dominant[0], d);
+  std::printf("dominant light %.2f deg from the truth (bound %.2f)\n", angle, bound);
+  EXPECT_LT(angle, bound) << "the light came back in another cell";
+}
+
 TEST(Stability, LightsOneMillionApart) {
   SceneBundle b = Room();
   const EnvMap env(9, b.up);
@@ -107,6 +117,7 @@ TEST(Stability, LightsOneMillionApart) {
   // The strong light is where it is, with its power (the weak one is 1e-6 of the image: noise).
   const double truth = 1e3 * env.solid_angle(strong);
   EXPECT_NEAR(PowerNear(r.env, r.lambda, env.direction(strong), 45) / truth, 1.0, 0.1);
+  ExpectLightAt(r, env, env.direction(strong));
   EXPECT_LT(r.final_relative_rmse, 0.3);  // Monte Carlo noise of A at 32 spp and of the image
 }
 
@@ -129,6 +140,7 @@ TEST(Stability, SunAndA1000TimesDimmerSky) {
   const double omega = 2 * M_PI * (1 - std::sqrt(1 - std::pow(sun.radius / (sun.position - s.lighting.center).norm(), 2)));
   const Eigen::Vector3d L = sun.Radiance();
   EXPECT_NEAR(PowerNear(r.env, r.lambda, d, 45) / (Luminance(L.x(), L.y(), L.z()) * omega), 1.0, 0.3);
+  ExpectLightAt(r, r.env, d);
 }
 
 class Albedo : public ::testing::TestWithParam<double> {};
@@ -148,6 +160,7 @@ TEST_P(Albedo, KnownLightComesBack) {
   const EstimateResult r = Estimate(b, eo);
   ExpectHealthy(r);
   EXPECT_NEAR(PowerNear(r.env, r.lambda, env.direction(j), 45) / (2.0 * env.solid_angle(j)), 1.0, 0.15);
+  ExpectLightAt(r, env, env.direction(j));
   EXPECT_LT(r.final_relative_rmse, 0.5);
 }
 
@@ -172,6 +185,7 @@ TEST(Stability, LightsNoObservedPointCanSeeAreLeftOutOrZero) {
       EXPECT_EQ(r.lambda[3 * k] + r.lambda[3 * k + 1] + r.lambda[3 * k + 2], 0.0);
     }
   EXPECT_NEAR(PowerNear(r.env, r.lambda, env.direction(above), 45) / (2.0 * env.solid_angle(above)), 1.0, 0.2);
+  ExpectLightAt(r, env, env.direction(above));
 }
 
 TEST(Stability, SixtyOneRingsWithFourSamplesPerPixel) {
@@ -189,6 +203,9 @@ TEST(Stability, SixtyOneRingsWithFourSamplesPerPixel) {
   EXPECT_LT(r.final_relative_rmse, 0.3);
   const int j = CellAt(coarse, 30, 50);
   EXPECT_NEAR(PowerNear(r.env, r.lambda, coarse.direction(j), 45) / (2.0 * coarse.solid_angle(j)), 1.0, 0.4);
+  // 4 samples per pixel over 1,000 small cells: 13.6 degrees measured (a neighbour of the
+  // 9-ring truth is 22.5 degrees away).
+  ExpectLightAt(r, coarse, coarse.direction(j), 0.75);
 }
 
 TEST(Stability, OneValidPixel) {
@@ -317,6 +334,7 @@ TEST_P(SmallSigma, ColdStartStillFindsTheLight) {
   ExpectHealthy(r);
   EXPECT_NEAR(PowerNear(r.env, r.lambda, env.direction(j), 45) / (2.0 * env.solid_angle(j)), 1.0, 0.15);
   EXPECT_GT(PowerNear(r.env, r.lambda, env.direction(j), 45), 0.8 * TotalPower(r.env, r.lambda));
+  ExpectLightAt(r, env, env.direction(j));
   EXPECT_TRUE(r.warnings.empty());
   // Round 1's log runs through the scales without restarting its iteration count.
   for (std::size_t i = 1; i < r.convergence.size(); ++i) {

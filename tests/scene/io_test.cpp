@@ -46,10 +46,24 @@ TEST(Bundle, RoundTrip) {
   const fs::path d = TempDir("rt") / "scene";
   SceneBundle b = SmallBundle();
   b.views[0].valid[3] = 0;
+  // Intrinsics with nothing symmetric about them: a swapped fx/fy or cx/cy shows.
+  Camera& k = b.views[0].camera;
+  k.fx = 17.25;
+  k.fy = 19.5;
+  k.cx = 7.125;
+  k.cy = 5.0625;
+  b.up = Eigen::Vector3d(0.1, 0.2, 1).normalized();
   WriteSceneBundle(d, b);
   const SceneBundle r = LoadSceneBundle(d);
   ASSERT_EQ(r.views.size(), 1u);
-  EXPECT_EQ(r.views[0].camera.width, 16);
+  const Camera& rk = r.views[0].camera;
+  EXPECT_EQ(rk.width, 16);
+  EXPECT_EQ(rk.height, 12);
+  EXPECT_EQ(rk.fx, 17.25);
+  EXPECT_EQ(rk.fy, 19.5);
+  EXPECT_EQ(rk.cx, 7.125);
+  EXPECT_EQ(rk.cy, 5.0625);
+  EXPECT_NEAR((r.up - b.up).norm(), 0, 1e-12);
   EXPECT_EQ(r.views[0].masked_out, 1);
   EXPECT_NEAR(r.views[0].image.data[0], 0.25f, 1e-6);
   EXPECT_EQ(r.mesh.triangles.size(), 2u);
@@ -215,6 +229,12 @@ TEST(Ply, AsciiAndBinaryAgreeAndBadFilesAreRejected) {
   const Mesh b = ReadPly(d / "b.ply");
   EXPECT_EQ(b.positions, a.positions);
   EXPECT_EQ(b.triangles, a.triangles);
+  ASSERT_EQ(b.normals.size(), withn.normals.size());
+  for (std::size_t v = 0; v < b.normals.size(); ++v)
+    EXPECT_TRUE(b.normals[v].isApprox(withn.normals[v], 1e-6f)) << v;  // float32, exactly the +z of the plane
+  ASSERT_EQ(b.albedo.size(), a.albedo.size());
+  for (std::size_t v = 0; v < b.albedo.size(); ++v)
+    EXPECT_TRUE(b.albedo[v].isApprox(a.albedo[v], 1e-6f)) << v;  // pure red, green, blue: exact in 8 bits
   EXPECT_THROW(ParsePly("PLY junk", "x.ply"), InputError);
   EXPECT_THROW(ParsePly(ascii.substr(0, ascii.size() - 8), "trunc.ply"), InputError);
   std::string bad_index = ascii;

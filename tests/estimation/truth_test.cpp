@@ -1,0 +1,127 @@
+// The measuring functions every end-to-end, CLI and benchmark verdict rests on, against
+// values computed by hand (the numbers in the comments), not against the code itself.
+#include "estimation/truth.h"
+
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "common/error.h"
+#include "estimation/synth.h"
+
+namespace lp {
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kDeg = kPi / 180;
+
+TEST(ParseTruthLights, DirectionsNormalizedWeightsFromPowerOrGiven) {
+  const auto lights = ParseTruthLights(R"({"lights": [
+      {"type": "sphere", "direction": [0, 0, 2], "rgb_power": [1, 2, 3]},
+      {"type": "environment"},
+      {"type": "sun", "direction": [3, 4, 0], "rgb": [1, 1, 1], "weight": 7}]})",
+                                       "truth.json");
+  ASSERT_EQ(lights.size(), 2u);  // the map without a direction is skipped
+  EXPECT_EQ(lights[0].type, "sphere");
+  EXPECT_NEAR((lights[0].direction - Eigen::Vector3d(0, 0, 1)).norm(), 0, 1e-15);
+  EXPECT_NEAR(lights[0].weight, 0.2126 * 1 + 0.7152 * 2 + 0.0722 * 3, 1e-12);  // 1.8596, Rec. 709
+  EXPECT_NEAR((lights[1].direction - Eigen::Vector3d(0.6, 0.8, 0)).norm(), 0, 1e-15);
+  EXPECT_EQ(lights[1].weight, 7);  // "weight" wins over the colour
+  for (const char* bad : {"", "[]", R"({"lights": 3})", R"({"lights": [{"direction": [0, 0]}]})",
+                          R"({"lights": [{"direction": [0, 0, 0]}]})", R"({"lights": [{"direction": ["a", 0, 1]}]})"})
+    EXPECT_THROW(ParseTruthLights(bad, "truth.json"), InputError) << bad;
+}
+
+/// A 21-ring map (up +z) lit only in the cell of world direction `d`, with `value`.
+std::vector<double> OneCell(const EnvMap& env, const Eigen::Vector3d& d, double value = 1) {
+  std::vector<double> lambda(3 * env.size(), 0.0);
+  for (int c = 0; c < 3; ++c) lambda[3 * env.Lookup(d) + c] = value;
+  return lambda;
+}
+
+TEST(DominantAngularErrorDeg, AgainstHandComputedCellCentres) {
+  // 21 rings: the equator (ring 10) has ceil(2 pi / (pi / 20)) = 40 cells at azimuths
+  // (k + 1/2) * 9 degrees from world x (frame_x for up +z). A light along +x falls in the
+  // cell centred at 4.5 degrees; one lit cell is its own dominant direction.
+  const EnvMap env(21, Eigen::Vector3d::UnitZ());
+  const std::vector<double> lambda = OneCell(env, Eigen::Vector3d::UnitX());
+  TruthLight x{"sphere", Eigen::Vector3d::UnitX(), 2};
+  EXPECT_NEAR(DominantAngularErrorDeg(env, lambda, {x}), 4.5, 1e-9);
+  TruthLight at_centre{"sphere", Eigen::Vector3d(std::cos(4.5 * kDeg), std::sin(4.5 * kDeg), 0), 2};
+  EXPECT_NEAR(DominantAngularErrorDeg(env, lambda, {at_centre}), 0, 1e-6);
+  // Two truth lights: the mean over both of the angle to the nearest estimate; the
+  // estimate has one direction, 90 degrees from +z: (4.5 + 90) / 2.
+  TruthLight z{"sphere", Eigen::Vector3d::UnitZ(), 1};
+  EXPECT_NEAR(DominantAngularErrorDeg(env, lambda, {z, x}), 47.25, 1e-9);
+  // Only the two strongest count: a weaker third light far away changes nothing.
+  TruthLight weak{"sphere", -Eigen::Vector3d::UnitX(), 0.1};
+  EXPECT_NEAR(DominantAngularErrorDeg(env, lambda, {weak, z, x}), 47.25, 1e-9);
+  // A dark estimate is as wrong as it gets; no truth is no number.
+  EXPECT_EQ(DominantAngularErrorDeg(env, std::vector<double>(3 * env.size(), 0.0), {x}), 180.0);
+  EXPECT_TRUE(std::isnan(DominantAngularErrorDeg(env, lambda, {})));
+  // The pole: ring 0 is one cell exactly at up.
+  EXPECT_NEAR(DominantAngularErrorDeg(env, OneCell(env, Eigen::Vector3d::UnitZ()), {z}), 0, 1e-9);
+}
+
+TEST(RelativeImageRmse, AgainstHandComputedValues) {
+  ImageRGB ref(2, 1), img(2, 1);
+  const float r[6] = {1, 1, 1, 3, 3, 3}, i[6] = {1, 1, 1, 3, 3, 5};
+  for (int k = 0; k < 6; ++k) ref.data[k] = r[k], img.data[k] = i[k];
+  // Squared error 4 over 6 values, reference mean 12 / 6 = 2: sqrt(4 / 6) / 2 = 0.408248.
+  EXPECT_NEAR(RelativeImageRmse(img, ref, {1, 1}), std::sqrt(4.0 / 6) / 2, 1e-12);
+  EXPECT_NEAR(RelativeImageRmse(img, ref, {1, 0}), 0, 1e-12);  // the differing pixel masked
+  // Only pixel 1: error 4 / 3, mean 3: sqrt(4 / 3) / 3 = 0.3849.
+  EXPECT_NEAR(RelativeImageRmse(img, ref, {0, 1}), std::sqrt(4.0 / 3) / 3, 1e-12);
+  EXPECT_TRUE(std::isnan(RelativeImageRmse(img, ref, {0, 0})));
+}
+
+TEST(EnvMapRelativeError, AgainstHandComputedValues) {
+  // Two rings: one cell at each pole, each 2 pi steradians.
+  const EnvMap env(2, Eigen::Vector3d::UnitZ());
+  ASSERT_EQ(env.size(), 2);
+  // sqrt(2pi * 3 * 1^2 / (2pi * 3 * 2^2)) = 0.5.
+  EXPECT_NEAR(EnvMapRelativeError(env, {1, 1, 1, 0, 0, 0}, {2, 2, 2, 0, 0, 0}, {}), 0.5, 1e-12);
+  // sqrt(3 * 1 / (3 * 4 + 3 * 1)) = sqrt(1 / 5).
+  EXPECT_NEAR(EnvMapRelativeError(env, {1, 1, 1, 1, 1, 1}, {2, 2, 2, 1, 1, 1}, {}), std::sqrt(0.2), 1e-12);
+  // The wrong cell left out: exact.
+  EXPECT_NEAR(EnvMapRelativeError(env, {1, 1, 1, 1, 1, 1}, {2, 2, 2, 1, 1, 1}, {1, 0}), 0, 1e-12);
+  EXPECT_TRUE(std::isnan(EnvMapRelativeError(env, {}, {}, {})));
+  EXPECT_TRUE(std::isnan(EnvMapRelativeError(env, {1, 1, 1, 1, 1, 1}, {2, 2, 2, 1, 1, 1}, {1, 1})));
+}
+
+TEST(TrueCellRadiance, ASmallLightsPowerLandsInItsCell) {
+  // A sphere of radius 0.1 m, 10 m away along +x, power 8 W per channel: radiance
+  // P / (4 pi^2 r^2), subtending 2 pi (1 - sqrt(1 - r^2 / d^2)) sr; spread over the
+  // equator cell of 21 rings: 2 pi (cos 85.5 - cos 94.5 degrees) / 40 = pi sin(4.5 deg) / 10.
+  SynthLighting lighting;
+  SphereLight l;
+  l.position = Eigen::Vector3d(10, 0, 0);
+  l.radius = 0.1;
+  l.rgb_power = Eigen::Vector3d(8, 8, 8);
+  lighting.lights.push_back(l);
+  const EnvMap env(21, Eigen::Vector3d::UnitZ());
+  const std::vector<double> cells = TrueCellRadiance(lighting, env);
+  ASSERT_EQ(cells.size(), 3u * env.size());
+  const double radiance = 8 / (4 * kPi * kPi * 0.01);
+  const double subtended = 2 * kPi * (1 - std::sqrt(1 - 0.01 / 100));
+  const double cell = kPi * std::sin(4.5 * kDeg) / 10;
+  const int j = env.Lookup(Eigen::Vector3d::UnitX());
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(cells[3 * j + c], radiance * subtended / cell, 1e-9 * radiance);
+  double others = 0;
+  for (int k = 0; k < env.size(); ++k)
+    if (k != j) others += cells[3 * k] + cells[3 * k + 1] + cells[3 * k + 2];
+  EXPECT_EQ(others, 0);
+  // A constant sky is that constant in every cell; a near light has no map.
+  SynthLighting sky;
+  sky.sky = [](const Eigen::Vector3d&) { return Eigen::Vector3d(0.5, 0.25, 2); };
+  const std::vector<double> sky_cells = TrueCellRadiance(sky, env);
+  for (int k = 0; k < env.size(); ++k) {
+    EXPECT_NEAR(sky_cells[3 * k], 0.5, 1e-12) << k;
+    EXPECT_NEAR(sky_cells[3 * k + 1], 0.25, 1e-12) << k;
+    EXPECT_NEAR(sky_cells[3 * k + 2], 2, 1e-12) << k;
+  }
+  lighting.far = false;
+  EXPECT_TRUE(TrueCellRadiance(lighting, env).empty());
+}
+
+}  // namespace
+}  // namespace lp
