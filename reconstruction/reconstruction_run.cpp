@@ -32,6 +32,7 @@ FrameReport ReconstructionRun::Process(const RgbdFrame& frame) {
     posed->world_from_camera = options_.poses[static_cast<std::size_t>(frames_)];
   }
   const RgbdFrame& f = posed ? *posed : frame;
+  if (frames_ == 0) clock_.Reset();  // the log's seconds count from the first frame
   if (frames_ == 0 && !f.registered && !options_.reconstruction.calibration.color_from_depth)
     warnings_.push_back(
         "depth is not registered to colour and no calibration gives the extrinsics (lightprobe calibrate "

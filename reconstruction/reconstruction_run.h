@@ -67,7 +67,7 @@ class ReconstructionRun {
   std::int64_t frames() const { return frames_; }
   std::int64_t tracked() const { return tracked_; }
   std::int64_t lost() const { return lost_; }
-  /// Seconds since the run started.
+  /// Seconds since its first frame.
   double seconds() const { return clock_.Seconds(); }
   /// RMS distance of the tracked positions from the true ones (metres) over `compared()`
   /// frames; NaN when no frame had a true pose.

@@ -62,6 +62,17 @@ void EstimateJob::Cancel() {
   }
 }
 
+void EstimateJob::Retire() {
+  Cancel();
+  std::lock_guard<std::mutex> lock(mutex_);
+  const std::uint64_t version = status_.version, lit_version = status_.lit_version;
+  const EstimateState state = status_.state;
+  status_ = EstimateStatus{};
+  status_.state = state;
+  status_.version = version;
+  status_.lit_version = lit_version;
+}
+
 EstimateStatus EstimateJob::status() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return status_;

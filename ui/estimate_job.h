@@ -48,6 +48,9 @@ class EstimateJob {
   /// lit-shading step); a job still preparing ends cancelled at once.
   void Cancel();
   bool cancelled() const { return cancel_.load(); }
+  /// Cancels and lets go of what its status holds (scene, result, shading): a replaced job
+  /// may wait a while for the thread that joins it.
+  void Retire();
   EstimateStatus status() const;
 
  private:

@@ -21,6 +21,7 @@ RecordingUpdate Recording::Start(const std::string& path, double seconds) {
   seconds_ = seconds;
   path_ = path;
   started_ = true;
+  last_ = RecordingUpdate{};
   u.state = RecordState::kRecording;
   u.message = "recording to " + path;
   return u;
@@ -32,6 +33,7 @@ std::optional<RecordingUpdate> Recording::Poll() {
   RecordingUpdate u;
   u.state = RecordState::kRecording;
   recorder_->Progress(&u.frames, &u.seconds);
+  last_ = u;
   if (stop_requests_.load() != stop_seen_ || (seconds_ > 0 && u.seconds >= seconds_)) return Finish();
   return u;
 }
@@ -45,19 +47,21 @@ std::optional<RecordingUpdate> Recording::Close() {
   return u;
 }
 
-/// A recording the source finished by itself (the camera unplugged): its outcome.
+/// A recording the source finished by itself (the camera unplugged): its outcome. The
+/// source stops recording before it has finished the file and said how it ended: until it
+/// has, the recording stays started and the next poll asks again.
 std::optional<RecordingUpdate> Recording::EndedWithoutStop() {
-  started_ = false;
   const RecordingEnd ended = recorder_ ? recorder_->EndedWithoutStop() : RecordingEnd{};
   if (ended.how == RecordingEnd::How::kNotEnded) return std::nullopt;
-  RecordingUpdate u;
+  started_ = false;
+  RecordingUpdate u = last_;
   u.state = ended.how == RecordingEnd::How::kSaved ? RecordState::kRecorded : RecordState::kFailed;
   u.message = ended.message;
   return u;
 }
 
 RecordingUpdate Recording::Finish() {
-  RecordingUpdate u;
+  RecordingUpdate u = last_;  // the frames and seconds it reached stay on the panel
   try {
     u.message = DescribeRecording(recorder_->Stop(), path_);
     u.state = RecordState::kRecorded;

@@ -47,6 +47,7 @@ class Recording {
   double seconds_ = 0;    ///< its length (<= 0: no limit)
   std::string path_;
   bool started_ = false;  ///< a recording whose outcome is not reported yet
+  RecordingUpdate last_;  ///< its last progress
 };
 
 }  // namespace lp::ui

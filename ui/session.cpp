@@ -33,6 +33,16 @@ const char* ToString(EstimateState s) {
   return "?";
 }
 
+const char* ToString(ExportState s) {
+  switch (s) {
+    case ExportState::kIdle: return "idle";
+    case ExportState::kExporting: return "exporting";
+    case ExportState::kExported: return "exported";
+    case ExportState::kFailed: return "failed";
+  }
+  return "?";
+}
+
 struct Session::Impl {
   SessionOptions options;
 
@@ -104,7 +114,7 @@ struct Session::Impl {
   void ReplaceJob(std::unique_ptr<EstimateJob> next) {
     idle = Fresh();
     if (job) {
-      job->Cancel();
+      job->Retire();
       retired.push_back(std::move(job));
     }
     job = std::move(next);
@@ -540,7 +550,12 @@ void Session::ResetReconstruction() {
 }
 
 void Session::SetReconstructionOptions(const ReconstructionOptions& options) {
-  impl_->Post([this, options] { impl_->rec_options.reconstruction = options; });
+  impl_->Post([this, options] {
+    ReconstructionRunOptions& r = impl_->rec_options;
+    const Calibration calibration = r.reconstruction.calibration;
+    r.reconstruction = options;
+    if (r.calibrated) r.reconstruction.calibration = calibration;  // `view --calibration` stays
+  });
 }
 
 void Session::Estimate(const EstimateOptions& options) {

@@ -54,6 +54,7 @@ const char* ToString(EstimateState s);
 
 /// Where the last Export stands.
 enum class ExportState { kIdle, kExporting, kExported, kFailed };
+const char* ToString(ExportState s);
 
 /// What the estimate panel, the lit mesh and the environment-map view show.
 struct EstimateStatus {

@@ -760,9 +760,18 @@ void Viewer::WriteState(const std::string& path) const {
                    {"lit_samples", est_.lit_samples},
                    {"seconds_to_first", std::isnan(est_.seconds_to_first) ? json() : json(est_.seconds_to_first)},
                    {"seconds_total", std::isnan(est_.seconds_total) ? json() : json(est_.seconds_total)},
-                   {"export", est_.export_message}};
+                   {"export", est_.export_message},
+                   {"export_state", ToString(est_.export_state)}};
   if (est_.result && !std::isnan(est_.result->final_angular_error_deg))
     j["estimate"]["angular_error_deg"] = est_.result->final_angular_error_deg;
+  // Where the panels must show the estimate: its dominant directions (world) and the map's
+  // frame (docs/formats.md's convention), for a test to compute the pixels by hand.
+  auto vec = [](const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); };
+  j["estimate"]["dominant"] = json::array();
+  for (const Eigen::Vector3d& d : est_.dominant) j["estimate"]["dominant"].push_back(vec(d));
+  if (est_.env)
+    j["estimate"]["env_frame"] = {
+        {"up", vec(est_.env->up())}, {"frame_x", vec(est_.env->frame_x())}, {"frame_y", vec(est_.env->frame_y())}};
   if (!bench_seconds_.empty()) {
     std::vector<double> s = bench_seconds_;
     std::sort(s.begin(), s.end());

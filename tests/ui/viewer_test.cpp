@@ -2,6 +2,8 @@
 // open the demo recording, reconstruct, press Estimate, wait, switch shading, open a
 // keyframe, export. Screenshots stay in build/test-artifacts/viewer/ for people to look at;
 // the checks read them back at the places the window says its panels are.
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -46,6 +48,33 @@ RegionStats Stats(const ImageRgb8& img, const nlohmann::json& rect) {
   for (const auto& [c, k] : counts) top = std::max(top, k);
   s.distinct = 1.0 - static_cast<double>(top) / n;
   return s;
+}
+
+/// Pixels of the marker's yellow (IM_COL32(255, 230, 30)) between 5 and 11 pixels from (cx, cy).
+int YellowAround(const ImageRgb8& img, double cx, double cy) {
+  int n = 0;
+  for (int y = static_cast<int>(cy) - 12; y <= static_cast<int>(cy) + 12; ++y)
+    for (int x = static_cast<int>(cx) - 12; x <= static_cast<int>(cx) + 12; ++x) {
+      if (x < 0 || y < 0 || x >= img.width || y >= img.height) continue;
+      const double r = std::hypot(x + 0.5 - cx, y + 0.5 - cy);
+      if (r < 5 || r > 11) continue;
+      const std::uint8_t* p = &img.data[3 * (static_cast<std::size_t>(y) * img.width + x)];
+      n += p[0] > 200 && p[1] > 170 && p[2] < 120;
+    }
+  return n;
+}
+
+/// Where the equirect panel `rect` draws world direction `d`, by docs/formats.md's
+/// convention (row: polar angle from up; column: azimuth from frame_x towards frame_y),
+/// computed here from the frame the window reports.
+std::pair<double, double> EquirectPixel(const nlohmann::json& rect, const nlohmann::json& frame,
+                                        const Eigen::Vector3d& d) {
+  auto v = [](const nlohmann::json& a) { return Eigen::Vector3d(a[0], a[1], a[2]); };
+  const double theta = std::acos(std::clamp(d.dot(v(frame["up"])), -1.0, 1.0));
+  double phi = std::atan2(d.dot(v(frame["frame_y"])), d.dot(v(frame["frame_x"])));
+  if (phi < 0) phi += 2 * M_PI;
+  return {rect[0].get<double>() + phi / (2 * M_PI) * rect[2].get<double>(),
+          rect[1].get<double>() + theta / M_PI * rect[3].get<double>()};
 }
 
 nlohmann::json ReadJson(const fs::path& p) {
@@ -130,6 +159,20 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
   EXPECT_LE(lit["estimate"]["seconds_to_first"].get<double>(), lit["estimate"]["seconds_total"].get<double>());
   const ImageRgb8 shot4 = ReadRgb8(a / "4-lit.png");
   EXPECT_GT(Stats(shot4, lit["window"]["equirect"]).stddev, 5) << "the environment map is drawn";
+  // The dominant light's marker is drawn where the convention puts its direction, and the
+  // map is bright there; the mirrored azimuth (where a turned map would put it) has none.
+  ASSERT_FALSE(lit["estimate"]["dominant"].empty());
+  const nlohmann::json& dj = lit["estimate"]["dominant"][0];
+  const Eigen::Vector3d dominant(dj[0], dj[1], dj[2]);
+  const auto [mx, my] = EquirectPixel(lit["window"]["equirect"], lit["estimate"]["env_frame"], dominant);
+  EXPECT_GE(YellowAround(shot4, mx, my), 8) << "no marker at (" << mx << ", " << my << ")";
+  const nlohmann::json& eq = lit["window"]["equirect"];
+  const double mirrored_x = 2 * eq[0].get<double>() + eq[2].get<double>() - mx;
+  if (std::abs(mirrored_x - mx) > 30) {
+    EXPECT_LT(YellowAround(shot4, mirrored_x, my), 3) << "a marker at the mirrored azimuth";
+  }
+  const RegionStats at_light = Stats(shot4, nlohmann::json::array({mx - 2, my - 2, 5, 5}));
+  EXPECT_GT(at_light.mean, 1.5 * Stats(shot4, eq).mean) << "the map is not bright where its light is";
   EXPECT_GT(Stats(shot4, lit["window"]["sphere"]).distinct, 0.02) << "the directions on the sphere";
   EXPECT_GT(Stats(shot4, lit["window"]["view3d"]).distinct, 0.05) << "the lit mesh";
   // The shading modes draw different pictures of the same mesh from the same camera.
@@ -147,9 +190,12 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
   const ImageRgb8 keyframe = ReadRgb8(a / "5-error-keyframe.png");
   EXPECT_GT(Stats(keyframe, nlohmann::json::array({view[0].get<float>() + 10, 85.f, 740.f, 175.f})).stddev, 20);
   const nlohmann::json done = ReadJson(a / "8-done.json");
+  EXPECT_EQ(done["estimate"]["export_state"], "exported");
   EXPECT_EQ(done["estimate"]["export"].get<std::string>().rfind("exported", 0), 0u);
   EXPECT_TRUE(fs::exists(a / "export" / "estimate" / "envmap.exr"));
   EXPECT_TRUE(fs::exists(a / "export" / "scene" / "mesh.ply"));
+  EXPECT_TRUE(fs::exists(a / "export" / "scene" / "reconstruction.csv")) << "the bundle reconstruct writes";
+  EXPECT_TRUE(fs::exists(a / "export" / "scene" / "trajectory.log"));
 }
 
 TEST(Viewer, ClosingTheWindowWhileEstimatingStopsCleanly) {
