@@ -59,6 +59,7 @@ struct Call {
   const ScriptLine& line;
   int frames_waited;  ///< frames drawn since the line started
   double waited;      ///< seconds since the line started
+  std::int64_t frames_read_at_start;  ///< the live panel's frames read when the line started
   ViewerParts& v;
 
   bool first() const { return frames_waited == 0; }
@@ -116,9 +117,17 @@ bool WaitEnd(const Call& c) {
   return c.frames_waited > 1 && !c.v.session.busy() && !c.v.live.playing;
 }
 
+/// Waits until the source has delivered N more frames than when the line started (the
+/// previews go on: while recording, playing, reconstructing).
+bool WaitFrames(const Call& c) {
+  c.Timeout(c.Arg(2, 120), "frames from the source");
+  if (!c.v.live.error.empty() && !c.v.live.open) c.Fail(c.v.live.error);
+  return c.v.live.frames_read >= c.frames_read_at_start + static_cast<std::int64_t>(c.Arg(1, 1));
+}
+
 bool Record(const Call& c) {
   if (c.first()) c.v.session.Record(c.word(1), c.Arg(2, 0));
-  return true;
+  return c.Handled();  // the recording has started (or failed) when the next line runs
 }
 
 bool StopRecording(const Call& c) {
@@ -148,6 +157,7 @@ void ApplySetting(const Call& c, const std::string& w, EstimateOptions* o) {
   else if (key == "bounces") o->tracer.bounces = static_cast<int>(x);
   else if (key == "rounds") o->max_rounds = static_cast<int>(x);
   else if (key == "render-spp") o->render_spp = static_cast<int>(x);
+  else if (key == "change") o->change_threshold = x;  // stop when the image changes less (0: run every round)
   else if (key == "albedo-passes") {
     if (x < 0 || x > kMaxAlbedoPasses || x != std::floor(x))
       c.Fail("albedo-passes is 0 .. " + std::to_string(kMaxAlbedoPasses) + ", not " + value.words[0]);
@@ -282,6 +292,7 @@ const std::map<std::string, Command>& Commands() {
       {"speed", {1, 1, Speed}},
       {"reconstruct", {1, 1, Reconstruct}},
       {"wait-end", {0, 1, WaitEnd}},
+      {"wait-frames", {1, 2, WaitFrames}},
       {"record", {2, 2, Record}},
       {"stop-recording", {0, 0, StopRecording}},
       {"wait-record", {0, 1, WaitRecord}},
@@ -339,6 +350,7 @@ bool ScriptRunner::Step() {
     if (line_started_ < 0) {
       line_started_ = glfwGetTime();
       frames_waited_ = 0;
+      line_frames_read_ = viewer_->live_.frames_read;
     }
     if (!Run(line)) {
       ++frames_waited_;
@@ -376,7 +388,7 @@ bool ScriptRunner::Run(const ScriptLine& line) {
                     v.bench_frames_left_,
                     v.quit_,
                     v.window_};
-  return it->second.run({path_, line, frames_waited_, waited, parts});
+  return it->second.run({path_, line, frames_waited_, waited, line_frames_read_, parts});
 }
 
 }  // namespace lp::ui

@@ -137,6 +137,7 @@ class ScriptRunner {
   std::size_t next_ = 0;
   double line_started_ = -1;
   int frames_waited_ = 0;
+  std::int64_t line_frames_read_ = 0;  ///< the live panel's frames read when the line started
 };
 
 }  // namespace lp::ui

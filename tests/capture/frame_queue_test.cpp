@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include "capture/frame_queue.h"
+#include "tests/wait_for.h"
 
 namespace lp {
 namespace {
@@ -38,8 +39,11 @@ TEST(FrameQueue, SlowConsumerLosesOldFramesNotNewOnes) {
     for (int i = 0; i < 2000; ++i) q.Push(Frame(i));
     q.Close();
   });
+  // The consumer starts once the producer is a full queue and one frame ahead: from then
+  // on a frame has been dropped, however the two threads were scheduled.
+  EXPECT_TRUE(test::WaitFor([&] { return q.counters().pushed > 4; }, 60));
   std::int64_t last = -1, got = 0;
-  while (auto f = q.Pop(5.0)) {
+  while (auto f = q.Pop(60.0)) {
     EXPECT_GT(f->index, last);  // order kept
     last = f->index;
     ++got;
@@ -57,16 +61,20 @@ TEST(FrameQueue, SlowConsumerLosesOldFramesNotNewOnes) {
 TEST(FrameQueue, CloseWakesABlockedConsumerAndRefusesPushes) {
   FrameQueue q(2);
   std::atomic<bool> returned{false};
+  // Pop waits up to 200 s; woken by Close it returns long before. The bound below is half
+  // that wait: it tells "woken" from "timed out" and does not time the wake-up itself.
+  constexpr double kPopWait = 200;
   const auto start = std::chrono::steady_clock::now();
   std::thread consumer([&] {
-    EXPECT_FALSE(q.Pop(30.0));
+    EXPECT_FALSE(q.Pop(kPopWait));
     returned = true;
   });
-  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));  // a chance to return too early
   EXPECT_FALSE(returned);
   q.Close();
   consumer.join();
-  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 5.0);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), kPopWait / 2)
+      << "Close did not wake the consumer: it waited out its timeout";
   EXPECT_FALSE(q.Push(Frame(1)));
   EXPECT_TRUE(q.closed());
 }

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -20,12 +21,21 @@
 #include "common/image_io.h"
 #include "scene/ray_tracer.h"
 #include "estimation/synth.h"
+#include "tests/wait_for.h"
 
 namespace lp {
 namespace {
 namespace fs = std::filesystem;
 
 constexpr int kFrames = 8, kW = 64, kH = 48;
+/// How long a read may wait for a frame that must come: only a hang takes this long (a
+/// loaded machine can hold OpenNI2's threads up for seconds).
+constexpr double kFrameWait = 30;
+/// A recording holds every frame the device sent while OpenNI2's Recorder ran: the frames
+/// read while recording, except perhaps one that arrived between the streams' pairing and
+/// the Recorder's start (a thread held up there on a busy machine reads it afterwards),
+/// and whatever came until the streams stopped. Its counts are OpenNI2's index of the file.
+constexpr int kReadButNotRecorded = 1;
 
 DepthImage ServedDepth(int i) {
   DepthImage d{kW, kH, std::vector<std::uint16_t>(kW * kH)};
@@ -98,7 +108,7 @@ TEST_F(OpenNi, RecordThroughTheRecorderAndReplayExactly) {
   ro.uri = uri_;
   ro.frames = 12;
   const RecordResult rr = RecordOni(oni.string(), ro);
-  EXPECT_GE(rr.depth_frames, 12);  // what the file holds: the streams run on a moment after 12 are read
+  EXPECT_GE(rr.depth_frames, 12 - kReadButNotRecorded);  // what the file holds, not the 12 read
   EXPECT_GT(rr.color_frames, 0);
   ASSERT_TRUE(fs::exists(oni));
   ASSERT_NO_THROW(ValidateOniFile(oni.string()));
@@ -106,10 +116,11 @@ TEST_F(OpenNi, RecordThroughTheRecorderAndReplayExactly) {
 
   auto src = OpenOniFile(oni.string());
   ASSERT_TRUE(src->FrameCount().has_value());
-  EXPECT_GE(*src->FrameCount(), 10);
+  // The frame pairs the file holds, from OpenNI2's index, as the recording reported them.
+  EXPECT_EQ(*src->FrameCount(), std::min(rr.depth_frames, rr.color_frames));
   RgbdFrame f;
   int n = 0, last = -1;
-  while (src->Next(&f, 2.0) == SourceStatus::kFrame) {
+  while (src->Next(&f, kFrameWait) == SourceStatus::kFrame) {
     // Depth is stored losslessly and colour uncompressed: both exact, and paired.
     const int i = Which(f.depth);
     ASSERT_GE(i, 0) << "frame " << n << " is not a served depth image";
@@ -132,7 +143,7 @@ TEST_F(OpenNi, RecordThroughTheRecorderAndReplayExactly) {
   // No end-of-file signal in OpenNI2: the source ends on the count, without hanging.
   EXPECT_EQ(src->Next(&f, 0.5), SourceStatus::kEnd);
   src->Rewind();
-  ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame);
+  ASSERT_EQ(src->Next(&f, kFrameWait), SourceStatus::kFrame);
 }
 
 // OpenNI2 remembers every thread that called it (its error log is per thread, keyed by
@@ -147,7 +158,7 @@ TEST_F(OpenNi, AThreadThatUsedOpenNiAndExitedDoesNotCrashTheNextOne) {
   auto use_openni = [&] {
     auto src = OpenOniFile(oni);
     RgbdFrame f;
-    EXPECT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame);
+    EXPECT_EQ(src->Next(&f, kFrameWait), SourceStatus::kFrame);
   };
   std::thread(use_openni).join();
   {
@@ -181,7 +192,7 @@ TEST_F(OpenNi, AThreadThatUsedOpenNiAndExitedDoesNotCrashTheNextOne) {
     RecordOptions ro;
     ro.uri = uri_;
     ro.frames = 2;
-    EXPECT_GE(RecordOni((dir_ / "again.oni").string(), ro).depth_frames, 2);
+    EXPECT_GE(RecordOni((dir_ / "again.oni").string(), ro).depth_frames, 2 - kReadButNotRecorded);
   }).join();
 }
 
@@ -270,7 +281,7 @@ TEST_F(OpenNi, AMalformedSideFileIsAClearError) {
   }
   fs::remove(OniSideFile(oni.string()));  // without one: as OpenNI2 reports (not registered)
   RgbdFrame f;
-  ASSERT_EQ(OpenOniFile(oni.string())->Next(&f, 2.0), SourceStatus::kFrame);
+  ASSERT_EQ(OpenOniFile(oni.string())->Next(&f, kFrameWait), SourceStatus::kFrame);
   EXPECT_FALSE(f.registered);
 }
 
@@ -304,7 +315,7 @@ TEST_F(OpenNi, LiveDeviceLocksExposureReadsBackAndPairsFrames) {
   EXPECT_TRUE(applied.registered);
   RgbdFrame f;
   for (int n = 0; n < 5; ++n) {
-    ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame);
+    ASSERT_EQ(src->Next(&f, kFrameWait), SourceStatus::kFrame);
     const int i = Which(f.depth);
     ASSERT_GE(i, 0);
     // The synthetic device scales its light by exposure x gain / (100 x 100), as a camera would.
@@ -329,7 +340,7 @@ TEST_F(OpenNi, LiveDeviceUnpluggedReportsDeviceLost) {
   RgbdFrame f;
   int frames = 0;
   SourceStatus s = SourceStatus::kFrame;
-  for (int k = 0; k < 20 && s != SourceStatus::kDeviceLost; ++k) {
+  for (int k = 0; k < 200 && s != SourceStatus::kDeviceLost; ++k) {  // 200 reads: only a hang runs out
     s = src->Next(&f, 0.5);
     frames += s == SourceStatus::kFrame;
   }
@@ -348,14 +359,14 @@ TEST_F(OpenNi, LiveRecorderRecordsWhileTheDeviceKeepsServing) {
   EXPECT_FALSE(recorder->recording());
   EXPECT_THROW(recorder->Stop(), InputError);  // not recording
   RgbdFrame f;
-  ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame);
+  ASSERT_EQ(src->Next(&f, kFrameWait), SourceStatus::kFrame);
   for (int take = 0; take < 2; ++take) {
     const fs::path oni = dir_ / ("live" + std::to_string(take) + ".oni");
     recorder->Start(oni.string());
     EXPECT_TRUE(recorder->recording());
     EXPECT_THROW(recorder->Start((dir_ / "twice.oni").string()), InputError);
     for (int n = 0; n < 8; ++n) {
-      ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame) << "the live view stopped while recording";
+      ASSERT_EQ(src->Next(&f, kFrameWait), SourceStatus::kFrame) << "the live view stopped while recording";
       EXPECT_GE(Which(f.depth), 0);
       EXPECT_EQ(f.exposure, 42);
     }
@@ -367,21 +378,21 @@ TEST_F(OpenNi, LiveRecorderRecordsWhileTheDeviceKeepsServing) {
     EXPECT_FALSE(fs::exists(oni));  // written under a temporary name until finished
     const RecordResult r = recorder->Stop();
     EXPECT_FALSE(recorder->recording());
-    EXPECT_GE(r.depth_frames, 8);  // the frames the file holds, not the 8 read
+    EXPECT_GE(r.depth_frames, 8 - kReadButNotRecorded);  // the frames the file holds, not the 8 read
     EXPECT_EQ(r.controls.exposure, 42);
     ASSERT_TRUE(fs::exists(oni) && fs::exists(OniSideFile(oni.string())));
     EXPECT_EQ(r.depth_frames + r.color_frames, ValidateOniFile(oni.string()));
     // The live view goes on after the recording, with the exposure it had.
     for (int n = 0; n < 3; ++n) {
-      ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame) << "the live view did not resume after recording";
+      ASSERT_EQ(src->Next(&f, kFrameWait), SourceStatus::kFrame) << "the live view did not resume after recording";
       EXPECT_EQ(f.exposure, 42);
       EXPECT_EQ(f.gain, 7);
     }
     auto replay = OpenOniFile(oni.string());
     ASSERT_TRUE(replay->FrameCount().has_value());
-    EXPECT_GE(*replay->FrameCount(), 8);
+    EXPECT_EQ(*replay->FrameCount(), std::min(r.depth_frames, r.color_frames));
     int n = 0, last = -1;
-    while (replay->Next(&f, 2.0) == SourceStatus::kFrame) {
+    while (replay->Next(&f, kFrameWait) == SourceStatus::kFrame) {
       const int i = Which(f.depth);
       ASSERT_GE(i, 0) << "replayed frame " << n << " is not a served depth image";
       EXPECT_EQ(f.color.data.size(), ServedColor(i).data.size());
@@ -406,7 +417,7 @@ TEST_F(OpenNi, LiveRecorderFinishesTheFileWhenTheSourceCloses) {
   const fs::path oni = dir_ / "closed.oni";
   recorder->Start(oni.string());
   RgbdFrame f;
-  for (int n = 0; n < 4; ++n) ASSERT_EQ(src->Next(&f, 2.0), SourceStatus::kFrame);
+  for (int n = 0; n < 4; ++n) ASSERT_EQ(src->Next(&f, kFrameWait), SourceStatus::kFrame);
   src.reset();
   EXPECT_FALSE(recorder->recording());
   ASSERT_TRUE(fs::exists(oni) && fs::exists(OniSideFile(oni.string())));
@@ -416,8 +427,8 @@ TEST_F(OpenNi, LiveRecorderFinishesTheFileWhenTheSourceCloses) {
   ASSERT_EQ(ended.how, RecordingEnd::How::kSaved) << ended.message;
   EXPECT_EQ(ended.message.rfind("recorded " + std::to_string(ended.result.depth_frames) + " depth frames", 0), 0u)
       << ended.message;
-  EXPECT_GE(ended.result.depth_frames, std::max(4, held));
-  EXPECT_GE(*OpenOniFile(oni.string())->FrameCount(), 4);
+  EXPECT_EQ(held, std::min(ended.result.depth_frames, ended.result.color_frames));
+  EXPECT_GE(ended.result.depth_frames, 4 - kReadButNotRecorded);
   EXPECT_THROW(recorder->Start((dir_ / "after.oni").string()), InputError);
 }
 
@@ -431,7 +442,7 @@ TEST_F(OpenNi, LiveRecorderKeepsTheFramesWhenTheDeviceIsUnplugged) {
   recorder->Start(oni.string());
   RgbdFrame f;
   SourceStatus st = SourceStatus::kFrame;
-  for (int k = 0; k < 40 && st != SourceStatus::kDeviceLost; ++k) st = src->Next(&f, 0.5);
+  for (int k = 0; k < 200 && st != SourceStatus::kDeviceLost; ++k) st = src->Next(&f, 0.5);
   ASSERT_EQ(st, SourceStatus::kDeviceLost);
   EXPECT_FALSE(recorder->recording());
   const RecordingEnd ended = recorder->EndedWithoutStop();
@@ -501,7 +512,7 @@ TEST(DemoRecording, ReplaysRegisteredWithThePosesOfItsFrames) {
     return err.empty() ? 1e9 : std::sqrt(sum2 / err.size());  // RMS in noise sigmas (clipped at 10)
   };
   RgbdFrame f;
-  for (int i = 0; src->Next(&f, 2.0) == SourceStatus::kFrame; ++i) {
+  for (int i = 0; src->Next(&f, kFrameWait) == SourceStatus::kFrame; ++i) {
     EXPECT_TRUE(f.registered);
     if (i % 10 != 5) continue;
     const double own = median_error(f, poses[static_cast<std::size_t>(i)]);
@@ -513,69 +524,123 @@ TEST(DemoRecording, ReplaysRegisteredWithThePosesOfItsFrames) {
   EXPECT_TRUE(fs::exists(dir / "truth.json"));
 }
 
-// Real-time playback on OpenNI2's clock: a pause holds the clock (no frames lost to it),
-// and a reader slower than the recording still finds the end (OpenNI2 skips the frames it
-// missed; its frame index says where playback is).
-TEST(DemoRecording, RealTimePauseLosesNoFramesAndASlowReaderFindsTheEnd) {
-  const std::string oni = (fs::path(LIGHTPROBE_SOURCE_DIR) / "assets" / "demo-recording" / "demo.oni").string();
+/// The bundled demo recording.
+std::string DemoOni() {
+  return (fs::path(LIGHTPROBE_SOURCE_DIR) / "assets" / "demo-recording" / "demo.oni").string();
+}
+
+/// Every frame pair of `oni` in file order (read at manual speed: none skipped).
+std::vector<RgbdFrame> EveryFrame(const std::string& oni) {
+  std::vector<RgbdFrame> frames;
+  auto src = OpenOniFile(oni);
+  RgbdFrame f;
+  while (src->Next(&f, kFrameWait) == SourceStatus::kFrame) frames.push_back(f);
+  EXPECT_EQ(static_cast<std::int64_t>(frames.size()), *src->FrameCount());
+  return frames;
+}
+
+// Real-time playback on OpenNI2's clock: a pause holds the clock, so playback goes on from
+// the frame it paused at instead of skipping the paused time, and a reader slower than
+// the recording still finds the end (OpenNI2 skips the frames it missed; its frame index
+// says where playback is). Frames come in file order (their recorded timestamps rise),
+// none twice. How many frames a real-time reader sees depends on how busy the machine is,
+// so that is not asserted; where playback stands after the pause is (paused, reads are
+// manual: the next read is the next frame, however late it comes).
+TEST(DemoRecording, RealTimePauseHoldsTheClockAndASlowReaderFindsTheEnd) {
+  const std::string oni = DemoOni();
+  const std::vector<RgbdFrame> file = EveryFrame(oni);
+  const int count = static_cast<int>(file.size());
+  ASSERT_GT(count, 30);
+  const double period = (file.back().depth_timestamp - file.front().depth_timestamp) / (count - 1);
+  ASSERT_GT(period, 0);
+  // Frames after `a` in the file, by recorded time (a real-time reader may also see the
+  // last depth frame, which has no colour partner in the pairs above).
+  auto frames_after = [&](double a, double b) { return (b - a) / period; };
   OniPlaybackOptions rt;
   rt.real_time = true;
-  {
+  // The pause must come in the first half of the file to show anything; a thread held up
+  // on a busy machine may read later than that: then it tries again with a fresh source.
+  bool paused_early = false;
+  for (int attempt = 0; attempt < 3 && !paused_early; ++attempt) {
     auto src = OpenOniFile(oni, rt);
-    const std::int64_t count = *src->FrameCount();
-    auto queue = std::make_shared<FrameQueue>(64);
-    CaptureThread t(std::move(src), queue);
-    std::this_thread::sleep_for(std::chrono::milliseconds(300));
-    t.Pause(true);
-    std::this_thread::sleep_for(std::chrono::milliseconds(700));  // ~20 frames at 30 fps
-    t.Pause(false);
-    int n = 0;
-    while (queue->Pop(5.0)) ++n;
-    EXPECT_GE(n, count - 3) << "frames lost to the pause";
-    EXPECT_EQ(t.stats().last_status, SourceStatus::kEnd);
+    RgbdFrame f;
+    double last = -1;
+    for (int k = 0; k < 3; ++k) {
+      ASSERT_EQ(src->Next(&f, kFrameWait), SourceStatus::kFrame);
+      ASSERT_GT(f.depth_timestamp, last) << "real-time frame " << k << " is not a later frame of the file";
+      last = f.depth_timestamp;
+    }
+    src->SetPaused(true);
+    if (last >= file[count / 2].depth_timestamp) {
+      std::printf("attempt %d: paused only at %.3f s of %.3f; again\n", attempt, last, file.back().depth_timestamp);
+      continue;
+    }
+    paused_early = true;
+    // Paused for longer than the whole file plays (40 frames at 30 fps): a clock that ran
+    // on meanwhile would be at the last frame now.
+    std::this_thread::sleep_for(std::chrono::milliseconds(2000));
+    ASSERT_EQ(src->Next(&f, kFrameWait), SourceStatus::kFrame);
+    const double resumed = f.depth_timestamp;
+    std::printf("paused at %.3f s; the next read while paused: %.1f frames later\n", last,
+                frames_after(last, resumed));
+    EXPECT_GT(resumed, last) << "a frame repeated after the pause";
+    EXPECT_LE(frames_after(last, resumed), 2.5) << "frames lost to the pause: the clock ran on while paused";
+    src->SetPaused(false);
+    double previous = resumed;
+    SourceStatus s;
+    while ((s = src->Next(&f, kFrameWait)) == SourceStatus::kFrame) {
+      EXPECT_GT(f.depth_timestamp, previous) << "real time after the pause: a frame repeated or out of order";
+      previous = f.depth_timestamp;
+    }
+    EXPECT_EQ(s, SourceStatus::kEnd);
   }
+  ASSERT_TRUE(paused_early) << "three attempts could not pause in the first half of the file";
+
+  // A reader at ~4 frames/s, the recording at 30: OpenNI2 skips what it missed, and the
+  // source still ends on the count (its frame index), without waiting for frames that
+  // never come.
   auto src = OpenOniFile(oni, rt);
   RgbdFrame f;
   int n = 0;
+  double previous = -1;
   SourceStatus s;
-  while ((s = src->Next(&f, 1.0)) == SourceStatus::kFrame) {
+  while ((s = src->Next(&f, kFrameWait)) == SourceStatus::kFrame) {
+    EXPECT_GT(f.depth_timestamp, previous) << "a frame repeated or out of order at read " << n;
+    previous = f.depth_timestamp;
     ++n;
-    std::this_thread::sleep_for(std::chrono::milliseconds(100));  // 3 frame periods
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));  // 7.5 frame periods
   }
-  EXPECT_EQ(s, SourceStatus::kEnd);
-  EXPECT_LT(n, *src->FrameCount() / 2) << "a slow real-time reader should have skipped frames";
+  EXPECT_EQ(s, SourceStatus::kEnd) << "a reader that missed frames did not find the end";
+  // What this part needs, not what it checks: OpenNI2's player outran a reader at 4
+  // frames/s (a player that could not would never skip, and the end would be trivial).
+  EXPECT_LT(n, count) << "no frame was skipped: this run did not exercise finding the end past skipped frames";
 }
 
 // A viewer's seek bar on a real-time recording: seeking while paused lands on the frame
-// asked for, quickly (at manual speed), and stays paused until resumed.
+// asked for and stays paused until resumed. (That the seek reads at manual speed, not in
+// real time, is a matter of time: docs/benchmarks.md, Capture.)
 TEST(DemoRecording, RealTimeSeekWhilePausedLandsOnTheFrameAndStaysPaused) {
-  const std::string oni = (fs::path(LIGHTPROBE_SOURCE_DIR) / "assets" / "demo-recording" / "demo.oni").string();
-  std::vector<DepthImage> depth;  // every frame, read directly
-  {
-    auto src = OpenOniFile(oni);
-    RgbdFrame f;
-    while (src->Next(&f, 2.0) == SourceStatus::kFrame) depth.push_back(f.depth);
-  }
-  ASSERT_GT(depth.size(), 30u);
+  const std::string oni = DemoOni();
+  const std::vector<RgbdFrame> file = EveryFrame(oni);
+  ASSERT_GT(file.size(), 30u);
   OniPlaybackOptions rt;
   rt.real_time = true;
   auto queue = std::make_shared<FrameQueue>(64);
   CaptureThread t(OpenOniFile(oni, rt), queue);
   t.Pause(true);
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));
-  while (queue->Pop(0.01)) {
+  ASSERT_TRUE(test::WaitFor([&] { return t.stats().paused; }, 60));
+  while (queue->Pop(0)) {  // what was read before the pause took effect
   }
-  const auto t0 = std::chrono::steady_clock::now();
   t.Seek(25);
-  std::this_thread::sleep_for(std::chrono::milliseconds(600));
-  EXPECT_FALSE(queue->Pop(0.01)) << "a paused thread delivered a frame after a seek";
+  // Paused, nothing is read: the position changes only when the seek is applied.
+  ASSERT_TRUE(test::WaitFor([&] { return t.stats().position == 25; }, 60)) << "the seek was not applied";
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));  // a chance to deliver a frame while paused
+  EXPECT_FALSE(queue->Pop(0)) << "a paused thread delivered a frame after a seek";
   EXPECT_TRUE(t.stats().paused);
   t.Pause(false);
-  auto f = queue->Pop(5.0);
-  const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  auto f = queue->Pop(kFrameWait);
   ASSERT_TRUE(f);
-  EXPECT_EQ(f->depth.data, depth[25].data) << "the seek did not land on frame 25";
-  EXPECT_LT(waited, 2.0) << "seeking 25 frames took as long as playing them";
+  EXPECT_EQ(f->depth.data, file[25].depth.data) << "the seek did not land on frame 25 (or playback ran on while paused)";
 }
 
 }  // namespace

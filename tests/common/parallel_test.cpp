@@ -7,21 +7,27 @@
 #include <gtest/gtest.h>
 
 #include "common/parallel.h"
+#include "tests/wait_for.h"
 
 namespace lp {
 namespace {
 
-/// Runs a parallel loop long enough for every worker to join; returns the nice values of
-/// the threads that ran its iterations, other than the calling one.
+/// Runs a parallel loop; returns the nice values of the threads that ran its iterations,
+/// other than the calling one. The caller's iterations wait until a worker has run one:
+/// when a worker gets a core depends on how busy the machine is, and a caller that ran
+/// the whole loop alone would leave nothing to check.
 std::multiset<int> WorkerNices(std::thread::id caller) {
   std::mutex m;
   std::multiset<int> nices;
-  std::atomic<int> spin{0};
+  std::atomic<bool> worker_ran{false};
   ParallelFor(0, 256, [&](std::size_t) {
-    for (int i = 0; i < 200000; ++i) spin.fetch_add(1, std::memory_order_relaxed);
-    if (std::this_thread::get_id() == caller) return;
+    if (std::this_thread::get_id() == caller) {
+      test::WaitFor([&] { return worker_ran.load(); }, 120);
+      return;
+    }
     std::lock_guard<std::mutex> lock(m);
     nices.insert(ThisThreadNice());
+    worker_ran = true;
   });
   return nices;
 }

@@ -4,27 +4,38 @@
 #include <filesystem>
 #include <fstream>
 #include <thread>
+#include <tuple>
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include "app/commands.h"
 #include "capture/openni.h"
 #include "common/image_io.h"
-#include "common/timer.h"
+#include "tests/wait_for.h"
 #include "ui/session.h"
 
+// Nothing here is timed: the tests wait for states and counts (test::WaitFor), with limits
+// that only a hang reaches. How long a cancel or a close takes is the viewer benchmark's
+// (docs/benchmarks.md).
 namespace lp::ui {
 namespace {
 namespace fs = std::filesystem;
 
+using test::WaitFor;
+
+/// Everything the estimate panel shows that moves while an estimate runs.
+auto EstimateProgress(const Session& s) {
+  const EstimateStatus e = s.estimate();
+  return std::make_tuple(static_cast<int>(e.state), e.rows.size(), e.message, e.lit_samples, e.version, e.lit_version);
+}
+
+/// Waits for `done` while the estimate makes progress: the estimator runs at a lower OS
+/// priority, ~10 times slower beside a busy loop, and its de-lighting step shows nothing
+/// for a while; 600 s without any change is a hang.
 template <typename F>
-bool WaitFor(F done, double seconds) {
-  Stopwatch sw;
-  while (sw.Seconds() < seconds) {
-    if (done()) return true;
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
-  return done();
+bool WaitForEstimate(const Session& s, F done) {
+  return test::WaitWhileProgressing(done, [&] { return EstimateProgress(s); }, 600);
 }
 
 SessionOptions Options() {
@@ -50,7 +61,8 @@ void Reconstruct(Session* s) {
   s->SetSpeed(0);
   s->StartReconstruction();
   s->SetPlaying(true);
-  ASSERT_TRUE(WaitFor([&] { return s->live().at_end; }, 300)) << s->live().error;
+  ASSERT_TRUE(test::WaitWhileProgressing([&] { return s->live().at_end; }, [&] { return s->live().frames_read; }, 300))
+      << s->live().error;
 }
 
 fs::path TempDir(const std::string& name) {
@@ -72,7 +84,7 @@ TEST(Session, ReconstructsTheDemoEstimatesWithALiveLogAndExports) {
   EXPECT_NE(live.source.find("demo.oni"), std::string::npos);
 
   s.Estimate(Small());
-  ASSERT_TRUE(WaitFor([&] { return s.estimate().state == EstimateState::kDone; }, 300)) << s.estimate().message;
+  ASSERT_TRUE(WaitForEstimate(s, [&] { return s.estimate().state == EstimateState::kDone; })) << s.estimate().message;
   const EstimateStatus e = s.estimate();
   ASSERT_TRUE(e.result && e.scene && e.env);
   EXPECT_EQ(e.scene->views.size(), 4u);
@@ -82,7 +94,7 @@ TEST(Session, ReconstructsTheDemoEstimatesWithALiveLogAndExports) {
   EXPECT_LE(e.seconds_to_first, e.seconds_total);
   EXPECT_EQ(e.dominant.size(), e.result->dominant.size());
   // The lit shading refines up to its sample count; the error covers the seen vertices.
-  ASSERT_TRUE(WaitFor([&] { return s.estimate().lit_samples >= Options().lit_samples; }, 300));
+  ASSERT_TRUE(WaitForEstimate(s, [&] { return s.estimate().lit_samples >= Options().lit_samples; }));
   const EstimateStatus lit = s.estimate();
   ASSERT_TRUE(lit.lit && lit.error);
   EXPECT_EQ(lit.lit->size(), e.scene->mesh.positions.size());
@@ -113,7 +125,7 @@ TEST(Session, ReconstructsTheDemoEstimatesWithALiveLogAndExports) {
   // while one is still being prepared stops it.
   s.Estimate(Small());
   s.Estimate(Small());
-  ASSERT_TRUE(WaitFor([&] { return s.estimate().state == EstimateState::kDone; }, 300)) << s.estimate().message;
+  ASSERT_TRUE(WaitForEstimate(s, [&] { return s.estimate().state == EstimateState::kDone; })) << s.estimate().message;
   s.Estimate(Small());
   s.CancelEstimate();
   ASSERT_TRUE(WaitFor([&] { return !s.busy(); }, 60));
@@ -127,34 +139,37 @@ TEST(Session, ReconstructsTheDemoEstimatesWithALiveLogAndExports) {
 }
 
 TEST(Session, CancelStopsTheEstimateAndClosingStopsEverything) {
-  Stopwatch closing;
-  {
-    auto s = std::make_unique<Session>(Options());
-    s->Open(LIGHTPROBE_SOURCE_DIR "/assets/demo");  // a scene bundle: nothing to reconstruct
-    ASSERT_TRUE(WaitFor([&] { return !s->busy() && s->live().open; }, 60)) << s->live().error;
-    EXPECT_TRUE(s->live().is_bundle);
-    ASSERT_TRUE(s->live().model);
-    s->StartReconstruction();
-    ASSERT_TRUE(WaitFor([&] { return !s->busy(); }, 10));
-    EXPECT_NE(s->live().error.find("already reconstructed"), std::string::npos) << s->live().error;
+  auto s = std::make_unique<Session>(Options());
+  s->Open(LIGHTPROBE_SOURCE_DIR "/assets/demo");  // a scene bundle: nothing to reconstruct
+  ASSERT_TRUE(WaitFor([&] { return !s->busy() && s->live().open; }, 60)) << s->live().error;
+  EXPECT_TRUE(s->live().is_bundle);
+  ASSERT_TRUE(s->live().model);
+  s->StartReconstruction();
+  ASSERT_TRUE(WaitFor([&] { return !s->busy(); }, 60));
+  EXPECT_NE(s->live().error.find("already reconstructed"), std::string::npos) << s->live().error;
 
-    EstimateOptions heavy = Small();
-    heavy.tracer.spp = 256;
-    heavy.max_rounds = 6;
-    heavy.change_threshold = 0;
-    s->Estimate(heavy);
-    ASSERT_TRUE(WaitFor([&] { return !s->estimate().rows.empty(); }, 120)) << s->estimate().message;
-    Stopwatch cancel;
-    s->CancelEstimate();
-    ASSERT_TRUE(WaitFor([&] { return s->estimate().state == EstimateState::kCancelled; }, 30));
-    EXPECT_LT(cancel.Seconds(), 10) << "cancelled at the next trace or iteration";
+  // An estimate that does not end by itself (1000 rounds, no stopping rule): only a cancel
+  // ends it, so an estimate that ended at all was cancelled.
+  EstimateOptions endless = Small();
+  endless.tracer.spp = 64;
+  endless.max_rounds = 1000;
+  endless.change_threshold = 0;
+  s->Estimate(endless);
+  ASSERT_TRUE(WaitForEstimate(*s, [&] { return !s->estimate().rows.empty(); })) << s->estimate().message;
+  s->CancelEstimate();
+  // Cancelled at the next check, within a trace or after the solver iteration in progress:
+  // at most that one more row is logged after the cancel.
+  const std::size_t rows_at_cancel = s->estimate().rows.size();
+  ASSERT_TRUE(WaitFor([&] { return s->estimate().state == EstimateState::kCancelled; }, 300)) << s->estimate().message;
+  const EstimateStatus cancelled = s->estimate();
+  EXPECT_LE(cancelled.rows.size(), rows_at_cancel + 1) << "the estimate went on after the cancel";
+  EXPECT_FALSE(cancelled.result);
 
-    // Closing while an estimate runs: the destructor cancels and joins.
-    s->Estimate(heavy);
-    ASSERT_TRUE(WaitFor([&] { return s->estimate().state == EstimateState::kRunning; }, 60));
-    closing.Reset();
-  }
-  EXPECT_LT(closing.Seconds(), 15);
+  // Closing while an estimate runs: the destructor cancels and joins (an estimate it did
+  // not cancel would hold it for 1000 rounds, until the test's timeout).
+  s->Estimate(endless);
+  ASSERT_TRUE(WaitFor([&] { return s->estimate().state == EstimateState::kRunning; }, 300));
+  s.reset();
 }
 
 TEST(Session, BadInputIsAMessageNotACrash) {
@@ -196,72 +211,111 @@ std::string SyntheticCamera(const fs::path& dir) {
   return "camera:lpsynth://" + dir.string();
 }
 
+/// Checks a finished recording of SyntheticCamera against what the device served and what
+/// was reported: its frame count (OpenNI2's index of the file) is its side file's and the
+/// one in `message`; it replays the served frames in order, none lost or repeated (the
+/// Recorder takes every frame the device sends, however slowly the previews run).
+/// Returns the frames it replays.
+int CheckRecording(const fs::path& oni, const std::string& message) {
+  SCOPED_TRACE(oni.string());
+  EXPECT_TRUE(fs::exists(oni.string() + ".json"));
+  const nlohmann::json side = nlohmann::json::parse(std::ifstream(oni.string() + ".json"));
+  const int depth_frames = side.at("depth_frames").get<int>(), color_frames = side.at("color_frames").get<int>();
+  if (!message.empty()) {
+    EXPECT_EQ(message.rfind("recorded " + std::to_string(depth_frames) + " depth frames", 0), 0u) << message;
+  }
+  auto src = OpenOniFile(oni.string());
+  EXPECT_EQ(src->FrameCount().value_or(-1), std::min(depth_frames, color_frames));
+  RgbdFrame f;
+  int n = 0, last = -1;
+  while (src->Next(&f, 30) == SourceStatus::kFrame) {
+    const int served = (static_cast<int>(f.depth.data.at(0)) - 1000) / 10;  // SyntheticCamera's frame
+    if (last >= 0) {
+      EXPECT_EQ(served, (last + 1) % 8) << "a frame lost or repeated at " << n;
+    }
+    last = served;
+    ++n;
+  }
+  EXPECT_EQ(n, src->FrameCount().value_or(-1));
+  return n;
+}
+
 // Record from the camera through OpenNI2's Recorder while its previews go on: for a time,
-// stopped early, cut short by opening another source, and by closing the window; each
-// leaves a finished recording that replays.
+// until stopped, cut short by opening another source, and by closing the window; each
+// leaves a finished recording that replays. The frames a recording or the previews get
+// depend on how busy the machine is: the checks are that frames go on while recording,
+// and that each file holds what the device served, in order, as its counts say.
 TEST(Session, RecordsTheCameraWhileItsPreviewsGoOn) {
   const fs::path dir = TempDir("record");
   const std::string camera = SyntheticCamera(dir / "frames");
-  auto frames_in = [](const fs::path& oni) {
-    auto src = OpenOniFile(oni.string());
-    return src->FrameCount().value_or(0);
-  };
+  // A frame read while recording is in the file, except perhaps the first (openni_test:
+  // kReadButNotRecorded): `read` frames read while recording leave at least read - 1.
+  auto at_least_recorded = [](int read) { return read - 1; };
   {
     Session s(Options());
     s.Record((dir / "none.oni").string(), 1);  // no camera open: a message
-    ASSERT_TRUE(WaitFor([&] { return !s.busy(); }, 30));
+    ASSERT_TRUE(WaitFor([&] { return !s.busy(); }, 60));
     EXPECT_NE(s.live().error.find("open a camera first"), std::string::npos) << s.live().error;
 
     s.Open(camera);
-    ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().open; }, 30)) << s.live().error;
+    ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().open; }, 60)) << s.live().error;
     ASSERT_TRUE(s.live().is_camera);
     s.StartReconstruction();
+
+    // For a time: it ends by itself, the camera stays open and its previews go on.
     const fs::path timed = dir / "timed.oni";
     s.Record(timed.string(), 1.5);
-    ASSERT_TRUE(WaitFor([&] { return s.live().recording; }, 10));
-    const std::int64_t read_at_start = s.live().frames_read;
-    ASSERT_TRUE(WaitFor([&] { return !s.busy() && !s.live().recording; }, 30));
+    ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().record_state == RecordState::kRecorded; }, 300))
+        << s.live().record_message << " / " << s.live().error;
     LiveStatus l = s.live();
+    EXPECT_FALSE(l.recording);
     EXPECT_EQ(l.record_message.rfind("recorded", 0), 0u) << l.record_message << " / " << l.error;
-    EXPECT_TRUE(fs::exists(timed) && fs::exists(timed.string() + ".json"));
     EXPECT_TRUE(l.is_camera);  // the camera stays open
-    // The worker may run at a few frames/s on a loaded machine (2 frames/s reconstructing
-    // under ASan): some frames, not all; none at all was the bug.
-    EXPECT_GT(l.frames_read, read_at_start + 1) << "the previews stopped while recording";
-    EXPECT_GT(l.frames_tracked + l.frames_lost, 1) << "the reconstruction stopped while recording";
-    EXPECT_GT(frames_in(timed), 15);  // the Recorder takes all: 30 frames/s for 1.5 s
+    EXPECT_GT(CheckRecording(timed, l.record_message), 0);
     const std::int64_t read_after = l.frames_read;
-    ASSERT_TRUE(WaitFor([&] { return s.live().frames_read > read_after + 3; }, 10)) << "no frames after recording";
+    ASSERT_TRUE(WaitFor([&] { return s.live().frames_read > read_after + 3; }, 120)) << "no frames after recording";
 
+    // Until stopped: while it records (seen in the same snapshot as the counts), the
+    // previews and the reconstruction go on; none at all was the bug. The worker may run
+    // at a few frames/s on a loaded machine (2 frames/s reconstructing under ASan).
     const fs::path stopped = dir / "stopped.oni";
-    Stopwatch sw;
-    s.Record(stopped.string(), 600);
-    ASSERT_TRUE(WaitFor([&] { return s.live().recording && s.live().recorded_frames >= 5; }, 30));
-    s.StopRecording();
-    ASSERT_TRUE(WaitFor([&] { return !s.busy() && !s.live().recording; }, 30));
-    EXPECT_LT(sw.Seconds(), 30);
+    s.Record(stopped.string(), 0);
+    ASSERT_TRUE(WaitFor([&] { return s.live().recording; }, 60)) << s.live().error;
+    const LiveStatus at_start = s.live();
+    ASSERT_TRUE(at_start.recording);
+    ASSERT_TRUE(WaitFor(
+        [&] {
+          const LiveStatus now = s.live();
+          return now.recording && now.recorded_frames >= 6 && now.frames_read > at_start.frames_read + 3 &&
+                 now.frames_tracked + now.frames_lost > at_start.frames_tracked + at_start.frames_lost + 1;
+        },
+        300))
+        << "the previews or the reconstruction stopped while recording: " << s.live().frames_read << " frames read, "
+        << s.live().recorded_frames << " recorded";
+    s.StopRecording();  // no time limit: only this ends it
+    ASSERT_TRUE(WaitFor([&] { return !s.busy() && !s.live().recording; }, 300)) << "StopRecording did not end it";
     l = s.live();
     EXPECT_EQ(l.record_message.rfind("recorded", 0), 0u) << l.record_message;
-    EXPECT_GE(frames_in(stopped), 5);
+    EXPECT_GE(CheckRecording(stopped, l.record_message), at_least_recorded(6));
 
     const fs::path reopened = dir / "reopened.oni";
-    s.Record(reopened.string(), 600);
-    ASSERT_TRUE(WaitFor([&] { return s.live().recording && s.live().recorded_frames >= 3; }, 30));
+    s.Record(reopened.string(), 0);
+    ASSERT_TRUE(WaitFor([&] { return s.live().recording && s.live().recorded_frames >= 4; }, 300));
     s.Open(timed.string());  // another source finishes the recording
-    ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().open && !s.live().is_camera; }, 30)) << s.live().error;
+    ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().open && !s.live().is_camera; }, 60)) << s.live().error;
     EXPECT_FALSE(s.live().recording);
     EXPECT_EQ(s.live().record_message.rfind("recorded", 0), 0u) << s.live().record_message;
-    EXPECT_GE(frames_in(reopened), 3);
-    EXPECT_GT(s.live().frame_count, 5) << s.live().source;
+    EXPECT_GE(CheckRecording(reopened, s.live().record_message), at_least_recorded(4));
+    // The timed recording opens for replay with the frames its file holds.
+    EXPECT_EQ(s.live().frame_count, OpenOniFile(timed.string())->FrameCount().value_or(-2)) << s.live().source;
 
     s.Open(camera);
-    ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().is_camera; }, 30)) << s.live().error;
-    s.Record((dir / "closed.oni").string(), 600);
-    ASSERT_TRUE(WaitFor([&] { return s.live().recording && s.live().recorded_frames >= 3; }, 30));
+    ASSERT_TRUE(WaitFor([&] { return !s.busy() && s.live().is_camera; }, 60)) << s.live().error;
+    s.Record((dir / "closed.oni").string(), 0);
+    ASSERT_TRUE(WaitFor([&] { return s.live().recording && s.live().recorded_frames >= 4; }, 300));
   }  // closing mid-recording finishes the file
   EXPECT_TRUE(fs::exists(dir / "closed.oni"));
-  EXPECT_TRUE(fs::exists(dir / "closed.oni.json"));
-  EXPECT_GE(frames_in(dir / "closed.oni"), 3);
+  EXPECT_GE(CheckRecording(dir / "closed.oni", ""), at_least_recorded(4));
   fs::remove_all(dir);
 }
 

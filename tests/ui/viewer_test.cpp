@@ -1,7 +1,9 @@
 // The window under Xvfb (Mesa's llvmpipe), driven by a command file as a user would:
 // open the demo recording, reconstruct, press Estimate, wait, switch shading, open a
 // keyframe, export. Screenshots stay in build/test-artifacts/viewer/ for people to look at;
-// the checks read them back at the places the window says its panels are.
+// the checks read them back at the places the window says its panels are. The script's
+// wait limits only stop a hang: the estimator runs at a lower OS priority than anything
+// else and takes ~10 times as long beside other load.
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
@@ -99,12 +101,12 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
                            "screenshot " << (a / "2-reconstructed.png").string() << "\n"
                            "state " << (a / "2-reconstructed.json").string() << "\n"
                            "estimate rings=13 spp=16 bounces=2 rounds=2 render-spp=16\n"
-                           "wait-first 300\n"
+                           "wait-first 900\n"
                            "screenshot " << (a / "3-first-estimate.png").string() << "\n"
-                           "wait-estimate 600\n"
+                           "wait-estimate 1200\n"
                            "expect-estimate done\n"
                            "shading lit\n"
-                           "wait-lit 8 300\n"
+                           "wait-lit 8 900\n"
                            "frames 3\n"
                            "screenshot " << (a / "4-lit.png").string() << "\n"
                            "state " << (a / "4-lit.json").string() << "\n"
@@ -127,7 +129,7 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
                            "frames 3\n"
                            "screenshot " << (a / "7-orbit.png").string() << "\n"
                            "export " << (a / "export").string() << "\n"
-                           "wait-export 120\n"
+                           "wait-export 600\n"
                            "state " << (a / "8-done.json").string() << "\n"
                            "quit\n";
   ViewerOptions o = app::DefaultViewerOptions();
@@ -198,19 +200,22 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
   EXPECT_TRUE(fs::exists(a / "export" / "scene" / "trajectory.log"));
 }
 
+// The estimate never ends by itself (1000 rounds, no stopping rule): the window returns
+// at all only if closing cancelled it (else the test runs into its timeout). How long
+// closing takes is not asserted (docs/benchmarks.md, the viewer).
 TEST(Viewer, ClosingTheWindowWhileEstimatingStopsCleanly) {
   fs::create_directories(kArtifacts);
   const fs::path script = kArtifacts / "close.txt";
   std::ofstream(script) << "wait-open 60\n"
-                           "estimate rings=21 spp=256 rounds=6\n"
-                           "wait-first 300\n"
+                           "estimate rings=13 spp=32 rounds=1000 change=0\n"
+                           "wait-first 900\n"
+                           "state " << (kArtifacts / "close.json").string() << "\n"
                            "close\n";
   ViewerOptions o = app::DefaultViewerOptions();
   o.input = LIGHTPROBE_SOURCE_DIR "/assets/demo";
   o.script = script.string();
-  const auto start = std::chrono::steady_clock::now();
   ASSERT_EQ(RunViewer(o), 0);
-  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 120);
+  EXPECT_EQ(ReadJson(kArtifacts / "close.json")["estimate"]["state"], "running") << "closed while estimating";
 }
 
 TEST(Viewer, AFailingScriptCommandIsAnErrorExit) {
