@@ -63,12 +63,7 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
       ->capture_default_str();
 }
 
-std::string Num(double v) {
-  if (std::isnan(v)) return "";
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.9g", v);
-  return buf;
-}
+std::string Num(double v) { return CsvNumber(v); }
 
 /// convergence.png: error against wall-clock time, one series per sMC round (the rows of
 /// convergence.csv): relative RMSE, objective and, with truth.json, the dominant light's

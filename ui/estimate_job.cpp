@@ -79,9 +79,9 @@ EstimateStatus EstimateJob::status() const {
 }
 
 /// The estimate's options with the job's cancel token and its live reports.
-EstimateOptions EstimateJob::Callbacks() const {
+EstimateOptions EstimateJob::Callbacks() {
   EstimateOptions options = settings_.options;
-  EstimateJob* self = const_cast<EstimateJob*>(this);
+  EstimateJob* self = this;
   options.cancelled = [self] { return self->cancelled(); };
   options.progress = [self](const std::string& line) { self->Update([&](EstimateStatus& s) { s.message = line; }); };
   options.on_convergence = [self](const ConvergenceRow& row) {

@@ -57,7 +57,7 @@ class EstimateJob {
   void Run(SceneSource source);
   /// Builds the scene (a snapshot is finished here) and estimates it; null when it ended.
   std::shared_ptr<const EstimateResult> EstimateScene(SceneSource source, std::shared_ptr<const SceneBundle>* scene);
-  EstimateOptions Callbacks() const;
+  EstimateOptions Callbacks();
   void RefineLit(const SceneBundle& scene, const EstimateResult& result);
   template <typename F>
   void Update(F f) {
