@@ -14,6 +14,7 @@
 #include "common/plot.h"
 #include "common/timer.h"
 #include "estimation/error_display.h"
+#include "estimation/lights_file.h"
 
 namespace lp::app {
 namespace fs = std::filesystem;
@@ -58,6 +59,13 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
       ->check(CLI::Range(1, 4096));
   cmd.add_option("--render-spp", o->render_spp, "samples per pixel of the final relit render (0 = --spp)")
       ->capture_default_str();
+  cmd.add_option("--point-lights", o->point_lights.max_lights,
+                 "point lights (lamps in the room) at most, beside the environment map; 0 = the map alone")
+      ->capture_default_str()
+      ->check(CLI::Range(0, 16));
+  cmd.add_option("--point-spp", o->point_lights.spp, "paths per pixel the point lights' columns and positions use")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 1024));
   cmd.add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
   cmd.add_option("--seed", o->tracer.seed, "random seed (same seed => same result for any thread count)")
       ->capture_default_str();
@@ -73,14 +81,16 @@ static void WriteConvergencePlot(const fs::path& path, const std::vector<Converg
   PlotPanel rmse{"photometric error", "wall-clock seconds", "relative RMSE", false, true, {}, {}};
   PlotPanel objective{"objective", "wall-clock seconds", "E(lambda)", false, true, {}, {}};
   PlotPanel angle{"dominant light direction error", "wall-clock seconds", "degrees", false, false, {}, {}};
-  bool any_angle = false;
+  PlotPanel position{"point light position error", "wall-clock seconds", "metres (worst light)", false, false, {}, {}};
+  bool any_angle = false, any_position = false;
   for (const ConvergenceRow& row : rows) {
     // Round 1's graduated steps (a sigma below kGraduatedSigmaStart) measure the objective
     // at other scales: each its own series.
     std::string label = "round " + std::to_string(row.round);
     if (row.sigma != rows.back().sigma) label += ", sigma " + Num(row.sigma);
     if (row.albedo_pass > 0) label += ", albedo pass " + std::to_string(row.albedo_pass);
-    for (PlotPanel* p : {&rmse, &objective, &angle})
+    if (std::string(row.step) != "solve") label += ", " + std::string(row.step);
+    for (PlotPanel* p : {&rmse, &objective, &angle, &position})
       if (p->series.empty() || p->series.back().label != label) p->series.push_back({label, {}, {}, true, true});
     rmse.series.back().x.push_back(row.wall_seconds);
     rmse.series.back().y.push_back(row.relative_rmse);
@@ -89,9 +99,13 @@ static void WriteConvergencePlot(const fs::path& path, const std::vector<Converg
     angle.series.back().x.push_back(row.wall_seconds);
     angle.series.back().y.push_back(row.angular_error_deg);
     any_angle = any_angle || std::isfinite(row.angular_error_deg);
+    position.series.back().x.push_back(row.wall_seconds);
+    position.series.back().y.push_back(row.position_error_m);
+    any_position = any_position || std::isfinite(row.position_error_m);
   }
   std::vector<PlotPanel> panels{rmse, objective};
   if (any_angle) panels.push_back(angle);
+  if (any_position) panels.push_back(position);
   WritePlotPng(path, "lightprobe estimate: error against run time", panels, static_cast<int>(panels.size()));
 }
 
@@ -113,14 +127,38 @@ static void WriteEnvMap(const fs::path& out, const EstimateResult& r) {
   WriteTextAtomically(out / "envmap_directions.csv", dirs.str());
 }
 
+/// lights.json: the map (when it lights anything) and the point lights.
+static void WriteLights(const fs::path& out, const EstimateResult& r) {
+  LightsFile lights{"", r.point_lights};
+  for (double v : r.lambda)
+    if (v > 0) lights.environment = "envmap.exr";
+  WriteTextAtomically(out / "lights.json", LightsJson(lights));
+}
+
+/// report.json's "model": which lighting model was chosen and why.
+static json ModelJson(const EstimateOptions& o, const EstimateResult& r) {
+  std::string chosen = r.point_lights.empty() ? "environment map" : "environment map + " +
+                                                                        std::to_string(r.point_lights.size()) +
+                                                                        " point light(s)";
+  return {{"chosen", chosen},
+          {"max_point_lights", o.point_lights.max_lights},
+          {"choices", r.point_light_choices},
+          {"rule", "round 1 lights candidate positions around the scene; the strongest apart from each other are "
+                   "refined (Levenberg-Marquardt); each is kept only if the map and the other lights, fitted "
+                   "without a held-out fifth of the pixels, predict those pixels worse without it (by at least "
+                   "1 %); lights refined beyond 10 scene radii are left to the map"}};
+}
+
 /// convergence.csv and convergence.png.
 static void WriteConvergence(const fs::path& out, const EstimateResult& r) {
   std::ostringstream conv;
-  conv << "wall_seconds,round,iteration,objective,photometric_rmse,relative_rmse,angular_error_deg,sigma,albedo_pass\n";
+  conv << "wall_seconds,round,iteration,objective,photometric_rmse,relative_rmse,angular_error_deg,sigma,step,"
+          "point_lights,position_error_m,albedo_pass\n";
   for (const auto& row : r.convergence)
     conv << Num(row.wall_seconds) << ',' << row.round << ',' << row.iteration << ',' << Num(row.objective) << ','
          << Num(row.photometric_rmse) << ',' << Num(row.relative_rmse) << ',' << Num(row.angular_error_deg) << ','
-         << Num(row.sigma) << ',' << row.albedo_pass << '\n';
+         << Num(row.sigma) << ',' << row.step << ',' << row.point_lights << ',' << Num(row.position_error_m) << ','
+         << row.albedo_pass << '\n';
   WriteTextAtomically(out / "convergence.csv", conv.str());
   WriteConvergencePlot(out / "convergence.png", r.convergence);
 }
@@ -164,7 +202,8 @@ static json SettingsJson(const EstimateOptions& o, const EstimateResult& r) {
           {"max_rounds", o.max_rounds}, {"change_threshold", o.change_threshold},
           {"seed", o.tracer.seed}, {"threads", HardwareThreads()}, {"nee_floor", o.tracer.nee_floor},
           {"min_throughput", o.tracer.min_throughput}, {"combine_rounds", o.combine_rounds},
-          {"albedo_passes", o.albedo_passes}, {"albedo_samples", o.albedo_samples}};
+          {"albedo_passes", o.albedo_passes}, {"albedo_samples", o.albedo_samples},
+          {"point_lights", o.point_lights.max_lights}, {"point_spp", o.point_lights.spp}};
 }
 
 /// report.json's "seconds": where the time went.
@@ -209,13 +248,19 @@ static json LeftOutJson(const SceneBundle& bundle, const EstimateResult& r) {
           {"degenerate_triangles_removed", bundle.degenerate_triangles_removed}};
 }
 
+static json PointLightsJson(const std::vector<PointLight>& lights) {
+  return json::parse(LightsJson({"", lights}))["point_lights"];
+}
+
 static json RoundsJson(const EstimateResult& r) {
   json rounds = json::array();
   for (const auto& ri : r.rounds)
     rounds.push_back({{"round", ri.round}, {"trace_seconds", ri.trace_seconds}, {"solve_seconds", ri.solve_seconds},
                       {"solver_iterations", ri.solver_iterations}, {"objective", ri.objective},
                       {"change", ri.change}, {"image_change", ri.image_change}, {"kkt_violation", ri.kkt_violation},
-                      {"nonzeros", ri.nonzeros}, {"unknown_cells", ri.unknown_cells}});
+                      {"nonzeros", ri.nonzeros}, {"unknown_cells", ri.unknown_cells},
+                      {"point_lights", PointLightsJson(ri.point_lights)},
+                      {"light_iterations", ri.light_iterations}});
   return rounds;
 }
 
@@ -227,7 +272,11 @@ static json FinalJson(const EstimateResult& r) {
                  {"kkt_violation", r.kkt_violation}, {"objective_increased", r.objective_increased},
                  {"dominant_directions", dominant}};
   if (!std::isnan(r.final_angular_error_deg)) result["angular_error_deg"] = r.final_angular_error_deg;
+  if (!std::isnan(r.final_position_error_m))
+    result["position_error_m"] = std::isfinite(r.final_position_error_m) ? json(r.final_position_error_m) : json("inf");
   result["rendered_fraction"] = r.rendered_fraction;
+  result["point_lights"] = PointLightsJson(r.point_lights);
+  result["scene_centre"] = {r.scene_centre.x(), r.scene_centre.y(), r.scene_centre.z()};
   return result;
 }
 
@@ -245,6 +294,7 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
   if (ec) throw InputError(out_dir, "cannot create output directory: " + ec.message());
   WriteEnvMap(out, r);
   WriteConvergence(out, r);
+  WriteLights(out, r);
   json views = json::array();
   for (std::size_t k = 0; k < r.renders.size(); ++k) views.push_back(WriteView(out, k, bundle.views[k], r.renders[k]));
   json rep;
@@ -258,6 +308,7 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
   rep["views"] = views;
   rep["image_mean"] = r.image_mean;
   rep["final"] = FinalJson(r);
+  rep["model"] = ModelJson(o, r);
   rep["warnings"] = r.warnings;
   rep["envmap_convention"] =
       "equirectangular, width = 2*height; row y: polar angle (y+0.5)/H*pi from up (top = up); column x: azimuth "
@@ -300,7 +351,9 @@ Run AddEstimate(CLI::App& app) {
     std::printf("estimated %d directions (%d rings) in %.2f s; relative RMSE %.4f", r.env.size(), o->rings,
                 sw.Seconds(), r.final_relative_rmse);
     if (!std::isnan(r.final_angular_error_deg)) std::printf("; dominant light error %.2f deg", r.final_angular_error_deg);
-    std::printf("\nresults in %s (envmap.exr, envmap_directions.csv, render_view*.png, error_view*.png, "
+    std::printf("; %zu point light(s)", r.point_lights.size());
+    if (std::isfinite(r.final_position_error_m)) std::printf(", lamp position error %.3f m", r.final_position_error_m);
+    std::printf("\nresults in %s (lights.json, envmap.exr, envmap_directions.csv, render_view*.png, error_view*.png, "
                 "convergence.csv/.png, report.json%s)\n",
                 fs::absolute(*out).lexically_normal().c_str(), r.albedo.empty() ? "" : ", albedo_mesh.ply");
     std::fflush(stdout);

@@ -1,4 +1,5 @@
-// `lightprobe render`: relight every view of a scene bundle under a given environment.
+// `lightprobe render`: relight every view of a scene bundle under a given environment, or
+// under an estimate's lights.json (map and point lights).
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
@@ -7,11 +8,48 @@
 #include "common/image_io.h"
 #include "common/parallel.h"
 #include "common/timer.h"
+#include "common/atomic_file.h"
+#include "estimation/lights_file.h"
 #include "estimation/path_tracer.h"
+#include "estimation/point_lights.h"
+#include "estimation/truth.h"
+#include "scene/mesh.h"
 #include "scene/ray_tracer.h"
 
 namespace lp::app {
 namespace fs = std::filesystem;
+
+namespace {
+
+/// An equirectangular map file as per-cell radiance of `env`.
+std::vector<double> ReadEnvironment(const std::string& file, const EnvMap& env) {
+  const fs::path p(file);
+  ImageRGB map = p.extension() == ".hdr" ? ReadHdr(p) : ReadImageLinear(p);
+  if (map.width != 2 * map.height) throw InputError(file, "environment map must be equirectangular (width = 2*height)");
+  for (float v : map.data)
+    if (!std::isfinite(v) || v < 0) throw InputError(file, "environment map has negative or non-finite values");
+  return env.FromEquirect(map);
+}
+
+std::vector<double> ParseUniform(const std::string& text, const EnvMap& env) {
+  std::vector<double> rgb;
+  std::stringstream ss(text);
+  std::string tok;
+  while (std::getline(ss, tok, ',')) {
+    try {
+      rgb.push_back(std::stod(tok));
+    } catch (...) {
+      throw InputError("--uniform: expected three numbers R,G,B, got '" + text + "'");
+    }
+  }
+  if (rgb.size() != 3 || !(rgb[0] >= 0 && rgb[1] >= 0 && rgb[2] >= 0))
+    throw InputError("--uniform: expected three non-negative numbers R,G,B, got '" + text + "'");
+  std::vector<double> lambda;
+  for (int j = 0; j < env.size(); ++j) lambda.insert(lambda.end(), rgb.begin(), rgb.end());
+  return lambda;
+}
+
+}  // namespace
 
 Run AddRender(CLI::App& app) {
   auto* cmd = app.add_subcommand("render", "forward render (relight) every view of a scene under an environment");
@@ -19,6 +57,8 @@ Run AddRender(CLI::App& app) {
   auto out = std::make_shared<std::string>();
   auto envmap = std::make_shared<std::string>();
   auto uniform = std::make_shared<std::string>();
+  auto lights = std::make_shared<std::string>();
+  auto mesh = std::make_shared<std::string>();
   auto rings = std::make_shared<int>(61);
   auto threads = std::make_shared<int>(0);
   auto o = std::make_shared<TracerOptions>();
@@ -26,48 +66,54 @@ Run AddRender(CLI::App& app) {
   cmd->add_option("--out", *out, "output directory")->required();
   auto* e = cmd->add_option("--envmap", *envmap, "equirectangular linear .exr/.hdr (convention: docs/formats.md)");
   auto* u = cmd->add_option("--uniform", *uniform, "uniform environment radiance R,G,B");
+  auto* l = cmd->add_option("--lights", *lights, "an estimate's lights.json: its map and point lights");
   e->excludes(u);
+  l->excludes(e);
+  l->excludes(u);
+  cmd->add_option("--mesh", *mesh, "a PLY mesh in place of the bundle's (e.g. an estimate's albedo_mesh.ply)");
   cmd->add_option("--rings", *rings, "rings used to discretize --envmap")->capture_default_str();
   cmd->add_option("--spp", o->spp, "samples per pixel")->capture_default_str();
   cmd->add_option("--bounces", o->bounces, "surface interactions per path")->capture_default_str();
   cmd->add_option("--seed", o->seed, "random seed")->capture_default_str();
   cmd->add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
   return [=] {
-    if (envmap->empty() == uniform->empty()) throw InputError("render: give exactly one of --envmap or --uniform");
+    if (envmap->empty() + uniform->empty() + lights->empty() != 2)
+      throw InputError("render: give exactly one of --envmap, --uniform or --lights");
     Stopwatch sw;
     ThreadLimit limit(*threads);
     SceneBundle b = LoadSceneBundle(*scene);
+    if (!mesh->empty()) b.mesh = ReadPly(*mesh);
     EnvMap env(*rings, b.up);
     std::vector<double> lambda;
-    if (!uniform->empty()) {
-      std::vector<double> rgb;
-      std::stringstream ss(*uniform);
-      std::string tok;
-      while (std::getline(ss, tok, ',')) {
-        try {
-          rgb.push_back(std::stod(tok));
-        } catch (...) {
-          throw InputError("--uniform: expected three numbers R,G,B, got '" + *uniform + "'");
-        }
-      }
-      if (rgb.size() != 3 || !(rgb[0] >= 0 && rgb[1] >= 0 && rgb[2] >= 0))
-        throw InputError("--uniform: expected three non-negative numbers R,G,B, got '" + *uniform + "'");
-      for (int j = 0; j < env.size(); ++j) lambda.insert(lambda.end(), rgb.begin(), rgb.end());
-    } else {
-      const fs::path p(*envmap);
-      ImageRGB map = p.extension() == ".hdr" ? ReadHdr(p) : ReadImageLinear(p);
-      if (map.width != 2 * map.height) throw InputError(*envmap, "environment map must be equirectangular (width = 2*height)");
-      for (float v : map.data)
-        if (!std::isfinite(v) || v < 0) throw InputError(*envmap, "environment map has negative or non-finite values");
-      lambda = env.FromEquirect(map);
+    LightsFile file;
+    if (!uniform->empty()) lambda = ParseUniform(*uniform, env);
+    if (!envmap->empty()) lambda = ReadEnvironment(*envmap, env);
+    if (!lights->empty()) {
+      file = ParseLightsJson(ReadTextFile(*lights), *lights);
+      if (!file.environment.empty())
+        lambda = ReadEnvironment((fs::path(*lights).parent_path() / file.environment).string(), env);
     }
     RayTracer tracer(b.mesh);
-    CellSampler sampler(env, lambda, {}, 0.2);
-    std::vector<ImageRGB> imgs = RenderEnvironment(tracer, env, b.views, lambda, sampler, *o, true);
+    std::vector<ImageRGB> imgs;
+    if (!lambda.empty()) {
+      CellSampler sampler(env, lambda, {}, 0.2);
+      imgs = RenderEnvironment(tracer, env, b.views, lambda, sampler, *o, true);
+    }
+    if (!file.point_lights.empty()) {
+      const std::vector<ImageRGB> near = RenderPointLights(tracer, b.views, file.point_lights, *o, true);
+      if (imgs.empty()) imgs = near;
+      else
+        for (std::size_t k = 0; k < imgs.size(); ++k)
+          for (std::size_t i = 0; i < imgs[k].data.size(); ++i) imgs[k].data[i] += near[k].data[i];
+    }
+    if (imgs.empty())  // a lights.json with neither: everything is black
+      for (const View& v : b.views) imgs.emplace_back(v.camera.width, v.camera.height);
     for (std::size_t k = 0; k < imgs.size(); ++k) {
       const std::string name = "render_view" + std::to_string(k);
       WriteExr(fs::path(*out) / (name + ".exr"), imgs[k]);
       WritePngSrgb(fs::path(*out) / (name + ".png"), imgs[k]);
+      const double err = RelativeImageRmse(imgs[k], b.views[k].image, b.views[k].valid);
+      if (std::isfinite(err)) std::printf("view %zu: relative RMSE against the bundle's image %.4f\n", k, err);
     }
     std::printf("rendered %zu view(s) in %.2f s; results in %s\n", imgs.size(), sw.Seconds(),
                 fs::absolute(*out).lexically_normal().c_str());

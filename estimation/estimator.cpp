@@ -9,6 +9,7 @@
 #include "common/timer.h"
 #include "scene/albedo.h"
 #include "scene/ray_tracer.h"
+#include "estimation/point_lights.h"
 #include "estimation/vertex_radiance.h"
 
 namespace lp {
@@ -40,17 +41,30 @@ std::string Fmt(const char* fmt, double a, double b = 0, double c = 0, double d 
   return buf;
 }
 
-/// A round's linear problem over the cells some sampled path reached, and the way back
-/// from its compact unknowns to the whole map.
+/// A round's linear problem over the cells some sampled path reached (and the point
+/// lights' columns after them), and the way back from its compact unknowns to the whole map.
 struct RoundProblem {
   LinearProblem problem;
   std::vector<double> init;  ///< the estimate so far, compact (3 per unknown cell)
+  /// The point-light columns' positions: the lights so far, then round 1's candidates.
+  std::vector<Eigen::Vector3d> positions;
+  int lights = 0;  ///< how many of `positions` are the lights so far
 
+  /// The unknowns over every column (3 per column): the map's cells, then `positions`.
   std::vector<double> Scatter(const std::vector<double>& compact, int cells) const {
-    std::vector<double> full(3 * cells, 0.0);
+    std::vector<double> full(3 * (cells + positions.size()), 0.0);
     for (int k = 0; k < problem.unknown_cells; ++k)
       for (int c = 0; c < 3; ++c) full[3 * problem.cell_of[k] + c] = compact[3 * k + c];
     return full;
+  }
+  /// The point lights of a full vector (those with any intensity).
+  std::vector<PointLight> Lights(const std::vector<double>& full, int cells) const {
+    std::vector<PointLight> out;
+    for (std::size_t i = 0; i < positions.size(); ++i) {
+      const double* v = &full[3 * (cells + i)];
+      if (v[0] > 0 || v[1] > 0 || v[2] > 0) out.push_back({positions[i], Eigen::Vector3d(v[0], v[1], v[2]), 0});
+    }
+    return out;
   }
 };
 
@@ -92,8 +106,25 @@ class Estimator {
   std::string SceneFile() const { return (bundle_.dir / "scene.json").string(); }
   void Observe();
   RoundProblem TraceRound(int round, int first, RoundInfo* info);
-  SolveResult Solve(const RoundProblem& rp, int round, RoundInfo* info);
+  SolveResult Solve(const RoundProblem& rp, int round, RoundInfo* info, bool graduated);
   void Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo* info);
+  // The near-light steps (docs/method.md, "Point lights").
+  bool NearLights() const { return opt_.point_lights.max_lights > 0; }
+  std::vector<std::vector<float>> PointColumns(int round, RoundProblem* rp);
+  bool FitPointLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info);
+  std::vector<double> RenderedPower(const RoundProblem& rp, const std::vector<double>& full) const;
+  std::vector<PointLight> PickCandidates(const RoundProblem& rp, const std::vector<double>& full) const;
+  void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info);
+  void SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info);
+  void FoldLights(std::vector<PointLight>* lights, int round);
+  void SelectModel(std::vector<PointLight>* lights);
+  double HoldoutLoss(const std::vector<PointLight>& lights) const;
+  ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params) const;
+  void Score(ConvergenceRow* row, const std::vector<double>& env_lambda, const std::vector<PointLight>& points) const;
+  std::vector<PointLight> InImageUnits(std::vector<PointLight> lights) const {
+    for (PointLight& l : lights) l.intensity *= res_.image_mean;
+    return lights;
+  }
 
   const SceneBundle& bundle_;
   const EstimateOptions& opt_;
@@ -107,7 +138,13 @@ class Estimator {
   Mesh mesh_;  ///< the mesh whose albedo is refined (empty until then)
   std::vector<double> lambda_;  ///< the estimate, normalized units, 3 per cell
   std::vector<std::uint8_t> reachable_;  ///< per cell: some sampled path reached it
-  TransportMatrix A_;
+  TransportMatrix A_;  ///< the map's columns, averaged over the rounds under one albedo
+  // Near lights.
+  std::vector<PointLight> points_;  ///< the point lights so far, normalized units
+  ShadingVertices vertices_;        ///< this round's, for the lights' columns and positions
+  std::vector<std::uint8_t> holdout_;  ///< per row: left out of the model selection's fit
+  Eigen::Vector3d centre_;
+  double radius_ = 1;
 };
 
 void CheckOptions(const EstimateOptions& opt) {
@@ -127,7 +164,12 @@ Estimator::Estimator(const SceneBundle& bundle, const EstimateOptions& options)
   Stopwatch bvh;
   scene_ = std::make_unique<RayTracer>(bundle_.mesh);
   res_.bvh_seconds = bvh.Seconds();
-  if (bundle_.truth_json) truth_ = ParseTruthLights(*bundle_.truth_json, (bundle_.dir / "truth.json").string());
+  centre_ = res_.scene_centre = scene_->center();
+  radius_ = scene_->radius();
+  if (bundle_.truth_json) {
+    truth_ = ParseTruthLights(*bundle_.truth_json, (bundle_.dir / "truth.json").string());
+    CentreTruthLights(&truth_, centre_);
+  }
   // Start dark and uniform (paper): every cell equally likely to be sampled.
   lambda_.assign(3 * cells_, 1e-3);
   reachable_.assign(cells_, 1);
@@ -158,9 +200,9 @@ void Estimator::RunRounds() {
     RoundInfo info;
     info.round = round;
     const RoundProblem rp = TraceRound(round, first, &info);
-    const SolveResult sr = Solve(rp, round, &info);
+    const SolveResult sr = Solve(rp, round, &info, round == 1);
     Update(rp, sr, &info);
-    if (round > first && info.image_change < opt_.change_threshold) break;
+    if (round > first && info.image_change < opt_.change_threshold && !info.lights_moved) break;
   }
 }
 
@@ -175,24 +217,75 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   TransportMatrix Ar = TraceTransport(*scene_, env_, bundle_.views, sampler, topt, &res_.trace);
   CheckCancel();
   A_ = (opt_.combine_rounds && round > first) ? Combine(A_, Ar) : std::move(Ar);
-  info->trace_seconds = ts.Seconds();
-  info->nonzeros = static_cast<std::int64_t>(A_.nonzeros());
 
-  RoundProblem rp{MakeLinearProblem(A_, y_), {}};
+  RoundProblem rp;
+  if (NearLights())
+    rp.problem = MakeLinearProblem(AppendColumns(A_, PointColumns(round, &rp)), y_);
+  else
+    rp.problem = MakeLinearProblem(A_, y_);
+  info->trace_seconds = ts.Seconds();
+  info->nonzeros = static_cast<std::int64_t>(rp.problem.col.size());
   const LinearProblem& problem = rp.problem;
   info->unknown_cells = problem.unknown_cells;
   // Cells no sampled path reached are not unknowns, and are not sampled again.
   std::fill(reachable_.begin(), reachable_.end(), 0);
-  for (int j : problem.cell_of) reachable_[j] = 1;
+  for (int j : problem.cell_of)
+    if (j < cells_) reachable_[j] = 1;
   Progress(Fmt("round %.0f: traced in %.2f s, %.0f unknown cells of ", round, info->trace_seconds,
                problem.unknown_cells) +
            std::to_string(cells_) + ", " + std::to_string(A_.nonzeros()) + " non-zeros");
   if (problem.unknown_cells == 0)
     throw InputError(SceneFile(), "no sampled path reaches the environment (camera inside closed geometry?)");
   rp.init.resize(3 * problem.unknown_cells);
-  for (int k = 0; k < problem.unknown_cells; ++k)
-    for (int c = 0; c < 3; ++c) rp.init[3 * k + c] = lambda_[3 * problem.cell_of[k] + c];
+  for (int k = 0; k < problem.unknown_cells; ++k) {
+    const int j = problem.cell_of[k], i = j - cells_;
+    for (int c = 0; c < 3; ++c)
+      rp.init[3 * k + c] = j < cells_        ? lambda_[3 * j + c]
+                           : i < rp.lights ? points_[i].intensity[c]
+                                           // a candidate starts as dim as the map's cells
+                                           : 1e-3 * (rp.positions[i] - centre_).squaredNorm();
+  }
   return rp;
+}
+
+/// The point lights' columns for this round: the lights so far from this round's shading
+/// vertices; in round 1 also the candidates (from fewer paths).
+std::vector<std::vector<float>> Estimator::PointColumns(int round, RoundProblem* rp) {
+  TracerOptions topt = opt_.tracer;
+  topt.cancelled = opt_.cancelled;
+  topt.spp = opt_.point_lights.spp;
+  topt.seed = opt_.tracer.seed * 1000003ull + 500 + round;
+  vertices_ = GatherShadingVertices(*scene_, bundle_.views, topt);
+  CheckCancel();
+  if (holdout_.empty()) {  // a fixed pseudo-random fifth of the rows (hash of view and pixel)
+    holdout_.resize(vertices_.rows());
+    const std::uint64_t share = static_cast<std::uint64_t>(opt_.point_lights.holdout * 1000);
+    for (std::size_t r = 0; r < holdout_.size(); ++r) {
+      std::uint64_t h = (static_cast<std::uint64_t>(A_.row_view[r]) << 32) ^ A_.row_pixel[r];
+      h = (h ^ (h >> 33)) * 0xff51afd7ed558ccdull;
+      h ^= h >> 33;
+      holdout_[r] = h % 1000 < share;
+    }
+  }
+  std::vector<std::vector<float>> columns;
+  for (const PointLight& l : points_) {
+    rp->positions.push_back(l.position);
+    columns.emplace_back();
+    PointLightColumn(*scene_, vertices_, l.position, &columns.back());
+  }
+  rp->lights = static_cast<int>(points_.size());
+  if (round == 1) {
+    topt.spp = opt_.point_lights.candidate_spp;
+    topt.seed = opt_.tracer.seed * 1000003ull + 400;
+    const ShadingVertices coarse = GatherShadingVertices(*scene_, bundle_.views, topt);
+    for (const Eigen::Vector3d& q : CandidatePositions(centre_, radius_, bundle_.up)) {
+      CheckCancel();
+      rp->positions.push_back(q);
+      columns.emplace_back();
+      PointLightColumn(*scene_, coarse, q, &columns.back());
+    }
+  }
+  return columns;
 }
 
 /// Solves the round's problem warm-started, logging every iteration. Graduated Cauchy
@@ -201,14 +294,32 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
 /// outweighs the data and the all-zero map is a local minimum (sigma = 0.1 lit nothing
 /// on the demo). Round 1 solves at kGraduatedSigmaStart first and halves the scale down
 /// to sigma, each solve warm-started from the last.
-SolveResult Estimator::Solve(const RoundProblem& rp, int round, RoundInfo* info) {
-  const LinearProblem& problem = rp.problem;
-  ObjectiveParams params = res_.objective_params;
+/// The activation penalty's per-unknown weights: a cell's solid angle over the reference
+/// one, a point light's PointLightOptions::weight.
+ObjectiveParams Estimator::CellWeights(const LinearProblem& problem, ObjectiveParams params) const {
   params.cell_weight.resize(problem.unknown_cells);
-  for (int k = 0; k < problem.unknown_cells; ++k)
-    params.cell_weight[k] = env_.solid_angle(problem.cell_of[k]) / kAlphaReferenceSolidAngle;
+  for (int k = 0; k < problem.unknown_cells; ++k) {
+    const int j = problem.cell_of[k];
+    params.cell_weight[k] =
+        j < cells_ ? env_.solid_angle(j) / kAlphaReferenceSolidAngle : opt_.point_lights.weight;
+  }
+  return params;
+}
+
+/// A convergence row's scores against truth.json (and how many point lights it has).
+void Estimator::Score(ConvergenceRow* row, const std::vector<double>& env_lambda,
+                      const std::vector<PointLight>& points) const {
+  row->point_lights = static_cast<int>(points.size());
+  if (truth_.empty()) return;
+  row->angular_error_deg = DominantAngularErrorDeg(env_, env_lambda, points, centre_, truth_);
+  row->position_error_m = WorstPositionError(points, truth_, centre_, opt_.point_lights.far * radius_);
+}
+
+SolveResult Estimator::Solve(const RoundProblem& rp, int round, RoundInfo* info, bool graduated) {
+  const LinearProblem& problem = rp.problem;
+  ObjectiveParams params = CellWeights(problem, res_.objective_params);
   std::vector<double> sigmas;  // at most 7 steps: a tiny sigma jumps from 1/64 of the start
-  if (round == 1)
+  if (graduated)
     for (double s = kGraduatedSigmaStart; s > std::max(params.sigma * 1.5, kGraduatedSigmaStart / 64); s *= 0.5)
       sigmas.push_back(s);
   sigmas.push_back(params.sigma);
@@ -226,7 +337,8 @@ SolveResult Estimator::Solve(const RoundProblem& rp, int round, RoundInfo* info)
     row.objective = it.objective;
     row.relative_rmse = it.Rmse();
     row.photometric_rmse = row.relative_rmse * res_.image_mean;
-    if (!truth_.empty()) row.angular_error_deg = DominantAngularErrorDeg(env_, rp.Scatter(*it.lambda, cells_), truth_);
+    const std::vector<double> full = rp.Scatter(*it.lambda, cells_);
+    Score(&row, full, rp.Lights(full, cells_));  // (the map's part is the first 3 * cells_)
     res_.convergence.push_back(row);
     if (opt_.on_convergence) opt_.on_convergence(row);
     if (opt_.solver_options.on_iteration) opt_.solver_options.on_iteration(it);
@@ -263,6 +375,8 @@ void Estimator::Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo*
     norm += next[i] * next[i];
   }
   info->change = norm > 0 ? std::sqrt(diff / norm) : 0.0;
+  const std::vector<double> full = next;
+  next.resize(3 * cells_);
   // The change that matters is in the images: neighbouring cells have nearly the same
   // columns, so noise moves energy between them without changing what is rendered.
   std::vector<double> delta(sr.lambda.size()), a_delta, a_new;
@@ -280,8 +394,10 @@ void Estimator::Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo*
   res_.rendered_fraction = a_new.empty() ? 0.0 : rendered / a_new.size();
 
   lambda_.swap(next);
+  if (NearLights()) info->lights_moved = FitPointLights(rp, full, info);
   info->lambda = lambda_;
   for (double& v : info->lambda) v *= res_.image_mean;
+  info->point_lights = InImageUnits(points_);
   info->end_seconds = Now();
   res_.kkt_violation = sr.kkt_violation;
   res_.rounds.push_back(*info);
@@ -290,6 +406,219 @@ void Estimator::Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo*
            Fmt("%.0f iterations in %.2f s, objective %.6g, change %.3g", sr.iterations, info->solve_seconds,
                sr.objective, info->change) +
            Fmt(" (in the image %.3g)", info->image_change) + Fmt(", KKT violation %.2g", sr.kkt_violation));
+}
+
+/// How much of the (normalized) images each point-light column renders, per position.
+std::vector<double> Estimator::RenderedPower(const RoundProblem& rp, const std::vector<double>& full) const {
+  const LinearProblem& p = rp.problem;
+  std::vector<double> power(rp.positions.size(), 0.0);
+  for (int k = 0; k < p.unknown_cells; ++k) {
+    const int i = p.cell_of[k] - cells_;
+    if (i < 0) continue;
+    const double* l = &full[3 * p.cell_of[k]];
+    for (std::int64_t e = p.col_start[k]; e < p.col_start[k + 1]; ++e)
+      power[i] += p.col_val[e][0] * l[0] + p.col_val[e][1] * l[1] + p.col_val[e][2] * l[2];
+  }
+  return power;
+}
+
+/// After a round's solve: the lights it lit (in round 1: up to max_lights candidates, the
+/// strongest apart from each other), their positions refined, far ones and twins folded
+/// away, and in round 1 each kept only if the held-out pixels want it. True when the lights
+/// moved or changed (the rounds then go on).
+bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info) {
+  const bool candidates = rp.positions.size() > static_cast<std::size_t>(rp.lights);
+  std::vector<PointLight> kept = candidates ? PickCandidates(rp, full) : rp.Lights(full, cells_);
+  // Block coordinate descent: the positions (the map held), then the intensities and the
+  // map together on the moved lights' columns, until the lights stay.
+  for (int pass = 0; pass < (candidates ? 4 : 1) && !kept.empty(); ++pass) {
+    const std::vector<PointLight> start = kept;
+    RefinePositions(&kept, info);
+    FoldLights(&kept, info->round);
+    SolveWithLights(&kept, info);
+    bool settled = kept.size() == start.size();
+    for (std::size_t k = 0; k < kept.size() && settled; ++k)
+      settled = (kept[k].position - start[k].position).norm() < 0.01 * (start[k].position - centre_).norm();
+    if (settled) break;
+  }
+  if (candidates) SelectModel(&kept);
+  bool moved = kept.size() != points_.size();
+  for (std::size_t k = 0; k < kept.size() && !moved; ++k)
+    moved = (kept[k].position - points_[k].position).norm() > 0.02 * (kept[k].position - centre_).norm();
+  points_ = std::move(kept);
+  return moved;
+}
+
+/// Far lights are the map's (dropped: the next solve gives their light to the map); two
+/// lights closer than a tenth of their distance from the centre are one.
+void Estimator::FoldLights(std::vector<PointLight>* lights, int round) {
+  std::vector<PointLight> kept;
+  for (const PointLight& l : *lights) {
+    const double d = (l.position - centre_).norm();
+    if (!(d < opt_.point_lights.far * radius_) || !(l.intensity.maxCoeff() > 0)) {
+      if (l.intensity.maxCoeff() > 0)
+        res_.point_light_choices.push_back(Fmt("round %.0f: a light refined to %.3g m from the centre is a far light; "
+                                               "left to the map",
+                                               round, d));
+      continue;
+    }
+    bool merged = false;
+    for (PointLight& k : kept)
+      if (!merged && (k.position - l.position).norm() < 0.1 * d) {
+        const double wk = k.intensity.sum(), wl = l.intensity.sum();
+        k.position = (wk * k.position + wl * l.position) / (wk + wl);
+        k.intensity += l.intensity;
+        merged = true;
+      }
+    if (!merged) kept.push_back(l);
+  }
+  lights->swap(kept);
+}
+
+/// The map's cells and the lights' intensities solved together at the lights' positions
+/// (warm-started; rows logged), lambda_ and `lights` updated; lights left dark are dropped.
+void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info) {
+  CheckCancel();
+  RoundProblem rp;
+  std::vector<std::vector<float>> columns(lights->size());
+  for (std::size_t k = 0; k < lights->size(); ++k) {
+    rp.positions.push_back((*lights)[k].position);
+    PointLightColumn(*scene_, vertices_, (*lights)[k].position, &columns[k]);
+  }
+  rp.lights = static_cast<int>(lights->size());
+  rp.problem = MakeLinearProblem(AppendColumns(A_, columns), y_);
+  const LinearProblem& problem = rp.problem;
+  rp.init.resize(3 * problem.unknown_cells);
+  for (int k = 0; k < problem.unknown_cells; ++k) {
+    const int j = problem.cell_of[k];
+    for (int c = 0; c < 3; ++c)
+      rp.init[3 * k + c] = j < cells_ ? lambda_[3 * j + c] : (*lights)[j - cells_].intensity[c];
+  }
+  const SolveResult sr = Solve(rp, info->round, info, false);
+  std::vector<double> full = rp.Scatter(sr.lambda, cells_);
+  *lights = rp.Lights(full, cells_);
+  full.resize(3 * cells_);
+  for (int j = 0; j < cells_; ++j)  // cells this problem did not reach keep their value
+    if (reachable_[j]) std::copy(&full[3 * j], &full[3 * j] + 3, &lambda_[3 * j]);
+}
+
+/// Round 1's lit candidates, strongest (most rendered) first, each at least a third of its
+/// distance from the centre away from those picked before (a weaker neighbour's intensity
+/// is added to the one it is near: one lamp lights several candidates around it).
+std::vector<PointLight> Estimator::PickCandidates(const RoundProblem& rp, const std::vector<double>& full) const {
+  const std::vector<double> power = RenderedPower(rp, full);
+  std::vector<int> order;
+  for (std::size_t i = 0; i < rp.positions.size(); ++i)
+    if (power[i] > 0) order.push_back(static_cast<int>(i));
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return power[a] > power[b]; });
+  std::vector<PointLight> out;
+  for (int i : order) {
+    const Eigen::Vector3d q = rp.positions[i];
+    const Eigen::Vector3d I(full[3 * (cells_ + i)], full[3 * (cells_ + i) + 1], full[3 * (cells_ + i) + 2]);
+    PointLight* near = nullptr;
+    for (PointLight& l : out)
+      if ((l.position - q).norm() < (l.position - centre_).norm() / 3) near = &l;
+    if (near) continue;
+    if (static_cast<int>(out.size()) < opt_.point_lights.max_lights) out.push_back({q, I, 0});
+  }
+  return out;
+}
+
+/// Levenberg-Marquardt on the lights' positions and intensities, the map's render held
+/// fixed, on this round's shading vertices; every accepted step is a convergence row.
+void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info) {
+  if (lights->empty()) return;
+  std::vector<double> base = A_.Multiply(lambda_);
+  PointFitProblem fit;
+  fit.scene = scene_.get();
+  fit.vertices = &vertices_;
+  fit.y = &y_;
+  fit.base = &base;
+  fit.sigma = res_.objective_params.sigma;
+  fit.alpha = res_.objective_params.alpha * opt_.point_lights.weight;
+  fit.beta = res_.objective_params.beta;
+  const int first_iteration = res_.convergence.empty() ? 0 : res_.convergence.back().iteration + 1;
+  const double rows = static_cast<double>(y_.size());
+  info->light_iterations = RefinePointLights(fit, lights, 12, [&](int it, double E, double sse,
+                                                                   const std::vector<PointLight>& now) {
+    ConvergenceRow row;
+    row.wall_seconds = Now();
+    row.round = info->round;
+    row.iteration = first_iteration + it - 1;
+    row.sigma = fit.sigma;
+    row.albedo_pass = res_.albedo_passes;
+    row.objective = E;
+    row.relative_rmse = std::sqrt(sse / rows);
+    row.photometric_rmse = row.relative_rmse * res_.image_mean;
+    row.step = "lights";
+    Score(&row, lambda_, now);
+    res_.convergence.push_back(row);
+    if (opt_.on_convergence) opt_.on_convergence(row);
+    CheckCancel();
+  });
+}
+
+/// Model selection on the held-out pixels: each light (weakest first) stays only if the
+/// map and the other lights, fitted without the held-out pixels, predict them worse
+/// without it.
+void Estimator::SelectModel(std::vector<PointLight>* lights) {
+  std::sort(lights->begin(), lights->end(), [&](const PointLight& a, const PointLight& b) {
+    return a.intensity.sum() / (a.position - centre_).squaredNorm() <
+           b.intensity.sum() / (b.position - centre_).squaredNorm();
+  });
+  for (std::size_t k = 0; k < lights->size();) {
+    CheckCancel();
+    std::vector<PointLight> without = *lights;
+    without.erase(without.begin() + k);
+    const double with_loss = HoldoutLoss(*lights), without_loss = HoldoutLoss(without);
+    const Eigen::Vector3d q = (*lights)[k].position;
+    const bool keep = with_loss < (1 - opt_.point_lights.min_gain) * without_loss;
+    char line[320];
+    std::snprintf(line, sizeof line,
+                  "point light at (%.3f, %.3f, %.3f): held-out loss %.6g with it, %.6g without: %s", q.x(), q.y(),
+                  q.z(), with_loss, without_loss, keep ? "kept" : "dropped");
+    res_.point_light_choices.push_back(line);
+    Progress(line);
+    if (keep) ++k;
+    else lights->erase(lights->begin() + k);
+  }
+  std::reverse(lights->begin(), lights->end());  // strongest first
+}
+
+/// The Cauchy loss on the held-out rows of the map and `lights` fitted on the other rows.
+double Estimator::HoldoutLoss(const std::vector<PointLight>& lights) const {
+  std::vector<std::vector<float>> columns(lights.size());
+  for (std::size_t k = 0; k < lights.size(); ++k)
+    PointLightColumn(*scene_, vertices_, lights[k].position, &columns[k]);
+  const TransportMatrix full = AppendColumns(A_, columns);
+  const TransportMatrix fit = SelectRows(full, holdout_, false), held = SelectRows(full, holdout_, true);
+  std::vector<double> y_fit, y_held;
+  for (std::size_t r = 0; r < holdout_.size(); ++r)
+    for (int c = 0; c < 3; ++c) (holdout_[r] ? y_held : y_fit).push_back(y_[3 * r + c]);
+  const LinearProblem problem = MakeLinearProblem(fit, y_fit);
+  ObjectiveParams params = res_.objective_params;
+  params.alpha *= static_cast<double>(fit.rows()) / std::max<std::size_t>(1, holdout_.size());
+  params = CellWeights(problem, params);
+  std::vector<double> init(3 * problem.unknown_cells);
+  for (int k = 0; k < problem.unknown_cells; ++k) {
+    const int j = problem.cell_of[k];
+    for (int c = 0; c < 3; ++c)
+      init[3 * k + c] = j < cells_ ? lambda_[3 * j + c] : lights[j - cells_].intensity[c];
+  }
+  SolverOptions so;
+  so.max_iterations = 50;
+  const SolveResult sr = lp::Solve(opt_.solver, Objective(problem, params), init, so);
+  std::vector<double> x(3 * full.cells, 0.0);
+  for (int k = 0; k < problem.unknown_cells; ++k)
+    for (int c = 0; c < 3; ++c) x[3 * problem.cell_of[k] + c] = sr.lambda[3 * k + c];
+  const std::vector<double> predicted = held.Multiply(x);
+  const double s2 = params.sigma * params.sigma;
+  double loss = 0;
+  for (std::size_t i = 0; i < predicted.size(); ++i) {
+    const double r = y_held[i] - predicted[i];
+    loss += 0.5 * s2 * std::log1p(r * r / s2);
+  }
+  return loss;
 }
 
 // Albedo refinement: the reconstruction's albedo is the colour seen, flattened per
@@ -346,7 +675,12 @@ void Estimator::Conclude() {
   for (double& v : res_.lambda) v *= res_.image_mean;
   res_.final_relative_rmse = res_.convergence.empty() ? 0 : res_.convergence.back().relative_rmse;
   res_.final_rmse = res_.final_relative_rmse * res_.image_mean;
-  if (!truth_.empty()) res_.final_angular_error_deg = DominantAngularErrorDeg(env_, res_.lambda, truth_);
+  res_.point_lights = InImageUnits(points_);
+  if (!truth_.empty()) {
+    res_.final_angular_error_deg = DominantAngularErrorDeg(env_, res_.lambda, res_.point_lights, centre_, truth_);
+    res_.final_position_error_m =
+        WorstPositionError(res_.point_lights, truth_, centre_, opt_.point_lights.far * radius_);
+  }
   res_.dominant = DominantDirections(env_, res_.lambda, 2);
   // A fit that renders (almost) nothing is the activation penalty winning over data it no
   // longer hears: a Cauchy scale far below the residuals makes every pixel an outlier.
@@ -370,6 +704,11 @@ void Estimator::RenderFittedViews() {
   topt.cancelled = opt_.cancelled;
   CellSampler sampler(env_, res_.lambda, reachable_, opt_.tracer.nee_floor);
   res_.renders = RenderEnvironment(*scene_, env_, bundle_.views, res_.lambda, sampler, topt, true);
+  if (!res_.point_lights.empty()) {
+    const std::vector<ImageRGB> near = RenderPointLights(*scene_, bundle_.views, res_.point_lights, topt, true);
+    for (std::size_t v = 0; v < near.size(); ++v)
+      for (std::size_t i = 0; i < near[v].data.size(); ++i) res_.renders[v].data[i] += near[v].data[i];
+  }
   CheckCancel();
   res_.render_seconds = rs.Seconds();
   Progress(Fmt("relit %.0f view(s) in %.2f s", bundle_.views.size(), res_.render_seconds));

@@ -9,6 +9,7 @@
 
 #include "estimation/objective.h"
 #include "estimation/path_tracer.h"
+#include "estimation/point_light.h"
 #include "scene/scene_bundle.h"
 #include "estimation/solver.h"
 #include "estimation/truth.h"
@@ -34,6 +35,25 @@ constexpr int kMinRings = 2, kMaxRings = 181;
 struct ConvergenceRow;
 struct RoundInfo;
 
+/// The near-light model (docs/method.md, "Point lights"): point lights beside the map.
+struct PointLightOptions {
+  /// At most this many point lights; 0 = the environment map alone (the far-light model).
+  int max_lights = 4;
+  /// Paths per pixel whose shading vertices the lights' columns and positions come from.
+  int spp = 8;
+  /// The same for the first round's candidates (many columns, so fewer paths).
+  int candidate_spp = 1;
+  /// A point light's activation penalty, in cells of the reference solid angle.
+  double weight = 1;
+  /// Share of the pixels the model selection scores lights on (left out of that fit).
+  double holdout = 0.2;
+  /// A light is kept when it lowers the held-out loss by at least this share.
+  double min_gain = 0.01;
+  /// Lights refined farther than this many scene radii from the centre are far lights:
+  /// dropped, the map takes their light (a sun is not a lamp).
+  double far = 10;
+};
+
 struct EstimateOptions {
   int rings = 21;
   TracerOptions tracer;
@@ -41,6 +61,7 @@ struct EstimateOptions {
   SolverKind solver = SolverKind::kFast;
   SolverOptions solver_options;
   int max_rounds = 4;
+  PointLightOptions point_lights;
   /// Albedo refinement (intrinsic decomposition, scene/albedo.h), when the mesh has
   /// `shaded` colours (a reconstruction; a bundle with known albedo needs none): after the
   /// rounds settle, the colours seen are de-lit by the estimate's irradiance at every vertex
@@ -85,6 +106,13 @@ struct ConvergenceRow {
   double sigma = 0;
   /// The albedo pass the round runs under (0: the bundle's albedo; see albedo_passes).
   int albedo_pass = 0;
+  /// Point lights in the estimate at this iteration (in round 1's solve: the candidates lit).
+  int point_lights = 0;
+  /// With positions in truth.json: the worst distance (m) from a true near light to the
+  /// nearest point light (infinite without one); NaN otherwise.
+  double position_error_m = std::nan("");
+  /// "solve" (the intensities on a fixed A) or "lights" (a step of the positions' refinement).
+  const char* step = "solve";
 };
 
 struct RoundInfo {
@@ -98,6 +126,9 @@ struct RoundInfo {
   int unknown_cells = 0;
   double end_seconds = 0;      ///< wall clock at the end of the round (with time_offset)
   std::vector<double> lambda;  ///< the estimate after this round (3 * cells, image units)
+  std::vector<PointLight> point_lights;  ///< after this round (image units)
+  int light_iterations = 0;    ///< steps of the positions' refinement
+  bool lights_moved = false;   ///< the point lights changed or moved more than 2 % of their distance
 };
 
 /// Why an estimate did not refine the albedo.
@@ -126,6 +157,12 @@ struct EstimateResult {
   double kkt_violation = 0;
   bool objective_increased = false;
   std::vector<Eigen::Vector3d> dominant;
+  /// The near part of the lighting (image units), strongest first.
+  std::vector<PointLight> point_lights;
+  /// Why each light was kept or dropped (model selection), one line each.
+  std::vector<std::string> point_light_choices;
+  Eigen::Vector3d scene_centre = Eigen::Vector3d::Zero();  ///< the mesh's bounding box's centre
+  double final_position_error_m = std::nan("");  ///< as ConvergenceRow::position_error_m
   /// The rendered estimate's mean over the observed pixels, relative to theirs (1 = as
   /// bright as the images); from the last round's A.
   double rendered_fraction = 0;

@@ -9,6 +9,7 @@
 #include "common/parallel.h"
 #include "common/rng.h"
 #include "common/timer.h"
+#include "estimation/pixel_loop.h"
 #include "estimation/sampling.h"
 
 namespace lp {
@@ -76,9 +77,10 @@ double EscapeWeight(const EnvMap& env, const CellSampler& sampler, int j, double
 
 namespace {
 
-struct Counters {
-  std::int64_t paths = 0, rays = 0, roulette = 0, negligible = 0, max_bounces = 0;
-};
+using detail::Counters;
+using detail::ForEachPixel;
+using detail::PixelRef;
+using detail::PixelsToTrace;
 
 /// One camera sample of pixel (x, y): calls sink(cell, rgb weight) for every
 /// contribution; the pixel value is sum(weight * lambda_cell) / spp.
@@ -135,44 +137,6 @@ void TracePath(const RayTracer& scene, const EnvMap& env, const CellSampler& sam
       T /= p;
     }
     hit = next;
-  }
-}
-
-struct PixelRef {
-  int view;
-  int pixel;
-};
-
-std::vector<PixelRef> PixelsToTrace(const std::vector<View>& views, bool all_pixels) {
-  std::vector<PixelRef> out;
-  for (int v = 0; v < static_cast<int>(views.size()); ++v) {
-    const int n = views[v].camera.width * views[v].camera.height;
-    for (int p = 0; p < n; ++p)
-      if (all_pixels || (!views[v].valid.empty() && views[v].valid[p])) out.push_back({v, p});
-  }
-  return out;
-}
-
-/// Runs `per_pixel(index, pixel, rng, counters)` over pixels in parallel, with per-pixel seeds.
-template <class F>
-void ForEachPixel(const std::vector<PixelRef>& pixels, const TracerOptions& opt, TraceStats* stats, F&& per_pixel) {
-  std::atomic<std::int64_t> paths{0}, rays{0}, roulette{0}, negligible{0}, max_bounces{0};
-  ParallelForChunks(0, pixels.size(), 64, [&](std::size_t b, std::size_t e) {
-    if (opt.cancelled && opt.cancelled()) return;
-    Counters cnt;
-    for (std::size_t i = b; i < e; ++i) per_pixel(i, pixels[i], cnt);
-    paths += cnt.paths;
-    rays += cnt.rays;
-    roulette += cnt.roulette;
-    negligible += cnt.negligible;
-    max_bounces += cnt.max_bounces;
-  });
-  if (stats) {
-    stats->paths += paths;
-    stats->rays += rays;
-    stats->stopped_roulette += roulette;
-    stats->stopped_negligible += negligible;
-    stats->stopped_max_bounces += max_bounces;
   }
 }
 

@@ -64,4 +64,49 @@ TransportMatrix Combine(const TransportMatrix& a, const TransportMatrix& b) {
   return out;
 }
 
+TransportMatrix AppendColumns(const TransportMatrix& A, const std::vector<std::vector<float>>& columns) {
+  for (const auto& c : columns) LP_CHECK(c.size() == 3 * A.rows(), "column size " << c.size());
+  TransportMatrix out;
+  out.cells = A.cells + static_cast<int>(columns.size());
+  out.row_view = A.row_view;
+  out.row_pixel = A.row_pixel;
+  out.samples = A.samples;
+  out.row_start.reserve(A.rows() + 1);
+  out.row_start.push_back(0);
+  for (std::size_t r = 0; r < A.rows(); ++r) {
+    for (std::int64_t k = A.row_start[r]; k < A.row_start[r + 1]; ++k) {
+      out.col.push_back(A.col[k]);
+      out.val.push_back(A.val[k]);
+    }
+    for (std::size_t j = 0; j < columns.size(); ++j) {
+      const float* v = &columns[j][3 * r];
+      if (v[0] != 0 || v[1] != 0 || v[2] != 0) {
+        out.col.push_back(A.cells + static_cast<int>(j));
+        out.val.push_back({v[0], v[1], v[2]});
+      }
+    }
+    out.row_start.push_back(static_cast<std::int64_t>(out.col.size()));
+  }
+  return out;
+}
+
+TransportMatrix SelectRows(const TransportMatrix& A, const std::vector<std::uint8_t>& keep, bool want) {
+  LP_CHECK(keep.size() == A.rows(), "row mask size");
+  TransportMatrix out;
+  out.cells = A.cells;
+  out.samples = A.samples;
+  out.row_start.push_back(0);
+  for (std::size_t r = 0; r < A.rows(); ++r) {
+    if ((keep[r] != 0) != want) continue;
+    out.row_view.push_back(A.row_view[r]);
+    out.row_pixel.push_back(A.row_pixel[r]);
+    for (std::int64_t k = A.row_start[r]; k < A.row_start[r + 1]; ++k) {
+      out.col.push_back(A.col[k]);
+      out.val.push_back(A.val[k]);
+    }
+    out.row_start.push_back(static_cast<std::int64_t>(out.col.size()));
+  }
+  return out;
+}
+
 }  // namespace lp

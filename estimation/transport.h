@@ -30,4 +30,11 @@ struct TransportMatrix {
 /// (a.samples*a + b.samples*b) / (a.samples + b.samples).
 TransportMatrix Combine(const TransportMatrix& a, const TransportMatrix& b);
 
+/// A with dense columns appended after its cells (each 3 * rows values, row-major RGB;
+/// zeros are not stored): out.cells = A.cells + columns.size().
+TransportMatrix AppendColumns(const TransportMatrix& A, const std::vector<std::vector<float>>& columns);
+
+/// The rows r of A with keep[r] == want (same columns).
+TransportMatrix SelectRows(const TransportMatrix& A, const std::vector<std::uint8_t>& keep, bool want);
+
 }  // namespace lp

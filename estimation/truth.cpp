@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include <nlohmann/json.hpp>
 
@@ -25,25 +26,46 @@ std::vector<TruthLight> ParseTruthLights(const std::string& text, const std::str
   }
   if (!j.is_object() || !j.contains("lights") || !j["lights"].is_array())
     throw InputError(name, "expected an object with a \"lights\" array");
+  const auto vec3 = [&](const json& v, const char* what) {
+    if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
+      throw InputError(name, std::string("light \"") + what + "\" must be 3 numbers");
+    const Eigen::Vector3d out(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
+    if (!out.allFinite()) throw InputError(name, std::string("light ") + what + " is not finite");
+    return out;
+  };
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  if (j.contains("scene_bbox") && j["scene_bbox"].is_object() && j["scene_bbox"].contains("centre"))
+    centre = vec3(j["scene_bbox"]["centre"], "scene_bbox centre");
   std::vector<TruthLight> out;
   for (const json& l : j["lights"]) {
-    if (!l.is_object() || !l.contains("direction")) continue;  // e.g. a map without a dominant direction
+    if (!l.is_object() || !(l.contains("direction") || l.contains("position")))
+      continue;  // e.g. a map without a dominant direction
     TruthLight t;
     t.type = l.value("type", "");
-    const json& d = l["direction"];
-    if (!d.is_array() || d.size() != 3 || !d[0].is_number() || !d[1].is_number() || !d[2].is_number())
-      throw InputError(name, "light \"direction\" must be 3 numbers");
-    t.direction = Eigen::Vector3d(d[0].get<double>(), d[1].get<double>(), d[2].get<double>());
-    if (!t.direction.allFinite() || t.direction.norm() == 0) throw InputError(name, "light direction is not finite");
+    if (l.contains("position")) t.position = vec3(l["position"], "position");
+    t.direction = l.contains("direction") ? vec3(l["direction"], "direction") : Eigen::Vector3d(*t.position - centre);
+    if (t.direction.norm() == 0) throw InputError(name, "light direction is not finite");
     t.direction.normalize();
     const char* keys[] = {"rgb_power", "rgb", "rgb_radiance"};
+    bool weighed = false;
     for (const char* k : keys)
-      if (l.contains(k) && l[k].is_array() && l[k].size() == 3 && l[k][0].is_number())
+      if (l.contains(k) && l[k].is_array() && l[k].size() == 3 && l[k][0].is_number()) {
         t.weight = Luminance(l[k][0].get<double>(), l[k][1].get<double>(), l[k][2].get<double>());
+        weighed = true;
+      }
+    if (!weighed && t.position && l.contains("radiant_intensity_rgb_W_per_sr")) {
+      const Eigen::Vector3d I = vec3(l["radiant_intensity_rgb_W_per_sr"], "radiant_intensity_rgb_W_per_sr");
+      t.weight = Luminance(I.x(), I.y(), I.z()) / std::max(1e-12, (*t.position - centre).squaredNorm());
+    }
     if (l.contains("weight") && l["weight"].is_number()) t.weight = l["weight"].get<double>();
     out.push_back(t);
   }
   return out;
+}
+
+void CentreTruthLights(std::vector<TruthLight>* truth, const Eigen::Vector3d& centre) {
+  for (TruthLight& t : *truth)
+    if (t.position && (*t.position - centre).norm() > 0) t.direction = (*t.position - centre).normalized();
 }
 
 std::vector<Eigen::Vector3d> DominantDirections(const EnvMap& env, const std::vector<double>& lambda, int count,
@@ -109,6 +131,53 @@ double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lam
     sum += best;
   }
   return sum / n;
+}
+
+double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lambda,
+                               const std::vector<PointLight>& points, const Eigen::Vector3d& centre,
+                               const std::vector<TruthLight>& truth) {
+  if (points.empty() || truth.empty()) return DominantAngularErrorDeg(env, lambda, truth);
+  std::vector<TruthLight> sorted = truth;
+  std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.weight > b.weight; });
+  const int n = std::min<int>(2, static_cast<int>(sorted.size()));
+  // The estimate's lights with the irradiance each gives at the centre.
+  std::vector<std::pair<double, Eigen::Vector3d>> lights;
+  const double near = std::cos(30 * 3.14159265358979323846 / 180);
+  for (const Eigen::Vector3d& d : DominantDirections(env, lambda, 2)) {
+    double e = 0;
+    for (int j = 0; j < env.size(); ++j)
+      if (env.direction(j).dot(d) > near)
+        e += std::max(0.0, Luminance(lambda[3 * j], lambda[3 * j + 1], lambda[3 * j + 2])) * env.solid_angle(j);
+    lights.emplace_back(e, d);
+  }
+  for (const PointLight& p : points) {
+    const Eigen::Vector3d r = p.position - centre;
+    if (!(r.norm() > 0)) continue;
+    lights.emplace_back(Luminance(p.intensity.x(), p.intensity.y(), p.intensity.z()) / r.squaredNorm(),
+                        r.normalized());
+  }
+  std::sort(lights.begin(), lights.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  if (lights.empty()) return 180.0;
+  double sum = 0;
+  for (int i = 0; i < n; ++i) {
+    double best = 180;
+    for (int k = 0; k < std::min<int>(n, static_cast<int>(lights.size())); ++k)
+      best = std::min(best, AngleDeg(lights[k].second, sorted[i].direction));
+    sum += best;
+  }
+  return sum / n;
+}
+
+double WorstPositionError(const std::vector<PointLight>& points, const std::vector<TruthLight>& truth,
+                          const Eigen::Vector3d& centre, double far_distance) {
+  double worst = std::nan("");
+  for (const TruthLight& t : truth) {
+    if (!t.position || !((*t.position - centre).norm() < far_distance)) continue;
+    double best = std::numeric_limits<double>::infinity();
+    for (const PointLight& p : points) best = std::min(best, (p.position - *t.position).norm());
+    worst = std::isnan(worst) ? best : std::max(worst, best);
+  }
+  return worst;
 }
 
 double RelativeImageRmse(const ImageRGB& image, const ImageRGB& reference, const std::vector<std::uint8_t>& valid) {

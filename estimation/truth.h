@@ -1,25 +1,38 @@
 #pragma once
 /// Ground truth (truth.json) for evaluation only, and the lighting error measures.
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <Eigen/Core>
 
 #include "estimation/envmap.h"
+#include "estimation/point_light.h"
 
 namespace lp {
 
 /// A light of the ground truth: its unit direction from the scene centre and its
 /// luminous weight (used to rank lights as "dominant").
 struct TruthLight {
-  std::string type;  ///< "sphere", "sun" or "environment"
+  std::string type;  ///< "sphere", "sun", "point" or "environment"
   Eigen::Vector3d direction = Eigen::Vector3d::UnitZ();
   double weight = 1;
+  /// Where the light is (world frame, metres), when the truth says.
+  std::optional<Eigen::Vector3d> position;
 };
 
-/// Parses truth.json text (`name` for errors); throws InputError when malformed.
+/// Parses truth.json text (`name` for errors); throws InputError when malformed. A light is
+/// read when it has a "direction" (from the scene centre) or a "position" (its direction is
+/// then taken from "scene_bbox"'s "centre", or the origin without one); its weight ranks the
+/// lights: "weight", else the luminance of "rgb_power", "rgb" or "rgb_radiance", else, for a
+/// light given by "radiant_intensity_rgb_W_per_sr" I at distance d from the centre,
+/// luminance(I) / d^2 (its irradiance there).
 std::vector<TruthLight> ParseTruthLights(const std::string& text, const std::string& name);
+
+/// Directions of the truth's lights that have a position, taken again from `centre` (the
+/// estimator's scene centre: the centre of the mesh's bounding box).
+void CentreTruthLights(std::vector<TruthLight>* truth, const Eigen::Vector3d& centre);
 
 /// Up to `count` dominant directions of an estimate, found one after another: the modes
 /// of its power (luminance x solid angle) smoothed by a Gaussian of half `separation_deg`
@@ -34,6 +47,22 @@ std::vector<Eigen::Vector3d> DominantDirections(const EnvMap& env, const std::ve
 /// direction) and the nearest of the estimate's dominant directions.
 double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lambda,
                                const std::vector<TruthLight>& truth);
+
+/// With point lights beside the map: the estimate's lights are the map's dominant
+/// directions (up to 2) and the point lights' directions from `centre`, ranked by the
+/// irradiance each gives at the centre (a map mode: the luminance x solid angle of the
+/// cells within 30 degrees of it; a point light: luminance(I) / d^2); the strongest
+/// min(2, truth lights) of them are compared as above. Without point lights this is the
+/// function above.
+double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lambda,
+                               const std::vector<PointLight>& points, const Eigen::Vector3d& centre,
+                               const std::vector<TruthLight>& truth);
+
+/// The worst distance (metres) from a true near light (one with a position less than
+/// `far_distance` from `centre`) to the nearest estimated point light; NaN when the truth
+/// has no near light, infinity when the estimate has no point light.
+double WorstPositionError(const std::vector<PointLight>& points, const std::vector<TruthLight>& truth,
+                          const Eigen::Vector3d& centre, double far_distance);
 
 double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
 

@@ -44,16 +44,16 @@ TEST(DominantAngularErrorDeg, AgainstHandComputedCellCentres) {
   // cell centred at 4.5 degrees; one lit cell is its own dominant direction.
   const EnvMap env(21, Eigen::Vector3d::UnitZ());
   const std::vector<double> lambda = OneCell(env, Eigen::Vector3d::UnitX());
-  TruthLight x{"sphere", Eigen::Vector3d::UnitX(), 2};
+  TruthLight x{"sphere", Eigen::Vector3d::UnitX(), 2, std::nullopt};
   EXPECT_NEAR(DominantAngularErrorDeg(env, lambda, {x}), 4.5, 1e-9);
-  TruthLight at_centre{"sphere", Eigen::Vector3d(std::cos(4.5 * kDeg), std::sin(4.5 * kDeg), 0), 2};
+  TruthLight at_centre{"sphere", Eigen::Vector3d(std::cos(4.5 * kDeg), std::sin(4.5 * kDeg), 0), 2, std::nullopt};
   EXPECT_NEAR(DominantAngularErrorDeg(env, lambda, {at_centre}), 0, 1e-6);
   // Two truth lights: the mean over both of the angle to the nearest estimate; the
   // estimate has one direction, 90 degrees from +z: (4.5 + 90) / 2.
-  TruthLight z{"sphere", Eigen::Vector3d::UnitZ(), 1};
+  TruthLight z{"sphere", Eigen::Vector3d::UnitZ(), 1, std::nullopt};
   EXPECT_NEAR(DominantAngularErrorDeg(env, lambda, {z, x}), 47.25, 1e-9);
   // Only the two strongest count: a weaker third light far away changes nothing.
-  TruthLight weak{"sphere", -Eigen::Vector3d::UnitX(), 0.1};
+  TruthLight weak{"sphere", -Eigen::Vector3d::UnitX(), 0.1, std::nullopt};
   EXPECT_NEAR(DominantAngularErrorDeg(env, lambda, {weak, z, x}), 47.25, 1e-9);
   // A dark estimate is as wrong as it gets; no truth is no number.
   EXPECT_EQ(DominantAngularErrorDeg(env, std::vector<double>(3 * env.size(), 0.0), {x}), 180.0);

@@ -1,0 +1,57 @@
+#pragma once
+/// The tracers' pixel loop (private to estimation/): which pixels a trace covers, in the
+/// transport matrix's row order, and a parallel loop over them in chunks of 64 that polls
+/// the cancel callback and sums the path counters.
+#include <atomic>
+#include <cstdint>
+#include <vector>
+
+#include "common/parallel.h"
+#include "estimation/path_tracer.h"
+
+namespace lp::detail {
+
+struct PixelRef {
+  int view;
+  int pixel;
+};
+
+struct Counters {
+  std::int64_t paths = 0, rays = 0, roulette = 0, negligible = 0, max_bounces = 0;
+};
+
+/// The valid pixels of every view (every pixel when `all_pixels`), view by view, in row order.
+inline std::vector<PixelRef> PixelsToTrace(const std::vector<View>& views, bool all_pixels) {
+  std::vector<PixelRef> out;
+  for (int v = 0; v < static_cast<int>(views.size()); ++v) {
+    const int n = views[v].camera.width * views[v].camera.height;
+    for (int p = 0; p < n; ++p)
+      if (all_pixels || (!views[v].valid.empty() && views[v].valid[p])) out.push_back({v, p});
+  }
+  return out;
+}
+
+/// Runs `per_pixel(index, pixel, counters)` over pixels in parallel.
+template <class F>
+void ForEachPixel(const std::vector<PixelRef>& pixels, const TracerOptions& opt, TraceStats* stats, F&& per_pixel) {
+  std::atomic<std::int64_t> paths{0}, rays{0}, roulette{0}, negligible{0}, max_bounces{0};
+  ParallelForChunks(0, pixels.size(), 64, [&](std::size_t b, std::size_t e) {
+    if (opt.cancelled && opt.cancelled()) return;
+    Counters cnt;
+    for (std::size_t i = b; i < e; ++i) per_pixel(i, pixels[i], cnt);
+    paths += cnt.paths;
+    rays += cnt.rays;
+    roulette += cnt.roulette;
+    negligible += cnt.negligible;
+    max_bounces += cnt.max_bounces;
+  });
+  if (stats) {
+    stats->paths += paths;
+    stats->rays += rays;
+    stats->stopped_roulette += roulette;
+    stats->stopped_negligible += negligible;
+    stats->stopped_max_bounces += max_bounces;
+  }
+}
+
+}  // namespace lp::detail

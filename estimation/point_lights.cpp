@@ -1,0 +1,317 @@
+#include "estimation/point_lights.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <Eigen/Dense>
+
+#include "common/error.h"
+#include "common/parallel.h"
+#include "common/rng.h"
+#include "estimation/pixel_loop.h"
+#include "estimation/sampling.h"
+
+namespace lp {
+namespace {
+
+using detail::Counters;
+using detail::ForEachPixel;
+using detail::PixelRef;
+using detail::PixelsToTrace;
+
+/// One camera path of pixel (x, y): calls vertex(hit, offset origin, weight) at every
+/// surface interaction, weight = throughput x albedo / pi (per sample).
+template <class Sink>
+void WalkPath(const RayTracer& scene, const Camera& cam, int x, int y, Rng& rng, const TracerOptions& opt,
+              Counters& cnt, Sink&& vertex) {
+  ++cnt.paths;
+  const Eigen::Vector3d origin = cam.center();
+  const Eigen::Vector3d dir = cam.RayDirection(x + rng.Uniform() - 0.5, y + rng.Uniform() - 0.5);
+  Eigen::Vector3d T(1, 1, 1);
+  SurfacePoint hit;
+  ++cnt.rays;
+  if (!scene.Intersect(origin, dir, &hit)) return;
+  const double eps = scene.epsilon();
+  for (int bounce = 0;; ++bounce) {
+    const Eigen::Vector3d off = hit.position + hit.geometric * (4 * eps);
+    vertex(hit, off, Eigen::Vector3d(T.cwiseProduct(hit.albedo) * kInvPi));
+    const Eigen::Vector3d w = SampleCosine(hit.shading, rng.Uniform(), rng.Uniform());
+    T = T.cwiseProduct(hit.albedo);
+    if (hit.geometric.dot(w) <= 0) return;
+    if (bounce + 1 >= opt.bounces) {
+      ++cnt.max_bounces;
+      return;
+    }
+    ++cnt.rays;
+    SurfacePoint next;
+    if (!scene.Intersect(off, w, &next)) return;
+    const double tmax = T.maxCoeff();
+    if (tmax < opt.min_throughput) {
+      ++cnt.negligible;
+      return;
+    }
+    if (bounce + 1 >= opt.roulette_after) {
+      const double p = std::min(0.95, tmax);
+      if (rng.Uniform() >= p) {
+        ++cnt.roulette;
+        return;
+      }
+      T /= p;
+    }
+    hit = next;
+  }
+}
+
+/// cos / d^2 from a vertex to a light at q, 0 when the light is behind either normal.
+inline double Falloff(const Eigen::Vector3d& p, const Eigen::Vector3d& n, const Eigen::Vector3d& g,
+                      const Eigen::Vector3d& q, Eigen::Vector3d* to_light, double* dist) {
+  const Eigen::Vector3d r = q - p;
+  const double d2 = r.squaredNorm();
+  if (!(d2 > 0)) return 0;
+  const double d = std::sqrt(d2);
+  const double cn = n.dot(r), cg = g.dot(r);
+  if (!(cn > 0 && cg > 0)) return 0;
+  *to_light = r / d;
+  *dist = d;
+  return cn / (d2 * d);
+}
+
+void CheckOptions(const TracerOptions& o) {
+  if (o.spp < 1) throw InputError("spp must be at least 1");
+  if (o.bounces < 1) throw InputError("bounces must be at least 1");
+}
+
+}  // namespace
+
+ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<View>& views,
+                                      const TracerOptions& opt, bool all_pixels, TraceStats* stats) {
+  CheckOptions(opt);
+  struct Vertex {
+    Eigen::Vector3f p, n, g, w;
+  };
+  const std::vector<PixelRef> pixels = PixelsToTrace(views, all_pixels);
+  std::vector<std::vector<Vertex>> rows(pixels.size());
+  const float inv = 1.0f / opt.spp;
+  ForEachPixel(pixels, opt, stats, [&](std::size_t i, const PixelRef& px, Counters& cnt) {
+    const Camera& cam = views[px.view].camera;
+    const int x = px.pixel % cam.width, y = px.pixel / cam.width;
+    for (int s = 0; s < opt.spp; ++s) {
+      Rng rng(opt.seed, px.view, px.pixel, s);
+      WalkPath(scene, cam, x, y, rng, opt, cnt,
+               [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
+                 rows[i].push_back({off.cast<float>(), hit.shading.cast<float>(), hit.geometric.cast<float>(),
+                                    w.cast<float>() * inv});
+               });
+    }
+  });
+  ShadingVertices out;
+  std::size_t n = 0;
+  for (const auto& r : rows) n += r.size();
+  out.row_start.reserve(rows.size() + 1);
+  out.position.reserve(n);
+  out.normal.reserve(n);
+  out.geometric.reserve(n);
+  out.weight.reserve(n);
+  for (auto& r : rows) {
+    for (const Vertex& v : r) {
+      out.position.push_back(v.p);
+      out.normal.push_back(v.n);
+      out.geometric.push_back(v.g);
+      out.weight.push_back(v.w);
+    }
+    out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
+    std::vector<Vertex>().swap(r);
+  }
+  if (stats) stats->pixels_traced += static_cast<std::int64_t>(pixels.size());
+  return out;
+}
+
+void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& q,
+                      std::vector<float>* out, std::vector<float>* jacobian) {
+  const std::size_t rows = v.rows();
+  out->assign(3 * rows, 0.0f);
+  if (jacobian) jacobian->assign(9 * rows, 0.0f);
+  ParallelForChunks(0, rows, 64, [&](std::size_t b, std::size_t e) {
+    for (std::size_t r = b; r < e; ++r) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      Eigen::Matrix3d jac = Eigen::Matrix3d::Zero();  // (channel, coordinate)
+      for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
+        const Eigen::Vector3d p = v.position[k].cast<double>(), n = v.normal[k].cast<double>();
+        Eigen::Vector3d l;
+        double d = 0;
+        const double f = Falloff(p, n, v.geometric[k].cast<double>(), q, &l, &d);
+        if (f == 0 || scene.Occluded(p, l, d)) continue;
+        const Eigen::Vector3d w = v.weight[k].cast<double>();
+        sum += w * f;
+        if (jacobian) {
+          // f = n.(q-p) / d^3:  df/dq = n / d^3 - 3 n.(q-p) (q-p) / d^5 = (n - 3 (n.l) l) / d^3.
+          const Eigen::Vector3d grad = (n - 3 * n.dot(l) * l) / (d * d * d);
+          jac += w * grad.transpose();
+        }
+      }
+      for (int c = 0; c < 3; ++c) (*out)[3 * r + c] = static_cast<float>(sum[c]);
+      if (jacobian)
+        for (int c = 0; c < 3; ++c)
+          for (int a = 0; a < 3; ++a) (*jacobian)[9 * r + 3 * c + a] = static_cast<float>(jac(c, a));
+    }
+  });
+}
+
+std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vector<View>& views,
+                                        const std::vector<PointLight>& lights, const TracerOptions& opt,
+                                        bool all_pixels, TraceStats* stats) {
+  CheckOptions(opt);
+  std::vector<ImageRGB> out;
+  for (const View& v : views) out.emplace_back(v.camera.width, v.camera.height);
+  const std::vector<PixelRef> pixels = PixelsToTrace(views, all_pixels);
+  ForEachPixel(pixels, opt, stats, [&](std::size_t, const PixelRef& px, Counters& cnt) {
+    const Camera& cam = views[px.view].camera;
+    const int x = px.pixel % cam.width, y = px.pixel / cam.width;
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (int s = 0; s < opt.spp; ++s) {
+      Rng rng(opt.seed, px.view, px.pixel, s);
+      WalkPath(scene, cam, x, y, rng, opt, cnt,
+               [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
+                 for (const PointLight& light : lights) {
+                   Eigen::Vector3d l;
+                   double d = 0;
+                   const double f = Falloff(off, hit.shading, hit.geometric, light.position, &l, &d);
+                   if (f == 0) continue;
+                   ++cnt.rays;
+                   if (!scene.Occluded(off, l, d)) sum += w.cwiseProduct(light.intensity) * f;
+                 }
+               });
+    }
+    float* p = out[px.view].at(x, y);
+    for (int c = 0; c < 3; ++c) p[c] = static_cast<float>(sum[c] / opt.spp);
+  });
+  if (stats) stats->pixels_traced += static_cast<std::int64_t>(pixels.size());
+  return out;
+}
+
+}  // namespace lp
+
+namespace lp {
+
+std::vector<Eigen::Vector3d> CandidatePositions(const Eigen::Vector3d& centre, double radius,
+                                                const Eigen::Vector3d& up, int rings,
+                                                const std::vector<double>& radii) {
+  const EnvMap shell(rings, up);
+  std::vector<Eigen::Vector3d> out;
+  for (double r : radii)
+    for (int j = 0; j < shell.size(); ++j) out.push_back(centre + r * radius * shell.direction(j));
+  return out;
+}
+
+namespace {
+
+double Cauchy(double r, double sigma) { return 0.5 * sigma * sigma * std::log1p(r * r / (sigma * sigma)); }
+
+/// Residuals y - base - sum_k I_k c_k over all rows, with the lights' columns (and
+/// Jacobians when asked).
+std::vector<double> Residual(const PointFitProblem& p, const std::vector<PointLight>& lights,
+                             std::vector<std::vector<float>>* columns, std::vector<std::vector<float>>* jacobians) {
+  std::vector<double> r(p.y->size());
+  for (std::size_t i = 0; i < r.size(); ++i) r[i] = (*p.y)[i] - (*p.base)[i];
+  columns->resize(lights.size());
+  if (jacobians) jacobians->resize(lights.size());
+  for (std::size_t k = 0; k < lights.size(); ++k) {
+    PointLightColumn(*p.scene, *p.vertices, lights[k].position, &(*columns)[k],
+                     jacobians ? &(*jacobians)[k] : nullptr);
+    const auto& col = (*columns)[k];
+    for (std::size_t i = 0; i < r.size(); ++i) r[i] -= lights[k].intensity[i % 3] * col[i];
+  }
+  return r;
+}
+
+double Energy(const PointFitProblem& p, const std::vector<PointLight>& lights, const std::vector<double>& r) {
+  double e = 0;
+  for (double v : r) e += Cauchy(v, p.sigma);
+  for (const PointLight& l : lights) e += p.alpha * std::log1p(p.beta * std::max(0.0, l.intensity.sum()));
+  return e;
+}
+
+}  // namespace
+
+double PointFitProblem::Value(const std::vector<PointLight>& lights) const {
+  std::vector<std::vector<float>> columns;
+  return Energy(*this, lights, Residual(*this, lights, &columns, nullptr));
+}
+
+int RefinePointLights(const PointFitProblem& p, std::vector<PointLight>* lights, int max_iterations,
+                      const std::function<void(int, double, double, const std::vector<PointLight>&)>& log) {
+  const int K = static_cast<int>(lights->size());
+  if (K == 0) return 0;
+  const int n = 6 * K;  // per light: position (3), intensity (3)
+  std::vector<std::vector<float>> cols, jacs;
+  std::vector<double> r = Residual(p, *lights, &cols, &jacs);
+  double E = Energy(p, *lights, r);
+  double mu = 1e-3;
+  int it = 0;
+  for (; it < max_iterations; ++it) {
+    // Normal equations of the reweighted least squares (Cauchy weight 1 / (1 + r^2/sigma^2)).
+    Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n);
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(n);
+    Eigen::VectorXd J(n);
+    for (std::size_t i = 0; i < r.size(); ++i) {
+      const std::size_t row = i / 3;
+      const int c = static_cast<int>(i % 3);
+      J.setZero();
+      bool any = false;
+      for (int k = 0; k < K; ++k) {
+        const float* jq = &jacs[k][9 * row + 3 * c];
+        for (int a = 0; a < 3; ++a) J[6 * k + a] = (*lights)[k].intensity[c] * jq[a];
+        J[6 * k + 3 + c] = cols[k][i];
+        any = any || cols[k][i] != 0;
+      }
+      if (!any) continue;
+      const double w = 1 / (1 + r[i] * r[i] / (p.sigma * p.sigma));
+      H.selfadjointView<Eigen::Lower>().rankUpdate(J, w);
+      g += w * r[i] * J;
+    }
+    H = H.selfadjointView<Eigen::Lower>();
+    for (int k = 0; k < K; ++k)  // the penalty's gradient on the intensities
+      for (int c = 0; c < 3; ++c)
+        g[6 * k + 3 + c] -= p.alpha * p.beta / (1 + p.beta * std::max(0.0, (*lights)[k].intensity.sum()));
+    bool accepted = false;
+    for (int tries = 0; tries < 8 && !accepted; ++tries) {
+      Eigen::MatrixXd M = H;
+      for (int a = 0; a < n; ++a) M(a, a) += mu * std::max(H(a, a), 1e-12);
+      const Eigen::VectorXd step = M.ldlt().solve(g);
+      if (!step.allFinite()) {
+        mu *= 10;
+        continue;
+      }
+      std::vector<PointLight> trial = *lights;
+      for (int k = 0; k < K; ++k) {
+        trial[k].position += step.segment<3>(6 * k);
+        trial[k].intensity = (trial[k].intensity + step.segment<3>(6 * k + 3)).cwiseMax(0.0);
+      }
+      std::vector<std::vector<float>> tcols, tjacs;
+      std::vector<double> tr = Residual(p, trial, &tcols, &tjacs);
+      const double tE = Energy(p, trial, tr);
+      if (tE < E) {
+        accepted = true;
+        const double drop = (E - tE) / std::max(E, 1e-300);
+        *lights = std::move(trial);
+        cols.swap(tcols);
+        jacs.swap(tjacs);
+        r.swap(tr);
+        E = tE;
+        mu = std::max(mu / 3, 1e-9);
+        if (log) {
+          double sse = 0;
+          for (double v : r) sse += v * v;
+          log(it + 1, E, sse, *lights);
+        }
+        if (drop < 1e-6) return it + 1;
+      } else {
+        mu *= 10;
+      }
+    }
+    if (!accepted) break;
+  }
+  return it;
+}
+
+}  // namespace lp

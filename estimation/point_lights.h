@@ -1,0 +1,87 @@
+#pragma once
+/// Near lights (docs/method.md, "Point lights"): lamps at 3D positions beside the
+/// environment map, as further columns of the transport matrix. The camera paths' shading
+/// vertices (where light arriving at a surface reaches a pixel, with the path's weight) are
+/// gathered once; a point light's column at any position is then next-event estimation
+/// from those vertices to it (a delta light: one shadow ray each, no MIS), and so is the
+/// column's derivative with respect to the position, analytically (visibility held fixed).
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/image.h"
+#include "estimation/envmap.h"
+#include "estimation/point_light.h"
+#include "estimation/path_tracer.h"
+#include "scene/ray_tracer.h"
+#include "scene/scene_bundle.h"
+
+namespace lp {
+
+/// The shading vertices of camera paths, row by row in the transport matrix's order (the
+/// valid pixels of each view, or every pixel when gathered with all_pixels).
+struct ShadingVertices {
+  std::vector<std::int64_t> row_start{0};  ///< rows()+1 offsets
+  std::vector<Eigen::Vector3f> position;   ///< just off the surface, on the lit side
+  std::vector<Eigen::Vector3f> normal;     ///< shading normal
+  std::vector<Eigen::Vector3f> geometric;  ///< geometric normal (same side)
+  /// Path throughput x albedo / (pi x samples per pixel): the pixel receives
+  /// weight x cos / d^2 x I from a point light of intensity I at distance d.
+  std::vector<Eigen::Vector3f> weight;
+  std::size_t rows() const { return row_start.size() - 1; }
+  std::size_t size() const { return position.size(); }
+};
+
+/// Traces options.spp cosine-sampled paths per pixel (options.bounces surface interactions,
+/// Russian roulette as TraceTransport) and keeps each path's shading vertices.
+ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<View>& views,
+                                      const TracerOptions& options, bool all_pixels = false,
+                                      TraceStats* stats = nullptr);
+
+/// The unit-intensity column of a point light at `q`: out[3*row + c]. When `jacobian` is
+/// given it receives d out[3*row + c] / d q_k at [9*row + 3*c + k] (visibility held fixed).
+void PointLightColumn(const RayTracer& scene, const ShadingVertices& vertices, const Eigen::Vector3d& q,
+                      std::vector<float>* out, std::vector<float>* jacobian = nullptr);
+
+/// Renders each view under the point lights (every pixel when `all_pixels`, else only the
+/// valid ones): the forward model of the columns above, with options.spp paths per pixel.
+std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vector<View>& views,
+                                        const std::vector<PointLight>& lights, const TracerOptions& options,
+                                        bool all_pixels, TraceStats* stats = nullptr);
+
+}  // namespace lp
+
+namespace lp {
+
+/// Where the estimator first looks for lamps: shells of directions (a coarse ring map
+/// around `up`, `rings` rings) at each of `radii` (multiples of the scene's bounding radius)
+/// around the scene's centre. Free space and the space beyond the scan alike: a candidate
+/// inside geometry or behind a wall lights no observed pixel and drops out of the problem.
+std::vector<Eigen::Vector3d> CandidatePositions(const Eigen::Vector3d& centre, double radius,
+                                                const Eigen::Vector3d& up, int rings = 7,
+                                                const std::vector<double>& radii = {0.35, 0.6, 1.0, 1.6});
+
+/// The robust objective of point lights on fixed shading vertices, the rest of the image
+/// (`base`: the environment's render, 3 per row) held fixed:
+///   E = sum rho_sigma(y - base - sum_k I_k . c(q_k)) + sum_k alpha log(1 + beta sum_c I_kc).
+struct PointFitProblem {
+  const RayTracer* scene = nullptr;
+  const ShadingVertices* vertices = nullptr;
+  const std::vector<double>* y = nullptr;     ///< 3 per row
+  const std::vector<double>* base = nullptr;  ///< 3 per row
+  double sigma = 0.5, alpha = 3, beta = 1;
+  double Value(const std::vector<PointLight>& lights) const;
+};
+
+/// Levenberg-Marquardt on the lights' positions and intensities together (iteratively
+/// reweighted for the Cauchy loss, the analytical derivative of the direct term, intensities
+/// kept >= 0); each step is taken only if E falls. Returns the iterations taken; `lights`
+/// holds the best found. `log(iteration, E, sum of squared residuals, lights)` is called
+/// after each accepted step.
+int RefinePointLights(
+    const PointFitProblem& problem, std::vector<PointLight>* lights, int max_iterations = 12,
+    const std::function<void(int, double, double, const std::vector<PointLight>&)>& log = {});
+
+}  // namespace lp
