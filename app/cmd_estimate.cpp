@@ -127,6 +127,12 @@ static void WriteEnvMap(const fs::path& out, const EstimateResult& r) {
   WriteTextAtomically(out / "envmap_directions.csv", dirs.str());
 }
 
+static std::string Fmt(const char* fmt, double a, double b, double c, double d, double e) {
+  char buf[1024];
+  std::snprintf(buf, sizeof buf, fmt, a, b, c, d, e);
+  return buf;
+}
+
 /// lights.json: the map (when it lights anything) and the point lights.
 static void WriteLights(const fs::path& out, const EstimateResult& r) {
   LightsFile lights{"", r.point_lights};
@@ -143,10 +149,15 @@ static json ModelJson(const EstimateOptions& o, const EstimateResult& r) {
   return {{"chosen", chosen},
           {"max_point_lights", o.point_lights.max_lights},
           {"choices", r.point_light_choices},
-          {"rule", "round 1 lights candidate positions around the scene; the strongest apart from each other are "
-                   "refined (Levenberg-Marquardt); each is kept only if the map and the other lights, fitted "
-                   "without a held-out fifth of the pixels, predict those pixels worse without it (by at least "
-                   "1 %); lights refined beyond 10 scene radii are left to the map"}};
+          {"rule", Fmt("round 1 looks for lamps with the map dark: greedily the candidate position around the "
+                       "scene that best explains what the lights so far leave, all of them refined together "
+                       "(Levenberg-Marquardt on positions and intensities), while each lowers the loss by %g %%; "
+                       "then the map and the lights are solved together, and each light is kept only if the map "
+                       "and the other lights, fitted without a held-out %g %% of the pixels, predict those pixels "
+                       "worse without it (by %g %%) and it renders at least %g %% of the light seen; lights refined beyond %g scene radii are far lights, left "
+                       "to the map",
+                       100 * o.point_lights.min_gain, 100 * o.point_lights.holdout, 100 * o.point_lights.min_gain,
+                       100 * o.point_lights.min_share, o.point_lights.far)}};
 }
 
 /// convergence.csv and convergence.png.

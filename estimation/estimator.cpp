@@ -46,9 +46,8 @@ std::string Fmt(const char* fmt, double a, double b = 0, double c = 0, double d 
 struct RoundProblem {
   LinearProblem problem;
   std::vector<double> init;  ///< the estimate so far, compact (3 per unknown cell)
-  /// The point-light columns' positions: the lights so far, then round 1's candidates.
+  /// The point-light columns' positions (the lights so far, or candidates).
   std::vector<Eigen::Vector3d> positions;
-  int lights = 0;  ///< how many of `positions` are the lights so far
 
   /// The unknowns over every column (3 per column): the map's cells, then `positions`.
   std::vector<double> Scatter(const std::vector<double>& compact, int cells) const {
@@ -110,15 +109,17 @@ class Estimator {
   void Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo* info);
   // The near-light steps (docs/method.md, "Point lights").
   bool NearLights() const { return opt_.point_lights.max_lights > 0; }
-  std::vector<std::vector<float>> PointColumns(int round, RoundProblem* rp);
+  std::vector<std::vector<float>> PointColumns(int round, int first, RoundProblem* rp);
   bool FitPointLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info);
   std::vector<double> RenderedPower(const RoundProblem& rp, const std::vector<double>& full) const;
   std::vector<PointLight> PickCandidates(const RoundProblem& rp, const std::vector<double>& full) const;
+  std::vector<PointLight> Candidates(RoundInfo* info);
   void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info);
   void SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info);
   void FoldLights(std::vector<PointLight>* lights, int round);
   void SelectModel(std::vector<PointLight>* lights);
   double HoldoutLoss(const std::vector<PointLight>& lights) const;
+  double RenderedShare(const PointLight& light) const;
   ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params) const;
   void Score(ConvergenceRow* row, const std::vector<double>& env_lambda, const std::vector<PointLight>& points) const;
   std::vector<PointLight> InImageUnits(std::vector<PointLight> lights) const {
@@ -141,7 +142,8 @@ class Estimator {
   TransportMatrix A_;  ///< the map's columns, averaged over the rounds under one albedo
   // Near lights.
   std::vector<PointLight> points_;  ///< the point lights so far, normalized units
-  ShadingVertices vertices_;        ///< this round's, for the lights' columns and positions
+  ShadingVertices vertices_;        ///< the rounds', for the lights' columns and positions
+  double vertex_samples_ = 0;       ///< paths per pixel they hold
   std::vector<std::uint8_t> holdout_;  ///< per row: left out of the model selection's fit
   Eigen::Vector3d centre_;
   double radius_ = 1;
@@ -220,7 +222,7 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
 
   RoundProblem rp;
   if (NearLights())
-    rp.problem = MakeLinearProblem(AppendColumns(A_, PointColumns(round, &rp)), y_);
+    rp.problem = MakeLinearProblem(AppendColumns(A_, PointColumns(round, first, &rp)), y_);
   else
     rp.problem = MakeLinearProblem(A_, y_);
   info->trace_seconds = ts.Seconds();
@@ -240,28 +242,35 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   for (int k = 0; k < problem.unknown_cells; ++k) {
     const int j = problem.cell_of[k], i = j - cells_;
     for (int c = 0; c < 3; ++c)
-      rp.init[3 * k + c] = j < cells_        ? lambda_[3 * j + c]
-                           : i < rp.lights ? points_[i].intensity[c]
-                                           // a candidate starts as dim as the map's cells
-                                           : 1e-3 * (rp.positions[i] - centre_).squaredNorm();
+      rp.init[3 * k + c] = j < cells_ ? lambda_[3 * j + c]
+                                           : points_[i].intensity[c];
   }
   return rp;
 }
 
-/// The point lights' columns for this round: the lights so far from this round's shading
-/// vertices; in round 1 also the candidates (from fewer paths).
-std::vector<std::vector<float>> Estimator::PointColumns(int round, RoundProblem* rp) {
+/// The point lights' columns for this round, from the shading vertices of this round's
+/// paths and (like A) of the rounds before it under the same albedo.
+std::vector<std::vector<float>> Estimator::PointColumns(int round, int first, RoundProblem* rp) {
   TracerOptions topt = opt_.tracer;
   topt.cancelled = opt_.cancelled;
   topt.spp = opt_.point_lights.spp;
   topt.seed = opt_.tracer.seed * 1000003ull + 500 + round;
-  vertices_ = GatherShadingVertices(*scene_, bundle_.views, topt);
+  ShadingVertices fresh = GatherShadingVertices(*scene_, bundle_.views, topt);
   CheckCancel();
-  if (holdout_.empty()) {  // a fixed pseudo-random fifth of the rows (hash of view and pixel)
+  if (opt_.combine_rounds && round > first) {
+    vertices_ = Combine(vertices_, vertex_samples_, fresh, topt.spp);
+    vertex_samples_ += topt.spp;
+  } else {
+    vertices_ = std::move(fresh);
+    vertex_samples_ = topt.spp;
+  }
+  if (holdout_.empty()) {  // a fixed pseudo-random share of 8 x 8 pixel blocks (hash of view and block)
     holdout_.resize(vertices_.rows());
     const std::uint64_t share = static_cast<std::uint64_t>(opt_.point_lights.holdout * 1000);
     for (std::size_t r = 0; r < holdout_.size(); ++r) {
-      std::uint64_t h = (static_cast<std::uint64_t>(A_.row_view[r]) << 32) ^ A_.row_pixel[r];
+      const int width = bundle_.views[A_.row_view[r]].camera.width;
+      const std::uint64_t block = (A_.row_pixel[r] / width / 8) * 100003ull + (A_.row_pixel[r] % width) / 8;
+      std::uint64_t h = (static_cast<std::uint64_t>(A_.row_view[r]) << 40) ^ block;
       h = (h ^ (h >> 33)) * 0xff51afd7ed558ccdull;
       h ^= h >> 33;
       holdout_[r] = h % 1000 < share;
@@ -273,19 +282,74 @@ std::vector<std::vector<float>> Estimator::PointColumns(int round, RoundProblem*
     columns.emplace_back();
     PointLightColumn(*scene_, vertices_, l.position, &columns.back());
   }
-  rp->lights = static_cast<int>(points_.size());
-  if (round == 1) {
-    topt.spp = opt_.point_lights.candidate_spp;
-    topt.seed = opt_.tracer.seed * 1000003ull + 400;
-    const ShadingVertices coarse = GatherShadingVertices(*scene_, bundle_.views, topt);
-    for (const Eigen::Vector3d& q : CandidatePositions(centre_, radius_, bundle_.up)) {
-      CheckCancel();
-      rp->positions.push_back(q);
-      columns.emplace_back();
-      PointLightColumn(*scene_, coarse, q, &columns.back());
-    }
-  }
   return columns;
+}
+
+/// Round 1's search for lamps, the map left dark so that a lamp gets its light before the
+/// map can spread it over many cells: greedily, the candidate position around the scene
+/// (columns from fewer paths) whose column best explains what the lights so far leave
+/// (its intensity by least squares, scored by the Cauchy loss), then all the lights so far
+/// refined together; until max_lights, or until the next light does not lower the loss.
+std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
+  TracerOptions topt = opt_.tracer;
+  topt.cancelled = opt_.cancelled;
+  topt.spp = opt_.point_lights.candidate_spp;
+  topt.seed = opt_.tracer.seed * 1000003ull + 400;
+  const ShadingVertices coarse = GatherShadingVertices(*scene_, bundle_.views, topt);
+  const std::vector<Eigen::Vector3d> positions = CandidatePositions(centre_, radius_, bundle_.up);
+  std::vector<std::vector<float>> columns(positions.size());
+  for (std::size_t i = 0; i < positions.size(); ++i) {
+    CheckCancel();
+    PointLightColumn(*scene_, coarse, positions[i], &columns[i]);
+  }
+  const double s2 = res_.objective_params.sigma * res_.objective_params.sigma;
+  const auto loss = [&](const std::vector<double>& r) {
+    double e = 0;
+    for (double v : r) e += 0.5 * s2 * std::log1p(v * v / s2);
+    return e;
+  };
+  std::fill(lambda_.begin(), lambda_.end(), 1e-3);
+  std::vector<PointLight> lights;
+  std::vector<double> residual = y_;
+  double best_loss = loss(residual);
+  while (static_cast<int>(lights.size()) < opt_.point_lights.max_lights) {
+    int best = -1;
+    double best_score = best_loss;
+    Eigen::Vector3d best_I = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < positions.size(); ++i) {
+      const std::vector<float>& col = columns[i];
+      Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
+      for (std::size_t e = 0; e < col.size(); ++e) {
+        num[e % 3] += col[e] * residual[e];
+        den[e % 3] += double(col[e]) * col[e];
+      }
+      if (!(den.minCoeff() > 0)) continue;
+      const Eigen::Vector3d I = num.cwiseQuotient(den).cwiseMax(0.0);
+      double e = 0;
+      for (std::size_t k = 0; k < col.size(); ++k) {
+        const double v = residual[k] - I[k % 3] * col[k];
+        e += 0.5 * s2 * std::log1p(v * v / s2);
+      }
+      if (e < best_score) best_score = e, best = static_cast<int>(i), best_I = I;
+    }
+    if (best < 0) break;
+    std::vector<PointLight> trial = lights;
+    trial.push_back({positions[best], best_I, 0});
+    RefinePositions(&trial, info);
+    // What the lights leave, and whether the new one earned its place.
+    std::vector<double> r = y_;
+    std::vector<float> col;
+    for (const PointLight& l : trial) {
+      PointLightColumn(*scene_, vertices_, l.position, &col);
+      for (std::size_t e = 0; e < r.size(); ++e) r[e] -= l.intensity[e % 3] * col[e];
+    }
+    const double trial_loss = loss(r);
+    if (!(trial_loss < (1 - opt_.point_lights.min_gain) * best_loss)) break;
+    lights = std::move(trial);
+    residual = std::move(r);
+    best_loss = trial_loss;
+  }
+  return lights;
 }
 
 /// Solves the round's problem warm-started, logging every iteration. Graduated Cauchy
@@ -324,7 +388,9 @@ SolveResult Estimator::Solve(const RoundProblem& rp, int round, RoundInfo* info,
       sigmas.push_back(s);
   sigmas.push_back(params.sigma);
 
-  int iteration_offset = 0;
+  // Iterations count on within a round (its solves and its lights' refinement).
+  int iteration_offset =
+      !res_.convergence.empty() && res_.convergence.back().round == round ? res_.convergence.back().iteration + 1 : 0;
   double step_sigma = params.sigma;
   SolverOptions so = opt_.solver_options;
   so.on_iteration = [&](const IterationInfo& it) {
@@ -427,8 +493,10 @@ std::vector<double> Estimator::RenderedPower(const RoundProblem& rp, const std::
 /// away, and in round 1 each kept only if the held-out pixels want it. True when the lights
 /// moved or changed (the rounds then go on).
 bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info) {
-  const bool candidates = rp.positions.size() > static_cast<std::size_t>(rp.lights);
-  std::vector<PointLight> kept = candidates ? PickCandidates(rp, full) : rp.Lights(full, cells_);
+  const bool candidates = info->round == 1;
+  const std::vector<double> map = lambda_;
+  std::vector<PointLight> kept = candidates ? Candidates(info) : rp.Lights(full, cells_);
+  if (candidates && kept.empty()) lambda_ = map;  // no lamp: the round's map stands
   // Block coordinate descent: the positions (the map held), then the intensities and the
   // map together on the moved lights' columns, until the lights stay.
   for (int pass = 0; pass < (candidates ? 4 : 1) && !kept.empty(); ++pass) {
@@ -485,7 +553,6 @@ void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info
     rp.positions.push_back((*lights)[k].position);
     PointLightColumn(*scene_, vertices_, (*lights)[k].position, &columns[k]);
   }
-  rp.lights = static_cast<int>(lights->size());
   rp.problem = MakeLinearProblem(AppendColumns(A_, columns), y_);
   const LinearProblem& problem = rp.problem;
   rp.init.resize(3 * problem.unknown_cells);
@@ -572,17 +639,32 @@ void Estimator::SelectModel(std::vector<PointLight>* lights) {
     without.erase(without.begin() + k);
     const double with_loss = HoldoutLoss(*lights), without_loss = HoldoutLoss(without);
     const Eigen::Vector3d q = (*lights)[k].position;
-    const bool keep = with_loss < (1 - opt_.point_lights.min_gain) * without_loss;
+    const double share = RenderedShare((*lights)[k]);
+    const bool keep =
+        with_loss < (1 - opt_.point_lights.min_gain) * without_loss && share >= opt_.point_lights.min_share;
     char line[320];
     std::snprintf(line, sizeof line,
-                  "point light at (%.3f, %.3f, %.3f): held-out loss %.6g with it, %.6g without: %s", q.x(), q.y(),
-                  q.z(), with_loss, without_loss, keep ? "kept" : "dropped");
+                  "point light at (%.3f, %.3f, %.3f): renders %.3g of the light seen; held-out loss %.6g with it, "
+                  "%.6g without: %s",
+                  q.x(), q.y(), q.z(), share, with_loss, without_loss, keep ? "kept" : "dropped");
     res_.point_light_choices.push_back(line);
     Progress(line);
     if (keep) ++k;
     else lights->erase(lights->begin() + k);
   }
   std::reverse(lights->begin(), lights->end());  // strongest first
+}
+
+/// The share of the observed light a point light renders.
+double Estimator::RenderedShare(const PointLight& light) const {
+  std::vector<float> col;
+  PointLightColumn(*scene_, vertices_, light.position, &col);
+  double rendered = 0, seen = 0;
+  for (std::size_t e = 0; e < col.size(); ++e) {
+    rendered += light.intensity[e % 3] * col[e];
+    seen += y_[e];
+  }
+  return seen > 0 ? rendered / seen : 0.0;
 }
 
 /// The Cauchy loss on the held-out rows of the map and `lights` fitted on the other rows.

@@ -45,13 +45,16 @@ struct PointLightOptions {
   int candidate_spp = 1;
   /// A point light's activation penalty, in cells of the reference solid angle.
   double weight = 1;
-  /// Share of the pixels the model selection scores lights on (left out of that fit).
+  /// Share of the pixels the model selection scores lights on (left out of that fit), in
+  /// blocks of 8 x 8 pixels (a light that fits a local patch must predict the next block).
   double holdout = 0.2;
-  /// A light is kept when it lowers the held-out loss by at least this share.
-  double min_gain = 0.01;
+  /// A light is kept when it lowers the held-out loss by at least this share,
+  double min_gain = 0.02;
+  /// and renders at least this share of the observed light.
+  double min_share = 0.05;
   /// Lights refined farther than this many scene radii from the centre are far lights:
   /// dropped, the map takes their light (a sun is not a lamp).
-  double far = 10;
+  double far = 5;
 };
 
 struct EstimateOptions {

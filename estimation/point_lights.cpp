@@ -126,6 +126,31 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
   return out;
 }
 
+ShadingVertices Combine(const ShadingVertices& a, double a_samples, const ShadingVertices& b, double b_samples) {
+  LP_CHECK(a.rows() == b.rows(), "combining gatherings of different rows");
+  const double n = a_samples + b_samples;
+  LP_CHECK(n > 0, "no samples");
+  const float wa = static_cast<float>(a_samples / n), wb = static_cast<float>(b_samples / n);
+  ShadingVertices out;
+  const std::size_t total = a.size() + b.size();
+  out.row_start.reserve(a.rows() + 1);
+  out.position.reserve(total);
+  out.normal.reserve(total);
+  out.geometric.reserve(total);
+  out.weight.reserve(total);
+  for (std::size_t r = 0; r < a.rows(); ++r) {
+    for (const auto& [v, w] : {std::pair<const ShadingVertices*, float>{&a, wa}, {&b, wb}})
+      for (std::int64_t k = v->row_start[r]; k < v->row_start[r + 1]; ++k) {
+        out.position.push_back(v->position[k]);
+        out.normal.push_back(v->normal[k]);
+        out.geometric.push_back(v->geometric[k]);
+        out.weight.push_back(v->weight[k] * w);
+      }
+    out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
+  }
+  return out;
+}
+
 void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& q,
                       std::vector<float>* out, std::vector<float>* jacobian) {
   const std::size_t rows = v.rows();

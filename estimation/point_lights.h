@@ -40,6 +40,10 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
                                       const TracerOptions& options, bool all_pixels = false,
                                       TraceStats* stats = nullptr);
 
+/// Sample-count-weighted union of two gatherings over the same rows (each vertex's weight
+/// scaled by its gathering's share of the samples), like Combine for transport matrices.
+ShadingVertices Combine(const ShadingVertices& a, double a_samples, const ShadingVertices& b, double b_samples);
+
 /// The unit-intensity column of a point light at `q`: out[3*row + c]. When `jacobian` is
 /// given it receives d out[3*row + c] / d q_k at [9*row + 3*c + k] (visibility held fixed).
 void PointLightColumn(const RayTracer& scene, const ShadingVertices& vertices, const Eigen::Vector3d& q,
