@@ -81,15 +81,15 @@ Run AddRender(CLI::App& app) {
       throw InputError("render: give exactly one of --envmap, --uniform or --lights");
     Stopwatch sw;
     ThreadLimit limit(*threads);
+    LightsFile file;  // read first: the cheap input's errors come before the bundle's work
+    if (!lights->empty()) file = ParseLightsJson(ReadTextFile(*lights), *lights);
     SceneBundle b = LoadSceneBundle(*scene);
     if (!mesh->empty()) b.mesh = ReadPly(*mesh);
     EnvMap env(*rings, b.up);
     std::vector<double> lambda;
-    LightsFile file;
     if (!uniform->empty()) lambda = ParseUniform(*uniform, env);
     if (!envmap->empty()) lambda = ReadEnvironment(*envmap, env);
     if (!lights->empty()) {
-      file = ParseLightsJson(ReadTextFile(*lights), *lights);
       if (!file.environment.empty())
         lambda = ReadEnvironment((fs::path(*lights).parent_path() / file.environment).string(), env);
     }

@@ -6,10 +6,12 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "common/parallel.h"
 #include "common/timer.h"
 #include "scene/albedo.h"
 #include "scene/ray_tracer.h"
 #include "estimation/point_lights.h"
+#include "estimation/sampling.h"
 #include "estimation/vertex_radiance.h"
 
 namespace lp {
@@ -114,12 +116,17 @@ class Estimator {
   std::vector<double> RenderedPower(const RoundProblem& rp, const std::vector<double>& full) const;
   std::vector<PointLight> PickCandidates(const RoundProblem& rp, const std::vector<double>& full) const;
   std::vector<PointLight> Candidates(RoundInfo* info);
-  void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info);
-  void SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info);
+  void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const char* step = "lights");
+  void SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info, bool graduated);
   void FoldLights(std::vector<PointLight>* lights, int round);
   void SelectModel(std::vector<PointLight>* lights);
-  double HoldoutLoss(const std::vector<PointLight>& lights) const;
+  /// A directional light (unit direction towards it, irradiance on a surface facing it).
+  struct DirectionalStandIn {
+    Eigen::Vector3d direction, irradiance;
+  };
+  double HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalStandIn* directional = nullptr) const;
   double RenderedShare(const PointLight& light) const;
+  void AddPointLightIrradiance(std::vector<float>* irradiance) const;
   ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params) const;
   void Score(ConvergenceRow* row, const std::vector<double>& env_lambda, const std::vector<PointLight>& points) const;
   std::vector<PointLight> InImageUnits(std::vector<PointLight> lights) const {
@@ -335,7 +342,7 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
     if (best < 0) break;
     std::vector<PointLight> trial = lights;
     trial.push_back({positions[best], best_I, 0});
-    RefinePositions(&trial, info);
+    RefinePositions(&trial, info, "search");
     // What the lights leave, and whether the new one earned its place.
     std::vector<double> r = y_;
     std::vector<float> col;
@@ -499,17 +506,24 @@ bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>
   if (candidates && kept.empty()) lambda_ = map;  // no lamp: the round's map stands
   // Block coordinate descent: the positions (the map held), then the intensities and the
   // map together on the moved lights' columns, until the lights stay.
+  // After round 1's search the map is dark: its first solve steps the Cauchy scale down as
+  // round 1's does (graduated; see Solve).
   for (int pass = 0; pass < (candidates ? 4 : 1) && !kept.empty(); ++pass) {
     const std::vector<PointLight> start = kept;
     RefinePositions(&kept, info);
     FoldLights(&kept, info->round);
-    SolveWithLights(&kept, info);
+    SolveWithLights(&kept, info, candidates && pass == 0);
     bool settled = kept.size() == start.size();
     for (std::size_t k = 0; k < kept.size() && settled; ++k)
       settled = (kept[k].position - start[k].position).norm() < 0.01 * (start[k].position - centre_).norm();
     if (settled) break;
   }
-  if (candidates) SelectModel(&kept);
+  if (candidates && !kept.empty()) {
+    const std::size_t found = kept.size();
+    SelectModel(&kept);
+    if (kept.empty()) lambda_ = map;  // no lamp after all: round 1's map stands, as without the search
+    else if (kept.size() < found) SolveWithLights(&kept, info, false);  // the map takes the dropped lights' light
+  }
   bool moved = kept.size() != points_.size();
   for (std::size_t k = 0; k < kept.size() && !moved; ++k)
     moved = (kept[k].position - points_[k].position).norm() > 0.02 * (kept[k].position - centre_).norm();
@@ -545,7 +559,7 @@ void Estimator::FoldLights(std::vector<PointLight>* lights, int round) {
 
 /// The map's cells and the lights' intensities solved together at the lights' positions
 /// (warm-started; rows logged), lambda_ and `lights` updated; lights left dark are dropped.
-void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info) {
+void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info, bool graduated) {
   CheckCancel();
   RoundProblem rp;
   std::vector<std::vector<float>> columns(lights->size());
@@ -561,7 +575,7 @@ void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info
     for (int c = 0; c < 3; ++c)
       rp.init[3 * k + c] = j < cells_ ? lambda_[3 * j + c] : (*lights)[j - cells_].intensity[c];
   }
-  const SolveResult sr = Solve(rp, info->round, info, false);
+  const SolveResult sr = Solve(rp, info->round, info, graduated);
   std::vector<double> full = rp.Scatter(sr.lambda, cells_);
   *lights = rp.Lights(full, cells_);
   full.resize(3 * cells_);
@@ -593,8 +607,15 @@ std::vector<PointLight> Estimator::PickCandidates(const RoundProblem& rp, const 
 
 /// Levenberg-Marquardt on the lights' positions and intensities, the map's render held
 /// fixed, on this round's shading vertices; every accepted step is a convergence row.
-void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info) {
+void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const char* step) {
   if (lights->empty()) return;
+  // The logged objective is the whole one: the map's penalty (held fixed here) added.
+  double map_penalty = 0;
+  for (int j = 0; j < cells_; ++j)
+    if (reachable_[j])
+      map_penalty += res_.objective_params.alpha * env_.solid_angle(j) / kAlphaReferenceSolidAngle *
+                     std::log1p(res_.objective_params.beta *
+                                std::max(0.0, lambda_[3 * j] + lambda_[3 * j + 1] + lambda_[3 * j + 2]));
   std::vector<double> base = A_.Multiply(lambda_);
   PointFitProblem fit;
   fit.scene = scene_.get();
@@ -614,10 +635,10 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
     row.iteration = first_iteration + it - 1;
     row.sigma = fit.sigma;
     row.albedo_pass = res_.albedo_passes;
-    row.objective = E;
+    row.objective = E + map_penalty;
     row.relative_rmse = std::sqrt(sse / rows);
     row.photometric_rmse = row.relative_rmse * res_.image_mean;
-    row.step = "lights";
+    row.step = step;
     Score(&row, lambda_, now);
     res_.convergence.push_back(row);
     if (opt_.on_convergence) opt_.on_convergence(row);
@@ -637,16 +658,32 @@ void Estimator::SelectModel(std::vector<PointLight>* lights) {
     CheckCancel();
     std::vector<PointLight> without = *lights;
     without.erase(without.begin() + k);
-    const double with_loss = HoldoutLoss(*lights), without_loss = HoldoutLoss(without);
-    const Eigen::Vector3d q = (*lights)[k].position;
+    // The same light as a directional one from its direction (its irradiance the one that
+    // renders the point light's image best, by least squares): does its distance matter,
+    // or is it a far light (the map's, or a sun's)?
+    const Eigen::Vector3d q = (*lights)[k].position, to = q - centre_;
+    DirectionalStandIn far{to.normalized(), Eigen::Vector3d::Zero()};
+    {
+      std::vector<float> point, directional;
+      PointLightColumn(*scene_, vertices_, q, &point);
+      DirectionalLightColumn(*scene_, vertices_, far.direction, &directional);
+      Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
+      for (std::size_t e = 0; e < point.size(); ++e) {
+        num[e % 3] += double(directional[e]) * point[e] * (*lights)[k].intensity[e % 3];
+        den[e % 3] += double(directional[e]) * directional[e];
+      }
+      for (int c = 0; c < 3; ++c) far.irradiance[c] = den[c] > 0 ? num[c] / den[c] : 0.0;
+    }
+    const double with_loss = HoldoutLoss(*lights), without_loss = HoldoutLoss(without),
+                 far_loss = HoldoutLoss(without, &far);
     const double share = RenderedShare((*lights)[k]);
-    const bool keep =
-        with_loss < (1 - opt_.point_lights.min_gain) * without_loss && share >= opt_.point_lights.min_share;
-    char line[320];
+    const double bar = (1 - opt_.point_lights.min_gain) * std::min(without_loss, far_loss);
+    const bool keep = with_loss < bar && share >= opt_.point_lights.min_share;
+    char line[400];
     std::snprintf(line, sizeof line,
                   "point light at (%.3f, %.3f, %.3f): renders %.3g of the light seen; held-out loss %.6g with it, "
-                  "%.6g without: %s",
-                  q.x(), q.y(), q.z(), share, with_loss, without_loss, keep ? "kept" : "dropped");
+                  "%.6g without, %.6g with it far away: %s",
+                  q.x(), q.y(), q.z(), share, with_loss, without_loss, far_loss, keep ? "kept" : "dropped");
     res_.point_light_choices.push_back(line);
     Progress(line);
     if (keep) ++k;
@@ -667,11 +704,16 @@ double Estimator::RenderedShare(const PointLight& light) const {
   return seen > 0 ? rendered / seen : 0.0;
 }
 
-/// The Cauchy loss on the held-out rows of the map and `lights` fitted on the other rows.
-double Estimator::HoldoutLoss(const std::vector<PointLight>& lights) const {
+/// The Cauchy loss on the held-out rows of the map and `lights` (and a directional light)
+/// fitted on the other rows.
+double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalStandIn* directional) const {
   std::vector<std::vector<float>> columns(lights.size());
   for (std::size_t k = 0; k < lights.size(); ++k)
     PointLightColumn(*scene_, vertices_, lights[k].position, &columns[k]);
+  if (directional) {
+    columns.emplace_back();
+    DirectionalLightColumn(*scene_, vertices_, directional->direction, &columns.back());
+  }
   const TransportMatrix full = AppendColumns(A_, columns);
   const TransportMatrix fit = SelectRows(full, holdout_, false), held = SelectRows(full, holdout_, true);
   std::vector<double> y_fit, y_held;
@@ -685,7 +727,9 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights) const {
   for (int k = 0; k < problem.unknown_cells; ++k) {
     const int j = problem.cell_of[k];
     for (int c = 0; c < 3; ++c)
-      init[3 * k + c] = j < cells_ ? lambda_[3 * j + c] : lights[j - cells_].intensity[c];
+      init[3 * k + c] = j < cells_                                            ? lambda_[3 * j + c]
+                        : j - cells_ < static_cast<int>(lights.size()) ? lights[j - cells_].intensity[c]
+                                                                        : directional->irradiance[c];
   }
   SolverOptions so;
   so.max_iterations = 50;
@@ -717,6 +761,27 @@ bool Estimator::AlbedoRefinable() {
   return true;
 }
 
+/// The point lights' direct light at every vertex (shadow rays from just off the surface),
+/// as VertexRadiance::Irradiance gives it: irradiance / pi, the mean of the channels. Their
+/// interreflected light is left out (docs/method.md, known gaps).
+void Estimator::AddPointLightIrradiance(std::vector<float>* irradiance) const {
+  if (points_.empty()) return;
+  const Mesh& m = scene_->mesh();
+  const double eps = 4 * scene_->epsilon();
+  ParallelForChunks(0, m.positions.size(), 256, [&](std::size_t b, std::size_t e) {
+    for (std::size_t v = b; v < e; ++v) {
+      const Eigen::Vector3d n = m.normals[v].cast<double>(), p = m.positions[v].cast<double>() + eps * n;
+      double sum = 0;
+      for (const PointLight& l : points_) {
+        const Eigen::Vector3d r = l.position - p;
+        const double d = r.norm(), c = d > 0 ? n.dot(r) / d : 0.0;
+        if (c > 0 && !scene_->Occluded(p, r / d, d)) sum += l.intensity.mean() * c / (d * d);
+      }
+      (*irradiance)[v] += static_cast<float>(sum / kPi);
+    }
+  });
+}
+
 bool Estimator::RefineAlbedo(int pass) {
   CheckCancel();
   Stopwatch as;
@@ -733,6 +798,7 @@ bool Estimator::RefineAlbedo(int pass) {
       }
       irradiance = radiance.Irradiance();
     }  // before the scene it refers to is replaced
+    AddPointLightIrradiance(&irradiance);
     segments = DelightAlbedo(&mesh_, irradiance);
   }
   res_.albedo_seconds += as.Seconds();

@@ -50,8 +50,9 @@ struct PointLightOptions {
   double holdout = 0.2;
   /// A light is kept when it lowers the held-out loss by at least this share,
   double min_gain = 0.02;
-  /// and renders at least this share of the observed light.
-  double min_share = 0.05;
+  /// and renders at least this share of the observed light (a lamp is what lights a good
+  /// part of the scene; fits of noise and of a map's discretization live below this).
+  double min_share = 0.1;
   /// Lights refined farther than this many scene radii from the centre are far lights:
   /// dropped, the map takes their light (a sun is not a lamp).
   double far = 5;
@@ -114,7 +115,12 @@ struct ConvergenceRow {
   /// With positions in truth.json: the worst distance (m) from a true near light to the
   /// nearest point light (infinite without one); NaN otherwise.
   double position_error_m = std::nan("");
-  /// "solve" (the intensities on a fixed A) or "lights" (a step of the positions' refinement).
+  /// "solve" (the map's and lights' intensities on a fixed A), "lights" (a step of the
+  /// lights' refinement, the map held) or "search" (round 1's search for lamps, the map
+  /// dark: each light it adds starts a new descent). The objective is the same function
+  /// in all (the Cauchy loss and every penalty); it never rises from one row to the next
+  /// within a round except where a search starts or adds a light, or where the number of
+  /// point lights changes (a light dropped: the model changed).
   const char* step = "solve";
 };
 

@@ -182,6 +182,23 @@ void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Ei
   });
 }
 
+void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& towards,
+                            std::vector<float>* out) {
+  const Eigen::Vector3d l = towards.normalized();
+  out->assign(3 * v.rows(), 0.0f);
+  ParallelForChunks(0, v.rows(), 64, [&](std::size_t b, std::size_t e) {
+    for (std::size_t r = b; r < e; ++r) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
+        const double cn = v.normal[k].cast<double>().dot(l), cg = v.geometric[k].cast<double>().dot(l);
+        if (!(cn > 0 && cg > 0) || scene.Occluded(v.position[k].cast<double>(), l)) continue;
+        sum += v.weight[k].cast<double>() * cn;
+      }
+      for (int c = 0; c < 3; ++c) (*out)[3 * r + c] = static_cast<float>(sum[c]);
+    }
+  });
+}
+
 std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vector<View>& views,
                                         const std::vector<PointLight>& lights, const TracerOptions& opt,
                                         bool all_pixels, TraceStats* stats) {

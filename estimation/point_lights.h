@@ -49,6 +49,11 @@ ShadingVertices Combine(const ShadingVertices& a, double a_samples, const Shadin
 void PointLightColumn(const RayTracer& scene, const ShadingVertices& vertices, const Eigen::Vector3d& q,
                       std::vector<float>* out, std::vector<float>* jacobian = nullptr);
 
+/// The column of a directional light of unit irradiance (on a surface facing it) from unit
+/// world direction `towards` (towards the light): out[3*row + c]. A far light's stand-in.
+void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& vertices, const Eigen::Vector3d& towards,
+                            std::vector<float>* out);
+
 /// Renders each view under the point lights (every pixel when `all_pixels`, else only the
 /// valid ones): the forward model of the columns above, with options.spp paths per pixel.
 std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vector<View>& views,

@@ -26,7 +26,9 @@ printf 'ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty floa
 expect "mesh.ply: mesh has no non-degenerate triangles" "$exe" estimate "$tmp/s" --out "$tmp/o" --quiet
 expect "unknown solver" "$exe" estimate "$tmp/s" --out "$tmp/o" --solver newton --quiet
 expect "unknown synthetic scene" "$exe" synth nope --out "$tmp/x"
-expect "exactly one of --envmap or --uniform" "$exe" render "$tmp/s" --out "$tmp/o"
+expect "exactly one of --envmap, --uniform or --lights" "$exe" render "$tmp/s" --out "$tmp/o"
+printf "{\"point_lights\": [{\"position\": [0, 0, 1], \"intensity\": [1, -1, 1]}]}" > "$tmp/bad_lights.json"
+expect "intensity is negative" "$exe" render "$tmp/s" --out "$tmp/o" --lights "$tmp/bad_lights.json"
 expect "nee-floor: Value 2 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --nee-floor 2 --quiet
 expect "albedo-passes: Value 9 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --albedo-passes 9 --quiet
 expect "albedo-samples: Value 0 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --albedo-samples 0 --quiet
