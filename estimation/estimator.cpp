@@ -228,7 +228,9 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   A_ = (opt_.combine_rounds && round > first) ? Combine(A_, Ar) : std::move(Ar);
 
   RoundProblem rp;
-  if (NearLights())
+  // Point lights: round 1 searches for them; later rounds trace their columns only if any
+  // were found (the far-light scenes pay for the search alone).
+  if (NearLights() && (round == 1 || !points_.empty()))
     rp.problem = MakeLinearProblem(AppendColumns(A_, PointColumns(round, first, &rp)), y_);
   else
     rp.problem = MakeLinearProblem(A_, y_);
@@ -467,7 +469,7 @@ void Estimator::Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo*
   res_.rendered_fraction = a_new.empty() ? 0.0 : rendered / a_new.size();
 
   lambda_.swap(next);
-  if (NearLights()) info->lights_moved = FitPointLights(rp, full, info);
+  if (NearLights() && (info->round == 1 || !points_.empty())) info->lights_moved = FitPointLights(rp, full, info);
   info->lambda = lambda_;
   for (double& v : info->lambda) v *= res_.image_mean;
   info->point_lights = InImageUnits(points_);
@@ -513,11 +515,30 @@ bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>
     RefinePositions(&kept, info);
     FoldLights(&kept, info->round);
     SolveWithLights(&kept, info, candidates && pass == 0);
+    // A light that renders too little of the light seen cannot be kept (SelectModel): drop
+    // it now rather than refine it (the far-light scenes' lights end here).
+    const std::size_t before = kept.size();
+    for (std::size_t k = 0; k < kept.size();) {
+      const double share = RenderedShare(kept[k]);
+      if (share >= opt_.point_lights.min_share) {
+        ++k;
+        continue;
+      }
+      const Eigen::Vector3d q = kept[k].position;
+      char line[240];
+      std::snprintf(line, sizeof line, "point light at (%.3f, %.3f, %.3f): renders %.3g of the light seen: dropped",
+                    q.x(), q.y(), q.z(), share);
+      res_.point_light_choices.push_back(line);
+      Progress(line);
+      kept.erase(kept.begin() + k);
+    }
+    if (kept.size() < before && !kept.empty()) SolveWithLights(&kept, info, false);
     bool settled = kept.size() == start.size();
     for (std::size_t k = 0; k < kept.size() && settled; ++k)
       settled = (kept[k].position - start[k].position).norm() < 0.01 * (start[k].position - centre_).norm();
     if (settled) break;
   }
+  if (candidates && kept.empty()) lambda_ = map;  // every light dropped: round 1's map stands
   if (candidates && !kept.empty()) {
     const std::size_t found = kept.size();
     SelectModel(&kept);
