@@ -325,12 +325,16 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
     int best = -1;
     double best_score = best_loss;
     Eigen::Vector3d best_I = Eigen::Vector3d::Zero();
+    // The intensity by least squares weighted as the Cauchy loss weighs what is left: a
+    // hot spot or a highlight (an outlier of the residual) does not set it.
+    std::vector<double> weight(residual.size());
+    for (std::size_t e = 0; e < residual.size(); ++e) weight[e] = 1 / (1 + residual[e] * residual[e] / s2);
     for (std::size_t i = 0; i < positions.size(); ++i) {
       const std::vector<float>& col = columns[i];
       Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
       for (std::size_t e = 0; e < col.size(); ++e) {
-        num[e % 3] += col[e] * residual[e];
-        den[e % 3] += double(col[e]) * col[e];
+        num[e % 3] += weight[e] * col[e] * residual[e];
+        den[e % 3] += weight[e] * double(col[e]) * col[e];
       }
       if (!(den.minCoeff() > 0)) continue;
       const Eigen::Vector3d I = num.cwiseQuotient(den).cwiseMax(0.0);
