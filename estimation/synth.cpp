@@ -163,6 +163,12 @@ std::vector<std::pair<std::string, std::string>> SynthSceneList() {
           {"two-light", "the same room, a warm key light and a cool fill light"},
           {"near-light", "the same room, one small light 0.6 m from the scene centre (far-light model under stress)"},
           {"sun-and-sky", "the same room under a 0.53-degree sun and a sky giving 1/1000 of its irradiance"},
+          {"lamp-0.5m", "the same room, one 5 cm lamp 0.5 m from the scene centre"},
+          {"lamp-1m", "the same room, one 5 cm lamp 1 m from the scene centre"},
+          {"lamp-2m", "the same room, one 5 cm lamp 2 m from the scene centre"},
+          {"lamp-4m", "the same room, one 5 cm lamp 4 m from the scene centre"},
+          {"two-lamps", "the same room, a warm and a cool 5 cm lamp about 1.7 m from the scene centre"},
+          {"lamp-and-sky", "the same room, a 5 cm lamp 1.5 m from the scene centre and a dim sky (1/20 of its irradiance)"},
           {"env-studio", "the same room lit by the real HDR map studio_small_03 (small bright softboxes)"},
           {"env-sunset", "the same room lit by the real HDR map venice_sunset (low sun, bright sky)"},
           {"frag115", "the real reconstructed mesh shared/data/mesh/frag_115.ply under one spherical light"}};
@@ -258,8 +264,10 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::p
   std::vector<SphereLight>& lights = lighting.lights;
   Vector3d& center = lighting.center;
   std::vector<Camera> cams;
+  const bool lamps = name == "lamp-0.5m" || name == "lamp-1m" || name == "lamp-2m" || name == "lamp-4m" ||
+                     name == "two-lamps" || name == "lamp-and-sky";
   const bool room = name == "one-light" || name == "two-light" || name == "near-light" || name == "sun-and-sky" ||
-                    name == "env-studio" || name == "env-sunset";
+                    name == "env-studio" || name == "env-sunset" || lamps;
   if (room) {
     b.mesh = RoomCorner();
     b.up = Vector3d::UnitZ();
@@ -274,6 +282,18 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::p
       lights.push_back(LightAt(center, Direction(80, 30), 200, 20.0, {0.55, 0.7, 1.0}, 1.2));
     } else if (name == "near-light") {
       lights.push_back(LightAt(center, Direction(40, 55), 0.6, 0.05, {1.0, 0.95, 0.85}, 1.0));
+      lighting.far = false;
+    } else if (lamps) {
+      // Lamps in the room (issue 20): 5 cm spheres, irradiance 1 at the centre each.
+      const double distance = name == "lamp-0.5m" ? 0.5 : name == "lamp-1m" ? 1.0 : name == "lamp-2m" ? 2.0
+                              : name == "lamp-4m"  ? 4.0 : name == "two-lamps" ? 1.7 : 1.5;
+      if (name == "two-lamps") {
+        lights.push_back(LightAt(center, Direction(35, 50), 1.7, 0.05, {1.0, 0.8, 0.55}, 1.0));
+        lights.push_back(LightAt(center, Direction(75, 35), 1.6, 0.05, {0.55, 0.75, 1.0}, 0.7));
+      } else {
+        lights.push_back(LightAt(center, Direction(40, 55), distance, 0.05, {1.0, 0.95, 0.85}, 1.0));
+      }
+      if (name == "lamp-and-sky") lighting.sky = Sky(b.up, 1.0 / 20);
       lighting.far = false;
     } else if (name == "sun-and-sky") {
       // The sun: 0.53 degrees across, 10 km away (parallel over the room); irradiance 3
