@@ -113,8 +113,6 @@ class Estimator {
   bool NearLights() const { return opt_.point_lights.max_lights > 0; }
   std::vector<std::vector<float>> PointColumns(int round, int first, RoundProblem* rp);
   bool FitPointLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info);
-  std::vector<double> RenderedPower(const RoundProblem& rp, const std::vector<double>& full) const;
-  std::vector<PointLight> PickCandidates(const RoundProblem& rp, const std::vector<double>& full) const;
   std::vector<PointLight> Candidates(RoundInfo* info);
   void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const char* step = "lights");
   void SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info, bool graduated);
@@ -312,11 +310,7 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
     PointLightColumn(*scene_, coarse, positions[i], &columns[i]);
   }
   const double s2 = res_.objective_params.sigma * res_.objective_params.sigma;
-  const auto loss = [&](const std::vector<double>& r) {
-    double e = 0;
-    for (double v : r) e += 0.5 * s2 * std::log1p(v * v / s2);
-    return e;
-  };
+  const auto loss = [&](const std::vector<double>& r) { return CauchyLoss(r, res_.objective_params.sigma); };
   std::fill(lambda_.begin(), lambda_.end(), 1e-3);
   std::vector<PointLight> lights;
   std::vector<double> residual = y_;
@@ -487,23 +481,9 @@ void Estimator::Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo*
            Fmt(" (in the image %.3g)", info->image_change) + Fmt(", KKT violation %.2g", sr.kkt_violation));
 }
 
-/// How much of the (normalized) images each point-light column renders, per position.
-std::vector<double> Estimator::RenderedPower(const RoundProblem& rp, const std::vector<double>& full) const {
-  const LinearProblem& p = rp.problem;
-  std::vector<double> power(rp.positions.size(), 0.0);
-  for (int k = 0; k < p.unknown_cells; ++k) {
-    const int i = p.cell_of[k] - cells_;
-    if (i < 0) continue;
-    const double* l = &full[3 * p.cell_of[k]];
-    for (std::int64_t e = p.col_start[k]; e < p.col_start[k + 1]; ++e)
-      power[i] += p.col_val[e][0] * l[0] + p.col_val[e][1] * l[1] + p.col_val[e][2] * l[2];
-  }
-  return power;
-}
-
-/// After a round's solve: the lights it lit (in round 1: up to max_lights candidates, the
-/// strongest apart from each other), their positions refined, far ones and twins folded
-/// away, and in round 1 each kept only if the held-out pixels want it. True when the lights
+/// After a round's solve: the lights it lit (in round 1: those the search finds), their
+/// positions refined, far ones, twins and weak ones folded away, and in round 1 each kept
+/// only if the held-out pixels want it. True when the lights
 /// moved or changed (the rounds then go on).
 bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info) {
   const bool candidates = info->round == 1;
@@ -606,28 +586,6 @@ void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info
   full.resize(3 * cells_);
   for (int j = 0; j < cells_; ++j)  // cells this problem did not reach keep their value
     if (reachable_[j]) std::copy(&full[3 * j], &full[3 * j] + 3, &lambda_[3 * j]);
-}
-
-/// Round 1's lit candidates, strongest (most rendered) first, each at least a third of its
-/// distance from the centre away from those picked before (a weaker neighbour's intensity
-/// is added to the one it is near: one lamp lights several candidates around it).
-std::vector<PointLight> Estimator::PickCandidates(const RoundProblem& rp, const std::vector<double>& full) const {
-  const std::vector<double> power = RenderedPower(rp, full);
-  std::vector<int> order;
-  for (std::size_t i = 0; i < rp.positions.size(); ++i)
-    if (power[i] > 0) order.push_back(static_cast<int>(i));
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return power[a] > power[b]; });
-  std::vector<PointLight> out;
-  for (int i : order) {
-    const Eigen::Vector3d q = rp.positions[i];
-    const Eigen::Vector3d I(full[3 * (cells_ + i)], full[3 * (cells_ + i) + 1], full[3 * (cells_ + i) + 2]);
-    PointLight* near = nullptr;
-    for (PointLight& l : out)
-      if ((l.position - q).norm() < (l.position - centre_).norm() / 3) near = &l;
-    if (near) continue;
-    if (static_cast<int>(out.size()) < opt_.point_lights.max_lights) out.push_back({q, I, 0});
-  }
-  return out;
 }
 
 /// Levenberg-Marquardt on the lights' positions and intensities, the map's render held
@@ -762,14 +720,9 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
   std::vector<double> x(3 * full.cells, 0.0);
   for (int k = 0; k < problem.unknown_cells; ++k)
     for (int c = 0; c < 3; ++c) x[3 * problem.cell_of[k] + c] = sr.lambda[3 * k + c];
-  const std::vector<double> predicted = held.Multiply(x);
-  const double s2 = params.sigma * params.sigma;
-  double loss = 0;
-  for (std::size_t i = 0; i < predicted.size(); ++i) {
-    const double r = y_held[i] - predicted[i];
-    loss += 0.5 * s2 * std::log1p(r * r / s2);
-  }
-  return loss;
+  std::vector<double> residual = held.Multiply(x);
+  for (std::size_t i = 0; i < residual.size(); ++i) residual[i] = y_held[i] - residual[i];
+  return CauchyLoss(residual, params.sigma);
 }
 
 // Albedo refinement: the reconstruction's albedo is the colour seen, flattened per

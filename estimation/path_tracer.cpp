@@ -81,6 +81,7 @@ using detail::Counters;
 using detail::ForEachPixel;
 using detail::PixelRef;
 using detail::PixelsToTrace;
+using detail::PathContinues;
 
 /// One camera sample of pixel (x, y): calls sink(cell, rgb weight) for every
 /// contribution; the pixel value is sum(weight * lambda_cell) / spp.
@@ -123,19 +124,7 @@ void TracePath(const RayTracer& scene, const EnvMap& env, const CellSampler& sam
       ++cnt.max_bounces;
       return;
     }
-    const double tmax = T.maxCoeff();
-    if (tmax < opt.min_throughput) {
-      ++cnt.negligible;
-      return;
-    }
-    if (bounce + 1 >= opt.roulette_after) {
-      const double p = std::min(0.95, tmax);
-      if (rng.Uniform() >= p) {
-        ++cnt.roulette;
-        return;
-      }
-      T /= p;
-    }
+    if (!PathContinues(bounce, opt, &T, rng, cnt)) return;
     hit = next;
   }
 }

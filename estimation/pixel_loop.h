@@ -2,11 +2,13 @@
 /// The tracers' pixel loop (private to estimation/): which pixels a trace covers, in the
 /// transport matrix's row order, and a parallel loop over them in chunks of 64 that polls
 /// the cancel callback and sums the path counters.
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 #include <vector>
 
 #include "common/parallel.h"
+#include "common/rng.h"
 #include "estimation/path_tracer.h"
 
 namespace lp::detail {
@@ -19,6 +21,26 @@ struct PixelRef {
 struct Counters {
   std::int64_t paths = 0, rays = 0, roulette = 0, negligible = 0, max_bounces = 0;
 };
+
+/// After a bounce that hit a surface: whether the path goes on, by throughput `T` (paths
+/// below options.min_throughput stop as negligible) and, from options.roulette_after on,
+/// Russian roulette (survival probability min(0.95, max T), `T` divided by it; one draw).
+inline bool PathContinues(int bounce, const TracerOptions& opt, Eigen::Vector3d* T, Rng& rng, Counters& cnt) {
+  const double tmax = T->maxCoeff();
+  if (tmax < opt.min_throughput) {
+    ++cnt.negligible;
+    return false;
+  }
+  if (bounce + 1 >= opt.roulette_after) {
+    const double p = std::min(0.95, tmax);
+    if (rng.Uniform() >= p) {
+      ++cnt.roulette;
+      return false;
+    }
+    *T /= p;
+  }
+  return true;
+}
 
 /// The valid pixels of every view (every pixel when `all_pixels`), view by view, in row order.
 inline std::vector<PixelRef> PixelsToTrace(const std::vector<View>& views, bool all_pixels) {

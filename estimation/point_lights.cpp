@@ -18,6 +18,7 @@ using detail::Counters;
 using detail::ForEachPixel;
 using detail::PixelRef;
 using detail::PixelsToTrace;
+using detail::PathContinues;
 
 /// One camera path of pixel (x, y): calls vertex(hit, offset origin, weight) at every
 /// surface interaction, weight = throughput x albedo / pi (per sample).
@@ -45,19 +46,7 @@ void WalkPath(const RayTracer& scene, const Camera& cam, int x, int y, Rng& rng,
     ++cnt.rays;
     SurfacePoint next;
     if (!scene.Intersect(off, w, &next)) return;
-    const double tmax = T.maxCoeff();
-    if (tmax < opt.min_throughput) {
-      ++cnt.negligible;
-      return;
-    }
-    if (bounce + 1 >= opt.roulette_after) {
-      const double p = std::min(0.95, tmax);
-      if (rng.Uniform() >= p) {
-        ++cnt.roulette;
-        return;
-      }
-      T /= p;
-    }
+    if (!PathContinues(bounce, opt, &T, rng, cnt)) return;
     hit = next;
   }
 }
@@ -247,8 +236,6 @@ std::vector<Eigen::Vector3d> CandidatePositions(const Eigen::Vector3d& centre, d
 
 namespace {
 
-double Cauchy(double r, double sigma) { return 0.5 * sigma * sigma * std::log1p(r * r / (sigma * sigma)); }
-
 /// Residuals y - base - sum_k I_k c_k over all rows, with the lights' columns (and
 /// Jacobians when asked).
 std::vector<double> Residual(const PointFitProblem& p, const std::vector<PointLight>& lights,
@@ -267,13 +254,19 @@ std::vector<double> Residual(const PointFitProblem& p, const std::vector<PointLi
 }
 
 double Energy(const PointFitProblem& p, const std::vector<PointLight>& lights, const std::vector<double>& r) {
-  double e = 0;
-  for (double v : r) e += Cauchy(v, p.sigma);
+  double e = CauchyLoss(r, p.sigma);
   for (const PointLight& l : lights) e += p.alpha * std::log1p(p.beta * std::max(0.0, l.intensity.sum()));
   return e;
 }
 
 }  // namespace
+
+double CauchyLoss(const std::vector<double>& r, double sigma) {
+  const double s2 = sigma * sigma;
+  double e = 0;
+  for (double v : r) e += 0.5 * s2 * std::log1p(v * v / s2);
+  return e;
+}
 
 double PointFitProblem::Value(const std::vector<PointLight>& lights) const {
   std::vector<std::vector<float>> columns;

@@ -72,6 +72,9 @@ std::vector<Eigen::Vector3d> CandidatePositions(const Eigen::Vector3d& centre, d
                                                 const Eigen::Vector3d& up, int rings = 7,
                                                 const std::vector<double>& radii = {0.35, 0.6, 1.0, 1.6});
 
+/// sum_i sigma^2/2 log(1 + r_i^2/sigma^2): the Cauchy loss of residuals `r`.
+double CauchyLoss(const std::vector<double>& r, double sigma);
+
 /// The robust objective of point lights on fixed shading vertices, the rest of the image
 /// (`base`: the environment's render, 3 per row) held fixed:
 ///   E = sum rho_sigma(y - base - sum_k I_k . c(q_k)) + sum_k alpha log(1 + beta sum_c I_kc).

@@ -616,11 +616,7 @@ TEST(Stability, TwoLightsAtOnePositionStayFiniteAndMerge) {
   TracerOptions t;
   t.spp = 4;
   const ShadingVertices v = GatherShadingVertices(scene, b.views, t);
-  std::vector<double> y;
-  for (const View& view : b.views)
-    for (std::size_t i = 0; i < view.valid.size(); ++i)
-      if (view.valid[i])
-        for (int c = 0; c < 3; ++c) y.push_back(view.image.data[3 * i + c]);
+  const std::vector<double> y = CollectObservations(b.views);
   const std::vector<double> base(y.size(), 0.0);
   PointFitProblem fit;
   fit.scene = &scene;
