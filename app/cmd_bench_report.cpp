@@ -561,7 +561,7 @@ Run AddBenchReport(CLI::App& app) {
   cmd->add_option("--synth-spp", o->synth_spp, "samples per pixel of the reference images")->capture_default_str();
   cmd->add_flag("--sweep-all-sizes", o->sweep_all_sizes, "sweep the knobs at every size (default: the first only)");
   cmd->add_flag("--quick", o->quick, "a small smoke run: fewer settings, shorter caps (for tests)");
-  cmd->add_option("--data", o->data, "shared data directory")->capture_default_str();
+  cmd->add_option("--data", o->data, "data directory (hdri/, mesh/; the bundled assets by default)")->capture_default_str();
   cmd->add_option("--threads", o->threads, "worker threads (0 = all cores)")->capture_default_str();
   return [o] {
     ThreadLimit limit(o->threads);

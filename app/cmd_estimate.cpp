@@ -23,9 +23,9 @@ using nlohmann::json;
 std::string DefaultDataDir() {
   if (const char* env = std::getenv("LIGHTPROBE_DATA")) return env;
 #ifdef LIGHTPROBE_SOURCE_DIR
-  return (fs::path(LIGHTPROBE_SOURCE_DIR) / ".." / "shared" / "data").lexically_normal().string();
+  return (fs::path(LIGHTPROBE_SOURCE_DIR) / "assets").lexically_normal().string();
 #else
-  return "../shared/data";
+  return "assets";
 #endif
 }
 

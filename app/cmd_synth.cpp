@@ -42,7 +42,7 @@ Run AddSynth(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--depth-noise", o->depth_noise,
                 "with --frames: structured-light depth noise and holes (Xtion-like; default exact depth)");
-  cmd->add_option("--data", *data, "shared data directory (mesh/ for frag115, hdri/ for env-*)")->capture_default_str();
+  cmd->add_option("--data", *data, "data directory (mesh/ for frag115, hdri/ for env-*)")->capture_default_str();
   cmd->add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--min-triangles", *min_triangles,
                   "split the bundle's triangles (same surface) until it has at least this many (viewer benchmark)")

@@ -73,7 +73,7 @@ double SecondsPerCellRender(const RayTracer& scene, const EnvMap& env, const std
 /// A number for CSV files: %.9g, empty for NaN.
 std::string Num(double v);
 
-/// Where shared/data lives (LIGHTPROBE_DATA, else ../shared/data next to the source tree).
+/// Where the bundled data lives: LIGHTPROBE_DATA, else the source tree's assets/ (hdri/, mesh/, rgbd/).
 std::string DefaultDataDir();
 
 }  // namespace lp::app

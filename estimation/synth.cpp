@@ -171,7 +171,7 @@ std::vector<std::pair<std::string, std::string>> SynthSceneList() {
           {"lamp-and-sky", "the same room, a 5 cm lamp 1.5 m from the scene centre and a dim sky (1/20 of its irradiance)"},
           {"env-studio", "the same room lit by the real HDR map studio_small_03 (small bright softboxes)"},
           {"env-sunset", "the same room lit by the real HDR map venice_sunset (low sun, bright sky)"},
-          {"frag115", "the real reconstructed mesh shared/data/mesh/frag_115.ply under one spherical light"}};
+          {"frag115", "the real reconstructed mesh assets/mesh/frag_115.ply under one spherical light"}};
 }
 
 std::vector<double> TrueCellRadiance(const SynthLighting& lighting, const EnvMap& env) {

@@ -61,7 +61,7 @@ struct SynthScene {
 std::vector<std::pair<std::string, std::string>> SynthSceneList();
 
 /// Builds and renders scene `name` (throws InputError for an unknown name).
-/// `data_dir` is shared/data: the real mesh for "frag115" is read from data_dir/mesh,
+/// `data_dir` is the bundled assets/ directory: the real mesh for "frag115" is read from data_dir/mesh,
 /// the HDR maps of the env-* scenes from data_dir/hdri.
 SynthScene MakeSynth(const std::string& name, const SynthOptions& options, const std::filesystem::path& data_dir);
 SceneBundle MakeSynthScene(const std::string& name, const SynthOptions& options,

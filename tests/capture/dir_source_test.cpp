@@ -1,4 +1,4 @@
-// Directory sources on the real sequences in shared/data/rgbd (Redwood, joinMap) and a TUM
+// Directory sources on the real sequences in assets/rgbd (Redwood) and tests/data/rgbd (joinMap) and a TUM
 // layout built from TUM's own frame: depth scale, intrinsics, poses, clear errors.
 #include <algorithm>
 #include <filesystem>
@@ -14,7 +14,8 @@ namespace lp {
 namespace {
 namespace fs = std::filesystem;
 
-const fs::path kData = fs::path(LIGHTPROBE_SOURCE_DIR) / ".." / "shared" / "data" / "rgbd";
+const fs::path kAssets = fs::path(LIGHTPROBE_SOURCE_DIR) / "assets" / "rgbd";
+const fs::path kTestData = fs::path(LIGHTPROBE_SOURCE_DIR) / "tests" / "data" / "rgbd";
 
 std::uint16_t MedianValid(const DepthImage& d) {
   std::vector<std::uint16_t> v;
@@ -33,8 +34,7 @@ std::vector<RgbdFrame> ReadAll(FrameSource& s) {
 }
 
 TEST(DirectorySource, RedwoodReplaysWithIntrinsicsAndPoses) {
-  const fs::path dir = kData / "redwood_open3d" / "RGBD";
-  if (!fs::exists(dir)) GTEST_SKIP() << "shared data not present";
+  const fs::path dir = kAssets / "redwood_open3d" / "RGBD";
   auto s = OpenDirectorySource(dir.string());
   ASSERT_EQ(s->FrameCount(), 5);
   const auto frames = ReadAll(*s);
@@ -64,8 +64,7 @@ TEST(DirectorySource, RedwoodReplaysWithIntrinsicsAndPoses) {
 }
 
 TEST(DirectorySource, JoinMapReplaysWithPoses) {
-  const fs::path dir = kData / "joinmap_slambook";
-  if (!fs::exists(dir)) GTEST_SKIP() << "shared data not present";
+  const fs::path dir = kTestData / "joinmap_slambook";
   auto s = OpenDirectorySource(dir.string());
   const auto frames = ReadAll(*s);
   ASSERT_EQ(frames.size(), 5u);
@@ -82,8 +81,7 @@ TEST(DirectorySource, JoinMapReplaysWithPoses) {
 class TumDir : public ::testing::Test {
  protected:
   void SetUp() override {
-    src_ = kData / "redwood_open3d" / "RGBD" / "other_formats";
-    if (!fs::exists(src_ / "TUM_depth.png")) GTEST_SKIP() << "shared data not present";
+    src_ = kTestData / "tum_one_frame";
     dir_ = fs::temp_directory_path() / ("lp_tum_" + std::to_string(::getpid()));
     fs::create_directories(dir_ / "rgb");
     fs::create_directories(dir_ / "depth");

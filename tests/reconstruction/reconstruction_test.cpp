@@ -22,7 +22,8 @@ namespace lp {
 namespace {
 namespace fs = std::filesystem;
 
-const fs::path kData = fs::path(LIGHTPROBE_SOURCE_DIR) / ".." / "shared" / "data";
+const fs::path kAssets = fs::path(LIGHTPROBE_SOURCE_DIR) / "assets";
+const fs::path kTestData = fs::path(LIGHTPROBE_SOURCE_DIR) / "tests" / "data";
 
 double Percentile(std::vector<float> v, double q) {
   std::sort(v.begin(), v.end());
@@ -398,8 +399,7 @@ TEST(Reconstruction, RegisteredDepthIsUndistortedWithTheColour) {
 
 // Real Redwood frames (PrimeSense, 640x480) tracked against the dataset's trajectory.
 TEST(Reconstruction, RedwoodFramesAgainstTheirTrajectory) {
-  const fs::path dir = kData / "rgbd" / "redwood_open3d" / "RGBD";
-  if (!fs::exists(dir)) GTEST_SKIP() << "shared data not present";
+  const fs::path dir = kAssets / "rgbd" / "redwood_open3d" / "RGBD";
   Reconstructor rec(ReconstructionOptions{});
   const Tracked run = Track(rec, ReadFrames(dir));
   const int tracked = run.tracked, n = run.frames;
@@ -414,8 +414,7 @@ TEST(Reconstruction, RedwoodFramesAgainstTheirTrajectory) {
 // far beyond what frame-to-model ICP from the last pose can bridge; colour features
 // (Relocalizer) give the starting pose, ICP refines it.
 TEST(Reconstruction, JoinMapLargeMotionsTrackedWithRelocalization) {
-  const fs::path dir = kData / "rgbd" / "joinmap_slambook";
-  if (!fs::exists(dir)) GTEST_SKIP() << "shared data not present";
+  const fs::path dir = kTestData / "rgbd" / "joinmap_slambook";
   const std::vector<RgbdFrame> frames = ReadFrames(dir);
   for (bool relocalize : {false, true}) {
     ReconstructionOptions o;
