@@ -285,6 +285,7 @@ static json FinalJson(const EstimateResult& r) {
   if (!std::isnan(r.final_angular_error_deg)) result["angular_error_deg"] = r.final_angular_error_deg;
   if (!std::isnan(r.final_position_error_m))
     result["position_error_m"] = std::isfinite(r.final_position_error_m) ? json(r.final_position_error_m) : json("inf");
+  if (std::isfinite(r.final_position_error_share)) result["position_error_share"] = r.final_position_error_share;
   result["rendered_fraction"] = r.rendered_fraction;
   result["point_lights"] = PointLightsJson(r.point_lights);
   result["scene_centre"] = {r.scene_centre.x(), r.scene_centre.y(), r.scene_centre.z()};
@@ -363,7 +364,9 @@ Run AddEstimate(CLI::App& app) {
                 sw.Seconds(), r.final_relative_rmse);
     if (!std::isnan(r.final_angular_error_deg)) std::printf("; dominant light error %.2f deg", r.final_angular_error_deg);
     std::printf("; %zu point light(s)", r.point_lights.size());
-    if (std::isfinite(r.final_position_error_m)) std::printf(", lamp position error %.3f m", r.final_position_error_m);
+    if (std::isfinite(r.final_position_error_m))
+      std::printf("; the lamp is %.1f cm from the true one (%.1f %% of its distance from the scene)",
+                  100 * r.final_position_error_m, 100 * r.final_position_error_share);
     std::printf("\nresults in %s (lights.json, envmap.exr, envmap_directions.csv, render_view*.png, error_view*.png, "
                 "convergence.csv/.png, report.json%s)\n",
                 fs::absolute(*out).lexically_normal().c_str(), r.albedo.empty() ? "" : ", albedo_mesh.ply");

@@ -124,7 +124,6 @@ class Estimator {
   };
   double HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalStandIn* directional = nullptr) const;
   double RenderedShare(const PointLight& light) const;
-  void AddPointLightIrradiance(std::vector<float>* irradiance) const;
   ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params) const;
   void Score(ConvergenceRow* row, const std::vector<double>& env_lambda, const std::vector<PointLight>& points) const;
   std::vector<PointLight> InImageUnits(std::vector<PointLight> lights) const {
@@ -739,27 +738,6 @@ bool Estimator::AlbedoRefinable() {
   return true;
 }
 
-/// The point lights' direct light at every vertex (shadow rays from just off the surface),
-/// as VertexRadiance::Irradiance gives it: irradiance / pi, the mean of the channels. Their
-/// interreflected light is left out (docs/method.md, known gaps).
-void Estimator::AddPointLightIrradiance(std::vector<float>* irradiance) const {
-  if (points_.empty()) return;
-  const Mesh& m = scene_->mesh();
-  const double eps = 4 * scene_->epsilon();
-  ParallelForChunks(0, m.positions.size(), 256, [&](std::size_t b, std::size_t e) {
-    for (std::size_t v = b; v < e; ++v) {
-      const Eigen::Vector3d n = m.normals[v].cast<double>(), p = m.positions[v].cast<double>() + eps * n;
-      double sum = 0;
-      for (const PointLight& l : points_) {
-        const Eigen::Vector3d r = l.position - p;
-        const double d = r.norm(), c = d > 0 ? n.dot(r) / d : 0.0;
-        if (c > 0 && !scene_->Occluded(p, r / d, d)) sum += l.intensity.mean() * c / (d * d);
-      }
-      (*irradiance)[v] += static_cast<float>(sum / kPi);
-    }
-  });
-}
-
 bool Estimator::RefineAlbedo(int pass) {
   CheckCancel();
   Stopwatch as;
@@ -769,14 +747,13 @@ bool Estimator::RefineAlbedo(int pass) {
                  static_cast<double>(mesh_.positions.size()), opt_.albedo_samples));
     std::vector<float> irradiance;
     {
-      VertexRadiance radiance(*scene_, env_, lambda_, opt_.tracer.bounces, opt_.tracer.seed * 7919 + pass);
+      VertexRadiance radiance(*scene_, env_, lambda_, opt_.tracer.bounces, opt_.tracer.seed * 7919 + pass, points_);
       for (int done = 0; done < opt_.albedo_samples; done += 2) {  // Cancel is polled between steps
         radiance.Refine(std::min(2, opt_.albedo_samples - done));
         CheckCancel();
       }
       irradiance = radiance.Irradiance();
     }  // before the scene it refers to is replaced
-    AddPointLightIrradiance(&irradiance);
     segments = DelightAlbedo(&mesh_, irradiance);
   }
   res_.albedo_seconds += as.Seconds();
@@ -805,7 +782,8 @@ void Estimator::Conclude() {
   if (!truth_.empty()) {
     res_.final_angular_error_deg = DominantAngularErrorDeg(env_, res_.lambda, res_.point_lights, centre_, truth_);
     res_.final_position_error_m =
-        WorstPositionError(res_.point_lights, truth_, centre_, opt_.point_lights.far * radius_);
+        WorstPositionError(res_.point_lights, truth_, centre_, opt_.point_lights.far * radius_,
+                           &res_.final_position_error_share);
   }
   res_.dominant = DominantDirections(env_, res_.lambda, 2);
   // A fit that renders (almost) nothing is the activation penalty winning over data it no

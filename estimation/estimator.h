@@ -172,6 +172,8 @@ struct EstimateResult {
   std::vector<std::string> point_light_choices;
   Eigen::Vector3d scene_centre = Eigen::Vector3d::Zero();  ///< the mesh's bounding box's centre
   double final_position_error_m = std::nan("");  ///< as ConvergenceRow::position_error_m
+  /// The worst near true light's position error over its distance from the scene centre.
+  double final_position_error_share = std::nan("");
   /// The rendered estimate's mean over the observed pixels, relative to theirs (1 = as
   /// bright as the images); from the last round's A.
   double rendered_fraction = 0;

@@ -169,14 +169,18 @@ double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lam
 }
 
 double WorstPositionError(const std::vector<PointLight>& points, const std::vector<TruthLight>& truth,
-                          const Eigen::Vector3d& centre, double far_distance) {
-  double worst = std::nan("");
+                          const Eigen::Vector3d& centre, double far_distance, double* share) {
+  double worst = std::nan(""), worst_share = std::nan("");
   for (const TruthLight& t : truth) {
-    if (!t.position || !((*t.position - centre).norm() < far_distance)) continue;
+    const double distance = t.position ? (*t.position - centre).norm() : 0.0;
+    if (!t.position || !(distance < far_distance)) continue;
     double best = std::numeric_limits<double>::infinity();
     for (const PointLight& p : points) best = std::min(best, (p.position - *t.position).norm());
     worst = std::isnan(worst) ? best : std::max(worst, best);
+    const double s = distance > 0 ? best / distance : std::numeric_limits<double>::infinity();
+    worst_share = std::isnan(worst_share) ? s : std::max(worst_share, s);
   }
+  if (share) *share = worst_share;
   return worst;
 }
 

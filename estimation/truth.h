@@ -60,9 +60,10 @@ double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lam
 
 /// The worst distance (metres) from a true near light (one with a position less than
 /// `far_distance` from `centre`) to the nearest estimated point light; NaN when the truth
-/// has no near light, infinity when the estimate has no point light.
+/// has no near light, infinity when the estimate has no point light. `share`, when given,
+/// receives the worst of each near light's error over its distance from `centre`.
 double WorstPositionError(const std::vector<PointLight>& points, const std::vector<TruthLight>& truth,
-                          const Eigen::Vector3d& centre, double far_distance);
+                          const Eigen::Vector3d& centre, double far_distance, double* share = nullptr);
 
 double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
 

@@ -12,8 +12,9 @@
 namespace lp {
 
 VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, std::vector<double> lambda, int bounces,
-                               std::uint64_t seed)
-    : scene_(scene), env_(env), lambda_(std::move(lambda)), bounces_(bounces), seed_(seed) {
+                               std::uint64_t seed, std::vector<PointLight> points)
+    : scene_(scene), env_(env), lambda_(std::move(lambda)), points_(std::move(points)), bounces_(bounces),
+      seed_(seed) {
   LP_CHECK(static_cast<int>(lambda_.size()) == 3 * env.size(), "lambda has " << lambda_.size() << " values for "
                                                                                << env.size() << " cells");
   sampler_ = std::make_unique<CellSampler>(env, lambda_, std::vector<std::uint8_t>{}, 0.05);
@@ -22,6 +23,28 @@ VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, std::v
 }
 
 VertexRadiance::~VertexRadiance() = default;
+
+namespace {
+
+/// The point lights' irradiance / pi at `origin` (already off the surface) with shading
+/// normal `n`: a shadow ray each, light below the geometric horizon absorbed.
+Eigen::Vector3d PointLightsIncident(const RayTracer& scene, const std::vector<PointLight>& points,
+                                    const Eigen::Vector3d& origin, const Eigen::Vector3d& n,
+                                    const Eigen::Vector3d& geometric) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const PointLight& l : points) {
+    const Eigen::Vector3d r = l.position - origin;
+    const double d = r.norm();
+    if (!(d > 0)) continue;
+    const Eigen::Vector3d dir = r / d;
+    const double c = n.dot(dir);
+    if (c <= 0 || geometric.dot(dir) <= 0 || scene.Occluded(origin, dir, d)) continue;
+    sum += l.intensity * (c / (d * d * kPi));
+  }
+  return sum;
+}
+
+}  // namespace
 
 void VertexRadiance::Refine(int samples) {
   const Mesh& mesh = scene_.mesh();
@@ -44,6 +67,8 @@ void VertexRadiance::Refine(int samples) {
         for (int bounce = 0; bounce < bounces_; ++bounce) {
           const NextEvent ne = SampleNextEvent(scene_, env_, *sampler_, n, geometric, origin, rng);
           if (ne.visible) sum_[v] += throughput.cwiseProduct(cell(ne.cell)) * ne.weight;
+          if (!points_.empty())
+            sum_[v] += throughput.cwiseProduct(PointLightsIncident(scene_, points_, origin, n, geometric));
           const double u1 = rng.Uniform(), u2 = rng.Uniform();
           const Eigen::Vector3d dir = SampleCosine(n, u1, u2);
           if (geometric.dot(dir) <= 0) break;

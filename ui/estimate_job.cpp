@@ -95,6 +95,7 @@ EstimateOptions EstimateJob::Callbacks() {
       if (!s.env) s.env = std::make_shared<const EnvMap>(env);
       s.lambda = info.lambda;
       s.dominant = dominant;
+      s.point_lights = info.point_lights;
       ++s.version;
       s.progress = static_cast<double>(info.round) / (max_rounds + 1);
       if (std::isnan(s.seconds_to_first)) s.seconds_to_first = t;
@@ -139,6 +140,7 @@ void EstimateJob::Run(SceneSource source) {
     s.progress = 1;
     s.result = result;
     s.lambda = result->lambda;
+    s.point_lights = result->point_lights;
     s.dominant = result->dominant;
     if (!s.env) s.env = std::make_shared<const EnvMap>(result->env);
     ++s.version;
@@ -155,7 +157,8 @@ void EstimateJob::RefineLit(const SceneBundle& scene, const EstimateResult& resu
     Mesh mesh = scene.mesh;
     if (result.albedo.size() == mesh.positions.size()) mesh.albedo = result.albedo;  // refined
     const RayTracer tracer(std::move(mesh));
-    VertexRadiance radiance(tracer, result.env, result.lambda, std::max(1, settings_.options.tracer.bounces));
+    VertexRadiance radiance(tracer, result.env, result.lambda, std::max(1, settings_.options.tracer.bounces), 1,
+                            result.point_lights);
     const int target = settings_.lit_samples;
     int step = 2;
     // The error shading follows the radiance's noise down: recomputed at 2 samples, then

@@ -314,10 +314,42 @@ void Viewer::DrawScene(const Rect& r) {
   line_program_.Use();
   glUniformMatrix4fv(line_program_.Uniform("view_projection"), 1, GL_FALSE, vp.data());
   lines_.Draw();
+  // The lamps over everything: they are often behind a wall or outside the scan.
   glDisable(GL_DEPTH_TEST);
+  lines_.Clear();
+  AddLampMarkers(size);
+  lines_.Draw();
+  view_projection_ = vp;
   RenderTarget::Unbind();
   glViewport(0, 0, fb_w, fb_h);
   ++scene_renders_;
+}
+
+/// Each point light as a small octahedron with its axes, in its colour (brightest channel
+/// at full scale), sized by the square root of its share of the brightest lamp.
+void Viewer::AddLampMarkers(float size) {
+  double top = 0;
+  for (const PointLight& l : est_.point_lights) top = std::max(top, Luminance(l.intensity.x(), l.intensity.y(), l.intensity.z()));
+  if (!(top > 0)) return;
+  for (const PointLight& l : est_.point_lights) {
+    const Eigen::Vector3f p = l.position.cast<float>();
+    const double lum = Luminance(l.intensity.x(), l.intensity.y(), l.intensity.z());
+    const float s = size * (0.4f + 0.6f * static_cast<float>(std::sqrt(std::max(0.0, lum / top))));
+    const double peak = l.intensity.maxCoeff();
+    Eigen::Vector3f color = Eigen::Vector3f::Ones();
+    if (peak > 0) color = (l.intensity / peak).cast<float>();
+    color = color.cwiseMax(0.15f);
+    Eigen::Vector3f tip[6];
+    for (int a = 0; a < 3; ++a) {
+      tip[2 * a] = p + s * Eigen::Vector3f::Unit(a);
+      tip[2 * a + 1] = p - s * Eigen::Vector3f::Unit(a);
+      lines_.Add(tip[2 * a], tip[2 * a + 1], color);
+    }
+    for (int a = 0; a < 3; ++a)
+      for (int b = a + 1; b < 3; ++b)
+        for (int i = 0; i < 2; ++i)
+          for (int j = 0; j < 2; ++j) lines_.Add(tip[2 * a + i], tip[2 * b + j], color);
+  }
 }
 
 void Viewer::HandleMouse(const Rect& r) {
@@ -508,12 +540,28 @@ void Viewer::PanelEstimate() {
     ImGui::Text("first estimate after %.2f s%s", est_.seconds_to_first,
                 std::isnan(est_.seconds_total) ? "" : (", done after " + std::to_string(est_.seconds_total).substr(0, 5) + " s").c_str());
   PlotConvergence(kPanelWidth - 16, 110);
+  if (!est_.point_lights.empty()) {
+    ImGui::Text("lamps (point lights), world frame:");
+    for (std::size_t k = 0; k < est_.point_lights.size(); ++k) {
+      const PointLight& l = est_.point_lights[k];
+      const double peak = std::max(1e-30, l.intensity.maxCoeff());
+      ImGui::ColorButton(("##lamp" + std::to_string(k)).c_str(),
+                         ImVec4(static_cast<float>(l.intensity.x() / peak), static_cast<float>(l.intensity.y() / peak),
+                                static_cast<float>(l.intensity.z() / peak), 1.f),
+                         ImGuiColorEditFlags_NoTooltip, ImVec2(12, 12));
+      ImGui::SameLine();
+      ImGui::Text("(%.2f, %.2f, %.2f) m  I %.3g %.3g %.3g", l.position.x(), l.position.y(), l.position.z(),
+                  l.intensity.x(), l.intensity.y(), l.intensity.z());
+    }
+  }
   if (!est_.export_message.empty()) ImGui::TextWrapped("%s", est_.export_message.c_str());
   if (ImGui::CollapsingHeader("Settings")) {
     ImGui::SliderInt("rings", &settings_.rings, 5, 41);
     ImGui::SliderInt("samples/pixel", &settings_.tracer.spp, 8, 256);
     ImGui::SliderInt("bounces", &settings_.tracer.bounces, 1, 5);
     ImGui::SliderInt("rounds", &settings_.max_rounds, 1, 6);
+    ImGui::SliderInt("point lights", &settings_.point_lights.max_lights, 0, 8);
+    if (ImGui::IsItemHovered()) ImGui::SetTooltip("at most this many lamps beside the map; 0 = the map alone");
     ImGui::SliderInt("albedo passes", &settings_.albedo_passes, 0, kMaxAlbedoPasses);
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip("refine the reconstruction's albedo under the estimate (de-lit colours), then more rounds");
@@ -594,6 +642,9 @@ void Viewer::PanelEnvironment() {
   }
   ImGui::Text("directions: %d (%d rings); dominant light(s) circled; drag the 3D view to turn the sphere",
               est_.env ? est_.env->size() : 0, est_.env ? est_.env->rings() : 0);
+  const bool map_dark = std::all_of(est_.lambda.begin(), est_.lambda.end(), [](double v) { return v <= 0; });
+  if (map_dark && !est_.point_lights.empty())
+    ImGui::Text("the map is dark: the light comes from the %zu lamp(s) drawn in the 3D view", est_.point_lights.size());
   ImGui::End();
 }
 
@@ -769,6 +820,12 @@ void Viewer::WriteState(const std::string& path) const {
   auto vec = [](const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); };
   j["estimate"]["dominant"] = json::array();
   for (const Eigen::Vector3d& d : est_.dominant) j["estimate"]["dominant"].push_back(vec(d));
+  // The lamps, and how the 3D view projects the world (column-major, to NDC over view3d).
+  j["estimate"]["point_lights"] = json::array();
+  for (const PointLight& l : est_.point_lights)
+    j["estimate"]["point_lights"].push_back({{"position", vec(l.position)}, {"intensity", vec(l.intensity)}});
+  j["view3d_projection"] = std::vector<float>(view_projection_.data(), view_projection_.data() + 16);
+  j["orbit_target"] = vec(camera_.target.cast<double>());
   if (est_.env)
     j["estimate"]["env_frame"] = {
         {"up", vec(est_.env->up())}, {"frame_x", vec(est_.env->frame_x())}, {"frame_y", vec(est_.env->frame_y())}};

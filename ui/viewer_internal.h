@@ -54,6 +54,7 @@ class Viewer {
   void SyncModel();
   void SyncShading();
   void DrawScene(const Rect& r);
+  void AddLampMarkers(float size);
   std::string SceneKey(const Rect& r) const;
   void HandleMouse(const Rect& r);
   void PanelSource();
@@ -93,6 +94,7 @@ class Viewer {
   bool headlight_ = true;
   float exposure_ = 1.f;
   OrbitCamera camera_;
+  Eigen::Matrix4f view_projection_ = Eigen::Matrix4f::Identity();  ///< the 3D view's, last drawn
   bool camera_set_ = false;
   Rect view_rect_, env_rect_, equirect_rect_, sphere_rect_, live_rect_;
   int selected_keyframe_ = -1, compare_keyframe_ = -1;

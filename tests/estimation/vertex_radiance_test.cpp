@@ -6,11 +6,40 @@
 
 #include "common/rng.h"
 #include "estimation/path_tracer.h"
+#include "estimation/point_lights.h"
 #include "estimation/vertex_radiance.h"
 #include "tests/test_util.h"
 
 namespace lp {
 namespace {
+
+/// A 4 m floor of albedo 0.8 with a vertex at the origin, under a two-sided 1.2 m square
+/// 0.5 m above it (albedo 0.8): most light reaching the origin has bounced.
+Mesh FloorUnderASquare() {
+  Mesh floor;
+  floor.positions = {{0, 0, 0}, {-2, -2, 0}, {2, -2, 0}, {2, 2, 0}, {-2, 2, 0}};
+  floor.normals.assign(5, Eigen::Vector3f::UnitZ());
+  floor.albedo.assign(5, Eigen::Vector3f::Constant(0.8f));
+  floor.triangles = {{0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 4, 1}};
+  floor.Append(test::Square(0, 0, 0.5, 0.6, 0.8));
+  return floor;
+}
+
+/// A 9x9 camera 0.3 m above the origin looking straight down at it, and the path tracer's
+/// settings that render it to compare with a vertex's radiance (3000 spp, 4 bounces).
+View OriginView() { return test::BlankView(test::LookAt({0, 0, 0.3}, {0, 0, 0}, 9, 9, 2)); }
+TracerOptions OriginTracer() {
+  TracerOptions opt;
+  opt.spp = 3000;
+  opt.bounces = 4;
+  opt.roulette_after = 10;
+  return opt;
+}
+double MeanRed(const ImageRGB& image) {
+  double sum = 0;
+  for (std::size_t i = 0; i < image.pixels(); ++i) sum += image.data[3 * i];
+  return sum / image.pixels();
+}
 
 TEST(VertexRadiance, UniformSkyOverAPlaneGivesAlbedoTimesRadiance) {
   // An open plane sees only the sky: L_o = rho/pi * (pi * L) = rho * L, per channel.
@@ -74,34 +103,67 @@ TEST(VertexRadiance, InterreflectionsAgreeWithThePathTracer) {
   // light reaches the origin mostly after bouncing between the square and the floor. The
   // path tracer renders the origin through a camera looking straight down at it; a
   // Lambertian surface sends the same radiance every way, so the two must agree.
-  Mesh floor;
-  floor.positions = {{0, 0, 0}, {-2, -2, 0}, {2, -2, 0}, {2, 2, 0}, {-2, 2, 0}};
-  floor.normals.assign(5, Eigen::Vector3f::UnitZ());
-  floor.albedo.assign(5, Eigen::Vector3f::Constant(0.8f));
-  floor.triangles = {{0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 4, 1}};
-  floor.Append(test::Square(0, 0, 0.5, 0.6, 0.8));
-  const RayTracer scene(floor);
+  const RayTracer scene(FloorUnderASquare());
   const EnvMap env(9, Eigen::Vector3d::UnitZ());
   const std::vector<double> lambda(3 * env.size(), 1.0);
   VertexRadiance vr(scene, env, lambda, 4, 3);
   vr.Refine(20000);
   const double vertex = vr.Radiance()[0].x();
 
-  View view = test::BlankView(test::LookAt({0, 0, 0.3}, {0, 0, 0}, 9, 9, 2));
-  TracerOptions opt;
-  opt.spp = 3000;
-  opt.bounces = 4;
-  opt.roulette_after = 10;
-  const auto images = RenderEnvironment(scene, env, {view}, lambda, CellSampler(env, lambda, {}, 0.2), opt, true);
-  double pixel = 0;
-  for (std::size_t i = 0; i < images[0].pixels(); ++i) pixel += images[0].data[3 * i];
-  pixel /= images[0].pixels();
+  const double pixel = MeanRed(RenderEnvironment(scene, env, {OriginView()}, lambda, CellSampler(env, lambda, {}, 0.2),
+                                                 OriginTracer(), true)[0]);
   std::printf("origin under the square: vertex radiance %.4f, path tracer %.4f\n", vertex, pixel);
   EXPECT_NEAR(vertex, pixel, 0.04 * pixel) << "vertex " << vertex << ", path tracer " << pixel;
   VertexRadiance direct(scene, env, lambda, 1, 3);
   direct.Refine(20000);
   std::printf("direct light only: %.4f\n", direct.Radiance()[0].x());
   EXPECT_LT(direct.Radiance()[0].x(), 0.85 * vertex) << "the bounces carry a visible share";
+}
+
+TEST(VertexRadiance, PointLightOverAPlaneIsTheInverseSquareLaw) {
+  // Direct light only, the map dark: L_o = rho/pi * I cos(theta) / d^2 at every vertex, exactly
+  // (a point light is one shadow ray: no noise).
+  const double rho = 0.5;
+  const RayTracer scene(test::Plane(2.0, rho));
+  const EnvMap env(7, Eigen::Vector3d::UnitZ());
+  PointLight lamp;
+  lamp.position = {0.3, -0.2, 0.8};
+  lamp.intensity = {2.0, 1.0, 0.5};
+  VertexRadiance vr(scene, env, std::vector<double>(3 * env.size(), 0.0), 1, 1, {lamp});
+  vr.Refine(2);
+  const std::vector<Eigen::Vector3f> radiance = vr.Radiance();
+  const Mesh& mesh = scene.mesh();
+  double worst = 0;
+  for (std::size_t v = 0; v < radiance.size(); ++v) {
+    const Eigen::Vector3d r = lamp.position - mesh.positions[v].cast<double>();
+    const double d = r.norm(), expected = rho / M_PI * lamp.intensity.x() * (r.z() / d) / (d * d);
+    worst = std::max(worst, std::abs(radiance[v].x() / expected - 1));
+    EXPECT_NEAR(radiance[v].y() / radiance[v].x(), 0.5, 1e-5);
+  }
+  std::printf("point light over a plane: worst vertex %.4f %% off I cos/d^2\n", 100 * worst);
+  EXPECT_LT(worst, 1e-3);  // the vertex is shaded 4 epsilon off the surface
+}
+
+TEST(VertexRadiance, PointLightInterreflectionsAgreeWithThePathTracer) {
+  // The floor and square of the test above, lit by a lamp between them off to the side: the
+  // origin sees the lamp directly and again off the square's underside. Vertex radiance
+  // (4 bounces) against the point-light path tracer through a camera looking down at it.
+  const RayTracer scene(FloorUnderASquare());
+  const EnvMap env(7, Eigen::Vector3d::UnitZ());
+  PointLight lamp;
+  lamp.position = {0.9, 0.1, 0.3};
+  lamp.intensity = {1.0, 1.0, 1.0};
+  VertexRadiance vr(scene, env, std::vector<double>(3 * env.size(), 0.0), 4, 3, {lamp});
+  vr.Refine(20000);
+  const double vertex = vr.Radiance()[0].x();
+
+  const double pixel = MeanRed(RenderPointLights(scene, {OriginView()}, {lamp}, OriginTracer(), true)[0]);
+  const Eigen::Vector3d r = lamp.position;
+  const double direct = 0.8 / M_PI * r.z() / r.norm() / r.squaredNorm();
+  std::printf("origin under the square, lamp beside: vertex %.4f, path tracer %.4f, direct alone %.4f\n", vertex,
+              pixel, direct);
+  EXPECT_NEAR(vertex, pixel, 0.03 * pixel);
+  EXPECT_GT(vertex, 1.1 * direct) << "the bounces carry a visible share";
 }
 
 TEST(VertexRadiance, RefiningAddsSamplesAndStaysConsistent) {

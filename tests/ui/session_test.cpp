@@ -107,7 +107,7 @@ TEST(Session, ReconstructsTheDemoEstimatesWithALiveLogAndExports) {
   ASSERT_TRUE(WaitFor([&] { return s.estimate().export_message.rfind("exported", 0) == 0; }, 60))
       << s.estimate().export_message;
   for (const char* f : {"scene/scene.json", "scene/mesh.ply", "scene/view0.exr", "estimate/envmap.exr",
-                        "estimate/convergence.csv", "estimate/report.json"})
+                        "estimate/convergence.csv", "estimate/report.json", "estimate/lights.json"})
     EXPECT_TRUE(fs::exists(out / f)) << f;
   // The exported bundle is a valid one.
   EXPECT_EQ(LoadSceneBundle(out / "scene").views.size(), 4u);

@@ -14,6 +14,8 @@
 
 #include "app/commands.h"
 #include "common/image_io.h"
+#include "estimation/synth.h"
+#include "scene/scene_bundle.h"
 #include "ui/viewer.h"
 
 namespace lp::ui {
@@ -198,6 +200,71 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
   EXPECT_TRUE(fs::exists(a / "export" / "scene" / "mesh.ply"));
   EXPECT_TRUE(fs::exists(a / "export" / "scene" / "reconstruction.csv")) << "the bundle reconstruct writes";
   EXPECT_TRUE(fs::exists(a / "export" / "scene" / "trajectory.log"));
+}
+
+/// Pixels within `radius` of (cx, cy) whose colour is near-white (a white lamp's marker).
+int WhiteAround(const ImageRgb8& img, double cx, double cy, int radius) {
+  int n = 0;
+  for (int y = static_cast<int>(cy) - radius; y <= static_cast<int>(cy) + radius; ++y)
+    for (int x = static_cast<int>(cx) - radius; x <= static_cast<int>(cx) + radius; ++x) {
+      if (x < 0 || y < 0 || x >= img.width || y >= img.height) continue;
+      const std::uint8_t* p = &img.data[3 * (static_cast<std::size_t>(y) * img.width + x)];
+      n += p[0] > 200 && p[1] > 190 && p[2] > 170;
+    }
+  return n;
+}
+
+// A lamp 1 m from the scene: the estimate finds it, the window lists it and draws its marker
+// where the 3D view's projection puts the lamp's estimated position (and the true one: within
+// a few pixels), and nowhere near the point mirrored through the orbit target.
+TEST(Viewer, ALampIsDrawnAtItsPosition) {
+  const fs::path a = kArtifacts / "lamp";
+  fs::remove_all(a);
+  fs::create_directories(a);
+  SynthOptions so;
+  so.width = 96;
+  so.height = 72;
+  so.spp = 64;
+  const SynthScene synth = MakeSynth("lamp-1m", so, fs::path(LIGHTPROBE_SOURCE_DIR) / "assets");
+  WriteSceneBundle(a / "scene", synth.bundle);
+  std::ofstream(a / "script.txt") << "wait-open 60\n"
+                                     "estimate rings=9 spp=8 bounces=2 rounds=2 render-spp=8 albedo-passes=0\n"
+                                     "wait-estimate 1200\n"
+                                     "expect-estimate done\n"
+                                     "shading lit\n"
+                                     "wait-lit 8 900\n"
+                                     "frames 3\n"
+                                     "screenshot " << (a / "lit.png").string() << "\n"
+                                     "state " << (a / "lit.json").string() << "\n"
+                                     "quit\n";
+  ViewerOptions o = app::DefaultViewerOptions();
+  o.input = (a / "scene").string();
+  o.script = (a / "script.txt").string();
+  o.session.lit_samples = 8;
+  ASSERT_EQ(RunViewer(o), 0);
+  const nlohmann::json state = ReadJson(a / "lit.json");
+  ASSERT_EQ(state["estimate"]["point_lights"].size(), 1u);
+  const nlohmann::json& pj = state["estimate"]["point_lights"][0]["position"];
+  const Eigen::Vector3d found(pj[0], pj[1], pj[2]), truth = synth.lighting.lights.at(0).position;
+  EXPECT_LT((found - truth).norm(), 0.05) << "found " << found.transpose() << ", truth " << truth.transpose();
+  std::vector<float> m = state["view3d_projection"].get<std::vector<float>>();
+  ASSERT_EQ(m.size(), 16u);
+  const Eigen::Matrix4f vp = Eigen::Map<const Eigen::Matrix4f>(m.data());
+  const nlohmann::json& rect = state["window"]["view3d"];
+  auto pixel = [&](const Eigen::Vector3d& w) {
+    const Eigen::Vector4f c = vp * Eigen::Vector4f(w.x(), w.y(), w.z(), 1);
+    return std::pair<double, double>(rect[0].get<double>() + (c.x() / c.w() + 1) / 2 * rect[2].get<double>(),
+                                     rect[1].get<double>() + (1 - c.y() / c.w()) / 2 * rect[3].get<double>());
+  };
+  const ImageRgb8 shot = ReadRgb8(a / "lit.png");
+  const auto [lx, ly] = pixel(found);
+  const auto [tx, ty] = pixel(truth);
+  std::printf("lamp marker expected at (%.1f, %.1f); the true lamp projects to (%.1f, %.1f)\n", lx, ly, tx, ty);
+  EXPECT_LT(std::hypot(lx - tx, ly - ty), 10);
+  EXPECT_GE(WhiteAround(shot, lx, ly, 6), 6) << "no marker at (" << lx << ", " << ly << ")";
+  const Eigen::Vector3d target(state["orbit_target"][0], state["orbit_target"][1], state["orbit_target"][2]);
+  const auto [mx, my] = pixel(2 * target - found);
+  EXPECT_LT(WhiteAround(shot, mx, my, 6), 3) << "a marker where the mirrored lamp would be";
 }
 
 // The estimate never ends by itself (1000 rounds, no stopping rule): the window returns
