@@ -20,6 +20,7 @@
 #include "common/plot.h"
 #include "common/timer.h"
 #include "estimation/path_tracer.h"
+#include "estimation/point_lights.h"
 #include "scene/ray_tracer.h"
 #include "estimation/synth.h"
 #include "estimation/truth.h"
@@ -32,12 +33,14 @@ namespace {
 const char* kFast = "fast";
 const char* kPgd = "paper PGD";
 const char* kFd = "FD Jacobian (extrapolated)";
+const char* kMapAlone = "fast, map alone";
 
 struct ReportOptions {
   std::string out = "out/report";
   std::vector<std::string> sizes = {"160x120", "320x240"};
-  std::vector<std::string> scenes = {"one-light", "two-light", "near-light", "sun-and-sky",
-                                     "env-studio", "env-sunset", "frag115"};
+  std::vector<std::string> scenes = {"one-light", "two-light", "near-light", "sun-and-sky", "env-studio",
+                                     "env-sunset", "frag115",   "lamp-0.5m",  "lamp-1m",     "lamp-2m",
+                                     "lamp-4m",   "two-lamps", "lamp-and-sky"};
   std::string data;
   double gradient_cap = 15;  ///< seconds per sMC round for the paper's PGD
   int eval_spp = 64;         ///< samples per pixel of the held-out relit renders
@@ -53,11 +56,12 @@ struct Point {
   int round = 0;
   double seconds = 0;
   double fitted = NAN, relit = NAN, angle = NAN, envmap = NAN;
+  double position = NAN;  ///< the worst near true light's distance to the nearest point light (m)
 };
 
 struct IterPoint {
   int round = 0, iteration = 0;
-  double seconds = 0, fitted = NAN, angle = NAN;
+  double seconds = 0, fitted = NAN, angle = NAN, position = NAN;
 };
 
 struct Curve {
@@ -73,6 +77,7 @@ struct Case {
   View held_out;
   std::unique_ptr<RayTracer> tracer;
   std::vector<TruthLight> truth;
+  bool near_truth = false;  ///< a true light is near (the scene is one for point lights)
   /// The true lighting integrated over the cells, per ring count (empty: not far / no map).
   std::map<int, std::vector<double>> true_cells;
   double relit_floor = NAN;   ///< relit error of the true lighting projected on the default cells
@@ -87,25 +92,40 @@ std::string Fmt(const char* f, double a, double b = 0, double c = 0) {
   return buf;
 }
 
-/// Relit error on the held-out view under `lambda` (image units), rendered with the run's
-/// own tracer settings at eval_spp, importance-sampled by the estimate itself.
-double RelitError(const Case& c, const EnvMap& env, const std::vector<double>& lambda, const TracerOptions& run,
-                  int eval_spp) {
+/// Relit error on the held-out view under `lambda` (image units) and the point lights,
+/// rendered with the run's own tracer settings at eval_spp, the map importance-sampled by
+/// the estimate itself.
+double RelitError(const Case& c, const EnvMap& env, const std::vector<double>& lambda,
+                  const std::vector<PointLight>& points, const TracerOptions& run, int eval_spp) {
   TracerOptions t = run;
   t.spp = eval_spp;
   t.seed = 4242;
   const CellSampler sampler(env, lambda, {}, run.nee_floor);
-  const auto img = RenderEnvironment(*c.tracer, env, {c.held_out}, lambda, sampler, t, false);
+  auto img = RenderEnvironment(*c.tracer, env, {c.held_out}, lambda, sampler, t, false);
+  if (!points.empty()) {
+    const auto lamps = RenderPointLights(*c.tracer, {c.held_out}, points, t, false);
+    for (std::size_t i = 0; i < img[0].data.size(); ++i) img[0].data[i] += lamps[0].data[i];
+  }
   return RelativeImageRmse(img[0], c.held_out.image, c.held_out.valid);
 }
 
+/// The worst near true light's position error (NaN when the scene has none), near as the
+/// estimator's default says (within 5 scene radii of the mesh's centre).
+double PositionError(const Case& c, const std::vector<PointLight>& points) {
+  if (!c.near_truth) return NAN;
+  return WorstPositionError(points, c.truth, c.tracer->center(), PointLightOptions{}.far * c.tracer->radius());
+}
+
 Point Evaluate(const Case& c, const EnvMap& env, const std::vector<double>& lambda,
-               const std::vector<std::uint8_t>& left_out, const TracerOptions& run, int eval_spp) {
+               const std::vector<PointLight>& points, const std::vector<std::uint8_t>& left_out,
+               const TracerOptions& run, int eval_spp) {
   Point p;
-  p.relit = RelitError(c, env, lambda, run, eval_spp);
-  if (!c.truth.empty()) p.angle = DominantAngularErrorDeg(env, lambda, c.truth);
+  p.relit = RelitError(c, env, lambda, points, run, eval_spp);
+  if (!c.truth.empty()) p.angle = DominantAngularErrorDeg(env, lambda, points, c.tracer->center(), c.truth);
+  p.position = PositionError(c, points);
   const bool has_map = c.synth.lighting.equirect.pixels() > 0 || static_cast<bool>(c.synth.lighting.sky);
-  if (has_map) p.envmap = EnvMapRelativeError(env, lambda, c.true_cells.at(env.rings()), left_out);
+  if (has_map && c.synth.lighting.far)
+    p.envmap = EnvMapRelativeError(env, lambda, c.true_cells.at(env.rings()), left_out);
   return p;
 }
 
@@ -122,9 +142,10 @@ Curve MethodCurve(const Case& c, const std::string& name, const EstimateResult& 
   Curve cv;
   cv.name = name;
   for (const ConvergenceRow& row : r.convergence)
-    cv.iterations.push_back({row.round, row.iteration, row.wall_seconds, row.relative_rmse, row.angular_error_deg});
+    cv.iterations.push_back(
+        {row.round, row.iteration, row.wall_seconds, row.relative_rmse, row.angular_error_deg, row.position_error_m});
   for (const RoundInfo& ri : r.rounds) {
-    Point p = Evaluate(c, r.env, ri.lambda, r.left_out, eo.tracer, eval_spp);
+    Point p = Evaluate(c, r.env, ri.lambda, ri.point_lights, r.left_out, eo.tracer, eval_spp);
     p.round = ri.round;
     p.seconds = ri.end_seconds;
     p.setting = "round " + std::to_string(ri.round);
@@ -213,6 +234,7 @@ const Metric kMetrics[] = {
     {"relit_error", "(b) relighting error on the held-out view", "relative RMSE", &Point::relit, false},
     {"light_angle", "(c) dominant light direction error", "degrees", &Point::angle, true},
     {"envmap_error", "(d) environment map error vs the true map per cell", "relative L2", &Point::envmap, false},
+    {"position_error", "(e) lamp position error (worst near light)", "metres", &Point::position, true},
 };
 
 /// One curve of case c as a series of metric m (per solver iteration or per point); its
@@ -224,7 +246,7 @@ PlotSeries MetricSeries(const Metric& m, const Case& c, const std::string& name,
   if (per_iteration) {
     s.markers = false;
     for (const IterPoint& it : cv.iterations) {
-      const double v = m.field == &Point::fitted ? it.fitted : it.angle;
+      const double v = m.field == &Point::fitted ? it.fitted : m.field == &Point::angle ? it.angle : it.position;
       s.x.push_back(it.seconds);
       s.y.push_back(v);
       csv << c.scene << ',' << c.size << ",\"" << name << "\",," << it.round << ',' << it.iteration << ','
@@ -388,7 +410,10 @@ std::string ReportMarkdown(const ReportOptions& o, const Stopwatch& total, const
         "angle between "
         "the strongest (up to 2) true lights and the estimate's dominant directions; (d) solid-angle weighted "
         "relative L2 error of the estimated map against the true lighting integrated over each cell, over the "
-        "cells some path reached (scenes lit by a sky or an HDR map).\n"
+        "cells some path reached (far scenes lit by a sky or an HDR map); (e) on the scenes with a lamp "
+        "(a true light within 5 scene radii): the worst distance from a true lamp to the nearest estimated "
+        "point light, per solver iteration (infinite, so not drawn, while there is none). There **fast, map "
+        "alone** (`--point-lights 0`, the far-light model) runs beside the default.\n"
      << "- Times are wall-clock seconds from the start of the estimate (BVH, traces, solves), one process, "
         "all cores. Machines here are noisy: compare ratios within one run.\n\n"
      << "## Time to reach a stated error\n\n"
@@ -452,11 +477,15 @@ class ReportRun {
     c->fit.views.resize(1);
     c->tracer = std::make_unique<RayTracer>(c->fit.mesh);
     c->truth = ParseTruthLights(*c->fit.truth_json, scene + "/truth.json");
+    CentreTruthLights(&c->truth, c->tracer->center());  // directions from where the estimator measures them
+    for (const TruthLight& t : c->truth)
+      c->near_truth = c->near_truth || (t.position && (*t.position - c->tracer->center()).norm() <
+                                                          PointLightOptions{}.far * c->tracer->radius());
     for (int r : knobs_.rings) c->true_cells[r] = TrueCellRadiance(c->synth.lighting, EnvMap(r, c->fit.up));
     const EnvMap env(defaults_.rings, c->fit.up);
     c->true_cells[defaults_.rings] = TrueCellRadiance(c->synth.lighting, env);
     const std::vector<double>& true_cells = c->true_cells[defaults_.rings];
-    if (!true_cells.empty()) c->relit_floor = RelitError(*c, env, true_cells, defaults_.tracer, o_.eval_spp);
+    if (!true_cells.empty()) c->relit_floor = RelitError(*c, env, true_cells, {}, defaults_.tracer, o_.eval_spp);
     // FD's unit of work: one render of the fitted view (same settings as a trace).
     c->render_seconds = SecondsPerCellRender(*c->tracer, env, c->fit.views, defaults_.tracer, 2);
     return c;
@@ -479,6 +508,14 @@ class ReportRun {
     const EstimateResult rg = RunEstimate(*c, pgd);
     c->curves.push_back(MethodCurve(*c, kPgd, rg, pgd, o_.eval_spp));
     Progress(Fmt("  paper PGD %.1f s", rg.rounds.back().end_seconds));
+    if (c->near_truth) {  // the far-light model beside the lamps', on the same scene
+      EstimateOptions alone = fast;
+      alone.point_lights.max_lights = 0;
+      const EstimateResult ra = RunEstimate(*c, alone);
+      c->curves.push_back(MethodCurve(*c, kMapAlone, ra, alone, o_.eval_spp));
+      Progress(Fmt("  map alone %.1f s, relit error %.4f", ra.rounds.back().end_seconds,
+                   c->curves.back().points.back().relit));
+    }
     return rf;
   }
 
@@ -501,7 +538,7 @@ class ReportRun {
       EstimateOptions eo = defaults_;
       set(&eo, v);
       const EstimateResult r = RunEstimate(*c, eo);
-      Point p = Evaluate(*c, r.env, r.lambda, r.left_out, eo.tracer, o_.eval_spp);
+      Point p = Evaluate(*c, r.env, r.lambda, r.point_lights, r.left_out, eo.tracer, o_.eval_spp);
       p.seconds = r.rounds.back().end_seconds;
       p.fitted = r.final_relative_rmse;
       p.round = static_cast<int>(r.rounds.size());

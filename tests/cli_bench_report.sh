@@ -4,7 +4,7 @@ set -eu
 exe="$1"
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
-"$exe" bench-report --quick --sizes 40x30 --scenes one-light sun-and-sky --synth-spp 16 --eval-spp 8 \
+"$exe" bench-report --quick --sizes 40x30 --scenes one-light sun-and-sky lamp-1m --synth-spp 16 --eval-spp 8 \
   --out "$out" >/dev/null
 for m in fitted_rmse relit_error light_angle envmap_error; do
   for ext in png csv; do [ -s "$out/${m}_40x30.$ext" ] || { echo "missing ${m}_40x30.$ext"; exit 1; }; done
@@ -16,5 +16,13 @@ done
 for c in '"fast"' '"paper PGD"' '"FD Jacobian (extrapolated)"' '"fast: spp"' '"fast: rings"' '"fast: bounces"'; do
   grep -q "$c" "$out/fitted_rmse_40x30.csv" || { echo "no $c in fitted_rmse_40x30.csv"; exit 1; }
 done
-for s in one-light sun-and-sky; do grep -q "^| $s | 40x30 |" "$out/report.md" || { echo "no table row for $s"; exit 1; }; done
+# The lamp scene: its position plot, the map alone beside the default, and the default's last
+# position error (fast, per iteration) near the lamp (measured 1.4 cm at this tiny size).
+for ext in png csv; do [ -s "$out/position_error_40x30.$ext" ] || { echo "missing position_error_40x30.$ext"; exit 1; }; done
+grep -q '^lamp-1m,40x30,"fast, map alone"' "$out/fitted_rmse_40x30.csv" || { echo "no map-alone run on lamp-1m"; exit 1; }
+grep -q '^one-light,.*"fast, map alone"' "$out/fitted_rmse_40x30.csv" && { echo "a map-alone run on a far scene"; exit 1; }
+pos=$(grep '^lamp-1m,40x30,"fast",,' "$out/position_error_40x30.csv" | tail -1 | awk -F, '{print $8}')
+. "$(dirname "$0")/check_number.sh"
+check_below "lamp-1m position error (m)" "$pos" 0.05 || exit 1
+for s in one-light sun-and-sky lamp-1m; do grep -q "^| $s | 40x30 |" "$out/report.md" || { echo "no table row for $s"; exit 1; }; done
 echo "bench-report ok"
