@@ -50,6 +50,7 @@ struct RoundProblem {
   std::vector<double> init;  ///< the estimate so far, compact (3 per unknown cell)
   /// The point-light columns' positions (the lights so far, or candidates).
   std::vector<Eigen::Vector3d> positions;
+  std::vector<double> radii;  ///< theirs (0: a point), one per position
 
   /// The unknowns over every column (3 per column): the map's cells, then `positions`.
   std::vector<double> Scatter(const std::vector<double>& compact, int cells) const {
@@ -63,7 +64,8 @@ struct RoundProblem {
     std::vector<PointLight> out;
     for (std::size_t i = 0; i < positions.size(); ++i) {
       const double* v = &full[3 * (cells + i)];
-      if (v[0] > 0 || v[1] > 0 || v[2] > 0) out.push_back({positions[i], Eigen::Vector3d(v[0], v[1], v[2]), 0});
+      if (v[0] > 0 || v[1] > 0 || v[2] > 0)
+        out.push_back({positions[i], Eigen::Vector3d(v[0], v[1], v[2]), i < radii.size() ? radii[i] : 0.0});
     }
     return out;
   }
@@ -117,6 +119,7 @@ class Estimator {
   void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const char* step = "lights");
   void SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info, bool graduated);
   void FoldLights(std::vector<PointLight>* lights, int round);
+  bool FitRadii(std::vector<PointLight>* lights);
   void SelectModel(std::vector<PointLight>* lights);
   /// A directional light (unit direction towards it, irradiance on a surface facing it).
   struct DirectionalStandIn {
@@ -285,8 +288,9 @@ std::vector<std::vector<float>> Estimator::PointColumns(int round, int first, Ro
   std::vector<std::vector<float>> columns;
   for (const PointLight& l : points_) {
     rp->positions.push_back(l.position);
+    rp->radii.push_back(l.radius);
     columns.emplace_back();
-    PointLightColumn(*scene_, vertices_, l.position, &columns.back());
+    PointLightColumn(*scene_, vertices_, l.position, &columns.back(), nullptr, l.radius);
   }
   return columns;
 }
@@ -346,7 +350,7 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
     std::vector<double> r = y_;
     std::vector<float> col;
     for (const PointLight& l : trial) {
-      PointLightColumn(*scene_, vertices_, l.position, &col);
+      PointLightColumn(*scene_, vertices_, l.position, &col, nullptr, l.radius);
       for (std::size_t e = 0; e < r.size(); ++e) r[e] -= l.intensity[e % 3] * col[e];
     }
     const double trial_loss = loss(r);
@@ -516,7 +520,14 @@ bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>
       kept.erase(kept.begin() + k);
     }
     if (kept.size() < before && !kept.empty()) SolveWithLights(&kept, info, false);
-    bool settled = kept.size() == start.size();
+    // After the first pass the lights are where their hard shadows put them: their radii
+    // (soft shadows) are fitted once, and the passes after refine positions with them.
+    bool radii_changed = false;
+    if (candidates && pass == 0 && !kept.empty() && FitRadii(&kept)) {
+      SolveWithLights(&kept, info, false);
+      radii_changed = true;
+    }
+    bool settled = kept.size() == start.size() && !radii_changed;
     for (std::size_t k = 0; k < kept.size() && settled; ++k)
       settled = (kept[k].position - start[k].position).norm() < 0.01 * (start[k].position - centre_).norm();
     if (settled) break;
@@ -533,6 +544,64 @@ bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>
     moved = (kept[k].position - points_[k].position).norm() > 0.02 * (kept[k].position - centre_).norm();
   points_ = std::move(kept);
   return moved;
+}
+
+/// Each light's radius (soft shadows), the map and the other lights held: the radius of a
+/// small grid (0 and 0.8 % to 12.8 % of the scene's radius, doubling) whose column, with its
+/// intensity fitted by reweighted least squares, gives the lowest Cauchy loss; a radius is
+/// taken only if it lowers the loss by 0.5 % (else the light stays a point). True when a
+/// radius changed.
+bool Estimator::FitRadii(std::vector<PointLight>* lights) {
+  CheckCancel();
+  bool changed = false;
+  const double sigma = res_.objective_params.sigma;
+  for (std::size_t k = 0; k < lights->size(); ++k) {
+    std::vector<double> base = A_.Multiply(lambda_);
+    std::vector<float> col;
+    for (std::size_t j = 0; j < lights->size(); ++j) {
+      if (j == k) continue;
+      PointLightColumn(*scene_, vertices_, (*lights)[j].position, &col, nullptr, (*lights)[j].radius);
+      for (std::size_t i = 0; i < base.size(); ++i) base[i] += (*lights)[j].intensity[i % 3] * col[i];
+    }
+    PointLight& light = (*lights)[k];
+    double best_loss = 0, point_loss = 0, best_radius = 0;
+    Eigen::Vector3d best_intensity = light.intensity;
+    for (int g = 0; g < 6; ++g) {
+      const double radius = g == 0 ? 0.0 : 0.004 * radius_ * std::pow(2.0, g);
+      PointLightColumn(*scene_, vertices_, light.position, &col, nullptr, radius);
+      Eigen::Vector3d intensity = light.intensity;
+      std::vector<double> r(base.size());
+      for (int it = 0; it < 4; ++it) {  // reweighted least squares for the Cauchy loss
+        for (std::size_t i = 0; i < r.size(); ++i) r[i] = y_[i] - base[i] - intensity[i % 3] * col[i];
+        Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
+        for (std::size_t i = 0; i < r.size(); ++i) {
+          const double w = 1 / (1 + r[i] * r[i] / (sigma * sigma));
+          num[i % 3] += w * col[i] * (y_[i] - base[i]);
+          den[i % 3] += w * col[i] * col[i];
+        }
+        for (int c = 0; c < 3; ++c) intensity[c] = den[c] > 0 ? std::max(0.0, num[c] / den[c]) : 0.0;
+      }
+      for (std::size_t i = 0; i < r.size(); ++i) r[i] = y_[i] - base[i] - intensity[i % 3] * col[i];
+      const double loss = CauchyLoss(r, sigma);
+      if (g == 0) point_loss = best_loss = loss;
+      if (loss < best_loss) best_loss = loss, best_radius = radius, best_intensity = intensity;
+      CheckCancel();
+    }
+    if (best_radius > 0 && best_loss > (1 - 0.005) * point_loss) best_radius = 0;
+    char line[240];
+    std::snprintf(line, sizeof line,
+                  "point light at (%.3f, %.3f, %.3f): radius %.3g m (Cauchy loss %.6g; as a point %.6g)",
+                  light.position.x(), light.position.y(), light.position.z(), best_radius,
+                  best_radius > 0 ? best_loss : point_loss, point_loss);
+    res_.point_light_choices.push_back(line);
+    Progress(line);
+    if (best_radius != light.radius) {
+      changed = true;
+      light.radius = best_radius;
+      if (best_radius > 0) light.intensity = best_intensity;
+    }
+  }
+  return changed;
 }
 
 /// Far lights are the map's (dropped: the next solve gives their light to the map); two
@@ -569,7 +638,8 @@ void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info
   std::vector<std::vector<float>> columns(lights->size());
   for (std::size_t k = 0; k < lights->size(); ++k) {
     rp.positions.push_back((*lights)[k].position);
-    PointLightColumn(*scene_, vertices_, (*lights)[k].position, &columns[k]);
+    rp.radii.push_back((*lights)[k].radius);
+    PointLightColumn(*scene_, vertices_, (*lights)[k].position, &columns[k], nullptr, (*lights)[k].radius);
   }
   rp.problem = MakeLinearProblem(AppendColumns(A_, columns), y_);
   const LinearProblem& problem = rp.problem;
@@ -677,7 +747,7 @@ void Estimator::SelectModel(std::vector<PointLight>* lights) {
 /// The share of the observed light a point light renders.
 double Estimator::RenderedShare(const PointLight& light) const {
   std::vector<float> col;
-  PointLightColumn(*scene_, vertices_, light.position, &col);
+  PointLightColumn(*scene_, vertices_, light.position, &col, nullptr, light.radius);
   double rendered = 0, seen = 0;
   for (std::size_t e = 0; e < col.size(); ++e) {
     rendered += light.intensity[e % 3] * col[e];
@@ -691,7 +761,7 @@ double Estimator::RenderedShare(const PointLight& light) const {
 double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalStandIn* directional) const {
   std::vector<std::vector<float>> columns(lights.size());
   for (std::size_t k = 0; k < lights.size(); ++k)
-    PointLightColumn(*scene_, vertices_, lights[k].position, &columns[k]);
+    PointLightColumn(*scene_, vertices_, lights[k].position, &columns[k], nullptr, lights[k].radius);
   if (directional) {
     columns.emplace_back();
     DirectionalLightColumn(*scene_, vertices_, directional->direction, &columns.back());

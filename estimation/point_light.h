@@ -10,7 +10,7 @@ struct PointLight {
   /// Radiant intensity in image units x m^2: a surface facing the light at distance d
   /// receives intensity / d^2 (W/sr when the images are radiance).
   Eigen::Vector3d intensity = Eigen::Vector3d::Zero();
-  double radius = 0;  ///< 0: a point (the estimator does not fit radii yet)
+  double radius = 0;  ///< metres; 0: a point. A sphere's radius only softens its shadows
 };
 
 }  // namespace lp

@@ -140,8 +140,33 @@ ShadingVertices Combine(const ShadingVertices& a, double a_samples, const Shadin
   return out;
 }
 
+double SphereVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const Eigen::Vector3d& q, double radius,
+                        const Eigen::Vector3d& l, double d, std::uint64_t key) {
+  if (!(radius > 0)) return scene.Occluded(p, l, d) ? 0.0 : 1.0;
+  if (d <= radius) return 1.0;  // inside the light
+  // An orthonormal frame (t, b) across l.
+  const Eigen::Vector3d t = (std::abs(l.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY())
+                                .cross(l)
+                                .normalized();
+  const Eigen::Vector3d b = l.cross(t);
+  std::uint64_t z = key + 0x9E3779B97F4A7C15ull;  // splitmix64: the pattern's turn
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  z ^= z >> 31;
+  const double turn = static_cast<double>(z >> 11) * 0x1.0p-53;
+  int seen = 0;
+  for (int i = 0; i < kSphereShadowRays; ++i) {
+    const double rho = radius * std::sqrt((i + 0.5) / kSphereShadowRays);
+    const double a = 2 * kPi * (turn + i * 0.6180339887498949);
+    const Eigen::Vector3d s = q + rho * (std::cos(a) * t + std::sin(a) * b) - p;
+    const double len = s.norm();
+    seen += !scene.Occluded(p, s / len, len);
+  }
+  return static_cast<double>(seen) / kSphereShadowRays;
+}
+
 void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& q,
-                      std::vector<float>* out, std::vector<float>* jacobian) {
+                      std::vector<float>* out, std::vector<float>* jacobian, double radius) {
   const std::size_t rows = v.rows();
   out->assign(3 * rows, 0.0f);
   if (jacobian) jacobian->assign(9 * rows, 0.0f);
@@ -154,8 +179,10 @@ void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Ei
         Eigen::Vector3d l;
         double d = 0;
         const double f = Falloff(p, n, v.geometric[k].cast<double>(), q, &l, &d);
-        if (f == 0 || scene.Occluded(p, l, d)) continue;
-        const Eigen::Vector3d w = v.weight[k].cast<double>();
+        if (f == 0) continue;
+        const double seen = SphereVisibility(scene, p, q, radius, l, d, static_cast<std::uint64_t>(k));
+        if (seen == 0) continue;
+        const Eigen::Vector3d w = v.weight[k].cast<double>() * seen;
         sum += w * f;
         if (jacobian) {
           // f = n.(q-p) / d^3:  df/dq = n / d^3 - 3 n.(q-p) (q-p) / d^5 = (n - 3 (n.l) l) / d^3.
@@ -201,15 +228,18 @@ std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vecto
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     for (int s = 0; s < opt.spp; ++s) {
       Rng rng(opt.seed, px.view, px.pixel, s);
+      std::uint64_t key = (static_cast<std::uint64_t>(px.pixel) << 32) ^ (static_cast<std::uint64_t>(s) << 8);
       WalkPath(scene, cam, x, y, rng, opt, cnt,
                [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
+                 ++key;
                  for (const PointLight& light : lights) {
                    Eigen::Vector3d l;
                    double d = 0;
                    const double f = Falloff(off, hit.shading, hit.geometric, light.position, &l, &d);
                    if (f == 0) continue;
-                   ++cnt.rays;
-                   if (!scene.Occluded(off, l, d)) sum += w.cwiseProduct(light.intensity) * f;
+                   cnt.rays += light.radius > 0 ? kSphereShadowRays : 1;
+                   const double seen = SphereVisibility(scene, off, light.position, light.radius, l, d, key);
+                   if (seen > 0) sum += w.cwiseProduct(light.intensity) * (f * seen);
                  }
                });
     }
@@ -246,7 +276,7 @@ std::vector<double> Residual(const PointFitProblem& p, const std::vector<PointLi
   if (jacobians) jacobians->resize(lights.size());
   for (std::size_t k = 0; k < lights.size(); ++k) {
     PointLightColumn(*p.scene, *p.vertices, lights[k].position, &(*columns)[k],
-                     jacobians ? &(*jacobians)[k] : nullptr);
+                     jacobians ? &(*jacobians)[k] : nullptr, lights[k].radius);
     const auto& col = (*columns)[k];
     for (std::size_t i = 0; i < r.size(); ++i) r[i] -= lights[k].intensity[i % 3] * col[i];
   }

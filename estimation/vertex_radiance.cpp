@@ -7,6 +7,7 @@
 #include "common/rng.h"
 #include "estimation/error_display.h"
 #include "estimation/path_tracer.h"
+#include "estimation/point_lights.h"
 #include "estimation/sampling.h"
 
 namespace lp {
@@ -30,7 +31,7 @@ namespace {
 /// normal `n`: a shadow ray each, light below the geometric horizon absorbed.
 Eigen::Vector3d PointLightsIncident(const RayTracer& scene, const std::vector<PointLight>& points,
                                     const Eigen::Vector3d& origin, const Eigen::Vector3d& n,
-                                    const Eigen::Vector3d& geometric) {
+                                    const Eigen::Vector3d& geometric, std::uint64_t key) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   for (const PointLight& l : points) {
     const Eigen::Vector3d r = l.position - origin;
@@ -38,8 +39,9 @@ Eigen::Vector3d PointLightsIncident(const RayTracer& scene, const std::vector<Po
     if (!(d > 0)) continue;
     const Eigen::Vector3d dir = r / d;
     const double c = n.dot(dir);
-    if (c <= 0 || geometric.dot(dir) <= 0 || scene.Occluded(origin, dir, d)) continue;
-    sum += l.intensity * (c / (d * d * kPi));
+    if (c <= 0 || geometric.dot(dir) <= 0) continue;
+    const double seen = SphereVisibility(scene, origin, l.position, l.radius, dir, d, key);
+    sum += l.intensity * (seen * c / (d * d * kPi));
   }
   return sum;
 }
@@ -68,7 +70,9 @@ void VertexRadiance::Refine(int samples) {
           const NextEvent ne = SampleNextEvent(scene_, env_, *sampler_, n, geometric, origin, rng);
           if (ne.visible) sum_[v] += throughput.cwiseProduct(cell(ne.cell)) * ne.weight;
           if (!points_.empty())
-            sum_[v] += throughput.cwiseProduct(PointLightsIncident(scene_, points_, origin, n, geometric));
+            sum_[v] += throughput.cwiseProduct(PointLightsIncident(
+                scene_, points_, origin, n, geometric, (static_cast<std::uint64_t>(v) << 24) ^ (static_cast<std::uint64_t>(s) << 4) ^
+                                                  static_cast<std::uint64_t>(bounce)));
           const double u1 = rng.Uniform(), u2 = rng.Uniform();
           const Eigen::Vector3d dir = SampleCosine(n, u1, u2);
           if (geometric.dot(dir) <= 0) break;

@@ -9,7 +9,7 @@ exe=${1:-$root/build/app/lightprobe}
 served=48 recorded=40
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-"$exe" synth one-light --frames $served --width 320 --height 240 --spp 128 --depth-noise --out "$tmp/frames"
+"$exe" synth lamp-and-sky --frames $served --width 320 --height 240 --spp 128 --depth-noise --out "$tmp/frames"
 mkdir -p "$tmp/out"
 "$exe" record --source "lpsynth://$tmp/frames" --frames $recorded --lossy-color --out "$tmp/out/demo.oni"
 # The synthetic device numbers frames from 1 and serves directory frame (index - 1): the

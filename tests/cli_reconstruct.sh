@@ -19,9 +19,14 @@ ate=$(sed -n 's/.*trajectory error against the given poses: \([0-9.]*\) mm.*/\1/
 check_below "trajectory error (mm)" "$ate" 20 || { cat "$out/log"; exit 1; }
 head -1 "$out/scene/reconstruction.csv" | grep -q "^frame,state,seconds," || exit 1
 err=$(grep -o '"angular_error_deg": [0-9.e+-]*' "$out/h/estimate/report.json" | head -1 | awk '{print $2}')
-# Issue 7: the headless run finds the demo's light within 10 degrees (8.8 with this seed and
-# 2 keyframes, albedo refined; 8.8-9.9 over seeds 1-3, docs/method.md).
+# The demo is lit by a lamp 1.5 m from the room's centre and a dim sky: the headless run finds
+# the lamp's direction from the scene within 10 degrees (4.1 with this seed and 2 keyframes)
+# and it is a point light, within 35 % of its distance from the mesh's centre (see
+# docs/method.md, known gaps: the reconstruction's albedo and the dim sky the map drops).
 check_below "dominant light error (deg)" "$err" 10 || exit 1
+share=$(grep -o '"position_error_share": [0-9.e+-]*' "$out/h/estimate/report.json" | head -1 | awk '{print $2}')
+check_below "lamp position error / distance" "$share" 0.35 || exit 1
+grep -q "the lamp is [0-9.]* cm from the true one" "$out/log" || { echo "headless did not print the lamp's error"; exit 1; }
 
 # Albedo refinement: the reconstructed mesh carries the colours seen; the estimate de-lit
 # them, segmented again and wrote the de-lit mesh. --albedo-passes 0 and a bundle with known
@@ -54,4 +59,4 @@ for args in "$out/missing.oni --out $out/x" "$empty --out $out/x" "$demo/demo.on
   [ "$(grep -c . "$out/bad" | tr -d ' ')" -le 2 ] || { echo "reconstruct $args: more than one error line"; cat "$out/bad"; exit 1; }
   [ ! -e "$out/x" ] || { echo "reconstruct $args wrote output"; exit 1; }
 done
-echo "reconstruct ok: trajectory error $ate mm, dominant light error $err deg"
+echo "reconstruct ok: trajectory error $ate mm, dominant light error $err deg, lamp position error $share of its distance"

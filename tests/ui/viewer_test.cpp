@@ -68,6 +68,47 @@ int YellowAround(const ImageRgb8& img, double cx, double cy) {
   return n;
 }
 
+/// Pixels within `radius` of (cx, cy) whose colour is near-white (a white lamp's marker).
+int WhiteAround(const ImageRgb8& img, double cx, double cy, int radius) {
+  int n = 0;
+  for (int y = static_cast<int>(cy) - radius; y <= static_cast<int>(cy) + radius; ++y)
+    for (int x = static_cast<int>(cx) - radius; x <= static_cast<int>(cx) + radius; ++x) {
+      if (x < 0 || y < 0 || x >= img.width || y >= img.height) continue;
+      const std::uint8_t* p = &img.data[3 * (static_cast<std::size_t>(y) * img.width + x)];
+      n += p[0] > 200 && p[1] > 190 && p[2] > 170;
+    }
+  return n;
+}
+
+/// Where the 3D view draws world point `w` (window pixels), from the projection and the
+/// view's rectangle the window reports in its state.
+std::pair<double, double> ViewPixel(const nlohmann::json& state, const Eigen::Vector3d& w) {
+  std::vector<float> m = state["view3d_projection"].get<std::vector<float>>();
+  EXPECT_EQ(m.size(), 16u);
+  m.resize(16);
+  const Eigen::Matrix4f vp = Eigen::Map<const Eigen::Matrix4f>(m.data());
+  const nlohmann::json& rect = state["window"]["view3d"];
+  const Eigen::Vector4f c = vp * Eigen::Vector4f(w.x(), w.y(), w.z(), 1);
+  return {rect[0].get<double>() + (c.x() / c.w() + 1) / 2 * rect[2].get<double>(),
+          rect[1].get<double>() + (1 - c.y() / c.w()) / 2 * rect[3].get<double>()};
+}
+
+Eigen::Vector3d LampPosition(const nlohmann::json& state, std::size_t k) {
+  const nlohmann::json& p = state["estimate"]["point_lights"][k]["position"];
+  return Eigen::Vector3d(p[0].get<double>(), p[1].get<double>(), p[2].get<double>());
+}
+
+/// Lamp k's marker (near-white for a white or warm lamp) is drawn where its position
+/// projects, and not where the point mirrored through the orbit target would.
+void ExpectLampMarker(const ImageRgb8& shot, const nlohmann::json& state, std::size_t k) {
+  const Eigen::Vector3d lamp = LampPosition(state, k);
+  const auto [lx, ly] = ViewPixel(state, lamp);
+  EXPECT_GE(WhiteAround(shot, lx, ly, 6), 6) << "no marker at (" << lx << ", " << ly << ")";
+  const Eigen::Vector3d target(state["orbit_target"][0], state["orbit_target"][1], state["orbit_target"][2]);
+  const auto [mx, my] = ViewPixel(state, 2 * target - lamp);
+  EXPECT_LT(WhiteAround(shot, mx, my, 6), 3) << "a marker where the mirrored lamp would be";
+}
+
 /// Where the equirect panel `rect` draws world direction `d`, by docs/formats.md's
 /// convention (row: polar angle from up; column: azimuth from frame_x towards frame_y),
 /// computed here from the frame the window reports.
@@ -102,7 +143,7 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
                            "frames 3\n"
                            "screenshot " << (a / "2-reconstructed.png").string() << "\n"
                            "state " << (a / "2-reconstructed.json").string() << "\n"
-                           "estimate rings=13 spp=16 bounces=2 rounds=2 render-spp=16\n"
+                           "estimate rings=13 spp=16 bounces=2 rounds=2 render-spp=16 point-lights=1\n"
                            "wait-first 900\n"
                            "screenshot " << (a / "3-first-estimate.png").string() << "\n"
                            "wait-estimate 1200\n"
@@ -162,22 +203,10 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
   EXPECT_GE(lit["estimate"]["lit_samples"].get<int>(), 8);
   EXPECT_LE(lit["estimate"]["seconds_to_first"].get<double>(), lit["estimate"]["seconds_total"].get<double>());
   const ImageRgb8 shot4 = ReadRgb8(a / "4-lit.png");
-  EXPECT_GT(Stats(shot4, lit["window"]["equirect"]).stddev, 5) << "the environment map is drawn";
-  // The dominant light's marker is drawn where the convention puts its direction, and the
-  // map is bright there; the mirrored azimuth (where a turned map would put it) has none.
-  ASSERT_FALSE(lit["estimate"]["dominant"].empty());
-  const nlohmann::json& dj = lit["estimate"]["dominant"][0];
-  const Eigen::Vector3d dominant(dj[0], dj[1], dj[2]);
-  const auto [mx, my] = EquirectPixel(lit["window"]["equirect"], lit["estimate"]["env_frame"], dominant);
-  EXPECT_GE(YellowAround(shot4, mx, my), 8) << "no marker at (" << mx << ", " << my << ")";
-  const nlohmann::json& eq = lit["window"]["equirect"];
-  const double mirrored_x = 2 * eq[0].get<double>() + eq[2].get<double>() - mx;
-  if (std::abs(mirrored_x - mx) > 30) {
-    EXPECT_LT(YellowAround(shot4, mirrored_x, my), 3) << "a marker at the mirrored azimuth";
-  }
-  const RegionStats at_light = Stats(shot4, nlohmann::json::array({mx - 2, my - 2, 5, 5}));
-  EXPECT_GT(at_light.mean, 1.5 * Stats(shot4, eq).mean) << "the map is not bright where its light is";
-  EXPECT_GT(Stats(shot4, lit["window"]["sphere"]).distinct, 0.02) << "the directions on the sphere";
+  // The demo is lit by a lamp 1.5 m from the room (and a dim sky): it comes back as a point
+  // light, drawn where the 3D view's projection puts it.
+  ASSERT_GE(lit["estimate"]["point_lights"].size(), 1u);
+  ExpectLampMarker(shot4, lit, 0);
   EXPECT_GT(Stats(shot4, lit["window"]["view3d"]).distinct, 0.05) << "the lit mesh";
   // The shading modes draw different pictures of the same mesh from the same camera.
   const ImageRgb8 normals = ReadRgb8(a / "6-normals.png"), lit_again = ReadRgb8(a / "6-lit-again.png");
@@ -197,21 +226,31 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
   EXPECT_EQ(done["estimate"]["export_state"], "exported");
   EXPECT_EQ(done["estimate"]["export"].get<std::string>().rfind("exported", 0), 0u);
   EXPECT_TRUE(fs::exists(a / "export" / "estimate" / "envmap.exr"));
+  EXPECT_TRUE(fs::exists(a / "export" / "estimate" / "lights.json"));
   EXPECT_TRUE(fs::exists(a / "export" / "scene" / "mesh.ply"));
   EXPECT_TRUE(fs::exists(a / "export" / "scene" / "reconstruction.csv")) << "the bundle reconstruct writes";
   EXPECT_TRUE(fs::exists(a / "export" / "scene" / "trajectory.log"));
 }
 
-/// Pixels within `radius` of (cx, cy) whose colour is near-white (a white lamp's marker).
-int WhiteAround(const ImageRgb8& img, double cx, double cy, int radius) {
-  int n = 0;
-  for (int y = static_cast<int>(cy) - radius; y <= static_cast<int>(cy) + radius; ++y)
-    for (int x = static_cast<int>(cx) - radius; x <= static_cast<int>(cx) + radius; ++x) {
-      if (x < 0 || y < 0 || x >= img.width || y >= img.height) continue;
-      const std::uint8_t* p = &img.data[3 * (static_cast<std::size_t>(y) * img.width + x)];
-      n += p[0] > 200 && p[1] > 190 && p[2] > 170;
-    }
-  return n;
+/// Opens `input` in the window, estimates it with `settings` (the script's key=value words),
+/// waits for the lit shading, takes `dir`/lit.png and returns the window's state then.
+nlohmann::json EstimateInTheWindow(const fs::path& dir, const std::string& input, const std::string& settings) {
+  std::ofstream(dir / "script.txt") << "wait-open 60\n"
+                                       "estimate " << settings << "\n"
+                                       "wait-estimate 1200\n"
+                                       "expect-estimate done\n"
+                                       "shading lit\n"
+                                       "wait-lit 8 900\n"
+                                       "frames 3\n"
+                                       "screenshot " << (dir / "lit.png").string() << "\n"
+                                       "state " << (dir / "lit.json").string() << "\n"
+                                       "quit\n";
+  ViewerOptions o = app::DefaultViewerOptions();
+  o.input = input;
+  o.script = (dir / "script.txt").string();
+  o.session.lit_samples = 8;
+  EXPECT_EQ(RunViewer(o), 0);
+  return ReadJson(dir / "lit.json");
 }
 
 // A lamp 1 m from the scene: the estimate finds it, the window lists it and draws its marker
@@ -227,44 +266,45 @@ TEST(Viewer, ALampIsDrawnAtItsPosition) {
   so.spp = 64;
   const SynthScene synth = MakeSynth("lamp-1m", so, fs::path(LIGHTPROBE_SOURCE_DIR) / "assets");
   WriteSceneBundle(a / "scene", synth.bundle);
-  std::ofstream(a / "script.txt") << "wait-open 60\n"
-                                     "estimate rings=9 spp=8 bounces=2 rounds=2 render-spp=8 albedo-passes=0\n"
-                                     "wait-estimate 1200\n"
-                                     "expect-estimate done\n"
-                                     "shading lit\n"
-                                     "wait-lit 8 900\n"
-                                     "frames 3\n"
-                                     "screenshot " << (a / "lit.png").string() << "\n"
-                                     "state " << (a / "lit.json").string() << "\n"
-                                     "quit\n";
-  ViewerOptions o = app::DefaultViewerOptions();
-  o.input = (a / "scene").string();
-  o.script = (a / "script.txt").string();
-  o.session.lit_samples = 8;
-  ASSERT_EQ(RunViewer(o), 0);
-  const nlohmann::json state = ReadJson(a / "lit.json");
+  const nlohmann::json state =
+      EstimateInTheWindow(a, (a / "scene").string(), "rings=9 spp=8 bounces=2 rounds=2 render-spp=8 albedo-passes=0");
   ASSERT_EQ(state["estimate"]["point_lights"].size(), 1u);
-  const nlohmann::json& pj = state["estimate"]["point_lights"][0]["position"];
-  const Eigen::Vector3d found(pj[0], pj[1], pj[2]), truth = synth.lighting.lights.at(0).position;
+  const Eigen::Vector3d found = LampPosition(state, 0), truth = synth.lighting.lights.at(0).position;
   EXPECT_LT((found - truth).norm(), 0.05) << "found " << found.transpose() << ", truth " << truth.transpose();
-  std::vector<float> m = state["view3d_projection"].get<std::vector<float>>();
-  ASSERT_EQ(m.size(), 16u);
-  const Eigen::Matrix4f vp = Eigen::Map<const Eigen::Matrix4f>(m.data());
-  const nlohmann::json& rect = state["window"]["view3d"];
-  auto pixel = [&](const Eigen::Vector3d& w) {
-    const Eigen::Vector4f c = vp * Eigen::Vector4f(w.x(), w.y(), w.z(), 1);
-    return std::pair<double, double>(rect[0].get<double>() + (c.x() / c.w() + 1) / 2 * rect[2].get<double>(),
-                                     rect[1].get<double>() + (1 - c.y() / c.w()) / 2 * rect[3].get<double>());
-  };
-  const ImageRgb8 shot = ReadRgb8(a / "lit.png");
-  const auto [lx, ly] = pixel(found);
-  const auto [tx, ty] = pixel(truth);
+  const auto [lx, ly] = ViewPixel(state, found);
+  const auto [tx, ty] = ViewPixel(state, truth);
   std::printf("lamp marker expected at (%.1f, %.1f); the true lamp projects to (%.1f, %.1f)\n", lx, ly, tx, ty);
   EXPECT_LT(std::hypot(lx - tx, ly - ty), 10);
-  EXPECT_GE(WhiteAround(shot, lx, ly, 6), 6) << "no marker at (" << lx << ", " << ly << ")";
-  const Eigen::Vector3d target(state["orbit_target"][0], state["orbit_target"][1], state["orbit_target"][2]);
-  const auto [mx, my] = pixel(2 * target - found);
-  EXPECT_LT(WhiteAround(shot, mx, my, 6), 3) << "a marker where the mirrored lamp would be";
+  ExpectLampMarker(ReadRgb8(a / "lit.png"), state, 0);
+}
+
+// A far light (the bundled one-light scene, 200 m away): the map's dominant light is circled
+// on the equirect panel where docs/formats.md's convention puts its direction, and the map is
+// bright there; the mirrored azimuth (where a turned map would put it) has no marker.
+TEST(Viewer, TheMapsDominantLightIsCircledWhereTheConventionPutsIt) {
+  const fs::path a = kArtifacts / "far";
+  fs::remove_all(a);
+  fs::create_directories(a);
+  const nlohmann::json lit =
+      EstimateInTheWindow(a, LIGHTPROBE_SOURCE_DIR "/assets/demo", "rings=13 spp=16 bounces=2 rounds=2 render-spp=16");
+  EXPECT_TRUE(lit["estimate"]["point_lights"].empty()) << "a light 200 m away is the map's";
+  const ImageRgb8 shot4 = ReadRgb8(a / "lit.png");
+  EXPECT_GT(Stats(shot4, lit["window"]["equirect"]).stddev, 5) << "the environment map is drawn";
+  // The dominant light's marker is drawn where the convention puts its direction, and the
+  // map is bright there; the mirrored azimuth (where a turned map would put it) has none.
+  ASSERT_FALSE(lit["estimate"]["dominant"].empty());
+  const nlohmann::json& dj = lit["estimate"]["dominant"][0];
+  const Eigen::Vector3d dominant(dj[0], dj[1], dj[2]);
+  const auto [mx, my] = EquirectPixel(lit["window"]["equirect"], lit["estimate"]["env_frame"], dominant);
+  EXPECT_GE(YellowAround(shot4, mx, my), 8) << "no marker at (" << mx << ", " << my << ")";
+  const nlohmann::json& eq = lit["window"]["equirect"];
+  const double mirrored_x = 2 * eq[0].get<double>() + eq[2].get<double>() - mx;
+  if (std::abs(mirrored_x - mx) > 30) {
+    EXPECT_LT(YellowAround(shot4, mirrored_x, my), 3) << "a marker at the mirrored azimuth";
+  }
+  const RegionStats at_light = Stats(shot4, nlohmann::json::array({mx - 2, my - 2, 5, 5}));
+  EXPECT_GT(at_light.mean, 1.5 * Stats(shot4, eq).mean) << "the map is not bright where its light is";
+  EXPECT_GT(Stats(shot4, lit["window"]["sphere"]).distinct, 0.02) << "the directions on the sphere";
 }
 
 // The estimate never ends by itself (1000 rounds, no stopping rule): the window returns
