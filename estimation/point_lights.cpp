@@ -140,8 +140,21 @@ ShadingVertices Combine(const ShadingVertices& a, double a_samples, const Shadin
   return out;
 }
 
+namespace {
+
+/// splitmix64 of `z` as a number in [0, 1).
+double HashUnit(std::uint64_t z) {
+  z += 0x9E3779B97F4A7C15ull;
+  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+  z ^= z >> 31;
+  return static_cast<double>(z >> 11) * 0x1.0p-53;
+}
+
+}  // namespace
+
 double SphereVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const Eigen::Vector3d& q, double radius,
-                        const Eigen::Vector3d& l, double d, std::uint64_t key) {
+                        const Eigen::Vector3d& l, double d, std::uint64_t key, int rays) {
   if (!(radius > 0)) return scene.Occluded(p, l, d) ? 0.0 : 1.0;
   if (d <= radius) return 1.0;  // inside the light
   // An orthonormal frame (t, b) across l.
@@ -149,20 +162,16 @@ double SphereVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const 
                                 .cross(l)
                                 .normalized();
   const Eigen::Vector3d b = l.cross(t);
-  std::uint64_t z = key + 0x9E3779B97F4A7C15ull;  // splitmix64: the pattern's turn
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  z ^= z >> 31;
-  const double turn = static_cast<double>(z >> 11) * 0x1.0p-53;
+  const double turn = HashUnit(key), jitter = HashUnit(key ^ 0x5DEECE66Dull);
   int seen = 0;
-  for (int i = 0; i < kSphereShadowRays; ++i) {
-    const double rho = radius * std::sqrt((i + 0.5) / kSphereShadowRays);
+  for (int i = 0; i < rays; ++i) {
+    const double rho = radius * std::sqrt((i + jitter) / rays);  // equal-area rings
     const double a = 2 * kPi * (turn + i * 0.6180339887498949);
     const Eigen::Vector3d s = q + rho * (std::cos(a) * t + std::sin(a) * b) - p;
     const double len = s.norm();
     seen += !scene.Occluded(p, s / len, len);
   }
-  return static_cast<double>(seen) / kSphereShadowRays;
+  return static_cast<double>(seen) / rays;
 }
 
 void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& q,
@@ -237,8 +246,8 @@ std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vecto
                    double d = 0;
                    const double f = Falloff(off, hit.shading, hit.geometric, light.position, &l, &d);
                    if (f == 0) continue;
-                   cnt.rays += light.radius > 0 ? kSphereShadowRays : 1;
-                   const double seen = SphereVisibility(scene, off, light.position, light.radius, l, d, key);
+                   ++cnt.rays;
+                   const double seen = SphereVisibility(scene, off, light.position, light.radius, l, d, key, 1);
                    if (seen > 0) sum += w.cwiseProduct(light.intensity) * (f * seen);
                  }
                });

@@ -44,17 +44,18 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
 /// scaled by its gathering's share of the samples), like Combine for transport matrices.
 ShadingVertices Combine(const ShadingVertices& a, double a_samples, const ShadingVertices& b, double b_samples);
 
-/// Shadow rays per vertex towards a light with a radius (its disc, stratified).
+/// Shadow rays per vertex from a column towards a light with a radius (its disc, stratified).
 constexpr int kSphereShadowRays = 4;
 
 /// The share of a spherical light of `radius` centred at q that `p` sees (l, d: the unit
 /// direction and distance from p to q): one shadow ray to q for a point (radius 0), else
-/// kSphereShadowRays to stratified points of the disc of `radius` facing p, turned by a
-/// hash of `key` (deterministic: common random numbers across positions and radii). The
-/// cosine and 1/d^2 stay the centre's: exact for a uniform sphere wholly seen and above the
-/// horizon, so the radius only softens shadows.
+/// `rays` shadow rays to jittered stratified points of the disc of `radius` facing p, the
+/// pattern drawn from a hash of `key` (deterministic: common random numbers across positions
+/// and radii; the renderers pass a key per sample and 1 ray). The cosine and 1/d^2 stay the
+/// centre's: exact for a uniform sphere wholly seen and above the horizon, so the radius
+/// only softens shadows.
 double SphereVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const Eigen::Vector3d& q, double radius,
-                        const Eigen::Vector3d& l, double d, std::uint64_t key);
+                        const Eigen::Vector3d& l, double d, std::uint64_t key, int rays = kSphereShadowRays);
 
 /// The unit-intensity column of a point light at `q` (of `radius`: soft shadows): out[3*row
 /// + c]. When `jacobian` is given it receives d out[3*row + c] / d q_k at [9*row + 3*c + k]

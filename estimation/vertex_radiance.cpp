@@ -40,7 +40,7 @@ Eigen::Vector3d PointLightsIncident(const RayTracer& scene, const std::vector<Po
     const Eigen::Vector3d dir = r / d;
     const double c = n.dot(dir);
     if (c <= 0 || geometric.dot(dir) <= 0) continue;
-    const double seen = SphereVisibility(scene, origin, l.position, l.radius, dir, d, key);
+    const double seen = SphereVisibility(scene, origin, l.position, l.radius, dir, d, key, 1);
     sum += l.intensity * (seen * c / (d * d * kPi));
   }
   return sum;

@@ -105,6 +105,41 @@ TEST(PointLights, ABoxLidCastsItsShadowOntoTheFloor) {
   EXPECT_GT(lit, 50);
 }
 
+// A lamp of radius 0.1 m 1 m above the floor, half of it hidden from the floor below by a
+// half-plane 0.5 m up whose edge runs under its centre: a floor point at x sees the lamp
+// through the half-plane's edge, which cuts its disc at sx = -x; the share seen is the area of
+// the disc's segment beyond that chord (closed form), averaged over many vertices' patterns.
+TEST(PointLights, ASphereLightsPenumbraIsTheDiscsVisibleSegment) {
+  const RayTracer scene(test::Square(-1.0, 0.0, 0.5, 1.0, 0.5));
+  const Eigen::Vector3d q(0, 0, 1);
+  const double r = 0.1;
+  auto segment = [&](double t) {  // share of the disc of radius r with sx > t
+    if (t >= r) return 0.0;
+    if (t <= -r) return 1.0;
+    return (r * r * std::acos(t / r) - t * std::sqrt(r * r - t * t)) / (M_PI * r * r);
+  };
+  for (double x : {-0.15, -0.05, 0.0, 0.05, 0.15}) {
+    const Eigen::Vector3d p(x, 0, 0);
+    const Eigen::Vector3d to = q - p;
+    const double d = to.norm();
+    double seen = 0, single = 0;
+    const int n = 4096;
+    for (int k = 0; k < n; ++k) {
+      seen += SphereVisibility(scene, p, q, r, to / d, d, k);
+      single += SphereVisibility(scene, p, q, r, to / d, d, k, 1);
+    }
+    seen /= n;
+    single /= n;
+    std::printf("x %+.2f: seen %.4f (one ray per key %.4f), the disc's segment %.4f\n", x, seen, single, segment(-x));
+    EXPECT_NEAR(seen, segment(-x), 0.02) << x;
+    EXPECT_NEAR(single, segment(-x), 0.02) << x;
+  }
+  // A point light there is all or nothing.
+  EXPECT_EQ(SphereVisibility(scene, {-0.05, 0, 0}, q, 0, (q - Eigen::Vector3d(-0.05, 0, 0)).normalized(),
+                             (q - Eigen::Vector3d(-0.05, 0, 0)).norm(), 7),
+            0.0);
+}
+
 TEST(PointLights, ThePositionDerivativeMatchesCentralDifferences) {
   RayTracer scene(Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)));
   const Camera cam = test::LookAt({1.5, -1.5, 1.5}, {0, 0, 0.1}, 24, 18, 50);

@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# The map alone against the map + point lights (docs/benchmarks.md, "Near lights"): each scene
+# estimated with --point-lights 0 and then with the default, one after the other, reading
+# report.json. Usage: scripts/bench-near-lights.sh [path/to/lightprobe] > table.md
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+exe=${1:-$root/build/app/lightprobe}
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+scenes=(near-light lamp-0.5m lamp-1m lamp-2m lamp-4m two-lamps lamp-and-sky one-light sun-and-sky two-light)
+for s in "${scenes[@]}"; do "$exe" synth "$s" --out "$tmp/$s" >/dev/null; done
+echo "| scene | K | total s | fitted | angle ° | point lights | radius m | lamp | time ratio |"
+echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"
+for s in "$root/tests/data/cycles/cornerbox_one_light" "$root/assets/demo" "${scenes[@]/#/$tmp/}"; do
+  for k in 0 4; do
+    "$exe" estimate "$s" --out "$tmp/out" --point-lights $k --quiet >/dev/null
+    python3 - "$tmp/out/report.json" "$(basename "$s")" "$k" "$tmp/t0" <<'PY'
+import json, sys
+r = json.load(open(sys.argv[1])); name, k, t0 = sys.argv[2], int(sys.argv[3]), sys.argv[4]
+f = r["final"]; total = r["seconds"]["total"]
+lights = f.get("point_lights", [])
+radius = ", ".join("%.3f" % l["radius"] for l in lights) or "—"
+pos = f.get("position_error_m")
+lamp = "—" if pos is None or pos == "inf" else "%.1f cm (%.1f %%)" % (100 * pos, 100 * f.get("position_error_share", float("nan")))
+ratio = ""
+if k == 0: open(t0, "w").write(str(total))
+else: ratio = "%.2f" % (total / float(open(t0).read()))
+print("| %s | %d | %.1f | %.4f | %.2f | %d | %s | %s | %s |" % (name if k == 0 else "", k, total,
+      r["views"][0]["render_relative_rmse"], f.get("angular_error_deg", float("nan")), len(lights), radius, lamp, ratio))
+PY
+  done
+done
