@@ -1,6 +1,10 @@
 #include "common/atomic_file.h"
 
+#include <algorithm>
 #include <atomic>
+#include <cctype>
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <system_error>
@@ -33,12 +37,26 @@ void WriteAtomically(const fs::path& path, const std::function<void(const fs::pa
   }
 }
 
+std::string WriteFailure(const fs::path& dir, int saved_errno) {
+  std::error_code ec;
+  const fs::space_info space = fs::space(dir.empty() ? fs::path(".") : dir, ec);
+  if (saved_errno == ENOSPC || (!ec && space.available == 0)) return "no space left on device";
+  if (saved_errno == 0) return "";
+  std::string m = std::strerror(saved_errno);
+  std::transform(m.begin(), m.end(), m.begin(), [](unsigned char c) { return std::tolower(c); });
+  return m;
+}
+
 void WriteTextAtomically(const fs::path& path, const std::string& text) {
   WriteAtomically(path, [&](const fs::path& tmp) {
+    errno = 0;
     std::ofstream out(tmp, std::ios::binary);
     out << text;
     out.flush();
-    if (!out) throw InputError(path.string(), "cannot write");
+    if (!out) {
+      const std::string why = WriteFailure(tmp.parent_path(), errno);
+      throw InputError(path.string(), why.empty() ? "cannot write" : "cannot write: " + why);
+    }
   });
 }
 

@@ -14,6 +14,11 @@ namespace lp {
 void WriteAtomically(const std::filesystem::path& path,
                      const std::function<void(const std::filesystem::path& tmp)>& write);
 
+/// Why a write into `dir` failed, from the OS: "no space left on device" when `saved_errno`
+/// is ENOSPC or the file system has no space left, else the errno's message (lower case);
+/// empty when the OS said nothing. Save errno right after the failing write.
+std::string WriteFailure(const std::filesystem::path& dir, int saved_errno);
+
 /// Writes `text` to `path` atomically.
 void WriteTextAtomically(const std::filesystem::path& path, const std::string& text);
 

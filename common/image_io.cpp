@@ -1,6 +1,7 @@
 #include "common/image_io.h"
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -166,12 +167,17 @@ cv::Mat ToMat(const ImageRGB& image) {
 void WriteMat(const fs::path& path, const cv::Mat& m) {
   WriteAtomically(path, [&](const fs::path& tmp) {
     bool ok = false;
+    errno = 0;
     try {
       ok = cv::imwrite(tmp.string(), m);
     } catch (const cv::Exception& e) {
-      throw InputError(path.string(), std::string("cannot write image: ") + e.what());
+      const std::string why = WriteFailure(tmp.parent_path(), errno);
+      throw InputError(path.string(), "cannot write image: " + (why.empty() ? std::string(e.what()) : why));
     }
-    if (!ok) throw InputError(path.string(), "cannot write image");
+    if (!ok) {
+      const std::string why = WriteFailure(tmp.parent_path(), errno);
+      throw InputError(path.string(), why.empty() ? "cannot write image" : "cannot write image: " + why);
+    }
   });
 }
 

@@ -1,4 +1,5 @@
 // Scene-bundle and PLY input: round trips, and clear errors on bad input.
+#include <cerrno>
 #include <filesystem>
 #include <fstream>
 
@@ -280,6 +281,23 @@ TEST(AtomicWrite, FailedWriteLeavesTheOldFile) {
   int leftovers = 0;
   for (const auto& e : fs::directory_iterator(d)) leftovers += e.path().filename() != "r.txt";
   EXPECT_EQ(leftovers, 0);
+}
+
+// A full disk says so. /dev/full fails every write with ENOSPC, as a full file system does:
+// the message WriteFailure gives then (what the atomic writers of text and images append to
+// "cannot write") is the OS's, "no space left on device".
+TEST(AtomicWrite, AFullDiskSaysNoSpaceLeftOnDevice) {
+  if (!fs::exists("/dev/full")) GTEST_SKIP() << "no /dev/full on this system";
+  errno = 0;
+  std::ofstream full("/dev/full", std::ios::binary);
+  full << std::string(1 << 16, 'x');
+  full.flush();
+  const int saved = errno;
+  ASSERT_FALSE(full) << "a write to /dev/full succeeded";
+  EXPECT_EQ(saved, ENOSPC) << "the stream's failed write leaves the OS's errno";
+  EXPECT_EQ(WriteFailure(fs::temp_directory_path(), saved), "no space left on device");
+  EXPECT_EQ(WriteFailure("/dev", saved), "no space left on device");
+  EXPECT_EQ(WriteFailure(fs::temp_directory_path(), EACCES), "permission denied");
 }
 
 }  // namespace
