@@ -236,18 +236,56 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
 
 }  // namespace
 
+namespace {
+
+/// An .oni file's format version (file header bytes 4-11: u8 major, u8 minor, u16
+/// maintenance, u32 build), ordered as OpenNI2's player orders them (PlayerNode's
+/// CompareVersions: the build's difference taken as a signed 32-bit number).
+struct OniVersion {
+  int major = 0, minor = 0, maintenance = 0;
+  std::uint32_t build = 0;
+  std::string Text() const {
+    return std::to_string(major) + "." + std::to_string(minor) + "." + std::to_string(maintenance) + "." +
+           std::to_string(build);
+  }
+};
+
+int Compare(const OniVersion& a, const OniVersion& b) {
+  if (a.major != b.major) return a.major - b.major;
+  if (a.minor != b.minor) return a.minor - b.minor;
+  if (a.maintenance != b.maintenance) return a.maintenance - b.maintenance;
+  return static_cast<std::int32_t>(a.build - b.build);
+}
+
+}  // namespace
+
 int ValidateOniFile(const std::string& path) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw InputError(path, "file not found");
   const std::uint64_t size = fs::file_size(path, ec);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot read");
-  constexpr std::size_t kFileHeader = 24, kRecordHeader = 28;
+  return ValidateOniStream(in, size, path);
+}
+
+int ValidateOniStream(std::istream& in, std::uint64_t size, const std::string& path) {
+  // The layouts OpenNI2's file player reads (docs/formats.md, ".oni structure check"):
+  // versions 1.0.0.4 up to 1.0.1.0; before 1.0.1.0 record headers are 24 bytes (a 32-bit
+  // undo position), from it 28. A record's fields (header included) may not exceed the
+  // player's record buffer, which it would overrun.
+  constexpr std::size_t kFileHeader = 24;
   constexpr std::uint32_t kRecordMagic = 0x0052494E;  // "NIR\0"
-  unsigned char h[kRecordHeader];
+  constexpr std::uint64_t kRecordMaxSize = 5760121;   // PlayerNode's RECORD_MAX_SIZE
+  const OniVersion kOldest{1, 0, 0, 4}, kFirst64bit{1, 0, 1, 0};
+  unsigned char h[28];
   if (size < kFileHeader || !in.read(reinterpret_cast<char*>(h), kFileHeader))
     throw InputError(path, "empty or truncated .oni file (no header)");
   if (std::memcmp(h, "NI10", 4) != 0) throw InputError(path, "not an .oni recording (bad magic)");
+  const OniVersion version{h[4], h[5], h[6] | h[7] << 8, U32(h + 8)};
+  if (Compare(version, kOldest) < 0 || Compare(version, kFirst64bit) > 0)
+    throw InputError(path, "unsupported .oni file format version " + version.Text() +
+                               " (OpenNI2 plays 1.0.0.4 to 1.0.1.0)");
+  const std::uint32_t kRecordHeader = Compare(version, kFirst64bit) < 0 ? 24 : 28;
   std::uint64_t pos = kFileHeader;
   int records = 0, frames = 0;
   bool end = false;
@@ -259,7 +297,7 @@ int ValidateOniFile(const std::string& path) {
     const std::uint32_t magic = U32(h), type = U32(h + 4), fields = U32(h + 8 + 4), payload = U32(h + 16);
     if (magic != kRecordMagic)
       throw InputError(path, "corrupt .oni file: bad record magic at byte " + std::to_string(pos));
-    if (type < 0x02 || type > 0x0E || fields < kRecordHeader)
+    if (type < 0x02 || type > 0x0E || fields < kRecordHeader || fields > kRecordMaxSize)
       throw InputError(path, "corrupt .oni file: bad record header at byte " + std::to_string(pos));
     const std::uint64_t next = pos + fields + static_cast<std::uint64_t>(payload);
     if (next > size)

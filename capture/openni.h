@@ -8,6 +8,8 @@
 #include <atomic>
 #include <functional>
 #include <memory>
+#include <cstdint>
+#include <iosfwd>
 #include <string>
 #include <vector>
 
@@ -152,9 +154,12 @@ std::unique_ptr<FrameSource> OpenOpenNiDevice(const OpenNiDeviceOptions& options
 std::vector<RgbdFrame> CaptureBracket(const OpenNiDeviceOptions& device, const std::vector<int>& exposures,
                                       int settle = 5);
 
-/// Checks the structure of a `.oni` file (header and record chain) without OpenNI2;
-/// throws InputError naming the file and the first problem. Returns the number of frame
-/// records (both streams).
+/// Checks the structure of a `.oni` file (header and record chain) without OpenNI2, in
+/// both record layouts OpenNI2's file player reads (format versions 1.0.0.4 to 1.0.1.0:
+/// 24-byte record headers before 1.0.1.0, 28 from it); throws InputError naming the file
+/// and the first problem. Returns the number of frame records (both streams).
 int ValidateOniFile(const std::string& path);
+/// The same on `size` bytes read from `in` (named `path` in errors).
+int ValidateOniStream(std::istream& in, std::uint64_t size, const std::string& path);
 
 }  // namespace lp

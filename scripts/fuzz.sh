@@ -6,7 +6,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds="${1:-60}"
-targets=(ply scene_json image)
+targets=(ply scene_json image oni)
 bash scripts/install-deps.sh
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DLIGHTPROBE_BUILD_FUZZERS=ON -DLIGHTPROBE_BUILD_TESTS=OFF >/dev/null

@@ -6,8 +6,10 @@
 #include <chrono>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <random>
 #include <thread>
+#include <tuple>
 
 #include <pthread.h>
 
@@ -266,6 +268,117 @@ TEST_F(OpenNi, CorruptRecordsThatPassTheStructureCheckCannotCrashTheProcess) {
   std::printf("16 mutated files: %d played, %d rejected (%d crashed OpenNI2 in the checking process)\n", played,
               rejected, crashed);
   EXPECT_GT(crashed, 0) << "no case crashed OpenNI2: the mutations no longer exercise the isolation";
+}
+
+void PutU32(std::string* b, std::size_t p, std::uint32_t v) {
+  for (int k = 0; k < 4; ++k) (*b)[p + k] = static_cast<char>(v >> (8 * k) & 0xff);
+}
+
+std::uint64_t U64At(const std::string& b, std::size_t p) { return U32At(b, p) | std::uint64_t(U32At(b, p + 4)) << 32; }
+
+/// A recording as OpenNI 1.x tools before 1.5 wrote it (format 1.0.0.6, the "32-bit"
+/// layout of OpenNI2's player): every record header 24 bytes (the undo position a u32), a
+/// NodeAdded record's seek-table position a u32, seek-table entries 16 bytes ({u64 time,
+/// u32 configuration, u32 position}); every stored file position moved to where its record
+/// lands. Made from a 1.0.1.0 recording, record by record.
+std::string To32BitLayout(const std::string& b) {
+  std::map<std::uint64_t, std::uint64_t> moved;  // record start: old -> new
+  std::uint64_t pos = 24, out = 24;
+  while (pos + 28 <= b.size()) {
+    const std::uint32_t type = U32At(b, pos + 4), fields = U32At(b, pos + 12), payload = U32At(b, pos + 16);
+    moved[pos] = out;
+    out += fields - 4 - (type == 0x0D ? 4 : 0) + (type == 0x0E ? payload / 20 * 16 : payload);
+    pos += fields + payload;
+    if (type == 0x0B) break;  // OpenNI2's Recorder ends with End (its seek tables come before)
+  }
+  moved[pos] = out;
+  auto where = [&](std::uint64_t p) {
+    if (p == 0) return std::uint32_t{0};
+    EXPECT_TRUE(moved.count(p)) << "a stored position " << p << " is not a record's start";
+    return static_cast<std::uint32_t>(moved[p]);
+  };
+  std::string r = b.substr(0, 24);
+  r[4] = 1, r[5] = 0, r[6] = 0, r[7] = 0;  // version 1.0.0.6
+  PutU32(&r, 8, 6);
+  for (pos = 24; pos + 28 <= b.size();) {
+    const std::uint32_t type = U32At(b, pos + 4), fields = U32At(b, pos + 12), payload = U32At(b, pos + 16);
+    std::string body = b.substr(pos + 28, fields - 28);
+    if (type == 0x0D) {  // the seek table's position: the fields' last 8 bytes, now 4
+      const std::uint32_t table = where(U64At(body, body.size() - 8));
+      body.resize(body.size() - 8);
+      body.append(4, '\0');
+      PutU32(&body, body.size() - 4, table);
+    }
+    std::string data;
+    if (type == 0x0E) {
+      for (std::size_t e = 0; e + 20 <= payload; e += 20) {
+        std::string entry = b.substr(pos + fields + e, 12);
+        entry.append(4, '\0');
+        PutU32(&entry, 12, where(U64At(b, pos + fields + e + 12)));
+        data += entry;
+      }
+    } else {
+      data = b.substr(pos + fields, payload);
+    }
+    std::string header = b.substr(pos, 20);
+    PutU32(&header, 12, static_cast<std::uint32_t>(24 + body.size()));
+    PutU32(&header, 16, static_cast<std::uint32_t>(data.size()));
+    header.append(4, '\0');
+    PutU32(&header, 20, where(U64At(b, pos + 20)));
+    r += header + body + data;
+    pos += fields + payload;
+    if (type == 0x0B) break;
+  }
+  return r;
+}
+
+// Both record layouts OpenNI2's player reads: a recording rewritten in the 32-bit layout of
+// OpenNI 1 tools (format 1.0.0.6) passes the structure check with the same frame count and
+// OpenNI2 plays the same depth frames from it (before, its header-only records, 24 bytes,
+// were "bad record headers"); versions the player does not play are refused, one line naming
+// the file, and so is a record larger than the player's record buffer.
+TEST_F(OpenNi, TheStructureCheckReadsBothRecordLayoutsOfThePlayer) {
+  const std::string bytes = RecordBytes(4);
+  const std::string old = To32BitLayout(bytes);
+  auto write = [&](const std::string& name, const std::string& content) {
+    std::ofstream(dir_ / name, std::ios::binary) << content;
+    return (dir_ / name).string();
+  };
+  const std::string current = write("current.oni", bytes), old32 = write("old32.oni", old);
+  ASSERT_EQ(ValidateOniFile(old32), ValidateOniFile(current));
+  auto depths = [](const std::string& f) {
+    auto src = OpenOniFile(f);
+    std::vector<std::vector<std::uint16_t>> out;
+    RgbdFrame frame;
+    while (src->Next(&frame, 2.0) == SourceStatus::kFrame) out.push_back(frame.depth.data);
+    return out;
+  };
+  // The fuzz target's seeds (tests/fuzz/corpus/oni): one hand-made frame in each layout.
+  for (const char* seed : {"layout_1_0_1_0.oni", "layout_1_0_0_6.oni"})
+    EXPECT_EQ(ValidateOniFile((fs::path(LIGHTPROBE_SOURCE_DIR) / "tests/fuzz/corpus/oni" / seed).string()), 1) << seed;
+  const auto a = depths(current), b = depths(old32);
+  ASSERT_FALSE(a.empty());
+  EXPECT_EQ(a, b) << "OpenNI2 plays the 32-bit layout's frames as the current layout's";
+
+  std::string too_old = old, too_new = bytes, big = bytes;
+  PutU32(&too_old, 8, 3);  // 1.0.0.3
+  PutU32(&too_new, 8, 11);  // 1.0.1.11
+  PutU32(&big, 24 + 12, 5760122);  // the first record's fields: past the player's buffer
+  for (const auto& [name, content, says] :
+       {std::tuple<std::string, std::string, std::string>{"too_old.oni", too_old,
+                                                          "unsupported .oni file format version 1.0.0.3"},
+        {"too_new.oni", too_new, "unsupported .oni file format version 1.0.1.11"},
+        {"big.oni", big, "bad record header at byte 24"}}) {
+    const std::string f = write(name, content);
+    try {
+      ValidateOniFile(f);
+      ADD_FAILURE() << name << " passed the structure check";
+    } catch (const InputError& e) {
+      const std::string what = e.what();
+      EXPECT_NE(what.find(f), std::string::npos) << what;
+      EXPECT_NE(what.find(says), std::string::npos) << what;
+    }
+  }
 }
 
 TEST_F(OpenNi, AMalformedSideFileIsAClearError) {
