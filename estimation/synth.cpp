@@ -253,6 +253,50 @@ std::vector<ImageRGB> RenderReference(const RayTracer& scene, const Mesh& mesh, 
   return RenderEnvironment(scene, fine, views, *fine_radiance, sampler, to, true);
 }
 
+/// The lights of the room scenes (one-light ... lamp-and-sky, env-*), around the lighting's
+/// centre; `sky_up` receives the sky's irradiance on a surface facing up (0: no sky).
+void RoomLights(const std::string& name, const fs::path& data_dir, const Vector3d& up, SynthLighting* out,
+                double* sky_up) {
+  std::vector<SphereLight>& lights = out->lights;
+  SynthLighting& lighting = *out;
+  const Vector3d& center = lighting.center;
+  *sky_up = 0;
+  const bool lamps = name == "lamp-0.5m" || name == "lamp-1m" || name == "lamp-2m" || name == "lamp-4m" ||
+                     name == "two-lamps" || name == "lamp-and-sky";
+  if (name == "one-light") {
+    // Far (200 m, 20 m radius: 5.7 degrees): the light's distance varies by < 1.5 % over
+    // the room, so the environment-map model holds; near-light stresses it instead.
+    lights.push_back(LightAt(center, Direction(30, 50), 200, 20.0, {1.0, 0.95, 0.85}, 3.0));
+  } else if (name == "two-light") {
+    lights.push_back(LightAt(center, Direction(15, 45), 200, 20.0, {1.0, 0.85, 0.65}, 2.5));
+    lights.push_back(LightAt(center, Direction(80, 30), 200, 20.0, {0.55, 0.7, 1.0}, 1.2));
+  } else if (name == "near-light") {
+    lights.push_back(LightAt(center, Direction(40, 55), 0.6, 0.05, {1.0, 0.95, 0.85}, 1.0));
+    lighting.far = false;
+  } else if (lamps) {
+    // Lamps in the room (issue 20): 5 cm spheres, irradiance 1 at the centre each.
+    const double distance = name == "lamp-0.5m" ? 0.5 : name == "lamp-1m" ? 1.0 : name == "lamp-2m" ? 2.0
+                            : name == "lamp-4m"  ? 4.0 : name == "two-lamps" ? 1.7 : 1.5;
+    if (name == "two-lamps") {
+      lights.push_back(LightAt(center, Direction(35, 50), 1.7, 0.05, {1.0, 0.8, 0.55}, 1.0));
+      lights.push_back(LightAt(center, Direction(75, 35), 1.6, 0.05, {0.55, 0.75, 1.0}, 0.7));
+    } else {
+      lights.push_back(LightAt(center, Direction(40, 55), distance, 0.05, {1.0, 0.95, 0.85}, 1.0));
+    }
+    if (name == "lamp-and-sky") lighting.sky = Sky(up, *sky_up = 1.0 / 20);
+    lighting.far = false;
+  } else if (name == "sun-and-sky") {
+    // The sun: 0.53 degrees across, 10 km away (parallel over the room); irradiance 3
+    // facing it, the sky 1000x less on a surface facing up.
+    lights.push_back(LightAt(center, Direction(35, 40), 1e4, 1e4 * std::tan(0.265 * kPi / 180), {1.0, 0.97, 0.9},
+                             3.0));
+    lighting.sky = Sky(up, *sky_up = 3.0 / 1000);
+  } else {
+    const fs::path hdr = data_dir / "hdri" / (name == "env-studio" ? "studio_small_03_1k.hdr" : "venice_sunset_1k.hdr");
+    lighting.equirect = ReadHdr(hdr);
+  }
+}
+
 }  // namespace
 
 SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::path& data_dir) {
@@ -264,6 +308,7 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::p
   std::vector<SphereLight>& lights = lighting.lights;
   Vector3d& center = lighting.center;
   std::vector<Camera> cams;
+  double sky_up = 0;  // the sky's irradiance on a surface facing up (truth.json)
   const bool lamps = name == "lamp-0.5m" || name == "lamp-1m" || name == "lamp-2m" || name == "lamp-4m" ||
                      name == "two-lamps" || name == "lamp-and-sky";
   const bool room = name == "one-light" || name == "two-light" || name == "near-light" || name == "sun-and-sky" ||
@@ -273,38 +318,7 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::p
     b.up = Vector3d::UnitZ();
     center = Vector3d(1.1, 1.1, 0.5);
     cams = RoomCameras(o, b.up);
-    if (name == "one-light") {
-      // Far (200 m, 20 m radius: 5.7 degrees): the light's distance varies by < 1.5 % over
-      // the room, so the environment-map model holds; near-light stresses it instead.
-      lights.push_back(LightAt(center, Direction(30, 50), 200, 20.0, {1.0, 0.95, 0.85}, 3.0));
-    } else if (name == "two-light") {
-      lights.push_back(LightAt(center, Direction(15, 45), 200, 20.0, {1.0, 0.85, 0.65}, 2.5));
-      lights.push_back(LightAt(center, Direction(80, 30), 200, 20.0, {0.55, 0.7, 1.0}, 1.2));
-    } else if (name == "near-light") {
-      lights.push_back(LightAt(center, Direction(40, 55), 0.6, 0.05, {1.0, 0.95, 0.85}, 1.0));
-      lighting.far = false;
-    } else if (lamps) {
-      // Lamps in the room (issue 20): 5 cm spheres, irradiance 1 at the centre each.
-      const double distance = name == "lamp-0.5m" ? 0.5 : name == "lamp-1m" ? 1.0 : name == "lamp-2m" ? 2.0
-                              : name == "lamp-4m"  ? 4.0 : name == "two-lamps" ? 1.7 : 1.5;
-      if (name == "two-lamps") {
-        lights.push_back(LightAt(center, Direction(35, 50), 1.7, 0.05, {1.0, 0.8, 0.55}, 1.0));
-        lights.push_back(LightAt(center, Direction(75, 35), 1.6, 0.05, {0.55, 0.75, 1.0}, 0.7));
-      } else {
-        lights.push_back(LightAt(center, Direction(40, 55), distance, 0.05, {1.0, 0.95, 0.85}, 1.0));
-      }
-      if (name == "lamp-and-sky") lighting.sky = Sky(b.up, 1.0 / 20);
-      lighting.far = false;
-    } else if (name == "sun-and-sky") {
-      // The sun: 0.53 degrees across, 10 km away (parallel over the room); irradiance 3
-      // facing it, the sky 1000x less on a surface facing up.
-      lights.push_back(LightAt(center, Direction(35, 40), 1e4, 1e4 * std::tan(0.265 * kPi / 180), {1.0, 0.97, 0.9},
-                               3.0));
-      lighting.sky = Sky(b.up, 3.0 / 1000);
-    } else {
-      const fs::path hdr = data_dir / "hdri" / (name == "env-studio" ? "studio_small_03_1k.hdr" : "venice_sunset_1k.hdr");
-      lighting.equirect = ReadHdr(hdr);
-    }
+    RoomLights(name, data_dir, b.up, &lighting, &sky_up);
   } else if (name == "frag115") {
     const fs::path ply = data_dir / "mesh" / "frag_115.ply";
     b.mesh = ReadPly(ply);
@@ -377,7 +391,7 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::p
                            {"distance", (l.position - center).norm()},
                            {"direction", {d.x(), d.y(), d.z()}}});
   }
-  if (lighting.sky) t["sky"] = {{"irradiance_up", 3.0 / 1000}, {"model", "(1 + 2 cos theta) / 3 above the horizon"}};
+  if (lighting.sky) t["sky"] = {{"irradiance_up", sky_up}, {"model", "(1 + 2 cos theta) / 3 above the horizon"}};
   if (o.held_out_views > 0) t["held_out_views"] = o.held_out_views;
   b.truth_json = t.dump(2) + "\n";
   return scene_out;
