@@ -295,6 +295,20 @@ std::vector<std::vector<float>> Estimator::PointColumns(int round, int first, Ro
   return columns;
 }
 
+/// The intensity (per channel, >= 0) whose multiple of `col` best fits `target` in least
+/// squares weighted by `weight`; false when a channel has no weighted column at all (that
+/// channel is then 0).
+bool WeightedIntensity(const std::vector<float>& col, const std::vector<double>& target,
+                       const std::vector<double>& weight, Eigen::Vector3d* intensity) {
+  Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
+  for (std::size_t e = 0; e < col.size(); ++e) {
+    num[e % 3] += weight[e] * col[e] * target[e];
+    den[e % 3] += weight[e] * double(col[e]) * col[e];
+  }
+  for (int c = 0; c < 3; ++c) (*intensity)[c] = den[c] > 0 ? std::max(0.0, num[c] / den[c]) : 0.0;
+  return den.minCoeff() > 0;
+}
+
 /// Round 1's search for lamps, the map left dark so that a lamp gets its light before the
 /// map can spread it over many cells: greedily, the candidate position around the scene
 /// (columns from fewer paths) whose column best explains what the lights so far leave
@@ -328,13 +342,8 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
     for (std::size_t e = 0; e < residual.size(); ++e) weight[e] = 1 / (1 + residual[e] * residual[e] / s2);
     for (std::size_t i = 0; i < positions.size(); ++i) {
       const std::vector<float>& col = columns[i];
-      Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
-      for (std::size_t e = 0; e < col.size(); ++e) {
-        num[e % 3] += weight[e] * col[e] * residual[e];
-        den[e % 3] += weight[e] * double(col[e]) * col[e];
-      }
-      if (!(den.minCoeff() > 0)) continue;
-      const Eigen::Vector3d I = num.cwiseQuotient(den).cwiseMax(0.0);
+      Eigen::Vector3d I;
+      if (!WeightedIntensity(col, residual, weight, &I)) continue;
       double e = 0;
       for (std::size_t k = 0; k < col.size(); ++k) {
         const double v = residual[k] - I[k % 3] * col[k];
@@ -555,8 +564,9 @@ bool Estimator::FitRadii(std::vector<PointLight>* lights) {
   CheckCancel();
   bool changed = false;
   const double sigma = res_.objective_params.sigma;
+  const std::vector<double> map = A_.Multiply(lambda_);
   for (std::size_t k = 0; k < lights->size(); ++k) {
-    std::vector<double> base = A_.Multiply(lambda_);
+    std::vector<double> base = map;
     std::vector<float> col;
     for (std::size_t j = 0; j < lights->size(); ++j) {
       if (j == k) continue;
@@ -570,16 +580,14 @@ bool Estimator::FitRadii(std::vector<PointLight>* lights) {
       const double radius = g == 0 ? 0.0 : 0.004 * radius_ * std::pow(2.0, g);
       PointLightColumn(*scene_, vertices_, light.position, &col, nullptr, radius);
       Eigen::Vector3d intensity = light.intensity;
-      std::vector<double> r(base.size());
+      std::vector<double> r(base.size()), left(base.size()), w(base.size());
+      for (std::size_t i = 0; i < r.size(); ++i) left[i] = y_[i] - base[i];
       for (int it = 0; it < 4; ++it) {  // reweighted least squares for the Cauchy loss
-        for (std::size_t i = 0; i < r.size(); ++i) r[i] = y_[i] - base[i] - intensity[i % 3] * col[i];
-        Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
         for (std::size_t i = 0; i < r.size(); ++i) {
-          const double w = 1 / (1 + r[i] * r[i] / (sigma * sigma));
-          num[i % 3] += w * col[i] * (y_[i] - base[i]);
-          den[i % 3] += w * col[i] * col[i];
+          r[i] = left[i] - intensity[i % 3] * col[i];
+          w[i] = 1 / (1 + r[i] * r[i] / (sigma * sigma));
         }
-        for (int c = 0; c < 3; ++c) intensity[c] = den[c] > 0 ? std::max(0.0, num[c] / den[c]) : 0.0;
+        WeightedIntensity(col, left, w, &intensity);
       }
       for (std::size_t i = 0; i < r.size(); ++i) r[i] = y_[i] - base[i] - intensity[i % 3] * col[i];
       const double loss = CauchyLoss(r, sigma);

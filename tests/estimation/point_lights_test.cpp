@@ -185,12 +185,7 @@ TEST(PointLights, RefinementFindsTheLampFromHalfAMetreAway) {
   PointLightColumn(scene, v, lamp.position, &col);
   std::vector<double> y(col.size()), base(col.size(), 0.0);
   for (std::size_t i = 0; i < y.size(); ++i) y[i] = lamp.intensity[i % 3] * col[i];
-  PointFitProblem fit;
-  fit.scene = &scene;
-  fit.vertices = &v;
-  fit.y = &y;
-  fit.base = &base;
-  fit.alpha = 0;
+  const PointFitProblem fit{&scene, &v, &y, &base, 0.5, 0};  // no activation penalty
   std::vector<PointLight> lights{{lamp.position + Eigen::Vector3d(0.3, -0.3, 0.25), {1, 1, 1}, 0}};
   const int steps = RefinePointLights(fit, &lights, 40);
   EXPECT_GT(steps, 0);

@@ -618,12 +618,7 @@ TEST(Stability, TwoLightsAtOnePositionStayFiniteAndMerge) {
   const ShadingVertices v = GatherShadingVertices(scene, b.views, t);
   const std::vector<double> y = CollectObservations(b.views);
   const std::vector<double> base(y.size(), 0.0);
-  PointFitProblem fit;
-  fit.scene = &scene;
-  fit.vertices = &v;
-  fit.y = &y;
-  fit.base = &base;
-  fit.alpha = 0;
+  const PointFitProblem fit{&scene, &v, &y, &base, 0.5, 0};  // no activation penalty
   const Eigen::Vector3d start = lamp.position + Eigen::Vector3d(0.1, -0.1, 0.1);
   std::vector<PointLight> pair{{start, {0.5, 0.5, 0.5}, 0}, {start, {0.5, 0.5, 0.5}, 0}};
   const double before = fit.Value(pair);
