@@ -21,12 +21,22 @@ namespace {
 
 constexpr const char* kFormat = "lightprobe-calibration";
 constexpr int kVersion = 1;
+constexpr int kMaxImageSide = 1 << 16;                 // docs/formats.md: limits
+constexpr std::size_t kMaxResponseCoefficients = 16;  // the fit tries degrees up to 8
 
 double Number(const nlohmann::json& j, const char* key, const std::string& where) {
   if (!j.contains(key) || !j.at(key).is_number()) throw InputError(where + ": \"" + key + "\" must be a number");
   const double v = j.at(key).get<double>();
   if (!std::isfinite(v)) throw InputError(where + ": \"" + key + "\" is not finite");
   return v;
+}
+
+/// A width or height: a whole number from 1 to kMaxImageSide (no cast of a huge double).
+int ImageSide(const nlohmann::json& j, const char* key, const std::string& where) {
+  const double v = Number(j, key, where);
+  if (!(v >= 1 && v <= kMaxImageSide) || v != std::floor(v))
+    throw InputError(where + ": \"" + key + "\" must be a whole number from 1 to " + std::to_string(kMaxImageSide));
+  return static_cast<int>(v);
 }
 
 }  // namespace
@@ -50,26 +60,28 @@ std::string Calibration::Describe() const {
   return s.str();
 }
 
-Calibration ReadCalibration(const std::filesystem::path& path) {
-  const std::string where = path.string();
+Calibration ReadCalibration(const std::filesystem::path& path) { return ParseCalibration(ReadTextFile(path), path.string()); }
+
+Calibration ParseCalibration(const std::string& text, const std::string& where) {
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(ReadTextFile(path));
+    j = nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {
     throw InputError(where, std::string("not a JSON calibration file: ") + e.what());
   }
   if (!j.is_object() || j.value("format", "") != kFormat)
     throw InputError(where, std::string("not a lightprobe calibration file (\"format\" must be \"") + kFormat + "\")");
-  if (j.value("version", 0) != kVersion)
-    throw InputError(where, "calibration file version " + j.value("version", nlohmann::json(0)).dump() +
+  if (!j.contains("version") || !j.at("version").is_number_integer() || j.at("version").get<long long>() != kVersion)
+    throw InputError(where, "calibration file version " +
+                                (j.contains("version") && j.at("version").is_number() ? j.at("version").dump() : "(not a number)") +
                                 " is not supported (this build reads version " + std::to_string(kVersion) + ")");
   Calibration c;
   try {
     if (j.contains("camera")) {
       const auto& k = j.at("camera");
       CameraModel m;
-      m.width = static_cast<int>(Number(k, "width", where + " camera"));
-      m.height = static_cast<int>(Number(k, "height", where + " camera"));
+      m.width = ImageSide(k, "width", where + " camera");
+      m.height = ImageSide(k, "height", where + " camera");
       m.fx = Number(k, "fx", where + " camera");
       m.fy = Number(k, "fy", where + " camera");
       m.cx = Number(k, "cx", where + " camera");
@@ -80,6 +92,8 @@ Calibration ReadCalibration(const std::filesystem::path& path) {
         const auto& d = k.at("distortion");
         if (!d.is_array() || d.size() != 5) throw InputError(where, "camera: \"distortion\" must be 5 numbers (k1 k2 p1 p2 k3)");
         for (std::size_t i = 0; i < 5; ++i) m.distortion[i] = d.at(i).get<double>();
+        for (double x : m.distortion)
+          if (!std::isfinite(x)) throw InputError(where, "camera: \"distortion\" is not finite");
       }
       c.color = m;
     }
@@ -101,8 +115,10 @@ Calibration ReadCalibration(const std::filesystem::path& path) {
       if (!co.is_array() || co.size() != 3) throw InputError(where, "response: \"coefficients\" must be 3 lists (R, G, B)");
       InverseResponse ir;
       for (std::size_t ch = 0; ch < 3; ++ch) {
+        if (!co.at(ch).is_array() || co.at(ch).empty() || co.at(ch).size() > kMaxResponseCoefficients)
+          throw InputError(where, "response: each channel needs 1 to " + std::to_string(kMaxResponseCoefficients) +
+                                      " coefficients");
         ir.coefficients[ch] = co.at(ch).get<std::vector<double>>();
-        if (ir.coefficients[ch].empty()) throw InputError(where, "response: empty coefficient list");
         const double at1 = ir.Apply(static_cast<int>(ch), 1.0), at0 = ir.Apply(static_cast<int>(ch), 0.0);
         if (!(std::abs(at1 - 1) < 1e-3) || !(at0 < at1))
           throw InputError(where, "response: channel " + std::to_string(ch) + " must rise to 1 at the top value");
@@ -118,6 +134,8 @@ Calibration ReadCalibration(const std::filesystem::path& path) {
       if (v.contains("center")) {
         c.vignetting.cx = v.at("center").at(0).get<double>();
         c.vignetting.cy = v.at("center").at(1).get<double>();
+        if (!std::isfinite(c.vignetting.cx) || !std::isfinite(c.vignetting.cy))
+          throw InputError(where, "vignetting: \"center\" is not finite");
       }
       if (!c.vignetting.Plausible()) throw InputError(where, "vignetting: V(r) must stay above 0.05 up to r = 1");
     }

@@ -40,6 +40,8 @@ struct Calibration {
 /// Reads a calibration file; throws InputError naming the file and the problem (not JSON,
 /// another format or version, values out of range).
 Calibration ReadCalibration(const std::filesystem::path& path);
+/// The same from the file's text (`name` for errors).
+Calibration ParseCalibration(const std::string& text, const std::string& name);
 /// Writes it atomically.
 void WriteCalibration(const std::filesystem::path& path, const Calibration& calibration);
 /// The text WriteCalibration writes.

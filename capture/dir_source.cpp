@@ -11,6 +11,7 @@
 
 #include "capture/frame_source.h"
 #include "capture/trajectory.h"
+#include "capture/tum_index.h"
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/image_io.h"
@@ -48,9 +49,9 @@ struct Entry {
   std::optional<Eigen::Matrix4d> pose;
 };
 
-/// Non-comment, non-empty lines of a text file, split on whitespace.
-std::vector<std::vector<std::string>> ReadTable(const fs::path& path) {
-  std::istringstream in(ReadTextFile(path));
+/// Non-comment, non-empty lines of a text, split on whitespace.
+std::vector<std::vector<std::string>> ParseTable(const std::string& text) {
+  std::istringstream in(text);
   std::vector<std::vector<std::string>> rows;
   std::string line;
   while (std::getline(in, line)) {
@@ -65,14 +66,14 @@ std::vector<std::vector<std::string>> ReadTable(const fs::path& path) {
   return rows;
 }
 
-double ParseNumber(const std::string& s, const fs::path& file, std::size_t line) {
+double ParseNumber(const std::string& s, const std::string& name, std::size_t line) {
   try {
     std::size_t used = 0;
     const double v = std::stod(s, &used);
     if (used == s.size() && std::isfinite(v)) return v;
   } catch (const std::exception&) {
   }
-  throw InputError(file.string(), "line " + std::to_string(line) + ": '" + s + "' is not a number");
+  throw InputError(name, "line " + std::to_string(line) + ": '" + s.substr(0, 64) + "' is not a number");
 }
 
 std::optional<Camera> IntrinsicsJson(const fs::path& path) {
@@ -84,6 +85,7 @@ std::optional<Camera> IntrinsicsJson(const fs::path& path) {
   } catch (const nlohmann::json::exception& e) {
     throw InputError(path.string(), std::string("malformed JSON: ") + e.what());
   }
+  if (!j.is_object()) throw InputError(path.string(), "intrinsics must be a JSON object");
   Camera k;
   auto num = [&](const nlohmann::json& v) {
     if (!v.is_number()) throw InputError(path.string(), "intrinsics must be numbers");
@@ -104,9 +106,16 @@ std::optional<Camera> IntrinsicsJson(const fs::path& path) {
     k.cx = num(j["cx"]);
     k.cy = num(j["cy"]);
   }
-  if (j.contains("width")) k.width = static_cast<int>(num(j["width"]));
-  if (j.contains("height")) k.height = static_cast<int>(num(j["height"]));
-  if (!(k.fx > 0) || !(k.fy > 0)) throw InputError(path.string(), "focal lengths must be positive");
+  auto side = [&](const char* key) {  // no cast of a huge or negative double to int
+    const double v = num(j[key]);
+    if (!(v >= 1 && v <= 65536)) throw InputError(path.string(), std::string("\"") + key + "\" must be 1 to 65536");
+    return static_cast<int>(v);
+  };
+  if (j.contains("width")) k.width = side("width");
+  if (j.contains("height")) k.height = side("height");
+  if (!(k.fx > 0) || !(k.fy > 0) || !std::isfinite(k.fx) || !std::isfinite(k.fy) || !std::isfinite(k.cx) ||
+      !std::isfinite(k.cy))
+    throw InputError(path.string(), "focal lengths must be positive and finite, the centre finite");
   return k;
 }
 
@@ -118,50 +127,23 @@ void RequireFile(const fs::path& p, const fs::path& index) {
 }
 
 std::vector<Entry> LoadTum(const fs::path& dir) {
-  std::vector<Entry> out;
   const fs::path assoc = dir / "associations.txt";
   std::error_code ec;
+  std::vector<TumFrame> frames;
   if (fs::exists(assoc, ec)) {
-    std::size_t line = 0;
-    for (const auto& r : ReadTable(assoc)) {
-      ++line;
-      if (r.size() < 4) throw InputError(assoc.string(), "line " + std::to_string(line) + ": expected 4 columns");
-      Entry e;
-      e.color_time = ParseNumber(r[0], assoc, line);
-      e.color = dir / r[1];
-      e.depth_time = ParseNumber(r[2], assoc, line);
-      e.depth = dir / r[3];
-      out.push_back(e);
-    }
-    return out;
+    frames = ParseTumAssociations(ReadTextFile(assoc), assoc.string());
+  } else {
+    const fs::path rgb = dir / "rgb.txt", depth = dir / "depth.txt";
+    frames = PairTumLists(ParseTumList(ReadTextFile(rgb), rgb.string()),
+                          ParseTumList(ReadTextFile(depth), depth.string()));
   }
-  auto read_list = [&](const fs::path& f) {
-    std::vector<std::pair<double, fs::path>> v;
-    std::size_t line = 0;
-    for (const auto& r : ReadTable(f)) {
-      ++line;
-      if (r.size() < 2) throw InputError(f.string(), "line " + std::to_string(line) + ": expected 'timestamp path'");
-      v.emplace_back(ParseNumber(r[0], f, line), dir / r[1]);
-    }
-    return v;
-  };
-  const auto rgb = read_list(dir / "rgb.txt");
-  const auto depth = read_list(dir / "depth.txt");
-  // Pair each depth frame with the colour frame nearest in time (TUM's associate.py, 20 ms).
-  for (const auto& [t, d] : depth) {
-    double best = 0.02;
-    const std::pair<double, fs::path>* match = nullptr;
-    for (const auto& c : rgb)
-      if (std::abs(c.first - t) < best) {
-        best = std::abs(c.first - t);
-        match = &c;
-      }
-    if (!match) continue;
+  std::vector<Entry> out;
+  for (const TumFrame& f : frames) {
     Entry e;
-    e.depth = d;
-    e.depth_time = t;
-    e.color = match->second;
-    e.color_time = match->first;
+    e.color_time = f.color_time;
+    e.color = dir / f.color;
+    e.depth_time = f.depth_time;
+    e.depth = dir / f.depth;
     out.push_back(e);
   }
   return out;
@@ -286,40 +268,100 @@ class DirectorySource : public FrameSource {
 
 }  // namespace
 
-std::vector<Eigen::Matrix4d> ReadTrajectoryLog(const fs::path& path) {
-  const auto rows = ReadTable(path);
+std::vector<Eigen::Matrix4d> ParseTrajectoryLog(const std::string& text, const std::string& name) {
+  const auto rows = ParseTable(text);
   std::vector<Eigen::Matrix4d> poses;
-  if (rows.size() % 5 != 0)
-    throw InputError(path.string(), "expected a 3-number header and 4 rows of 4 numbers per frame");
+  if (rows.size() % 5 != 0) throw InputError(name, "expected a 3-number header and 4 rows of 4 numbers per frame");
   for (std::size_t i = 0; i < rows.size(); i += 5) {
-    if (rows[i].size() != 3)
-      throw InputError(path.string(), "expected a 3-number header and 4 rows of 4 numbers per frame");
+    if (rows[i].size() != 3) throw InputError(name, "expected a 3-number header and 4 rows of 4 numbers per frame");
     Eigen::Matrix4d m;
     for (int r = 0; r < 4; ++r) {
-      if (rows[i + 1 + r].size() != 4) throw InputError(path.string(), "a pose row must have 4 numbers");
-      for (int c = 0; c < 4; ++c) m(r, c) = ParseNumber(rows[i + 1 + r][c], path, i + 2 + r);
+      if (rows[i + 1 + r].size() != 4) throw InputError(name, "a pose row must have 4 numbers");
+      for (int c = 0; c < 4; ++c) m(r, c) = ParseNumber(rows[i + 1 + r][c], name, i + 2 + r);
     }
     poses.push_back(m);
   }
   return poses;
 }
 
-std::vector<Eigen::Matrix4d> ReadPoseTxt(const fs::path& path) {
+std::vector<Eigen::Matrix4d> ReadTrajectoryLog(const fs::path& path) {
+  return ParseTrajectoryLog(ReadTextFile(path), path.string());
+}
+
+std::vector<Eigen::Matrix4d> ParsePoseTxt(const std::string& text, const std::string& name) {
   std::vector<Eigen::Matrix4d> poses;
   std::size_t line = 0;
-  for (const auto& r : ReadTable(path)) {
+  for (const auto& r : ParseTable(text)) {
     ++line;
-    if (r.size() != 7) throw InputError(path.string(), "line " + std::to_string(line) + ": expected 7 numbers");
+    if (r.size() != 7) throw InputError(name, "line " + std::to_string(line) + ": expected 7 numbers");
     double v[7];
-    for (int k = 0; k < 7; ++k) v[k] = ParseNumber(r[k], path, line);
+    for (int k = 0; k < 7; ++k) v[k] = ParseNumber(r[k], name, line);
     Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);
-    if (q.norm() < 1e-9) throw InputError(path.string(), "line " + std::to_string(line) + ": zero quaternion");
+    if (!(q.norm() >= 1e-9) || !std::isfinite(q.norm()))
+      throw InputError(name, "line " + std::to_string(line) + ": zero or overflowing quaternion");
     Eigen::Matrix4d m = Eigen::Matrix4d::Identity();
     m.block<3, 3>(0, 0) = q.normalized().toRotationMatrix();
     m.block<3, 1>(0, 3) = Eigen::Vector3d(v[0], v[1], v[2]);
     poses.push_back(m);
   }
   return poses;
+}
+
+std::vector<Eigen::Matrix4d> ReadPoseTxt(const fs::path& path) { return ParsePoseTxt(ReadTextFile(path), path.string()); }
+
+std::vector<TumFrame> ParseTumAssociations(const std::string& text, const std::string& name) {
+  std::vector<TumFrame> out;
+  std::size_t line = 0;
+  for (const auto& r : ParseTable(text)) {
+    ++line;
+    if (r.size() < 4) throw InputError(name, "line " + std::to_string(line) + ": expected 4 columns");
+    out.push_back({ParseNumber(r[0], name, line), r[1], ParseNumber(r[2], name, line), r[3]});
+  }
+  return out;
+}
+
+std::vector<TumListEntry> ParseTumList(const std::string& text, const std::string& name) {
+  std::vector<TumListEntry> v;
+  std::size_t line = 0;
+  for (const auto& r : ParseTable(text)) {
+    ++line;
+    if (r.size() < 2) throw InputError(name, "line " + std::to_string(line) + ": expected 'timestamp path'");
+    v.push_back({ParseNumber(r[0], name, line), r[1]});
+  }
+  return v;
+}
+
+std::vector<TumFrame> PairTumLists(const std::vector<TumListEntry>& rgb, const std::vector<TumListEntry>& depth) {
+  // The colour frames' distinct times, each with its first-listed frame: a binary search per
+  // depth frame (n log n: a long list must not take n^2).
+  std::vector<std::size_t> order(rgb.size());
+  for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return rgb[a].time < rgb[b].time; });
+  std::vector<double> times;
+  std::vector<std::size_t> first;
+  for (std::size_t i : order)
+    if (times.empty() || rgb[i].time != times.back()) {
+      times.push_back(rgb[i].time);
+      first.push_back(i);
+    }
+  std::vector<TumFrame> out;
+  for (const TumListEntry& d : depth) {
+    const std::size_t hi = std::lower_bound(times.begin(), times.end(), d.time) - times.begin();
+    double best = kTumMaxTimeDifference;
+    const TumListEntry* match = nullptr;
+    for (std::size_t k : {hi - 1, hi}) {  // hi - 1 wraps to SIZE_MAX when hi is 0
+      if (k >= times.size()) continue;
+      const double diff = std::abs(times[k] - d.time);
+      const TumListEntry& c = rgb[first[k]];
+      // Nearest in time; on a tie the colour frame listed first.
+      if (diff < best || (match && diff == best && first[k] < static_cast<std::size_t>(match - rgb.data()))) {
+        best = diff;
+        match = &c;
+      }
+    }
+    if (match) out.push_back({match->time, match->path, d.time, d.path});
+  }
+  return out;
 }
 
 double PositionRmse(const std::vector<Eigen::Matrix4d>& estimated, const std::vector<Eigen::Matrix4d>& truth) {

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -209,19 +210,10 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
     const std::string side = OniSideFile(path_);
     std::error_code ec;
     if (!fs::exists(side, ec)) return;
-    try {
-      const nlohmann::json j = nlohmann::json::parse(ReadTextFile(side));
-      if (j.value("format", "") != "lightprobe-oni-side") throw InputError(side, "not a lightprobe side file");
-      if (j.value("version", 0) != 1) throw InputError(side, "unsupported side file version");
-      side_registered_ = j.at("registered").get<bool>();
-      // Comparable across recordings only when the camera held them (not automatic).
-      if (!j.value("auto_exposure", true) && j.value("exposure", -1) > 0 && j.value("gain", -1) > 0) {
-        side_exposure_ = j.at("exposure").get<double>();
-        side_gain_ = j.at("gain").get<double>();
-      }
-    } catch (const nlohmann::json::exception& e) {
-      throw InputError(side, std::string("malformed side file: ") + e.what());
-    }
+    const OniSideInfo info = ParseOniSideFile(ReadTextFile(side), side);
+    side_registered_ = info.registered;
+    side_exposure_ = info.exposure;
+    side_gain_ = info.gain;
   }
 
   std::string path_;
@@ -235,6 +227,26 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
 };
 
 }  // namespace
+
+OniSideInfo ParseOniSideFile(const std::string& text, const std::string& side) {
+  OniSideInfo info;
+  try {
+    const nlohmann::json j = nlohmann::json::parse(text);
+    if (!j.is_object() || j.value("format", "") != "lightprobe-oni-side") throw InputError(side, "not a lightprobe side file");
+    if (j.value("version", 0) != 1) throw InputError(side, "unsupported side file version");
+    info.registered = j.at("registered").get<bool>();
+    // Comparable across recordings only when the camera held them (not automatic).
+    if (!j.value("auto_exposure", true) && j.value("exposure", -1.0) > 0 && j.value("gain", -1.0) > 0) {
+      info.exposure = j.at("exposure").get<double>();
+      info.gain = j.at("gain").get<double>();
+      if (!std::isfinite(info.exposure) || !std::isfinite(info.gain))
+        throw InputError(side, "exposure and gain must be finite");
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(side, std::string("malformed side file: ") + e.what());
+  }
+  return info;
+}
 
 namespace {
 

@@ -70,6 +70,16 @@ std::string DescribeRecording(const RecordResult& result, const std::string& fil
 /// `FILE.oni` -> `FILE.oni.json`, the side file of a recording.
 std::string OniSideFile(const std::string& oni_file);
 
+/// What playback takes from a side file (docs/formats.md).
+struct OniSideInfo {
+  bool registered = false;
+  /// The locked exposure and gain (device units); 0 when the recording ran on automatic
+  /// exposure or did not say (frames are then not comparable across recordings).
+  double exposure = 0, gain = 0;
+};
+/// Parses a side file's text (`name` for errors); throws InputError when it is not one.
+OniSideInfo ParseOniSideFile(const std::string& text, const std::string& name);
+
 struct OniPlaybackOptions {
   bool real_time = false;  ///< play at the recorded rate; default: as fast as frames are read
   bool loop = false;

@@ -12,6 +12,8 @@ namespace lp {
 /// Open3D / Redwood `trajectory.log`: per frame a line "i j n", then the 4x4
 /// world_from_camera in 4 rows. Throws InputError naming the file and line when malformed.
 std::vector<Eigen::Matrix4d> ReadTrajectoryLog(const std::filesystem::path& path);
+/// The same from the file's text (`name` for errors).
+std::vector<Eigen::Matrix4d> ParseTrajectoryLog(const std::string& text, const std::string& name);
 
 /// The text of a `trajectory.log` for `poses` (frame k: "k k k+1", then the 4 rows).
 std::string FormatTrajectoryLog(const std::vector<Eigen::Matrix4d>& poses);
@@ -25,5 +27,7 @@ double PositionRmse(const std::vector<Eigen::Matrix4d>& estimated, const std::ve
 
 /// slambook's `pose.txt`: "tx ty tz qx qy qz qw" per line (world_from_camera).
 std::vector<Eigen::Matrix4d> ReadPoseTxt(const std::filesystem::path& path);
+/// The same from the file's text (`name` for errors).
+std::vector<Eigen::Matrix4d> ParsePoseTxt(const std::string& text, const std::string& name);
 
 }  // namespace lp

@@ -6,8 +6,12 @@
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
+#include <cstdint>
 #include <mutex>
+#include <optional>
+#include <sstream>
 #include <streambuf>
+#include <utility>
 
 #include <unistd.h>
 
@@ -63,6 +67,82 @@ class QuietCerr {
   static inline NullBuf null_;
 };
 
+/// Width and height as a header claims them, for the formats the project reads (PNG,
+/// OpenEXR, PFM, PGM/PPM, Radiance HDR), from the file's first bytes; nothing for other
+/// formats (OpenCV's own cap, 2^30 pixels, then applies) or a header too short to say.
+std::optional<std::pair<std::uint64_t, std::uint64_t>> HeaderSize(const std::string& h) {
+  auto u32be = [&](std::size_t i) {
+    return (std::uint64_t(std::uint8_t(h[i])) << 24) | (std::uint64_t(std::uint8_t(h[i + 1])) << 16) |
+           (std::uint64_t(std::uint8_t(h[i + 2])) << 8) | std::uint64_t(std::uint8_t(h[i + 3]));
+  };
+  auto i32le = [&](std::size_t i) {
+    std::uint32_t v = 0;
+    for (int k = 3; k >= 0; --k) v = (v << 8) | std::uint8_t(h[i + k]);
+    return static_cast<std::int64_t>(static_cast<std::int32_t>(v));
+  };
+  if (h.size() >= 24 && h.compare(0, 8, "\x89PNG\r\n\x1a\n") == 0 && h.compare(12, 4, "IHDR") == 0)
+    return std::make_pair(u32be(16), u32be(20));
+  if (h.size() >= 8 && h.compare(0, 4, "\x76\x2f\x31\x01") == 0) {  // OpenEXR: attributes until a 0 byte
+    std::size_t i = 8;
+    while (i < h.size() && h[i] != '\0') {
+      const std::size_t name_end = h.find('\0', i);
+      if (name_end == std::string::npos) return std::nullopt;
+      const std::size_t type_end = h.find('\0', name_end + 1);
+      if (type_end == std::string::npos || type_end + 5 > h.size()) return std::nullopt;
+      const std::int64_t size = i32le(type_end + 1);
+      const std::size_t value = type_end + 5;
+      if (size < 0 || value + static_cast<std::size_t>(size) > h.size()) return std::nullopt;
+      if (h.compare(i, name_end - i, "dataWindow") == 0 && size == 16) {
+        const std::int64_t x0 = i32le(value), y0 = i32le(value + 4), x1 = i32le(value + 8), y1 = i32le(value + 12);
+        if (x1 < x0 || y1 < y0) return std::nullopt;  // the decoder refuses it
+        return std::make_pair(std::uint64_t(x1 - x0 + 1), std::uint64_t(y1 - y0 + 1));
+      }
+      i = value + static_cast<std::size_t>(size);
+    }
+    return std::nullopt;
+  }
+  auto two_numbers = [&](std::size_t from) -> std::optional<std::pair<std::uint64_t, std::uint64_t>> {
+    std::uint64_t v[2];
+    std::size_t i = from;
+    for (int k = 0; k < 2; ++k) {
+      while (i < h.size() && (std::isspace(std::uint8_t(h[i])) || h[i] == '#')) {
+        if (h[i] == '#') i = h.find('\n', i) == std::string::npos ? h.size() : h.find('\n', i);
+        else ++i;
+      }
+      if (i >= h.size() || !std::isdigit(std::uint8_t(h[i]))) return std::nullopt;
+      v[k] = 0;
+      for (; i < h.size() && std::isdigit(std::uint8_t(h[i])); ++i) v[k] = std::min<std::uint64_t>(v[k] * 10 + (h[i] - '0'), 1ull << 40);
+    }
+    return std::make_pair(v[0], v[1]);
+  };
+  if (h.size() >= 3 && h[0] == 'P' && (h[1] == 'F' || h[1] == 'f' || (h[1] >= '1' && h[1] <= '6')) &&
+      std::isspace(std::uint8_t(h[2])))
+    return two_numbers(2);  // PFM, PGM, PPM: "P? width height"
+  if (h.compare(0, 2, "#?") == 0) {  // Radiance: header lines, a blank line, then e.g. "-Y h +X w"
+    const std::size_t blank = h.find("\n\n");
+    if (blank == std::string::npos) return std::nullopt;
+    std::istringstream line(h.substr(blank + 2, 128));
+    std::string axis1, axis2;
+    std::uint64_t n1 = 0, n2 = 0;
+    if (!(line >> axis1 >> n1 >> axis2 >> n2) || axis1.size() != 2 || axis2.size() != 2) return std::nullopt;
+    return axis1[1] == 'Y' ? std::make_pair(n2, n1) : std::make_pair(n1, n2);
+  }
+  return std::nullopt;
+}
+
+/// Refuses a file whose header claims more than kMaxImagePixels, before any decoder
+/// allocates for it.
+void CheckClaimedSize(const fs::path& path, const std::string& name) {
+  std::ifstream in(path, std::ios::binary);
+  std::string head(64 * 1024, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in.gcount()));
+  const auto size = HeaderSize(head);
+  if (size && size->first * size->second > kMaxImagePixels)
+    throw InputError(name, "header claims " + std::to_string(size->first) + " x " + std::to_string(size->second) +
+                               " pixels, more than the " + std::to_string(kMaxImagePixels) + " an image may have");
+}
+
 cv::Mat Checked(cv::Mat m, const std::string& name) {
   if (m.empty()) throw InputError(name, "cannot decode image (unsupported or corrupt)");
   if (m.dims != 2 || m.rows <= 0 || m.cols <= 0) throw InputError(name, "image has no pixels");
@@ -77,6 +157,7 @@ cv::Mat ReadRaw(const fs::path& path, int flags, const std::string& name) {
   if (!fs::exists(path, ec)) throw InputError(name, "file not found");
   if (fs::is_directory(path, ec)) throw InputError(name, "is a directory, expected an image");
   if (fs::file_size(path, ec) == 0 && !ec) throw InputError(name, "empty file, expected an image");
+  CheckClaimedSize(path, name);
   cv::Mat m;
   try {
     QuietCerr quiet;

@@ -1,12 +1,18 @@
 #pragma once
 /// Image files (OpenCV stays inside image_io.cpp). Every reader throws
 /// InputError naming the file and the problem; writers are atomic.
+#include <cstdint>
 #include <filesystem>
 #include <string>
 
 #include "common/image.h"
 
 namespace lp {
+
+/// The most pixels an image file may claim (64 Mpx), checked from its header before it is
+/// decoded (PNG, OpenEXR, PFM, PGM/PPM, Radiance HDR; OpenCV's own 2^30 for the rest):
+/// a corrupt header must not make a decoder allocate gigabytes.
+inline constexpr std::uint64_t kMaxImagePixels = 64ull << 20;
 
 /// How ReadImageLinear interpreted the file.
 enum class ImageEncoding { kLinearFloat, kSrgb8, kLinear16 };

@@ -266,6 +266,7 @@ void ReadFaces(const Element& e, Reader& r, Mesh* mesh) {
 }
 
 void SkipElement(const Element& e, Reader& r) {
+  if (e.props.empty()) return;  // rows of no properties take no bytes, however many
   for (std::size_t k = 0; k < e.count; ++k)
     for (const Property& p : e.props) {
       if (p.is_list) {

@@ -7,6 +7,7 @@
 #include <map>
 #include <sstream>
 
+#include "common/atomic_file.h"
 #include "common/error.h"
 #include "ui/viewer_internal.h"
 
@@ -276,72 +277,56 @@ bool Close(const Call& c) {
   return true;
 }
 
-/// One command: the number of words it takes (checked before anything runs) and what
-/// runs it (true = done with the line, false = wait another frame).
-struct Command {
-  int min_args, max_args;
-  bool (*run)(const Call&);
-};
+/// What runs each command of ScriptCommands() (true = done with the line, false = wait
+/// another frame).
+using Handler = bool (*)(const Call&);
 
-const std::map<std::string, Command>& Commands() {
-  static const std::map<std::string, Command> commands = {
-      {"open", {1, 1, Open}},
-      {"wait-open", {0, 1, WaitOpen}},
-      {"play", {0, 0, PlayOrPause}},
-      {"pause", {0, 0, PlayOrPause}},
-      {"seek", {1, 1, Seek}},
-      {"speed", {1, 1, Speed}},
-      {"reconstruct", {1, 1, Reconstruct}},
-      {"wait-end", {0, 1, WaitEnd}},
-      {"wait-frames", {1, 2, WaitFrames}},
-      {"record", {2, 2, Record}},
-      {"stop-recording", {0, 0, StopRecording}},
-      {"wait-record", {0, 1, WaitRecord}},
-      {"estimate", {0, 20, StartEstimate}},
-      {"cancel", {0, 0, Cancel}},
-      {"wait-first", {0, 1, WaitFirst}},
-      {"wait-estimate", {0, 1, WaitEstimate}},
-      {"expect-estimate", {1, 1, ExpectEstimate}},
-      {"wait-lit", {1, 2, WaitLit}},
-      {"export", {1, 1, Export}},
-      {"wait-export", {0, 1, WaitExport}},
-      {"shading", {1, 1, SetShading}},
-      {"keyframe", {1, 1, SelectKeyframe}},
-      {"orbit", {2, 2, Orbit}},
-      {"frames", {1, 1, Frames}},
-      {"screenshot", {1, 1, Screenshot}},
-      {"bench-frames", {1, 2, BenchFrames}},
-      {"state", {1, 1, State}},
-      {"quit", {0, 0, Quit}},
-      {"close", {0, 0, Close}},
+const std::map<std::string, Handler>& Handlers() {
+  static const std::map<std::string, Handler> handlers = {
+      {"open", Open},
+      {"wait-open", WaitOpen},
+      {"play", PlayOrPause},
+      {"pause", PlayOrPause},
+      {"seek", Seek},
+      {"speed", Speed},
+      {"reconstruct", Reconstruct},
+      {"wait-end", WaitEnd},
+      {"wait-frames", WaitFrames},
+      {"record", Record},
+      {"stop-recording", StopRecording},
+      {"wait-record", WaitRecord},
+      {"estimate", StartEstimate},
+      {"cancel", Cancel},
+      {"wait-first", WaitFirst},
+      {"wait-estimate", WaitEstimate},
+      {"expect-estimate", ExpectEstimate},
+      {"wait-lit", WaitLit},
+      {"export", Export},
+      {"wait-export", WaitExport},
+      {"shading", SetShading},
+      {"keyframe", SelectKeyframe},
+      {"orbit", Orbit},
+      {"frames", Frames},
+      {"screenshot", Screenshot},
+      {"bench-frames", BenchFrames},
+      {"state", State},
+      {"quit", Quit},
+      {"close", Close},
   };
-  return commands;
+  return handlers;
 }
 
 }  // namespace
 
-ScriptRunner::ScriptRunner(const std::string& path, Viewer* viewer) : path_(path), viewer_(viewer) {
-  std::ifstream in(path);
-  if (!in) throw InputError(path, "cannot read the script");
-  std::string text;
-  int number = 0;
-  while (std::getline(in, text)) {
-    ++number;
-    const std::size_t hash = text.find('#');
-    if (hash != std::string::npos) text.resize(hash);
-    std::istringstream words(text);
-    ScriptLine line;
-    line.number = number;
-    for (std::string w; words >> w;) line.words.push_back(w);
-    if (line.words.empty()) continue;
-    const auto it = Commands().find(line.words[0]);
-    if (it == Commands().end()) throw InputError(path, "line " + std::to_string(number) + ": unknown command " + line.words[0]);
-    const int args = static_cast<int>(line.words.size()) - 1;
-    if (args < it->second.min_args || args > it->second.max_args)
-      throw InputError(path, "line " + std::to_string(number) + ": wrong number of arguments for " + line.words[0]);
-    lines_.push_back(line);
-  }
+std::vector<std::string> UnhandledScriptCommands() {
+  std::vector<std::string> out;
+  for (const auto& [name, syntax] : ScriptCommands())
+    if (!Handlers().count(name)) out.push_back(name);
+  return out;
 }
+
+ScriptRunner::ScriptRunner(const std::string& path, Viewer* viewer)
+    : path_(path), viewer_(viewer), lines_(ParseScript(ReadTextFile(path), path)) {}
 
 void ScriptRunner::Fail(const ScriptLine& line, const std::string& why) const { throw LineError(path_, line, why); }
 
@@ -369,8 +354,8 @@ bool ScriptRunner::Step() {
 
 bool ScriptRunner::Run(const ScriptLine& line) {
   const double waited = glfwGetTime() - line_started_;
-  const auto it = Commands().find(line.words[0]);
-  if (it == Commands().end()) Fail(line, "not handled");
+  const auto it = Handlers().find(line.words[0]);
+  if (it == Handlers().end()) Fail(line, "not handled");
   Viewer& v = *viewer_;
   ViewerParts parts{v.session_,
                     v.live_,
@@ -389,7 +374,7 @@ bool ScriptRunner::Run(const ScriptLine& line) {
                     v.bench_frames_left_,
                     v.quit_,
                     v.window_};
-  return it->second.run({path_, line, frames_waited_, waited, line_frames_read_, parts});
+  return it->second({path_, line, frames_waited_, waited, line_frames_read_, parts});
 }
 
 }  // namespace lp::ui

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 
 #include "ui/gl.h"
+#include "ui/script_syntax.h"
 #include "ui/session.h"
 #include "ui/viewer.h"
 
@@ -35,11 +36,8 @@ struct Rect {
   bool Contains(float px, float py) const { return px >= x && py >= y && px < x + w && py < y + h; }
 };
 
-/// One script line: the command and its words.
-struct ScriptLine {
-  int number = 0;
-  std::vector<std::string> words;
-};
+/// The script commands that have no handler in script.cpp (empty: checked by a test).
+std::vector<std::string> UnhandledScriptCommands();
 
 class Viewer {
  public:

@@ -277,6 +277,12 @@ TEST(Calibration, FileRoundTripAndClearErrors) {
            {"fx.json", R"({"format": "lightprobe-calibration", "version": 1, "camera": {"width": 640, "height": 480, "fx": -1, "fy": 500, "cx": 320, "cy": 240}})"},
            {"response.json", R"({"format": "lightprobe-calibration", "version": 1, "response": {"model": "mitsunaga-nayar", "coefficients": [[0, 0.5], [0, 1], [0, 1]]}})"},
            {"vignetting.json", R"({"format": "lightprobe-calibration", "version": 1, "vignetting": {"model": "kim-pollefeys", "a": -2, "b": 0, "c": 0}})"},
+           // Hostile values (issue 23): a width no int holds, a fractional one, a version that
+           // is a deep array (once printed back whole), a response polynomial of 17 terms.
+           {"width.json", R"({"format": "lightprobe-calibration", "version": 1, "camera": {"width": 1e300, "height": 480, "fx": 500, "fy": 500, "cx": 320, "cy": 240}})"},
+           {"fraction.json", R"({"format": "lightprobe-calibration", "version": 1, "camera": {"width": 640.5, "height": 480, "fx": 500, "fy": 500, "cx": 320, "cy": 240}})"},
+           {"deepversion.json", R"({"format": "lightprobe-calibration", "version": [[[[[[[[1]]]]]]]]})"},
+           {"terms.json", R"({"format": "lightprobe-calibration", "version": 1, "response": {"model": "mitsunaga-nayar", "coefficients": [[0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,0,1], [0, 1], [0, 1]]}})"},
        }) {
     try {
       ReadCalibration(write(name, text));

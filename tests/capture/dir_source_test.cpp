@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include "capture/frame_source.h"
+#include "capture/trajectory.h"
+#include "capture/tum_index.h"
 #include "common/error.h"
 #include "common/image_io.h"
 
@@ -121,6 +123,48 @@ TEST_F(TumDir, AnIndexNamingAMissingFileIsAClearError) {
   } catch (const InputError& e) {
     EXPECT_NE(std::string(e.what()).find("missing.png"), std::string::npos) << e.what();
   }
+}
+
+TEST(TumIndex, EachDepthFrameTakesTheNearestColourFrameWithin20Ms) {
+  const auto rgb = ParseTumList("# colour\n1.000 rgb/a.png\n1.030 rgb/b.png\n1.030 rgb/b2.png\n2.000 rgb/c.png\n", "rgb.txt");
+  const auto depth = ParseTumList("0.995 d/1.png\n1.016 d/2.png\n1.040 d/3.png\n1.500 d/4.png\n1.9801 d/5.png\n", "depth.txt");
+  const auto pairs = PairTumLists(rgb, depth);
+  // d/1: a (5 ms); d/2: b (14 ms, nearer than a's 16 ms; b listed before b2 at the same
+  // time); d/3: b (10 ms); d/4: none within 20 ms; d/5: c (19.9 ms).
+  ASSERT_EQ(pairs.size(), 4u);
+  EXPECT_EQ(pairs[0].color, "rgb/a.png");
+  EXPECT_EQ(pairs[1].color, "rgb/b.png");
+  EXPECT_EQ(pairs[1].depth, "d/2.png");
+  EXPECT_EQ(pairs[2].color, "rgb/b.png");
+  EXPECT_EQ(pairs[3].color, "rgb/c.png");
+  EXPECT_DOUBLE_EQ(pairs[3].depth_time, 1.9801);
+  // The same pairs whatever order the colour list is in.
+  const auto shuffled = ParseTumList("2.000 rgb/c.png\n1.030 rgb/b.png\n1.000 rgb/a.png\n1.030 rgb/b2.png\n", "rgb.txt");
+  const auto again = PairTumLists(shuffled, depth);
+  ASSERT_EQ(again.size(), 4u);
+  for (std::size_t i = 0; i < again.size(); ++i) EXPECT_EQ(again[i].color, pairs[i].color) << i;
+  EXPECT_THROW(ParseTumList("1.0\n", "rgb.txt"), InputError);
+  EXPECT_THROW(ParseTumAssociations("1.0 a.png 1.0\n", "associations.txt"), InputError);
+  EXPECT_EQ(ParseTumAssociations("1.0 a.png 1.01 b.png\n", "associations.txt").at(0).depth, "b.png");
+}
+
+TEST(PoseLogs, MalformedLinesNameTheFileAndLine) {
+  EXPECT_EQ(ParsePoseTxt("0 0 0 0 0 0 1\n1 2 3 0 0 0 2\n", "pose.txt").size(), 2u);
+  auto error = [](auto f) {
+    try {
+      f();
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  EXPECT_NE(error([] { ParsePoseTxt("0 0 0 0 0 0 1\n0 0 0 0 0 0 0\n", "pose.txt"); }).find("pose.txt: line 2"),
+            std::string::npos);
+  EXPECT_NE(error([] { ParsePoseTxt("0 0 0 1e300 1e300 0 1\n", "pose.txt"); }).find("quaternion"), std::string::npos);
+  EXPECT_NE(error([] { ParsePoseTxt("0 0 0 0 0 nan 1\n", "pose.txt"); }).find("not a number"), std::string::npos);
+  EXPECT_NE(error([] { ParseTrajectoryLog("0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n", "t.log"); }).find("t.log"),
+            std::string::npos);
+  EXPECT_EQ(ParseTrajectoryLog("0 0 1\n1 0 0 0\n0 1 0 0\n0 0 1 0\n0 0 0 1\n", "t.log").size(), 1u);
 }
 
 TEST(DirectorySource, UnknownLayoutAndMissingDirectoryAreClearErrors) {

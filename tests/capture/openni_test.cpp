@@ -2,7 +2,10 @@
 // OpenNI2's Recorder writes an .oni, its OniFile driver plays it back.
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cstdlib>
+#include <iterator>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
@@ -268,6 +271,57 @@ TEST_F(OpenNi, CorruptRecordsThatPassTheStructureCheckCannotCrashTheProcess) {
   std::printf("16 mutated files: %d played, %d rejected (%d crashed OpenNI2 in the checking process)\n", played,
               rejected, crashed);
   EXPECT_GT(crashed, 0) << "no case crashed OpenNI2: the mutations no longer exercise the isolation";
+}
+
+// Other people's files, mutated anywhere (issue 23): byte flips, a truncation, a zeroed
+// block, of the demo recording (OpenNI2's Recorder) and 3dj_test.oni (a Kinect, OpenNI 1
+// tools). Each mutant plays to its end or is refused with an InputError naming it; none
+// crashes or hangs this process. LP_ONI_MUTANTS sets the mutants per file (default 6;
+// docs/reliability.md gives a 100-mutant sweep).
+TEST_F(OpenNi, MutantsOfRealRecordingsPlayToTheEndOrAreRefused) {
+  const char* env = std::getenv("LP_ONI_MUTANTS");
+  const int per_file = env ? std::max(1, std::atoi(env)) : 6;
+  const fs::path source = LIGHTPROBE_SOURCE_DIR;
+  std::mt19937 rng(23);
+  int played = 0, refused = 0;
+  for (const fs::path& real : {source / "assets/demo-recording/demo.oni", source / "tests/data/oni/3dj_test.oni"}) {
+    std::ifstream in(real, std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    ASSERT_GT(bytes.size(), 100000u) << real;
+    for (int m = 0; m < per_file; ++m) {
+      std::string b = bytes;
+      const char* kind[] = {"flips", "cut", "zeroed"};
+      switch (m % 3) {
+        case 0:  // 1 to 20 random bytes anywhere
+          for (int k = 1 + static_cast<int>(rng() % 20); k > 0; --k) b[rng() % b.size()] = static_cast<char>(rng());
+          break;
+        case 1:  // cut anywhere
+          b.resize(rng() % b.size());
+          break;
+        case 2: {  // 4 KiB of zeros anywhere
+          const std::size_t at = rng() % (b.size() - 4096);
+          std::fill(b.begin() + at, b.begin() + at + 4096, '\0');
+          break;
+        }
+      }
+      const fs::path f = dir_ / (real.stem().string() + "-" + kind[m % 3] + std::to_string(m) + ".oni");
+      std::ofstream(f, std::ios::binary) << b;
+      try {
+        auto src = OpenOniFile(f.string());
+        RgbdFrame frame;
+        while (src->Next(&frame, 2.0) == SourceStatus::kFrame) {
+        }
+        ++played;
+      } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find(f.string()), std::string::npos) << e.what();
+        ++refused;
+      }
+      fs::remove(f);
+    }
+  }
+  std::printf("%d mutants of 2 real recordings: %d played to the end, %d refused\n", 2 * per_file, played, refused);
+  EXPECT_EQ(played + refused, 2 * per_file);
+  EXPECT_GT(refused, 0) << "no mutant was refused: the cuts at least must be";
 }
 
 void PutU32(std::string* b, std::size_t p, std::uint32_t v) {

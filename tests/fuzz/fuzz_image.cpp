@@ -1,21 +1,10 @@
-// libFuzzer target: the image and mask decoders (PNG, OpenEXR, PFM, Radiance HDR through
-// OpenCV). Bad bytes must end in InputError, nothing else.
-#include <cstddef>
-#include <cstdint>
-#include <string>
-
-#include "common/error.h"
+// libFuzzer target: the image and mask decoders (PNG, OpenEXR, PFM, Radiance HDR through OpenCV).
 #include "common/image_io.h"
+#include "tests/fuzz/fuzz_util.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  const std::string bytes(reinterpret_cast<const char*>(data), size);
-  try {
-    lp::DecodeImageLinear(bytes, "fuzz-image");
-  } catch (const lp::InputError&) {
-  }
-  try {
-    lp::DecodeMask(bytes, "fuzz-mask");
-  } catch (const lp::InputError&) {
-  }
+  const std::string text = lp::fuzz::Text(data, size);
+  lp::fuzz::ReturnsOrRefuses([&] { lp::DecodeImageLinear(text, "fuzz-image"); });
+  lp::fuzz::ReturnsOrRefuses([&] { lp::DecodeMask(text, "fuzz-mask"); });
   return 0;
 }

@@ -1,15 +1,9 @@
-// libFuzzer target: the scene.json reader. Bad text must end in InputError, nothing else.
-#include <cstddef>
-#include <cstdint>
-#include <string>
-
-#include "common/error.h"
+// libFuzzer target: the scene.json reader.
 #include "scene/scene_bundle.h"
+#include "tests/fuzz/fuzz_util.h"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  try {
-    lp::ParseSceneJson(std::string(reinterpret_cast<const char*>(data), size), "scene.json");
-  } catch (const lp::InputError&) {
-  }
+  const std::string text = lp::fuzz::Text(data, size);
+  lp::fuzz::ReturnsOrRefuses([&] { lp::ParseSceneJson(text, "scene.json"); });
   return 0;
 }

@@ -1,5 +1,7 @@
 // Runs a fuzz target's entry point over files (or every file in directories): the
-// seed corpus and the crash inputs kept as regression tests, in the normal build.
+// seed corpus and the crash inputs kept as regression tests, in the normal build. Prints
+// the slowest input and its time (a measurement for scripts/fuzz.sh, not a check).
+#include <chrono>
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
@@ -25,11 +27,23 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  double slowest = -1;
+  fs::path slowest_file;
+  std::size_t slowest_size = 0;
   for (const fs::path& f : files) {
     std::ifstream in(f, std::ios::binary);
     const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const auto start = std::chrono::steady_clock::now();
     LLVMFuzzerTestOneInput(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size());
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    if (s > slowest) {
+      slowest = s;
+      slowest_file = f;
+      slowest_size = bytes.size();
+    }
   }
+  if (slowest >= 0)
+    std::printf("slowest input: %.6f s, %zu bytes, %s\n", slowest, slowest_size, slowest_file.string().c_str());
   std::printf("%zu passed, 0 failed\n", files.size());
   return 0;
 }

@@ -247,6 +247,56 @@ TEST(Ply, AsciiAndBinaryAgreeAndBadFilesAreRejected) {
                InputError);
 }
 
+TEST(Ply, AnElementWithNoPropertiesTakesNoBytesWhateverItsCount) {
+  // The 1 KB file that hung `estimate` (issue 23): an unused element declared with a huge
+  // count and no properties was skipped one empty row at a time.
+  const std::string ply =
+      "ply\nformat ascii 1.0\nelement skipme 4000000000000000000\nelement vertex 3\nproperty float x\n"
+      "property float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+      "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+  const Mesh m = ParsePly(ply, "empty-element.ply");
+  EXPECT_EQ(m.positions.size(), 3u);
+  ASSERT_EQ(m.triangles.size(), 1u);
+  EXPECT_EQ(m.triangles[0], Eigen::Vector3i(0, 1, 2));
+  // An element with properties is still held to the bytes the file has.
+  std::string with_props = ply;
+  with_props.replace(with_props.find("element vertex"), 0, "property uchar junk\n");
+  EXPECT_NE(ErrorOf([&] { ParsePly(with_props, "junk.ply"); }).find("count exceeds file size"), std::string::npos);
+}
+
+/// A file's bytes written to a temporary file and read as an image: the error, or "".
+std::string ImageError(const std::string& bytes, const std::string& file) {
+  const fs::path p = TempDir("claims") / file;
+  std::ofstream(p, std::ios::binary) << bytes;
+  return ErrorOf([&] { ReadImageLinear(p); });
+}
+
+std::string Le32(std::int32_t v) { return std::string(reinterpret_cast<const char*>(&v), 4); }
+
+TEST(Image, AHeaderClaimingTooManyPixelsIsRefusedBeforeDecoding) {
+  // 10000 x 10000 = 100 Mpx: over kMaxImagePixels (64 Mpx), under OpenCV's own 2^30.
+  std::string png("\x89PNG\r\n\x1a\n\0\0\0\x0dIHDR\0\0\x27\x10\0\0\x27\x10\x08\x02\0\0\0\0\0\0\0", 33);
+  EXPECT_NE(ImageError(png, "big.png").find("header claims 10000 x 10000 pixels"), std::string::npos)
+      << ImageError(png, "big.png");
+  EXPECT_NE(ImageError("PF\n10000 10000\n-1.0\n" + std::string(64, '\0'), "big.pfm").find("10000 x 10000"),
+            std::string::npos);
+  EXPECT_NE(ImageError("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y 9000 +X 12000\n" + std::string(64, '\0'), "big.hdr")
+                .find("12000 x 9000"),
+            std::string::npos);
+  // OpenEXR: the dataWindow attribute (box2i, inclusive) among others.
+  std::string exr("\x76\x2f\x31\x01\x02\0\0\0", 8);
+  exr += std::string("channels\0chlist\0", 16) + Le32(1) + std::string(1, '\0');
+  exr += std::string("dataWindow\0box2i\0", 17) + Le32(16) + Le32(0) + Le32(0) + Le32(9999) + Le32(9999);
+  exr += std::string(1, '\0') + std::string(64, '\0');
+  EXPECT_NE(ImageError(exr, "big.exr").find("header claims 10000 x 10000 pixels"), std::string::npos)
+      << ImageError(exr, "big.exr");
+  // A real image under the limit still decodes (the check reads headers, not guesses).
+  const fs::path ok = TempDir("claims-ok") / "ok.png";
+  ImageRGB img(4, 3);
+  WritePngSrgb(ok, img);
+  EXPECT_EQ(ReadImageLinear(ok).width, 4);
+}
+
 TEST(Ply, ShadedColoursRoundTripAndAreOptional) {
   Mesh m = UvSphere({0, 0, 0}, 1, {0.4f, 0.5f, 0.6f}, 6, 8);
   EXPECT_TRUE(ReadPlyBack(m).shaded.empty()) << "a mesh without colours seen reads back without them";
