@@ -82,6 +82,7 @@ void AddReconstructOptions(CLI::App& cmd, ReconstructSettings* s) {
   cmd.add_option("--calibration", s->calibration,
                  "calibration file (lightprobe calibrate): response, vignetting, exposure, intrinsics; without "
                  "one, sRGB is assumed");
+  cmd.add_option("--intrinsics", s->intrinsics, kIntrinsicsHelp);
   cmd.add_option("--threads", s->threads, "worker threads (0 = all cores)")->capture_default_str();
 }
 
@@ -92,6 +93,7 @@ ReconstructionRunOptions MakeRunOptions(const ReconstructSettings& s, const std:
     run.reconstruction.calibration = ReadCalibration(s.calibration);
     run.calibrated = true;
   }
+  if (!s.intrinsics.empty()) UseIntrinsicsFile(&run.reconstruction.calibration, s.intrinsics);
   run.reconstruction.tsdf.truncation = s.truncation > 0 ? s.truncation : 4 * run.reconstruction.tsdf.voxel;
   if (!s.poses.empty()) {
     run.poses = ReadTrajectory(s.poses);

@@ -3,14 +3,31 @@
 // write the frames out as a frame directory.
 #include <cstdio>
 #include <filesystem>
+#include <optional>
 
 #include "app/commands.h"
+#include "calibration/calibration.h"
 #include "capture/frame_source.h"
 #include "capture/openni.h"
 #include "common/timer.h"
 
 namespace lp::app {
 namespace fs = std::filesystem;
+
+namespace {
+
+/// The frame's colour camera (and its depth camera, when depth is registered to colour)
+/// from an intrinsics file.
+void UseIntrinsics(const CameraModel& k, const std::string& file, RgbdFrame* f) {
+  if (k.width != f->color.width || k.height != f->color.height)
+    throw InputError(file, "intrinsics for " + std::to_string(k.width) + "x" + std::to_string(k.height) +
+                               ", but the colour frames are " + std::to_string(f->color.width) + "x" +
+                               std::to_string(f->color.height));
+  f->color_intrinsics = k;
+  if (f->registered && f->depth.width == k.width && f->depth.height == k.height) f->depth_intrinsics = k;
+}
+
+}  // namespace
 
 Run AddReplay(CLI::App& app) {
   auto* cmd = app.add_subcommand("replay", "replay an .oni file or a frame directory (info, rate, export)");
@@ -24,9 +41,13 @@ Run AddReplay(CLI::App& app) {
   cmd->add_option("--start", *start, "skip this many frames first (seek)")->capture_default_str();
   cmd->add_option("--frames", *count, "stop after this many frames (0 = all)")->capture_default_str();
   cmd->add_option("--out", *out, "write the frames as a frame directory (color/, depth/ in mm, intrinsics)");
+  auto intrinsics = std::make_shared<std::string>();
+  cmd->add_option("--intrinsics", *intrinsics, kIntrinsicsHelp);
   return [=] {
+    std::optional<CameraModel> k;
+    if (!intrinsics->empty()) k = ReadIntrinsicsFile(*intrinsics);
     std::unique_ptr<FrameSource> src = OpenFrameSource(*source, *real_time);
-    std::printf("%s\n", src->Describe().c_str());
+    std::printf("%s%s\n", src->Describe().c_str(), k ? ("; colour intrinsics from " + *intrinsics).c_str() : "");
     RgbdFrame f;
     if (*start > 0) src->Seek(*start);  // OpenNI2's seek crashes: the source skips frames instead
     std::vector<RgbdFrame> kept;
@@ -36,6 +57,7 @@ Run AddReplay(CLI::App& app) {
     SourceStatus status = SourceStatus::kFrame;
     while ((*count == 0 || n < *count) && (status = src->Next(&f, 5.0)) == SourceStatus::kFrame) {
       std::size_t v = 0;
+      if (k) UseIntrinsics(*k, *intrinsics, &f);
       for (auto d : f.depth.data) v += d != 0;
       valid += f.depth.pixels() ? static_cast<double>(v) / f.depth.pixels() : 0;
       if (n == 0)

@@ -44,12 +44,15 @@ Run AddView(CLI::App& app) {
   auto calibration = std::make_shared<std::string>();
   cmd->add_option("--calibration", *calibration,
                   "calibration file (lightprobe calibrate) for the reconstruction, as reconstruct takes it");
-  return [o, calibration] {
+  auto intrinsics = std::make_shared<std::string>();
+  cmd->add_option("--intrinsics", *intrinsics, kIntrinsicsHelp);
+  return [o, calibration, intrinsics] {
     ui::ViewerOptions v = *o;
     if (!calibration->empty()) {
       v.session.reconstruction.reconstruction.calibration = ReadCalibration(*calibration);
       v.session.reconstruction.calibrated = true;
     }
+    if (!intrinsics->empty()) UseIntrinsicsFile(&v.session.reconstruction.reconstruction.calibration, *intrinsics);
     v.height = v.width * 9 / 16;
     const int code = ui::RunViewer(v);
     if (code != 0) throw InputError("the viewer's script failed (see above)");

@@ -33,12 +33,17 @@ Run AddView(CLI::App& app);
 /// the estimate writer for Export.
 ui::ViewerOptions DefaultViewerOptions();
 
+/// --intrinsics' help, the same for reconstruct, --headless, replay and view.
+inline constexpr const char* kIntrinsicsHelp =
+    "colour camera intrinsics (JSON: a calibration file's \"camera\" section, docs/formats.md) instead of the "
+    "recording's; a --calibration file's win over these";
+
 /// What `reconstruct` (and `--headless`) take besides the input and the output.
 struct ReconstructSettings {
   ReconstructionOptions options;
   float truncation = 0;  ///< 0 = 4 voxels
   int max_frames = 0;    ///< 0 = all
-  std::string poses, calibration;  ///< files; "" = none
+  std::string poses, calibration, intrinsics;  ///< files; "" = none
   int threads = 0;
 };
 /// Registers reconstruct's options (shared with --headless).

@@ -39,6 +39,27 @@ int ImageSide(const nlohmann::json& j, const char* key, const std::string& where
   return static_cast<int>(v);
 }
 
+/// A camera section: {"width", "height", "fx", "fy", "cx", "cy"[, "distortion": 5 numbers]}.
+CameraModel ParseCameraSection(const nlohmann::json& k, const std::string& where) {
+  if (!k.is_object()) throw InputError(where, "camera: must be an object");
+  CameraModel m;
+  m.width = ImageSide(k, "width", where + " camera");
+  m.height = ImageSide(k, "height", where + " camera");
+  m.fx = Number(k, "fx", where + " camera");
+  m.fy = Number(k, "fy", where + " camera");
+  m.cx = Number(k, "cx", where + " camera");
+  m.cy = Number(k, "cy", where + " camera");
+  if (!(m.fx > 0) || !(m.fy > 0)) throw InputError(where, "camera: size and focal lengths must be positive");
+  if (k.contains("distortion")) {
+    const auto& d = k.at("distortion");
+    if (!d.is_array() || d.size() != 5) throw InputError(where, "camera: \"distortion\" must be 5 numbers (k1 k2 p1 p2 k3)");
+    for (std::size_t i = 0; i < 5; ++i) m.distortion[i] = d.at(i).get<double>();
+    for (double x : m.distortion)
+      if (!std::isfinite(x)) throw InputError(where, "camera: \"distortion\" is not finite");
+  }
+  return m;
+}
+
 }  // namespace
 
 bool CameraModel::distorted() const {
@@ -62,6 +83,23 @@ std::string Calibration::Describe() const {
 
 Calibration ReadCalibration(const std::filesystem::path& path) { return ParseCalibration(ReadTextFile(path), path.string()); }
 
+CameraModel ParseIntrinsics(const std::string& text, const std::string& where) {
+  try {
+    return ParseCameraSection(nlohmann::json::parse(text), where);
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(where, std::string("not a JSON intrinsics file: ") + e.what());
+  }
+}
+
+CameraModel ReadIntrinsicsFile(const std::filesystem::path& path) {
+  return ParseIntrinsics(ReadTextFile(path), path.string());
+}
+
+void UseIntrinsicsFile(Calibration* calibration, const std::filesystem::path& path) {
+  const CameraModel m = ReadIntrinsicsFile(path);  // read (and checked) even when the calibration wins
+  if (!calibration->color) calibration->color = m;
+}
+
 Calibration ParseCalibration(const std::string& text, const std::string& where) {
   nlohmann::json j;
   try {
@@ -69,7 +107,8 @@ Calibration ParseCalibration(const std::string& text, const std::string& where) 
   } catch (const nlohmann::json::exception& e) {
     throw InputError(where, std::string("not a JSON calibration file: ") + e.what());
   }
-  if (!j.is_object() || j.value("format", "") != kFormat)
+  // (value("format", "") would throw for a format that is not a string: asked first.)
+  if (!j.is_object() || !j.contains("format") || !j.at("format").is_string() || j.at("format").get<std::string>() != kFormat)
     throw InputError(where, std::string("not a lightprobe calibration file (\"format\" must be \"") + kFormat + "\")");
   if (!j.contains("version") || !j.at("version").is_number_integer() || j.at("version").get<long long>() != kVersion)
     throw InputError(where, "calibration file version " +
@@ -77,26 +116,7 @@ Calibration ParseCalibration(const std::string& text, const std::string& where) 
                                 " is not supported (this build reads version " + std::to_string(kVersion) + ")");
   Calibration c;
   try {
-    if (j.contains("camera")) {
-      const auto& k = j.at("camera");
-      CameraModel m;
-      m.width = ImageSide(k, "width", where + " camera");
-      m.height = ImageSide(k, "height", where + " camera");
-      m.fx = Number(k, "fx", where + " camera");
-      m.fy = Number(k, "fy", where + " camera");
-      m.cx = Number(k, "cx", where + " camera");
-      m.cy = Number(k, "cy", where + " camera");
-      if (m.width <= 0 || m.height <= 0 || !(m.fx > 0) || !(m.fy > 0))
-        throw InputError(where, "camera: size and focal lengths must be positive");
-      if (k.contains("distortion")) {
-        const auto& d = k.at("distortion");
-        if (!d.is_array() || d.size() != 5) throw InputError(where, "camera: \"distortion\" must be 5 numbers (k1 k2 p1 p2 k3)");
-        for (std::size_t i = 0; i < 5; ++i) m.distortion[i] = d.at(i).get<double>();
-        for (double x : m.distortion)
-          if (!std::isfinite(x)) throw InputError(where, "camera: \"distortion\" is not finite");
-      }
-      c.color = m;
-    }
+    if (j.contains("camera")) c.color = ParseCameraSection(j.at("camera"), where);
     if (j.contains("color_from_depth")) {
       const auto& t = j.at("color_from_depth");
       if (!t.is_array() || t.size() != 4) throw InputError(where, "\"color_from_depth\" must be 4 rows of 4 numbers");

@@ -42,6 +42,14 @@ struct Calibration {
 Calibration ReadCalibration(const std::filesystem::path& path);
 /// The same from the file's text (`name` for errors).
 Calibration ParseCalibration(const std::string& text, const std::string& name);
+/// An intrinsics file (`--intrinsics`): a calibration file's "camera" section alone,
+/// `{"width", "height", "fx", "fy", "cx", "cy"[, "distortion"]}` (docs/formats.md).
+CameraModel ReadIntrinsicsFile(const std::filesystem::path& path);
+/// The same from the file's text (`name` for errors).
+CameraModel ParseIntrinsics(const std::string& text, const std::string& name);
+/// Gives `calibration` the file's camera when it has none of its own: a calibration's
+/// intrinsics win over an intrinsics file, which wins over the recording's.
+void UseIntrinsicsFile(Calibration* calibration, const std::filesystem::path& path);
 /// Writes it atomically.
 void WriteCalibration(const std::filesystem::path& path, const Calibration& calibration);
 /// The text WriteCalibration writes.

@@ -126,7 +126,9 @@ void PlayInChild(const std::string& path, int frame_records) {
 class OniFileSource : public FrameSource, private OpenNiStreams {
  public:
   OniFileSource(const std::string& path, const OniPlaybackOptions& o) : path_(path), options_(o) {
-    const int records = ValidateOniFile(path);
+    OniRecordFacts facts;
+    const int records = ValidateOniFile(path, &facts);
+    if (facts.depth_registered) side_registered_ = true;  // a side file, when there is one, says last
     ReadSideFile();
     if (o.isolate) PlayInChild(path, records);
     InitOpenNi();
@@ -134,7 +136,10 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
   }
   ~OniFileSource() override { CloseDevice(); }
 
-  std::string Describe() const override { return ".oni file " + path_ + ", " + std::to_string(count_) + " frames"; }
+  std::string Describe() const override {
+    return ".oni file " + path_ + ", " + std::to_string(count_) + " frames" +
+           (intrinsics_note_.empty() ? "" : "; intrinsics " + intrinsics_note_);
+  }
   std::optional<std::int64_t> FrameCount() const override { return count_; }
 
   SourceStatus Next(RgbdFrame* out, double timeout_seconds) override {
@@ -204,6 +209,13 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
     depth_.start();
     color_.start();
     depth_read_ = color_read_ = 0;
+    const openni::VideoMode cm = color_.getVideoMode(), dm = depth_.getVideoMode();
+    std::string color_note, depth_note;
+    ColorIntrinsics(cm.getResolutionX(), cm.getResolutionY(), &color_note);
+    DepthIntrinsics(dm.getResolutionX(), dm.getResolutionY(), &depth_note);
+    intrinsics_note_ = color_note == depth_note ? (color_note.empty() ? "" : "of both cameras " + color_note)
+                       : "of the colour camera " + (color_note.empty() ? "from its field of view" : color_note) +
+                             ", of the depth camera " + (depth_note.empty() ? "from its field of view" : depth_note);
   }
 
   void ReadSideFile() {
@@ -219,6 +231,7 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
   std::string path_;
   OniPlaybackOptions options_;
   std::optional<bool> side_registered_;
+  std::string intrinsics_note_;  ///< which source gave the intrinsics, when not the streams' own
   bool seeking_ = false;
   bool paused_ = false;  // SetPaused: a seek or a reopen keeps it
   double side_exposure_ = 0, side_gain_ = 0;
@@ -269,18 +282,36 @@ int Compare(const OniVersion& a, const OniVersion& b) {
   return static_cast<std::int32_t>(a.build - b.build);
 }
 
+/// An IntProperty record's fields (after its header): the property's name (u32 length
+/// with its NUL, then the characters), the value's size (u32) and the value (u64), as
+/// OpenNI2's DataRecords.cpp reads them. Only what OniRecordFacts keeps is looked at; a
+/// record that does not parse is left to the player.
+void ReadIntProperty(std::istream& in, std::uint32_t bytes, OniRecordFacts* facts) {
+  std::string f(bytes, '\0');
+  if (!in.read(f.data(), bytes)) return;
+  const auto* p = reinterpret_cast<const unsigned char*>(f.data());
+  if (bytes < 4) return;
+  const std::uint32_t name_size = U32(p);
+  if (name_size == 0 || name_size > bytes - 4 || bytes - 4 - name_size < 12) return;
+  const std::string name(f.data() + 4, name_size - 1);
+  const std::uint32_t value_size = U32(p + 4 + name_size);
+  if (value_size != 8) return;
+  const std::uint64_t value = U32(p + 8 + name_size) | std::uint64_t(U32(p + 12 + name_size)) << 32;
+  if (name == "AlternativeViewPoint" && value != 0) facts->depth_registered = true;
+}
+
 }  // namespace
 
-int ValidateOniFile(const std::string& path) {
+int ValidateOniFile(const std::string& path, OniRecordFacts* facts) {
   std::error_code ec;
   if (!fs::is_regular_file(path, ec)) throw InputError(path, "file not found");
   const std::uint64_t size = fs::file_size(path, ec);
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(path, "cannot read");
-  return ValidateOniStream(in, size, path);
+  return ValidateOniStream(in, size, path, facts);
 }
 
-int ValidateOniStream(std::istream& in, std::uint64_t size, const std::string& path) {
+int ValidateOniStream(std::istream& in, std::uint64_t size, const std::string& path, OniRecordFacts* facts) {
   // The layouts OpenNI2's file player reads (docs/formats.md, ".oni structure check"):
   // versions 1.0.0.4 up to 1.0.1.0; before 1.0.1.0 record headers are 24 bytes (a 32-bit
   // undo position), from it 28. A record's fields (header included) may not exceed the
@@ -314,6 +345,7 @@ int ValidateOniStream(std::istream& in, std::uint64_t size, const std::string& p
     const std::uint64_t next = pos + fields + static_cast<std::uint64_t>(payload);
     if (next > size)
       throw InputError(path, "truncated .oni file: record at byte " + std::to_string(pos) + " runs past the end");
+    if (facts && type == 0x03 && fields - kRecordHeader <= 4096) ReadIntProperty(in, fields - kRecordHeader, facts);
     frames += type == 0x0A;
     end = type == 0x0B;
     pos = next;

@@ -168,8 +168,18 @@ std::vector<RgbdFrame> CaptureBracket(const OpenNiDeviceOptions& device, const s
 /// both record layouts OpenNI2's file player reads (format versions 1.0.0.4 to 1.0.1.0:
 /// 24-byte record headers before 1.0.1.0, 28 from it); throws InputError naming the file
 /// and the first problem. Returns the number of frame records (both streams).
-int ValidateOniFile(const std::string& path);
+/// `facts`, when given, receives what the walk read on the way (below).
+struct OniRecordFacts;
+int ValidateOniFile(const std::string& path, OniRecordFacts* facts = nullptr);
 /// The same on `size` bytes read from `in` (named `path` in errors).
-int ValidateOniStream(std::istream& in, std::uint64_t size, const std::string& path);
+int ValidateOniStream(std::istream& in, std::uint64_t size, const std::string& path, OniRecordFacts* facts = nullptr);
+
+/// What a recording's own property records say that OpenNI2's player does not pass on.
+struct OniRecordFacts {
+  /// A node recorded with OpenNI 1's "AlternativeViewPoint" on: its depth was registered
+  /// to the colour camera's view when recorded (OpenNI2's player drops the property and
+  /// reports registration off).
+  bool depth_registered = false;
+};
 
 }  // namespace lp

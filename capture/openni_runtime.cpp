@@ -8,6 +8,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include <PS1080.h>
+
 #include "capture/usb_devices.h"
 #include "common/error.h"
 
@@ -194,22 +196,74 @@ RgbdFrame OpenNiStreams::ToFrame(const openni::VideoFrameRef& d, const openni::V
                 cp + static_cast<std::size_t>(y) * c.getStrideInBytes(), 3 * static_cast<std::size_t>(f.color.width));
   f.depth_timestamp = d.getTimestamp() * 1e-6;
   f.color_timestamp = c.getTimestamp() * 1e-6;
-  f.depth_intrinsics = FromFov(depth_, f.depth.width, f.depth.height);
-  f.color_intrinsics = FromFov(color_, f.color.width, f.color.height);
+  f.depth_intrinsics = DepthIntrinsics(f.depth.width, f.depth.height);
+  f.color_intrinsics = ColorIntrinsics(f.color.width, f.color.height);
   f.registered = device_.getImageRegistrationMode() == openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR;
   return f;
 }
 
-Camera OpenNiStreams::FromFov(openni::VideoStream& s, int w, int h) {
+namespace {
+
+/// A centred pinhole camera of w x h with horizontal / vertical fields of view (radians;
+/// a vertical one of 0 means square pixels).
+Camera FromFov(double hfov, double vfov, int w, int h) {
   Camera k;
   k.width = w;
   k.height = h;
-  const double hfov = s.getHorizontalFieldOfView(), vfov = s.getVerticalFieldOfView();
-  k.fx = hfov > 0 ? 0.5 * w / std::tan(0.5 * hfov) : 0;
+  k.fx = 0.5 * w / std::tan(0.5 * hfov);
   k.fy = vfov > 0 ? 0.5 * h / std::tan(0.5 * vfov) : k.fx;
   k.cx = 0.5 * w - 0.5;
   k.cy = 0.5 * h - 0.5;
   return k;
+}
+
+/// The stream's own fields of view, when it reports them (0 otherwise: OpenNI2's getters
+/// ignore a failed read).
+std::pair<double, double> StreamFov(openni::VideoStream& s) {
+  if (!s.isValid()) return {0, 0};
+  const double h = s.getHorizontalFieldOfView(), v = s.getVerticalFieldOfView();
+  return {std::isfinite(h) && h > 0 && h < 3.1 ? h : 0, std::isfinite(v) && v > 0 && v < 3.1 ? v : 0};
+}
+
+/// The horizontal field of view that a PS1080 depth stream's zero-plane distance (mm) and
+/// pixel size (mm, at SXGA, 1280 px wide) give, as its driver computes it
+/// (XnSensorDepthStream: 2 atan(ZPPS * 1280 / 2 / ZPD)); 0 when the stream lacks them.
+double ZeroPlaneFov(openni::VideoStream& depth) {
+  if (!depth.isValid()) return 0;
+  std::uint64_t zpd = 0;
+  double zpps = 0;
+  if (depth.getProperty(XN_STREAM_PROPERTY_ZERO_PLANE_DISTANCE, &zpd) != openni::STATUS_OK ||
+      depth.getProperty(XN_STREAM_PROPERTY_ZERO_PLANE_PIXEL_SIZE, &zpps) != openni::STATUS_OK)
+    return 0;
+  if (zpd == 0 || !(zpps > 0) || !std::isfinite(zpps)) return 0;
+  return 2 * std::atan(zpps * 1280 / 2 / static_cast<double>(zpd));
+}
+
+/// The first field of view of the chain that exists, and the note that names it.
+Camera Resolve(std::pair<double, double> own, std::pair<double, double> other, const char* other_name, double zero_plane,
+               int w, int h, std::string* note) {
+  if (own.first > 0) return FromFov(own.first, own.second, w, h);
+  if (other.first > 0) {
+    if (note) *note = std::string("from the ") + other_name + " stream's field of view (this stream reports none)";
+    return FromFov(other.first, other.second, w, h);
+  }
+  if (zero_plane > 0) {
+    if (note) *note = "from the depth stream's zero-plane distance and pixel size (no field of view recorded)";
+    return FromFov(zero_plane, 0, w, h);
+  }
+  // TUM RGB-D, Open3D's PrimeSenseDefault and ROS openni_camera use 525 px at 640 px.
+  if (note) *note = "the Kinect v1 / PrimeSense default, 525 px at 640 x 480 (nothing in the file gives them)";
+  return FromFov(2 * std::atan(320.0 / 525.0), 0, w, h);
+}
+
+}  // namespace
+
+Camera OpenNiStreams::ColorIntrinsics(int w, int h, std::string* note) {
+  return Resolve(StreamFov(color_), StreamFov(depth_), "depth", ZeroPlaneFov(depth_), w, h, note);
+}
+
+Camera OpenNiStreams::DepthIntrinsics(int w, int h, std::string* note) {
+  return Resolve(StreamFov(depth_), {0, 0}, "", ZeroPlaneFov(depth_), w, h, note);
 }
 
 void OpenNiStreams::CloseDevice() {

@@ -121,8 +121,14 @@ class OpenNiStreams {
   bool ReadPair(openni::VideoFrameRef* d, openni::VideoFrameRef* c, int timeout_ms, int* depth_reads,
                 int* color_reads, int depth_budget, int color_budget);
   RgbdFrame ToFrame(const openni::VideoFrameRef& d, const openni::VideoFrameRef& c, std::int64_t index);
-  /// OpenNI2 reports fields of view, not a principal point: centred, square-ish pixels.
-  static Camera FromFov(openni::VideoStream& s, int w, int h);
+  /// The colour and depth cameras at w x h. OpenNI2 reports fields of view, not a
+  /// principal point (centred); a stream without one (OpenNI 1 recordings) takes, in this
+  /// order: for colour, the depth stream's (PS1080 reports one field of view for both);
+  /// the depth stream's zero-plane distance and pixel size (PS1080 / OpenNI 1
+  /// properties); the Kinect v1 / PrimeSense default, 525 px at 640 x 480. `note`, when
+  /// given, says which was used ("" when each stream had its own).
+  Camera ColorIntrinsics(int w, int h, std::string* note = nullptr);
+  Camera DepthIntrinsics(int w, int h, std::string* note = nullptr);
   void CloseDevice();
 
   openni::Device device_;

@@ -292,6 +292,19 @@ TEST(Calibration, FileRoundTripAndClearErrors) {
     }
   }
   EXPECT_THROW(ReadCalibration(dir / "missing.json"), InputError);
+  // An intrinsics file (--intrinsics) is a camera section alone; a calibration's camera wins.
+  const fs::path k = write("k.json", R"({"width": 640, "height": 480, "fx": 530, "fy": 531, "cx": 320, "cy": 241})");
+  EXPECT_EQ(ReadIntrinsicsFile(k).fy, 531);
+  Calibration none;
+  UseIntrinsicsFile(&none, k);
+  ASSERT_TRUE(none.color);
+  EXPECT_EQ(none.color->cy, 241);
+  Calibration with = r;  // r.color->fy is 521.25
+  UseIntrinsicsFile(&with, k);
+  EXPECT_EQ(with.color->fy, 521.25);
+  EXPECT_THROW(ReadIntrinsicsFile(write("k0.json", R"({"width": 640, "height": 480, "fx": 0, "fy": 1, "cx": 1, "cy": 1})")),
+               InputError);
+  EXPECT_THROW(ReadIntrinsicsFile(write("k1.json", "[1, 2]")), InputError);
   // A calibration for another image size does not apply.
   EXPECT_THROW(Linearize(ImageRgb8{320, 240, std::vector<std::uint8_t>(320 * 240 * 3)}, r), InputError);
   fs::remove_all(dir);

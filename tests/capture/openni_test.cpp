@@ -7,6 +7,7 @@
 #include <cstdlib>
 #include <iterator>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -322,6 +323,130 @@ TEST_F(OpenNi, MutantsOfRealRecordingsPlayToTheEndOrAreRefused) {
   std::printf("%d mutants of 2 real recordings: %d played to the end, %d refused\n", 2 * per_file, played, refused);
   EXPECT_EQ(played + refused, 2 * per_file);
   EXPECT_GT(refused, 0) << "no mutant was refused: the cuts at least must be";
+}
+
+/// How well a frame's colour and depth agree: for each depth edge (the near side of a jump
+/// of over 5 % between 4-neighbours), the distance in pixels to the nearest colour edge
+/// (Sobel magnitude of the grey image in its top 10 %), searched up to 30 px; the median
+/// over the frame. `shift` moves the colour image right by that many pixels first (a
+/// negative control: what colour misaligned by the cameras' baseline would score).
+double MedianEdgeDistance(const RgbdFrame& f, int shift = 0) {
+  const int w = f.color.width, h = f.color.height;
+  std::vector<float> grey(static_cast<std::size_t>(w) * h, 0.f);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const int xs = std::clamp(x - shift, 0, w - 1);
+      const std::uint8_t* c = &f.color.data[3 * (static_cast<std::size_t>(y) * w + xs)];
+      grey[static_cast<std::size_t>(y) * w + x] = 0.299f * c[0] + 0.587f * c[1] + 0.114f * c[2];
+    }
+  std::vector<float> mag(grey.size(), 0.f);
+  for (int y = 1; y + 1 < h; ++y)
+    for (int x = 1; x + 1 < w; ++x) {
+      auto g = [&](int dx, int dy) { return grey[static_cast<std::size_t>(y + dy) * w + x + dx]; };
+      const float gx = g(1, -1) + 2 * g(1, 0) + g(1, 1) - g(-1, -1) - 2 * g(-1, 0) - g(-1, 1);
+      const float gy = g(-1, 1) + 2 * g(0, 1) + g(1, 1) - g(-1, -1) - 2 * g(0, -1) - g(1, -1);
+      mag[static_cast<std::size_t>(y) * w + x] = std::hypot(gx, gy);
+    }
+  std::vector<float> sorted = mag;
+  std::nth_element(sorted.begin(), sorted.begin() + sorted.size() * 9 / 10, sorted.end());
+  const float threshold = std::max(1.f, sorted[sorted.size() * 9 / 10]);
+  std::vector<double> distances;
+  const int r = 30;
+  for (int y = 1; y + 1 < h; ++y)
+    for (int x = 1; x + 1 < w; ++x) {
+      const std::uint16_t d = f.depth.data[static_cast<std::size_t>(y) * w + x];
+      if (d == 0) continue;
+      bool edge = false;
+      for (auto [dx, dy] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+        const std::uint16_t n = f.depth.data[static_cast<std::size_t>(y + dy) * w + x + dx];
+        edge |= n != 0 && n > d * 1.05;
+      }
+      if (!edge) continue;
+      double best = r + 1;
+      for (int v = std::max(0, y - r); v <= std::min(h - 1, y + r); ++v)
+        for (int u = std::max(0, x - r); u <= std::min(w - 1, x + r); ++u)
+          if (mag[static_cast<std::size_t>(v) * w + u] > threshold) best = std::min(best, std::hypot(u - x, v - y));
+      distances.push_back(best);
+    }
+  if (distances.empty()) return NAN;
+  std::nth_element(distances.begin(), distances.begin() + distances.size() / 2, distances.end());
+  return distances[distances.size() / 2];
+}
+
+// A Kinect v1 recording made with OpenNI 1 tools (file version 1.0.1.0, MIT): it records
+// fields of view for depth only and its registration in OpenNI 1's AlternativeViewPoint,
+// which OpenNI2's player drops. It plays with intrinsics and registration from what the
+// file holds, and its colour and depth agree.
+TEST_F(OpenNi, OldKinectRecordingPlaysRegisteredWithIntrinsicsAndItsEdgesAgree) {
+  const std::string file = std::string(LIGHTPROBE_SOURCE_DIR) + "/tests/data/oni/3dj_test.oni";
+  auto src = OpenOniFile(file);
+  EXPECT_NE(src->Describe().find("of the colour camera from the depth stream's field of view"), std::string::npos)
+      << src->Describe();
+  RgbdFrame f;
+  int frames = 0;
+  std::vector<double> aligned, shifted;
+  while (src->Next(&f, 5.0) == SourceStatus::kFrame) {
+    ++frames;
+    EXPECT_TRUE(f.registered);
+    // The depth stream's xnFOV, 58.125 deg: fx = 320 / tan(29.06 deg) = 575.8, the same as
+    // its zero-plane distance and pixel size give (120 mm / 0.1042 mm / 2).
+    EXPECT_NEAR(f.color_intrinsics.fx, 575.8, 0.1);
+    EXPECT_NEAR(f.depth_intrinsics.fx, 575.8, 0.1);
+    EXPECT_DOUBLE_EQ(f.color_intrinsics.cx, 319.5);
+    aligned.push_back(MedianEdgeDistance(f));
+    shifted.push_back(MedianEdgeDistance(f, 14));  // the 2.5 cm baseline at ~1 m: ~14 px
+  }
+  EXPECT_EQ(frames, 12);
+  std::sort(aligned.begin(), aligned.end());
+  std::sort(shifted.begin(), shifted.end());
+  const double a = aligned[aligned.size() / 2], s = shifted[shifted.size() / 2];
+  std::printf("3dj_test.oni: median distance from depth edges to colour edges %.2f px (colour shifted 14 px: %.2f px)\n",
+              a, s);
+  EXPECT_LE(a, 2.0);
+  EXPECT_GT(s, 2 * a) << "the measure cannot tell aligned from misaligned colour";
+}
+
+/// 3dj_test.oni with properties renamed (same length, so the record chain is unchanged):
+/// OpenNI2's player then drops them, as for a recording that never had them.
+std::string OldKinectWithout(const std::vector<std::pair<std::string, std::string>>& renames) {
+  std::ifstream in(std::string(LIGHTPROBE_SOURCE_DIR) + "/tests/data/oni/3dj_test.oni", std::ios::binary);
+  std::string b((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (const auto& [from, to] : renames) {
+    const std::size_t at = b.find(from + '\0');
+    EXPECT_NE(at, std::string::npos) << from;
+    if (at != std::string::npos) b.replace(at, from.size(), to);
+  }
+  return b;
+}
+
+// Each step of the intrinsics chain on hand-made files: without a field of view anywhere,
+// the zero-plane distance and pixel size; without those too, the Kinect v1 / PrimeSense
+// default. Without AlternativeViewPoint the recording plays unregistered.
+TEST_F(OpenNi, IntrinsicsComeFromWhatTheRecordingHolds) {
+  struct Case {
+    std::vector<std::pair<std::string, std::string>> renames;
+    const char* note;
+    double fx;
+    bool registered;
+  };
+  const Case cases[] = {
+      {{{"xnFOV", "xnFOX"}}, "of both cameras from the depth stream's zero-plane distance and pixel size", 575.8, true},
+      {{{"xnFOV", "xnFOX"}, {"ZPD", "ZPX"}}, "of both cameras the Kinect v1 / PrimeSense default", 525.0, true},
+      {{{"AlternativeViewPoint", "AlternativeViewPoinX"}}, "of the colour camera from the depth stream's field of view",
+       575.8, false},
+  };
+  int k = 0;
+  for (const Case& c : cases) {
+    const fs::path f = dir_ / ("handmade" + std::to_string(k++) + ".oni");
+    std::ofstream(f, std::ios::binary) << OldKinectWithout(c.renames);
+    auto src = OpenOniFile(f.string());
+    EXPECT_NE(src->Describe().find(c.note), std::string::npos) << src->Describe();
+    RgbdFrame frame;
+    ASSERT_EQ(src->Next(&frame, 5.0), SourceStatus::kFrame);
+    EXPECT_NEAR(frame.color_intrinsics.fx, c.fx, 0.1) << c.note;
+    EXPECT_NEAR(frame.depth_intrinsics.fy, c.fx, 0.1) << c.note;
+    EXPECT_EQ(frame.registered, c.registered) << c.note;
+  }
 }
 
 void PutU32(std::string* b, std::size_t p, std::uint32_t v) {
