@@ -130,17 +130,43 @@ std::optional<std::pair<std::uint64_t, std::uint64_t>> HeaderSize(const std::str
   return std::nullopt;
 }
 
-/// Refuses a file whose header claims more than kMaxImagePixels, before any decoder
-/// allocates for it.
+/// The most pixels `bytes` of a file whose header starts `head` can hold: uncompressed
+/// formats (PFM, binary PGM/PPM) at least their samples' bytes; Radiance HDR at least 2
+/// bytes per run of 127 in each of 4 components; the rest (PNG, OpenEXR: deflate, at most
+/// 1032:1) a 1-bit pixel at deflate's best. A header claiming more is corrupt (or a
+/// decompression bomb): no decoder allocates for it.
+std::uint64_t MostPixelsFor(const std::string& head, std::uint64_t bytes) {
+  if (head.size() >= 2 && head[0] == 'P') {
+    switch (head[1]) {
+      case 'F': return bytes / 12;  // 3 floats
+      case 'f': return bytes / 4;
+      case '5': return bytes;       // 1 byte a sample at least
+      case '6': return bytes / 3;
+      case '4': return bytes * 8;
+      default: return bytes / 2;    // text: a digit and a space a sample at least
+    }
+  }
+  if (head.compare(0, 2, "#?") == 0) return bytes * 127 / 8;
+  return bytes * 8 * 1032;
+}
+
+/// Refuses a file whose header claims more than kMaxImagePixels, or more than its bytes
+/// can hold, before any decoder allocates for it.
 void CheckClaimedSize(const fs::path& path, const std::string& name) {
   std::ifstream in(path, std::ios::binary);
   std::string head(64 * 1024, '\0');
   in.read(head.data(), static_cast<std::streamsize>(head.size()));
   head.resize(static_cast<std::size_t>(in.gcount()));
   const auto size = HeaderSize(head);
-  if (size && size->first * size->second > kMaxImagePixels)
-    throw InputError(name, "header claims " + std::to_string(size->first) + " x " + std::to_string(size->second) +
-                               " pixels, more than the " + std::to_string(kMaxImagePixels) + " an image may have");
+  if (!size) return;
+  const std::uint64_t pixels = size->first * size->second;
+  const std::string claims = "header claims " + std::to_string(size->first) + " x " + std::to_string(size->second) + " pixels";
+  if (pixels > kMaxImagePixels)
+    throw InputError(name, claims + ", more than the " + std::to_string(kMaxImagePixels) + " an image may have");
+  std::error_code ec;
+  const std::uint64_t bytes = fs::file_size(path, ec);
+  if (!ec && pixels > MostPixelsFor(head, bytes))
+    throw InputError(name, claims + ", more than its " + std::to_string(bytes) + " bytes can hold");
 }
 
 cv::Mat Checked(cv::Mat m, const std::string& name) {

@@ -290,6 +290,15 @@ TEST(Image, AHeaderClaimingTooManyPixelsIsRefusedBeforeDecoding) {
   exr += std::string(1, '\0') + std::string(64, '\0');
   EXPECT_NE(ImageError(exr, "big.exr").find("header claims 10000 x 10000 pixels"), std::string::npos)
       << ImageError(exr, "big.exr");
+  // Under the limit but more than the file can hold: a PFM's floats are all there or it is
+  // corrupt; a PNG cannot inflate 33 bytes into 4 Mpx.
+  EXPECT_NE(ImageError("PF\n100 100\n-1.0\n" + std::string(64, '\0'), "short.pfm").find("more than its 80 bytes can hold"),
+            std::string::npos);
+  std::string png_4mpx = png;
+  png_4mpx[18] = png_4mpx[22] = '\x07';
+  png_4mpx[19] = png_4mpx[23] = '\xd0';  // 2000 x 2000
+  EXPECT_NE(ImageError(png_4mpx, "bomb.png").find("2000 x 2000 pixels, more than its 33 bytes can hold"),
+            std::string::npos) << ImageError(png_4mpx, "bomb.png");
   // A real image under the limit still decodes (the check reads headers, not guesses).
   const fs::path ok = TempDir("claims-ok") / "ok.png";
   ImageRGB img(4, 3);
