@@ -2,6 +2,7 @@
 /// One RGB-D frame as a source delivers it (owned, copyable).
 #include <cstdint>
 #include <optional>
+#include <string>
 
 #include <Eigen/Core>
 
@@ -21,6 +22,14 @@ struct RgbdFrame {
   /// Depth is registered to colour: depth pixel (x, y) sees what colour pixel (x, y) sees,
   /// and depth_intrinsics == color_intrinsics.
   bool registered = false;
+  /// For unregistered depth: the device's factory depth-to-colour transform when the source
+  /// knows the device (p_colour = color_from_depth * p_depth, metres), and where its numbers
+  /// come from. A calibration's extrinsics win over it.
+  struct Extrinsics {
+    Eigen::Matrix4d color_from_depth = Eigen::Matrix4d::Identity();
+    std::string source;
+  };
+  std::optional<Extrinsics> device_extrinsics;
   /// The colour camera's exposure and gain (device units) when the source knows them
   /// (a live device after locking, a recording's side file); 0 = unknown.
   double exposure = 0, gain = 0;

@@ -154,6 +154,7 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
       return SourceStatus::kTimeout;
     *out = ToFrame(d, c, produced_++);
     if (side_registered_) out->registered = *side_registered_;
+    if (out->registered) out->device_extrinsics.reset();
     out->exposure = side_exposure_;
     out->gain = side_gain_;
     return SourceStatus::kFrame;

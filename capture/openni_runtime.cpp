@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 
@@ -199,6 +200,7 @@ RgbdFrame OpenNiStreams::ToFrame(const openni::VideoFrameRef& d, const openni::V
   f.depth_intrinsics = DepthIntrinsics(f.depth.width, f.depth.height);
   f.color_intrinsics = ColorIntrinsics(f.color.width, f.color.height);
   f.registered = device_.getImageRegistrationMode() == openni::IMAGE_REGISTRATION_DEPTH_TO_COLOR;
+  if (!f.registered) f.device_extrinsics = DeviceExtrinsics();
   return f;
 }
 
@@ -260,6 +262,26 @@ Camera Resolve(std::pair<double, double> own, std::pair<double, double> other, c
 
 Camera OpenNiStreams::ColorIntrinsics(int w, int h, std::string* note) {
   return Resolve(StreamFov(color_), StreamFov(depth_), "depth", ZeroPlaneFov(depth_), w, h, note);
+}
+
+RgbdFrame::Extrinsics OpenNiStreams::DeviceExtrinsics() {
+  RgbdFrame::Extrinsics e;
+  double cm = 0;
+  const bool recorded = depth_.isValid() &&
+                        depth_.getProperty(XN_STREAM_PROPERTY_DCMOS_RCMOS_DISTANCE, &cm) == openni::STATUS_OK &&
+                        std::isfinite(cm) && cm > 0.5 && cm < 10;
+  const double baseline = recorded ? cm / 100 : 0.025;
+  const bool mirrored = depth_.isValid() && depth_.getMirroringEnabled();
+  // Not mirrored, the colour camera sits to the right of the depth camera (+x): a point
+  // at x in the depth camera is at x - baseline in the colour camera.
+  e.color_from_depth(0, 3) = mirrored ? baseline : -baseline;
+  char text[200];
+  std::snprintf(text, sizeof text, "colour camera %.1f cm to the %s of the depth camera (%s%s)", 100 * baseline,
+                mirrored ? "left" : "right",
+                recorded ? "the depth stream's DCMOS-RCMOS distance" : "the Kinect v1 / PrimeSense factory baseline",
+                mirrored ? ", images mirrored" : "");
+  e.source = text;
+  return e;
 }
 
 Camera OpenNiStreams::DepthIntrinsics(int w, int h, std::string* note) {

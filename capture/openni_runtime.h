@@ -129,6 +129,12 @@ class OpenNiStreams {
   /// given, says which was used ("" when each stream had its own).
   Camera ColorIntrinsics(int w, int h, std::string* note = nullptr);
   Camera DepthIntrinsics(int w, int h, std::string* note = nullptr);
+  /// The PS1080 family's (Kinect v1, Xtion, Carmine) depth-to-colour transform for
+  /// unregistered depth: the colour camera beside the depth camera, no rotation, at the
+  /// depth stream's DCMOS-RCMOS distance when it reports one (OpenNI 1 recordings, PS1080
+  /// devices), else 2.5 cm (ROS rgbd_launch's kinect_frames.launch); to the right of it
+  /// as the device sees, to the left in mirrored images.
+  RgbdFrame::Extrinsics DeviceExtrinsics();
   void CloseDevice();
 
   openni::Device device_;

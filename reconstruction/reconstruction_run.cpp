@@ -33,10 +33,20 @@ FrameReport ReconstructionRun::Process(const RgbdFrame& frame) {
   }
   const RgbdFrame& f = posed ? *posed : frame;
   if (frames_ == 0) clock_.Reset();  // the log's seconds count from the first frame
-  if (frames_ == 0 && !f.registered && !options_.reconstruction.calibration.color_from_depth)
-    warnings_.push_back(
-        "depth is not registered to colour and no calibration gives the extrinsics (lightprobe calibrate "
-        "extrinsics): colour is taken from the depth camera's view");
+  if (frames_ == 0 && !f.registered && !options_.reconstruction.calibration.color_from_depth) {
+    if (f.device_extrinsics) {
+      // Nothing is fused yet: the reconstructor starts again with the device's extrinsics.
+      options_.reconstruction.calibration.color_from_depth = f.device_extrinsics->color_from_depth;
+      reconstructor_ = std::make_unique<Reconstructor>(options_.reconstruction);
+      warnings_.push_back("depth is not registered to colour and no calibration gives the extrinsics: using the "
+                          "device's factory transform, " + f.device_extrinsics->source +
+                          " (lightprobe calibrate extrinsics measures your camera's)");
+    } else {
+      warnings_.push_back(
+          "depth is not registered to colour and no calibration gives the extrinsics (lightprobe calibrate "
+          "extrinsics): colour is taken from the depth camera's view");
+    }
+  }
   const FrameReport r = reconstructor_->Process(f);
   ++frames_;
   tracked_ += r.state == TrackingState::kTracking;

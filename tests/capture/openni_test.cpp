@@ -446,6 +446,18 @@ TEST_F(OpenNi, IntrinsicsComeFromWhatTheRecordingHolds) {
     EXPECT_NEAR(frame.color_intrinsics.fx, c.fx, 0.1) << c.note;
     EXPECT_NEAR(frame.depth_intrinsics.fy, c.fx, 0.1) << c.note;
     EXPECT_EQ(frame.registered, c.registered) << c.note;
+    if (!c.registered) {
+      // Its depth stream reports the DCMOS-RCMOS distance (2.3 cm) and mirrored images: the
+      // colour camera is 2.3 cm to the left in them.
+      ASSERT_TRUE(frame.device_extrinsics);
+      EXPECT_NEAR(frame.device_extrinsics->color_from_depth(0, 3), 0.023, 1e-6);
+      EXPECT_NE(frame.device_extrinsics->source.find("2.3 cm to the left of the depth camera (the depth stream's "
+                                                     "DCMOS-RCMOS distance, images mirrored)"),
+                std::string::npos)
+          << frame.device_extrinsics->source;
+    } else {
+      EXPECT_FALSE(frame.device_extrinsics);
+    }
   }
 }
 

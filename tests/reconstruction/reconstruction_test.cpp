@@ -15,6 +15,7 @@
 #include "estimation/synth.h"
 #include "reconstruction/geometry.h"
 #include "reconstruction/keyframe_vignetting.h"
+#include "reconstruction/reconstruction_run.h"
 #include "reconstruction/reconstructor.h"
 #include "reconstruction/tsdf_volume.h"
 
@@ -212,6 +213,49 @@ TEST(TsdfVolume, UnregisteredColourIsTakenThroughColourFromDepth) {
   EXPECT_LT(with.wrong, 0.003);
   EXPECT_LT(with.green, 0.001);
   EXPECT_GT(without.wrong, 0.1);
+}
+
+// Unregistered depth from a device whose factory transform the source knows (an OpenNI
+// recording or camera: capture/openni_runtime.cpp) is fused through that transform, with a
+// warning naming it; a calibration's extrinsics win; without either, the old warning.
+TEST(ReconstructionRun, UnregisteredDepthTakesTheDevicesFactoryTransformUnlessCalibrated) {
+  SynthOptions so;
+  so.width = 160;
+  so.height = 120;
+  so.spp = 1;
+  std::vector<RgbdFrame> frames = ToRgbdFrames(RenderSynthFrames("one-light", so, "", 1));
+  Eigen::Matrix4d factory = Eigen::Matrix4d::Identity();
+  factory(0, 3) = -0.025;
+  RgbdFrame f = frames.at(0);
+  f.registered = false;
+  f.device_extrinsics = RgbdFrame::Extrinsics{factory, "a test device's 2.5 cm"};
+  auto run_with = [&](std::optional<Eigen::Matrix4d> calibrated, const RgbdFrame& frame) {
+    ReconstructionRunOptions o;
+    o.reconstruction.tsdf.truncation = 4 * o.reconstruction.tsdf.voxel;
+    o.reconstruction.calibration.color_from_depth = calibrated;
+    auto run = std::make_unique<ReconstructionRun>(o);
+    run->Process(frame);
+    return run;
+  };
+  auto warned = [](const ReconstructionRun& r, const std::string& what) {
+    for (const std::string& w : r.warnings())
+      if (w.find(what) != std::string::npos) return true;
+    return false;
+  };
+  const auto factory_run = run_with(std::nullopt, f);
+  ASSERT_TRUE(factory_run->options().calibration.color_from_depth);
+  EXPECT_EQ((*factory_run->options().calibration.color_from_depth)(0, 3), -0.025);
+  EXPECT_TRUE(warned(*factory_run, "using the device's factory transform, a test device's 2.5 cm"));
+  Eigen::Matrix4d measured = Eigen::Matrix4d::Identity();
+  measured(0, 3) = -0.031;
+  const auto calibrated_run = run_with(measured, f);
+  EXPECT_EQ((*calibrated_run->options().calibration.color_from_depth)(0, 3), -0.031);
+  EXPECT_TRUE(calibrated_run->warnings().empty() || !warned(*calibrated_run, "not registered"));
+  RgbdFrame unknown = f;
+  unknown.device_extrinsics.reset();
+  const auto unknown_run = run_with(std::nullopt, unknown);
+  EXPECT_FALSE(unknown_run->options().calibration.color_from_depth);
+  EXPECT_TRUE(warned(*unknown_run, "colour is taken from the depth camera's view"));
 }
 
 /// Points spread over a mesh's triangles, about `spacing` apart.
