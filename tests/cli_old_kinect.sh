@@ -31,4 +31,18 @@ code=$?
 set -e
 [ "$code" = 2 ] && grep -q "small.json: intrinsics for 320x240, but the colour frames are 640x480" "$out/bad" ||
   { cat "$out/bad"; echo "a mismatched intrinsics file was not one clear line with exit 2 (exit $code)"; exit 1; }
-echo "old Kinect recording: headless ok, fx $fx, $tracked of 12 frames tracked"
+# reconstruct takes --intrinsics too (the keyframes at 160 px: 530.5 / 4), and a
+# calibration's camera wins over it (600 / 4).
+"$exe" reconstruct "$file" --intrinsics "$out/k.json" --max-frames 3 --keyframes 1 --out "$out/k" >"$out/klog" 2>&1 ||
+  { cat "$out/klog"; exit 1; }
+kfx=$(grep -o '"fx": [0-9.e+-]*' "$out/k/scene.json" | head -1 | awk '{print $2}')
+check_between "keyframe fx with --intrinsics" "$kfx" 132.62 132.63 || exit 1
+cat >"$out/cal.json" <<'JSON'
+{"format": "lightprobe-calibration", "version": 1,
+ "camera": {"width": 640, "height": 480, "fx": 600, "fy": 600, "cx": 319.5, "cy": 239.5}}
+JSON
+"$exe" reconstruct "$file" --calibration "$out/cal.json" --intrinsics "$out/k.json" --max-frames 3 --keyframes 1 \
+  --out "$out/c" >"$out/clog" 2>&1 || { cat "$out/clog"; exit 1; }
+cfx=$(grep -o '"fx": [0-9.e+-]*' "$out/c/scene.json" | head -1 | awk '{print $2}')
+check_between "keyframe fx with --calibration and --intrinsics" "$cfx" 149.99 150.01 || exit 1
+echo "old Kinect recording: headless ok, fx $fx, $tracked of 12 frames tracked; --intrinsics $kfx, --calibration wins $cfx"

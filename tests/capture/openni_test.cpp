@@ -551,6 +551,29 @@ TEST_F(OpenNi, TheStructureCheckReadsBothRecordLayoutsOfThePlayer) {
   ASSERT_FALSE(a.empty());
   EXPECT_EQ(a, b) << "OpenNI2 plays the 32-bit layout's frames as the current layout's";
 
+  // Other people's file in both layouts: 3dj_test.oni (OpenNI 1 tools, 1.0.1.0) rewritten
+  // as 1.0.0.6 plays the same frames, with the same intrinsics and registration, so the
+  // headless pipeline (cli_old_kinect) sees the same input from either.
+  std::ifstream in(fs::path(LIGHTPROBE_SOURCE_DIR) / "tests/data/oni/3dj_test.oni", std::ios::binary);
+  const std::string kinect((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::string kinect_new = write("3dj-1.0.1.0.oni", kinect), kinect_old = write("3dj-1.0.0.6.oni", To32BitLayout(kinect));
+  auto frames = [](const std::string& f) {
+    auto src = OpenOniFile(f);
+    std::vector<RgbdFrame> out;
+    RgbdFrame frame;
+    while (src->Next(&frame, 2.0) == SourceStatus::kFrame) out.push_back(frame);
+    return out;
+  };
+  const auto fa = frames(kinect_new), fb = frames(kinect_old);
+  ASSERT_EQ(fa.size(), 12u);
+  ASSERT_EQ(fb.size(), fa.size());
+  for (std::size_t i = 0; i < fa.size(); ++i) {
+    EXPECT_EQ(fa[i].depth.data, fb[i].depth.data) << i;
+    EXPECT_EQ(fa[i].color.data, fb[i].color.data) << i;
+    EXPECT_EQ(fa[i].color_intrinsics.fx, fb[i].color_intrinsics.fx) << i;
+    EXPECT_TRUE(fb[i].registered) << i;
+  }
+
   std::string too_old = old, too_new = bytes, big = bytes;
   PutU32(&too_old, 8, 3);  // 1.0.0.3
   PutU32(&too_new, 8, 11);  // 1.0.1.11
