@@ -79,28 +79,34 @@ double ParseNumber(const std::string& s, const std::string& name, std::size_t li
 std::optional<Camera> IntrinsicsJson(const fs::path& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) return std::nullopt;
+  return ParseDirectoryIntrinsics(ReadTextFile(path), path.string());
+}
+
+}  // namespace
+
+Camera ParseDirectoryIntrinsics(const std::string& text, const std::string& name) {
   nlohmann::json j;
   try {
-    j = nlohmann::json::parse(ReadTextFile(path));
+    j = nlohmann::json::parse(text);
   } catch (const nlohmann::json::exception& e) {
-    throw InputError(path.string(), std::string("malformed JSON: ") + e.what());
+    throw InputError(name, std::string("malformed JSON: ") + e.what());
   }
-  if (!j.is_object()) throw InputError(path.string(), "intrinsics must be a JSON object");
+  if (!j.is_object()) throw InputError(name, "intrinsics must be a JSON object");
   Camera k;
   auto num = [&](const nlohmann::json& v) {
-    if (!v.is_number()) throw InputError(path.string(), "intrinsics must be numbers");
+    if (!v.is_number()) throw InputError(name, "intrinsics must be numbers");
     return v.get<double>();
   };
   if (j.contains("intrinsic_matrix")) {  // Open3D: 3x3 column-major, plus width/height
     const auto& m = j["intrinsic_matrix"];
-    if (!m.is_array() || m.size() != 9) throw InputError(path.string(), "\"intrinsic_matrix\" must have 9 numbers");
+    if (!m.is_array() || m.size() != 9) throw InputError(name, "\"intrinsic_matrix\" must have 9 numbers");
     k.fx = num(m[0]);
     k.fy = num(m[4]);
     k.cx = num(m[6]);
     k.cy = num(m[7]);
   } else {
     for (const char* key : {"fx", "fy", "cx", "cy"})
-      if (!j.contains(key)) throw InputError(path.string(), std::string("missing \"") + key + "\"");
+      if (!j.contains(key)) throw InputError(name, std::string("missing \"") + key + "\"");
     k.fx = num(j["fx"]);
     k.fy = num(j["fy"]);
     k.cx = num(j["cx"]);
@@ -108,16 +114,18 @@ std::optional<Camera> IntrinsicsJson(const fs::path& path) {
   }
   auto side = [&](const char* key) {  // no cast of a huge or negative double to int
     const double v = num(j[key]);
-    if (!(v >= 1 && v <= 65536)) throw InputError(path.string(), std::string("\"") + key + "\" must be 1 to 65536");
+    if (!(v >= 1 && v <= 65536)) throw InputError(name, std::string("\"") + key + "\" must be 1 to 65536");
     return static_cast<int>(v);
   };
   if (j.contains("width")) k.width = side("width");
   if (j.contains("height")) k.height = side("height");
   if (!(k.fx > 0) || !(k.fy > 0) || !std::isfinite(k.fx) || !std::isfinite(k.fy) || !std::isfinite(k.cx) ||
       !std::isfinite(k.cy))
-    throw InputError(path.string(), "focal lengths must be positive and finite, the centre finite");
+    throw InputError(name, "focal lengths must be positive and finite, the centre finite");
   return k;
 }
+
+namespace {
 
 Camera PrimeSenseDefault() { return {640, 480, 525.0, 525.0, 319.5, 239.5}; }
 

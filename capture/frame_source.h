@@ -60,6 +60,9 @@ struct DirectorySourceOptions {
 /// naming the file for a missing directory, an unknown layout, or an index naming a
 /// missing file (checked when the source opens, before any frame is delivered).
 std::unique_ptr<FrameSource> OpenDirectorySource(const std::string& dir, const DirectorySourceOptions& options = {});
+/// A frame directory's intrinsics file (`intrinsics.json`: {"fx", "fy", "cx", "cy"[, "width",
+/// "height"]}, or Open3D's camera JSON with "intrinsic_matrix"); `name` for errors.
+Camera ParseDirectoryIntrinsics(const std::string& text, const std::string& name);
 
 /// Opens what a user names as input: a frame directory (any layout above) or an `.oni`
 /// recording (played as fast as frames are read unless `real_time`). Throws InputError
