@@ -150,6 +150,27 @@ std::uint64_t MostPixelsFor(const std::string& head, std::uint64_t bytes) {
   return bytes * 8 * 1032;
 }
 
+/// OpenEXR allocates each header attribute's declared size before reading it (and keeps
+/// attributes it does not know whole): an attribute claiming more bytes than the file has
+/// is corrupt, refused before OpenEXR allocates up to 2 GiB for it.
+void CheckExrAttributes(const std::string& h, std::uint64_t bytes, const std::string& name) {
+  if (h.size() < 8 || h.compare(0, 4, "\x76\x2f\x31\x01") != 0) return;
+  std::size_t i = 8;
+  while (i < h.size() && h[i] != '\0') {
+    const std::size_t name_end = h.find('\0', i);
+    const std::size_t type_end = name_end == std::string::npos ? name_end : h.find('\0', name_end + 1);
+    if (type_end == std::string::npos || type_end + 5 > h.size()) return;  // past what was read: the decoder's
+    std::uint32_t size = 0;
+    for (int k = 3; k >= 0; --k) size = (size << 8) | std::uint8_t(h[type_end + 1 + k]);
+    const std::uint64_t end = type_end + 5 + std::uint64_t(size);
+    if (end > bytes)
+      throw InputError(name, "corrupt OpenEXR header: attribute '" + h.substr(i, std::min<std::size_t>(name_end - i, 32)) +
+                                 "' claims " + std::to_string(size) + " bytes, more than the file's " +
+                                 std::to_string(bytes));
+    i = static_cast<std::size_t>(end);
+  }
+}
+
 /// Refuses a file whose header claims more than kMaxImagePixels, or more than its bytes
 /// can hold, before any decoder allocates for it.
 void CheckClaimedSize(const fs::path& path, const std::string& name) {
@@ -157,15 +178,17 @@ void CheckClaimedSize(const fs::path& path, const std::string& name) {
   std::string head(64 * 1024, '\0');
   in.read(head.data(), static_cast<std::streamsize>(head.size()));
   head.resize(static_cast<std::size_t>(in.gcount()));
+  std::error_code ec;
+  const std::uint64_t bytes = fs::file_size(path, ec);
+  if (ec) return;  // the decoder says why
+  CheckExrAttributes(head, bytes, name);
   const auto size = HeaderSize(head);
   if (!size) return;
   const std::uint64_t pixels = size->first * size->second;
   const std::string claims = "header claims " + std::to_string(size->first) + " x " + std::to_string(size->second) + " pixels";
   if (pixels > kMaxImagePixels)
     throw InputError(name, claims + ", more than the " + std::to_string(kMaxImagePixels) + " an image may have");
-  std::error_code ec;
-  const std::uint64_t bytes = fs::file_size(path, ec);
-  if (!ec && pixels > MostPixelsFor(head, bytes))
+  if (pixels > MostPixelsFor(head, bytes))
     throw InputError(name, claims + ", more than its " + std::to_string(bytes) + " bytes can hold");
 }
 

@@ -299,6 +299,12 @@ TEST(Image, AHeaderClaimingTooManyPixelsIsRefusedBeforeDecoding) {
   png_4mpx[19] = png_4mpx[23] = '\xd0';  // 2000 x 2000
   EXPECT_NE(ImageError(png_4mpx, "bomb.png").find("2000 x 2000 pixels, more than its 33 bytes can hold"),
             std::string::npos) << ImageError(png_4mpx, "bomb.png");
+  // OpenEXR allocates an attribute's declared size before reading it: 1 GB claimed in a
+  // 100-byte file is refused first.
+  std::string exr_bomb("\x76\x2f\x31\x01\x02\0\0\0", 8);
+  exr_bomb += std::string("junk\0unknowntype\0", 17) + Le32(1000000000) + std::string(64, 'x');
+  EXPECT_NE(ImageError(exr_bomb, "bomb.exr").find("attribute 'junk' claims 1000000000 bytes"), std::string::npos)
+      << ImageError(exr_bomb, "bomb.exr");
   // A real image under the limit still decodes (the check reads headers, not guesses).
   const fs::path ok = TempDir("claims-ok") / "ok.png";
   ImageRGB img(4, 3);
