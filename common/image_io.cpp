@@ -11,6 +11,7 @@
 #include <optional>
 #include <sstream>
 #include <streambuf>
+#include <string_view>
 #include <utility>
 
 #include <unistd.h>
@@ -67,6 +68,34 @@ class QuietCerr {
   static inline NullBuf null_;
 };
 
+/// OpenEXR's magic number (the file's first 4 bytes).
+const char kExrMagic[] = "\x76\x2f\x31\x01";
+
+/// One attribute of an OpenEXR header: its name, where its value starts in the header and
+/// its declared size.
+struct ExrAttribute {
+  std::string_view name;
+  std::size_t value = 0;
+  std::uint32_t size = 0;
+};
+
+/// Calls `f` for each attribute of the OpenEXR header at the start of `h` (name, type,
+/// u32 size, value; a 0 byte ends them) while it returns true, stopping where `h` ends.
+template <class F>
+void ForEachExrAttribute(const std::string& h, F&& f) {
+  if (h.size() < 8 || h.compare(0, 4, kExrMagic) != 0) return;
+  std::size_t i = 8;
+  while (i < h.size() && h[i] != '\0') {
+    const std::size_t name_end = h.find('\0', i);
+    const std::size_t type_end = name_end == std::string::npos ? name_end : h.find('\0', name_end + 1);
+    if (type_end == std::string::npos || type_end + 5 > h.size()) return;
+    ExrAttribute a{std::string_view(h).substr(i, name_end - i), type_end + 5, 0};
+    for (int k = 3; k >= 0; --k) a.size = (a.size << 8) | std::uint8_t(h[type_end + 1 + k]);
+    if (!f(a)) return;
+    i = a.value + a.size;
+  }
+}
+
 /// Width and height as a header claims them, for the formats the project reads (PNG,
 /// OpenEXR, PFM, PGM/PPM, Radiance HDR), from the file's first bytes; nothing for other
 /// formats (OpenCV's own cap, 2^30 pixels, then applies) or a header too short to say.
@@ -82,24 +111,16 @@ std::optional<std::pair<std::uint64_t, std::uint64_t>> HeaderSize(const std::str
   };
   if (h.size() >= 24 && h.compare(0, 8, "\x89PNG\r\n\x1a\n") == 0 && h.compare(12, 4, "IHDR") == 0)
     return std::make_pair(u32be(16), u32be(20));
-  if (h.size() >= 8 && h.compare(0, 4, "\x76\x2f\x31\x01") == 0) {  // OpenEXR: attributes until a 0 byte
-    std::size_t i = 8;
-    while (i < h.size() && h[i] != '\0') {
-      const std::size_t name_end = h.find('\0', i);
-      if (name_end == std::string::npos) return std::nullopt;
-      const std::size_t type_end = h.find('\0', name_end + 1);
-      if (type_end == std::string::npos || type_end + 5 > h.size()) return std::nullopt;
-      const std::int64_t size = i32le(type_end + 1);
-      const std::size_t value = type_end + 5;
-      if (size < 0 || value + static_cast<std::size_t>(size) > h.size()) return std::nullopt;
-      if (h.compare(i, name_end - i, "dataWindow") == 0 && size == 16) {
-        const std::int64_t x0 = i32le(value), y0 = i32le(value + 4), x1 = i32le(value + 8), y1 = i32le(value + 12);
-        if (x1 < x0 || y1 < y0) return std::nullopt;  // the decoder refuses it
-        return std::make_pair(std::uint64_t(x1 - x0 + 1), std::uint64_t(y1 - y0 + 1));
-      }
-      i = value + static_cast<std::size_t>(size);
-    }
-    return std::nullopt;
+  if (h.compare(0, 4, kExrMagic) == 0) {  // OpenEXR: the dataWindow attribute (box2i, inclusive)
+    std::optional<std::pair<std::uint64_t, std::uint64_t>> size;
+    ForEachExrAttribute(h, [&](const ExrAttribute& a) {
+      if (a.name != "dataWindow" || a.size != 16) return true;
+      if (a.value + 16 > h.size()) return false;
+      const std::int64_t x0 = i32le(a.value), y0 = i32le(a.value + 4), x1 = i32le(a.value + 8), y1 = i32le(a.value + 12);
+      if (x1 >= x0 && y1 >= y0) size = std::make_pair(std::uint64_t(x1 - x0 + 1), std::uint64_t(y1 - y0 + 1));
+      return false;  // (an empty window: the decoder refuses it)
+    });
+    return size;
   }
   auto two_numbers = [&](std::size_t from) -> std::optional<std::pair<std::uint64_t, std::uint64_t>> {
     std::uint64_t v[2];
@@ -154,21 +175,12 @@ std::uint64_t MostPixelsFor(const std::string& head, std::uint64_t bytes) {
 /// attributes it does not know whole): an attribute claiming more bytes than the file has
 /// is corrupt, refused before OpenEXR allocates up to 2 GiB for it.
 void CheckExrAttributes(const std::string& h, std::uint64_t bytes, const std::string& name) {
-  if (h.size() < 8 || h.compare(0, 4, "\x76\x2f\x31\x01") != 0) return;
-  std::size_t i = 8;
-  while (i < h.size() && h[i] != '\0') {
-    const std::size_t name_end = h.find('\0', i);
-    const std::size_t type_end = name_end == std::string::npos ? name_end : h.find('\0', name_end + 1);
-    if (type_end == std::string::npos || type_end + 5 > h.size()) return;  // past what was read: the decoder's
-    std::uint32_t size = 0;
-    for (int k = 3; k >= 0; --k) size = (size << 8) | std::uint8_t(h[type_end + 1 + k]);
-    const std::uint64_t end = type_end + 5 + std::uint64_t(size);
-    if (end > bytes)
-      throw InputError(name, "corrupt OpenEXR header: attribute '" + h.substr(i, std::min<std::size_t>(name_end - i, 32)) +
-                                 "' claims " + std::to_string(size) + " bytes, more than the file's " +
-                                 std::to_string(bytes));
-    i = static_cast<std::size_t>(end);
-  }
+  ForEachExrAttribute(h, [&](const ExrAttribute& a) {
+    if (a.value + std::uint64_t(a.size) > bytes)
+      throw InputError(name, "corrupt OpenEXR header: attribute '" + std::string(a.name.substr(0, 32)) + "' claims " +
+                                 std::to_string(a.size) + " bytes, more than the file's " + std::to_string(bytes));
+    return true;
+  });
 }
 
 /// Refuses a file whose header claims more than kMaxImagePixels, or more than its bytes
