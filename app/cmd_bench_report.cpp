@@ -101,11 +101,7 @@ double RelitError(const Case& c, const EnvMap& env, const std::vector<double>& l
   t.spp = eval_spp;
   t.seed = 4242;
   const CellSampler sampler(env, lambda, {}, run.nee_floor);
-  auto img = RenderEnvironment(*c.tracer, env, {c.held_out}, lambda, sampler, t, false);
-  if (!points.empty()) {
-    const auto lamps = RenderPointLights(*c.tracer, {c.held_out}, points, t, false);
-    for (std::size_t i = 0; i < img[0].data.size(); ++i) img[0].data[i] += lamps[0].data[i];
-  }
+  const auto img = RenderLighting(*c.tracer, env, lambda, sampler, points, {c.held_out}, t, false);
   return RelativeImageRmse(img[0], c.held_out.image, c.held_out.valid);
 }
 

@@ -95,16 +95,11 @@ Run AddRender(CLI::App& app) {
     }
     RayTracer tracer(b.mesh);
     std::vector<ImageRGB> imgs;
-    if (!lambda.empty()) {
+    if (!lambda.empty()) {  // the map and the lamps on the same paths
       CellSampler sampler(env, lambda, {}, 0.2);
-      imgs = RenderEnvironment(tracer, env, b.views, lambda, sampler, *o, true);
-    }
-    if (!file.point_lights.empty()) {
-      const std::vector<ImageRGB> near = RenderPointLights(tracer, b.views, file.point_lights, *o, true);
-      if (imgs.empty()) imgs = near;
-      else
-        for (std::size_t k = 0; k < imgs.size(); ++k)
-          for (std::size_t i = 0; i < imgs[k].data.size(); ++i) imgs[k].data[i] += near[k].data[i];
+      imgs = RenderLighting(tracer, env, lambda, sampler, file.point_lights, b.views, *o, true);
+    } else if (!file.point_lights.empty()) {
+      imgs = RenderPointLights(tracer, b.views, file.point_lights, *o, true);
     }
     if (imgs.empty())  // a lights.json with neither: everything is black
       for (const View& v : b.views) imgs.emplace_back(v.camera.width, v.camera.height);

@@ -46,7 +46,7 @@ std::string Fmt(const char* fmt, double a, double b = 0, double c = 0, double d 
 /// A round's linear problem over the cells some sampled path reached (and the point
 /// lights' columns after them), and the way back from its compact unknowns to the whole map.
 struct RoundProblem {
-  LinearProblem problem;
+  std::shared_ptr<const LinearProblem> problem;
   std::vector<double> init;  ///< the estimate so far, compact (3 per unknown cell)
   /// The point-light columns' positions (the lights so far, or candidates).
   std::vector<Eigen::Vector3d> positions;
@@ -55,8 +55,8 @@ struct RoundProblem {
   /// The unknowns over every column (3 per column): the map's cells, then `positions`.
   std::vector<double> Scatter(const std::vector<double>& compact, int cells) const {
     std::vector<double> full(3 * (cells + positions.size()), 0.0);
-    for (int k = 0; k < problem.unknown_cells; ++k)
-      for (int c = 0; c < 3; ++c) full[3 * problem.cell_of[k] + c] = compact[3 * k + c];
+    for (int k = 0; k < problem->unknown_cells; ++k)
+      for (int c = 0; c < 3; ++c) full[3 * problem->cell_of[k] + c] = compact[3 * k + c];
     return full;
   }
   /// The point lights of a full vector (those with any intensity).
@@ -111,12 +111,14 @@ class Estimator {
   RoundProblem TraceRound(int round, int first, RoundInfo* info);
   SolveResult Solve(const RoundProblem& rp, int round, RoundInfo* info, bool graduated);
   void Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo* info);
+  void MakeMapProblem();
   // The near-light steps (docs/method.md, "Point lights").
   bool NearLights() const { return opt_.point_lights.max_lights > 0; }
   std::vector<std::vector<float>> PointColumns(int round, int first, RoundProblem* rp);
   bool FitPointLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info);
   std::vector<PointLight> Candidates(RoundInfo* info);
-  void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const char* step = "lights");
+  void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const ShadingVertices& vertices,
+                       const char* step = "lights");
   void SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info, bool graduated);
   void FoldLights(std::vector<PointLight>* lights, int round);
   bool FitRadii(std::vector<PointLight>* lights);
@@ -125,8 +127,9 @@ class Estimator {
   struct DirectionalStandIn {
     Eigen::Vector3d direction, irradiance;
   };
-  double HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalStandIn* directional = nullptr) const;
-  double RenderedShare(const PointLight& light) const;
+  double HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalStandIn* directional = nullptr);
+  double RenderedShare(const PointLight& light);
+  std::vector<float> Column(const Eigen::Vector3d& position, double radius);
   ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params) const;
   void Score(ConvergenceRow* row, const std::vector<double>& env_lambda, const std::vector<PointLight>& points) const;
   std::vector<PointLight> InImageUnits(std::vector<PointLight> lights) const {
@@ -147,9 +150,22 @@ class Estimator {
   std::vector<double> lambda_;  ///< the estimate, normalized units, 3 per cell
   std::vector<std::uint8_t> reachable_;  ///< per cell: some sampled path reached it
   TransportMatrix A_;  ///< the map's columns, averaged over the rounds under one albedo
+  /// A_'s problem, with its normal matrices (every problem of the round appends to it).
+  std::shared_ptr<LinearProblem> map_problem_;
+  /// The same over the rows the model selection fits (left out: holdout_), and A_'s
+  /// held-out rows; made on first use after A_ changes.
+  std::shared_ptr<LinearProblem> holdout_fit_;
+  TransportMatrix holdout_held_;
   // Near lights.
   std::vector<PointLight> points_;  ///< the point lights so far, normalized units
   ShadingVertices vertices_;        ///< the rounds', for the lights' columns and positions
+  /// The last few columns on vertices_ (Column), cleared when vertices_ change.
+  struct CachedColumn {
+    Eigen::Vector3d position;
+    double radius;
+    std::vector<float> column;
+  };
+  std::vector<CachedColumn> columns_;
   double vertex_samples_ = 0;       ///< paths per pixel they hold
   std::vector<std::uint8_t> holdout_;  ///< per row: left out of the model selection's fit
   Eigen::Vector3d centre_;
@@ -230,13 +246,14 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   RoundProblem rp;
   // Point lights: round 1 searches for them; later rounds trace their columns only if any
   // were found (the far-light scenes pay for the search alone).
+  MakeMapProblem();
   if (NearLights() && (round == 1 || !points_.empty()))
-    rp.problem = MakeLinearProblem(AppendColumns(A_, PointColumns(round, first, &rp)), y_);
+    rp.problem = std::make_shared<LinearProblem>(WithColumns(*map_problem_, cells_, PointColumns(round, first, &rp)));
   else
-    rp.problem = MakeLinearProblem(A_, y_);
+    rp.problem = map_problem_;
   info->trace_seconds = ts.Seconds();
-  info->nonzeros = static_cast<std::int64_t>(rp.problem.col.size());
-  const LinearProblem& problem = rp.problem;
+  info->nonzeros = static_cast<std::int64_t>(rp.problem->col.size());
+  const LinearProblem& problem = *rp.problem;
   info->unknown_cells = problem.unknown_cells;
   // Cells no sampled path reached are not unknowns, and are not sampled again.
   std::fill(reachable_.begin(), reachable_.end(), 0);
@@ -257,6 +274,15 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   return rp;
 }
 
+/// A_'s problem and its normal matrices, built once per round: the round's solves append
+/// the lights' columns to it (WithColumns), so G is summed again only for those.
+void Estimator::MakeMapProblem() {
+  map_problem_ = std::make_shared<LinearProblem>(MakeLinearProblem(A_, y_));
+  map_problem_->base_normal = MakeNormalMatrices(*map_problem_);
+  holdout_fit_.reset();
+  holdout_held_ = TransportMatrix();
+}
+
 /// The point lights' columns for this round, from the shading vertices of this round's
 /// paths and (like A) of the rounds before it under the same albedo.
 std::vector<std::vector<float>> Estimator::PointColumns(int round, int first, RoundProblem* rp) {
@@ -266,6 +292,7 @@ std::vector<std::vector<float>> Estimator::PointColumns(int round, int first, Ro
   topt.seed = opt_.tracer.seed * 1000003ull + 500 + round;
   ShadingVertices fresh = GatherShadingVertices(*scene_, bundle_.views, topt);
   CheckCancel();
+  columns_.clear();
   if (opt_.combine_rounds && round > first) {
     vertices_ = Combine(vertices_, vertex_samples_, fresh, topt.spp);
     vertex_samples_ += topt.spp;
@@ -290,7 +317,7 @@ std::vector<std::vector<float>> Estimator::PointColumns(int round, int first, Ro
     rp->positions.push_back(l.position);
     rp->radii.push_back(l.radius);
     columns.emplace_back();
-    PointLightColumn(*scene_, vertices_, l.position, &columns.back(), nullptr, l.radius);
+    columns.back() = Column(l.position, l.radius);
   }
   return columns;
 }
@@ -314,6 +341,8 @@ bool WeightedIntensity(const std::vector<float>& col, const std::vector<double>&
 /// (columns from fewer paths) whose column best explains what the lights so far leave
 /// (its intensity by least squares, scored by the Cauchy loss), then all the lights so far
 /// refined together; until max_lights, or until the next light does not lower the loss.
+/// The candidates' columns come from one path per pixel, and so do the refinements of the
+/// trials of a second light and more (FitPointLights refines them all on the round's).
 std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
   TracerOptions topt = opt_.tracer;
   topt.cancelled = opt_.cancelled;
@@ -354,12 +383,14 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
     if (best < 0) break;
     std::vector<PointLight> trial = lights;
     trial.push_back({positions[best], best_I, 0});
-    RefinePositions(&trial, info, "search");
+    // The first light is refined on the round's vertices, the trials of more lights on the
+    // candidates' (a far-light scene tries up to max_lights of them for nothing).
+    RefinePositions(&trial, info, lights.empty() ? vertices_ : coarse, "search");
     // What the lights leave, and whether the new one earned its place.
     std::vector<double> r = y_;
     std::vector<float> col;
     for (const PointLight& l : trial) {
-      PointLightColumn(*scene_, vertices_, l.position, &col, nullptr, l.radius);
+      col = Column(l.position, l.radius);
       for (std::size_t e = 0; e < r.size(); ++e) r[e] -= l.intensity[e % 3] * col[e];
     }
     const double trial_loss = loss(r);
@@ -399,7 +430,7 @@ void Estimator::Score(ConvergenceRow* row, const std::vector<double>& env_lambda
 }
 
 SolveResult Estimator::Solve(const RoundProblem& rp, int round, RoundInfo* info, bool graduated) {
-  const LinearProblem& problem = rp.problem;
+  const LinearProblem& problem = *rp.problem;
   ObjectiveParams params = CellWeights(problem, res_.objective_params);
   std::vector<double> sigmas;  // at most 7 steps: a tiny sigma jumps from 1/64 of the start
   if (graduated)
@@ -466,8 +497,8 @@ void Estimator::Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo*
   // columns, so noise moves energy between them without changing what is rendered.
   std::vector<double> delta(sr.lambda.size()), a_delta, a_new;
   for (std::size_t i = 0; i < delta.size(); ++i) delta[i] = sr.lambda[i] - rp.init[i];
-  rp.problem.Multiply(delta, &a_delta);
-  rp.problem.Multiply(sr.lambda, &a_new);
+  rp.problem->Multiply(delta, &a_delta);
+  rp.problem->Multiply(sr.lambda, &a_new);
   double dn = 0, nn = 0;
   for (std::size_t i = 0; i < a_new.size(); ++i) {
     dn += a_delta[i] * a_delta[i];
@@ -508,7 +539,7 @@ bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>
   // round 1's does (graduated; see Solve).
   for (int pass = 0; pass < (candidates ? 4 : 1) && !kept.empty(); ++pass) {
     const std::vector<PointLight> start = kept;
-    RefinePositions(&kept, info);
+    RefinePositions(&kept, info, vertices_);
     FoldLights(&kept, info->round);
     SolveWithLights(&kept, info, candidates && pass == 0);
     // A light that renders too little of the light seen cannot be kept (SelectModel): drop
@@ -570,7 +601,7 @@ bool Estimator::FitRadii(std::vector<PointLight>* lights) {
     std::vector<float> col;
     for (std::size_t j = 0; j < lights->size(); ++j) {
       if (j == k) continue;
-      PointLightColumn(*scene_, vertices_, (*lights)[j].position, &col, nullptr, (*lights)[j].radius);
+      col = Column((*lights)[j].position, (*lights)[j].radius);
       for (std::size_t i = 0; i < base.size(); ++i) base[i] += (*lights)[j].intensity[i % 3] * col[i];
     }
     PointLight& light = (*lights)[k];
@@ -578,7 +609,7 @@ bool Estimator::FitRadii(std::vector<PointLight>* lights) {
     Eigen::Vector3d best_intensity = light.intensity;
     for (int g = 0; g < 6; ++g) {
       const double radius = g == 0 ? 0.0 : 0.004 * radius_ * std::pow(2.0, g);
-      PointLightColumn(*scene_, vertices_, light.position, &col, nullptr, radius);
+      col = Column(light.position, radius);
       Eigen::Vector3d intensity = light.intensity;
       std::vector<double> r(base.size()), left(base.size()), w(base.size());
       for (std::size_t i = 0; i < r.size(); ++i) left[i] = y_[i] - base[i];
@@ -647,10 +678,10 @@ void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info
   for (std::size_t k = 0; k < lights->size(); ++k) {
     rp.positions.push_back((*lights)[k].position);
     rp.radii.push_back((*lights)[k].radius);
-    PointLightColumn(*scene_, vertices_, (*lights)[k].position, &columns[k], nullptr, (*lights)[k].radius);
+    columns[k] = Column((*lights)[k].position, (*lights)[k].radius);
   }
-  rp.problem = MakeLinearProblem(AppendColumns(A_, columns), y_);
-  const LinearProblem& problem = rp.problem;
+  rp.problem = std::make_shared<LinearProblem>(WithColumns(*map_problem_, cells_, columns));
+  const LinearProblem& problem = *rp.problem;
   rp.init.resize(3 * problem.unknown_cells);
   for (int k = 0; k < problem.unknown_cells; ++k) {
     const int j = problem.cell_of[k];
@@ -666,8 +697,10 @@ void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info
 }
 
 /// Levenberg-Marquardt on the lights' positions and intensities, the map's render held
-/// fixed, on this round's shading vertices; every accepted step is a convergence row.
-void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const char* step) {
+/// fixed, on `vertices` (this round's, or the search's coarser ones); every accepted step
+/// is a convergence row.
+void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const ShadingVertices& vertices,
+                                const char* step) {
   if (lights->empty()) return;
   // The logged objective is the whole one: the map's penalty (held fixed here) added.
   double map_penalty = 0;
@@ -679,7 +712,7 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
   std::vector<double> base = A_.Multiply(lambda_);
   PointFitProblem fit;
   fit.scene = scene_.get();
-  fit.vertices = &vertices_;
+  fit.vertices = &vertices;
   fit.y = &y_;
   fit.base = &base;
   fit.sigma = res_.objective_params.sigma;
@@ -725,7 +758,7 @@ void Estimator::SelectModel(std::vector<PointLight>* lights) {
     DirectionalStandIn far{to.normalized(), Eigen::Vector3d::Zero()};
     {
       std::vector<float> point, directional;
-      PointLightColumn(*scene_, vertices_, q, &point);
+      point = Column(q, 0);
       DirectionalLightColumn(*scene_, vertices_, far.direction, &directional);
       Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
       for (std::size_t e = 0; e < point.size(); ++e) {
@@ -752,10 +785,22 @@ void Estimator::SelectModel(std::vector<PointLight>* lights) {
   std::reverse(lights->begin(), lights->end());  // strongest first
 }
 
+/// A point light's unit column on vertices_ (PointLightColumn), from the cache when the
+/// same position and radius were asked for since vertices_ last changed: the selection,
+/// the solves and the shares ask for the same lights' columns many times.
+std::vector<float> Estimator::Column(const Eigen::Vector3d& position, double radius) {
+  for (const CachedColumn& c : columns_)
+    if (c.position == position && c.radius == radius) return c.column;
+  constexpr std::size_t kKept = 8;
+  if (columns_.size() == kKept) columns_.erase(columns_.begin());
+  columns_.push_back({position, radius, {}});
+  PointLightColumn(*scene_, vertices_, position, &columns_.back().column, nullptr, radius);
+  return columns_.back().column;
+}
+
 /// The share of the observed light a point light renders.
-double Estimator::RenderedShare(const PointLight& light) const {
-  std::vector<float> col;
-  PointLightColumn(*scene_, vertices_, light.position, &col, nullptr, light.radius);
+double Estimator::RenderedShare(const PointLight& light) {
+  const std::vector<float> col = Column(light.position, light.radius);
   double rendered = 0, seen = 0;
   for (std::size_t e = 0; e < col.size(); ++e) {
     rendered += light.intensity[e % 3] * col[e];
@@ -766,22 +811,31 @@ double Estimator::RenderedShare(const PointLight& light) const {
 
 /// The Cauchy loss on the held-out rows of the map and `lights` (and a directional light)
 /// fitted on the other rows.
-double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalStandIn* directional) const {
+double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalStandIn* directional) {
   std::vector<std::vector<float>> columns(lights.size());
   for (std::size_t k = 0; k < lights.size(); ++k)
-    PointLightColumn(*scene_, vertices_, lights[k].position, &columns[k], nullptr, lights[k].radius);
+    columns[k] = Column(lights[k].position, lights[k].radius);
   if (directional) {
     columns.emplace_back();
     DirectionalLightColumn(*scene_, vertices_, directional->direction, &columns.back());
   }
-  const TransportMatrix full = AppendColumns(A_, columns);
-  const TransportMatrix fit = SelectRows(full, holdout_, false), held = SelectRows(full, holdout_, true);
   std::vector<double> y_fit, y_held;
   for (std::size_t r = 0; r < holdout_.size(); ++r)
     for (int c = 0; c < 3; ++c) (holdout_[r] ? y_held : y_fit).push_back(y_[3 * r + c]);
-  const LinearProblem problem = MakeLinearProblem(fit, y_fit);
+  if (!holdout_fit_) {  // once per A_: the map's part of the fit, with its normal matrices
+    holdout_fit_ = std::make_shared<LinearProblem>(MakeLinearProblem(SelectRows(A_, holdout_, false), y_fit));
+    holdout_fit_->base_normal = MakeNormalMatrices(*holdout_fit_);
+    holdout_held_ = SelectRows(A_, holdout_, true);
+  }
+  // The columns' fitted and held-out rows.
+  std::vector<std::vector<float>> fit_columns(columns.size()), held_columns(columns.size());
+  for (std::size_t k = 0; k < columns.size(); ++k)
+    for (std::size_t r = 0; r < holdout_.size(); ++r)
+      (holdout_[r] ? held_columns : fit_columns)[k].insert((holdout_[r] ? held_columns : fit_columns)[k].end(),
+                                                           &columns[k][3 * r], &columns[k][3 * r] + 3);
+  const LinearProblem problem = WithColumns(*holdout_fit_, cells_, fit_columns);
   ObjectiveParams params = res_.objective_params;
-  params.alpha *= static_cast<double>(fit.rows()) / std::max<std::size_t>(1, holdout_.size());
+  params.alpha *= static_cast<double>(holdout_fit_->rows()) / std::max<std::size_t>(1, holdout_.size());
   params = CellWeights(problem, params);
   std::vector<double> init(3 * problem.unknown_cells);
   for (int k = 0; k < problem.unknown_cells; ++k) {
@@ -794,11 +848,14 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
   SolverOptions so;
   so.max_iterations = 50;
   const SolveResult sr = lp::Solve(opt_.solver, Objective(problem, params), init, so);
-  std::vector<double> x(3 * full.cells, 0.0);
+  std::vector<double> x(3 * (cells_ + columns.size()), 0.0);
   for (int k = 0; k < problem.unknown_cells; ++k)
     for (int c = 0; c < 3; ++c) x[3 * problem.cell_of[k] + c] = sr.lambda[3 * k + c];
-  std::vector<double> residual = held.Multiply(x);
-  for (std::size_t i = 0; i < residual.size(); ++i) residual[i] = y_held[i] - residual[i];
+  std::vector<double> residual = holdout_held_.Multiply(std::vector<double>(x.begin(), x.begin() + 3 * cells_));
+  for (std::size_t i = 0; i < residual.size(); ++i) {
+    for (std::size_t k = 0; k < columns.size(); ++k) residual[i] += held_columns[k][i] * x[3 * (cells_ + k) + i % 3];
+    residual[i] = y_held[i] - residual[i];
+  }
   return CauchyLoss(residual, params.sigma);
 }
 
@@ -842,6 +899,7 @@ bool Estimator::RefineAlbedo(int pass) {
   }
   res_.albedo_segments = segments;
   scene_ = std::make_unique<RayTracer>(mesh_);
+  columns_.clear();  // they saw the old albedo
   res_.albedo_passes = pass;
   Progress(Fmt("albedo pass %.0f: de-lit %.0f vertices into %.0f segments in %.2f s", pass,
                static_cast<double>(mesh_.positions.size()), segments, as.Seconds()));
@@ -885,12 +943,7 @@ void Estimator::RenderFittedViews() {
   if (opt_.render_spp > 0) topt.spp = opt_.render_spp;
   topt.cancelled = opt_.cancelled;
   CellSampler sampler(env_, res_.lambda, reachable_, opt_.tracer.nee_floor);
-  res_.renders = RenderEnvironment(*scene_, env_, bundle_.views, res_.lambda, sampler, topt, true);
-  if (!res_.point_lights.empty()) {
-    const std::vector<ImageRGB> near = RenderPointLights(*scene_, bundle_.views, res_.point_lights, topt, true);
-    for (std::size_t v = 0; v < near.size(); ++v)
-      for (std::size_t i = 0; i < near[v].data.size(); ++i) res_.renders[v].data[i] += near[v].data[i];
-  }
+  res_.renders = RenderLighting(*scene_, env_, res_.lambda, sampler, res_.point_lights, bundle_.views, topt, true);
   CheckCancel();
   res_.render_seconds = rs.Seconds();
   Progress(Fmt("relit %.0f view(s) in %.2f s", bundle_.views.size(), res_.render_seconds));

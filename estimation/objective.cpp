@@ -7,6 +7,96 @@
 #include "common/parallel.h"
 
 namespace lp {
+namespace {
+
+/// Columns [first, L) of G, upper triangle (i >= j): column j gathers the rows touching
+/// cell j into one interleaved buffer (the 3 channels of an entry share a cache line).
+void SumNormalColumns(const LinearProblem& p, int first, std::vector<double> G[3]) {
+  const int L = p.unknown_cells;
+  ParallelForChunks(first, L, 8, [&](std::size_t jb, std::size_t je) {
+    std::vector<double> acc(3 * static_cast<std::size_t>(L));
+    for (std::size_t j = jb; j < je; ++j) {
+      std::fill(acc.begin() + 3 * j, acc.end(), 0.0);
+      for (std::int64_t k = p.col_start[j]; k < p.col_start[j + 1]; ++k) {
+        const int r = p.col_row[k];
+        const double a0 = p.col_val[k][0], a1 = p.col_val[k][1], a2 = p.col_val[k][2];
+        const std::int64_t end = p.row_start[r + 1];
+        for (std::int64_t q = p.col_pos[k]; q < end; ++q) {
+          double* g = &acc[3 * static_cast<std::size_t>(p.col[q])];
+          const float* v = p.val[q].data();
+          g[0] += a0 * v[0];
+          g[1] += a1 * v[1];
+          g[2] += a2 * v[2];
+        }
+      }
+      for (int c = 0; c < 3; ++c) {
+        double* col = &G[c][j * L];
+        for (int i = static_cast<int>(j); i < L; ++i) col[i] = acc[3 * static_cast<std::size_t>(i) + c];
+      }
+    }
+  });
+}
+
+/// Rows [first, L) of G, columns [0, first): the appended unknowns against the base's
+/// (each row of an appended column read whole), the same products in the same row order
+/// as SumNormalColumns would sum them.
+void SumNormalCross(const LinearProblem& p, int first, std::vector<double> G[3]) {
+  const int L = p.unknown_cells;
+  ParallelForChunks(first, L, 1, [&](std::size_t ib, std::size_t ie) {
+    std::vector<double> acc(3 * static_cast<std::size_t>(first));
+    for (std::size_t i = ib; i < ie; ++i) {
+      std::fill(acc.begin(), acc.end(), 0.0);
+      for (std::int64_t k = p.col_start[i]; k < p.col_start[i + 1]; ++k) {
+        const int r = p.col_row[k];
+        const double a0 = p.col_val[k][0], a1 = p.col_val[k][1], a2 = p.col_val[k][2];
+        for (std::int64_t q = p.row_start[r]; q < p.row_start[r + 1] && p.col[q] < first; ++q) {
+          double* g = &acc[3 * static_cast<std::size_t>(p.col[q])];
+          const float* v = p.val[q].data();
+          g[0] += v[0] * a0;
+          g[1] += v[1] * a1;
+          g[2] += v[2] * a2;
+        }
+      }
+      for (int c = 0; c < 3; ++c)
+        for (int j = 0; j < first; ++j) G[c][static_cast<std::size_t>(j) * L + i] = acc[3 * static_cast<std::size_t>(j) + c];
+    }
+  });
+}
+
+/// Whether `n` are the normal matrices of p's leading unknowns over the same rows.
+bool Extends(const LinearProblem& p, const NormalMatrices& n) {
+  return n.rows == p.rows() && n.cell_of.size() <= p.cell_of.size() &&
+         std::equal(n.cell_of.begin(), n.cell_of.end(), p.cell_of.begin());
+}
+
+}  // namespace
+
+void BuildNormalMatrices(const LinearProblem& p, std::vector<double> G[3]) {
+  const int L = p.unknown_cells;
+  for (int c = 0; c < 3; ++c) G[c].assign(static_cast<std::size_t>(L) * L, 0.0);
+  int first = 0;
+  if (p.base_normal && Extends(p, *p.base_normal)) {
+    first = static_cast<int>(p.base_normal->cell_of.size());
+    for (int c = 0; c < 3; ++c)
+      for (int j = 0; j < first; ++j)
+        std::copy_n(&p.base_normal->G[c][static_cast<std::size_t>(j) * first], first, &G[c][static_cast<std::size_t>(j) * L]);
+    SumNormalCross(p, first, G);
+  }
+  SumNormalColumns(p, first, G);
+  for (int c = 0; c < 3; ++c)
+    for (int j = 0; j < L; ++j)
+      for (int i = j + 1; i < L; ++i)
+        G[c][static_cast<std::size_t>(i) * L + j] = G[c][static_cast<std::size_t>(j) * L + i];
+}
+
+
+std::shared_ptr<const NormalMatrices> MakeNormalMatrices(const LinearProblem& p) {
+  auto n = std::make_shared<NormalMatrices>();
+  n->cell_of = p.cell_of;
+  n->rows = p.rows();
+  BuildNormalMatrices(p, n->G);
+  return n;
+}
 
 LinearProblem MakeLinearProblem(const TransportMatrix& A, const std::vector<double>& y) {
   LP_CHECK(y.size() == 3 * A.rows(), "observation size " << y.size() << " vs rows " << A.rows());
@@ -39,6 +129,73 @@ LinearProblem MakeLinearProblem(const TransportMatrix& A, const std::vector<doub
       p.col_val[dst] = p.val[k];
       p.col_pos[dst] = k;
     }
+  return p;
+}
+
+LinearProblem WithColumns(const LinearProblem& base, int cells, const std::vector<std::vector<float>>& columns) {
+  const std::size_t R = base.rows();
+  const auto nonzero = [&](std::size_t j, std::size_t r) {
+    const float* v = &columns[j][3 * r];
+    return v[0] != 0 || v[1] != 0 || v[2] != 0;
+  };
+  LinearProblem p;
+  p.cell_of = base.cell_of;
+  std::vector<int> compact(columns.size(), -1);
+  std::vector<std::int64_t> extra(R + 1, 0);  // appended entries in rows before r
+  for (std::size_t j = 0; j < columns.size(); ++j) {
+    LP_CHECK(columns[j].size() == 3 * R, "column size " << columns[j].size());
+    for (std::size_t r = 0; r < R; ++r)
+      if (nonzero(j, r)) ++extra[r + 1], compact[j] = base.unknown_cells;  // a cell of its own (numbered below)
+  }
+  for (std::size_t j = 0; j < columns.size(); ++j)
+    if (compact[j] >= 0) {
+      compact[j] = static_cast<int>(p.cell_of.size());
+      p.cell_of.push_back(cells + static_cast<int>(j));
+    }
+  p.unknown_cells = static_cast<int>(p.cell_of.size());
+  for (std::size_t r = 0; r < R; ++r) extra[r + 1] += extra[r];
+  const std::size_t nnz = base.col.size() + static_cast<std::size_t>(extra[R]);
+  // Rows: each base row, then its entries of the new columns.
+  p.row_start.resize(R + 1);
+  p.col.resize(nnz);
+  p.val.resize(nnz);
+  ParallelForChunks(0, R, 1024, [&](std::size_t b, std::size_t e) {
+    for (std::size_t r = b; r < e; ++r) {
+      std::int64_t out = base.row_start[r] + extra[r];
+      p.row_start[r] = out;
+      std::copy(base.col.begin() + base.row_start[r], base.col.begin() + base.row_start[r + 1], p.col.begin() + out);
+      std::copy(base.val.begin() + base.row_start[r], base.val.begin() + base.row_start[r + 1], p.val.begin() + out);
+      out += base.row_start[r + 1] - base.row_start[r];
+      for (std::size_t j = 0; j < columns.size(); ++j)
+        if (compact[j] >= 0 && nonzero(j, r)) {
+          p.col[out] = compact[j];
+          p.val[out++] = {columns[j][3 * r], columns[j][3 * r + 1], columns[j][3 * r + 2]};
+        }
+    }
+  });
+  p.row_start[R] = static_cast<std::int64_t>(nnz);
+  // Columns: base's, their rows' positions moved by the entries appended before them; then
+  // the new ones.
+  p.col_start = base.col_start;
+  p.col_row = base.col_row;
+  p.col_val = base.col_val;
+  p.col_pos.resize(base.col_pos.size());
+  for (std::size_t k = 0; k < base.col_pos.size(); ++k) p.col_pos[k] = base.col_pos[k] + extra[base.col_row[k]];
+  for (std::size_t j = 0; j < columns.size(); ++j) {
+    if (compact[j] < 0) continue;
+    for (std::size_t r = 0; r < R; ++r)
+      if (nonzero(j, r)) {
+        p.col_row.push_back(static_cast<int>(r));
+        p.col_val.push_back({columns[j][3 * r], columns[j][3 * r + 1], columns[j][3 * r + 2]});
+        std::int64_t q = p.row_start[r + 1] - 1;  // its entry is among the row's last ones
+        while (p.col[q] != compact[j]) --q;
+        p.col_pos.push_back(q);
+      }
+    p.col_start.push_back(static_cast<std::int64_t>(p.col_row.size()));
+  }
+  p.y = base.y;
+  if (base.base_normal && base.base_normal->cell_of.size() == static_cast<std::size_t>(base.unknown_cells))
+    p.base_normal = base.base_normal;
   return p;
 }
 

@@ -5,6 +5,7 @@
 /// All quantities are in normalized units (observations divided by their mean).
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <vector>
 
 #include "estimation/transport.h"
@@ -21,6 +22,17 @@ struct ObjectiveParams {
   std::vector<double> cell_weight;
 };
 
+struct LinearProblem;
+
+/// G_c = A_c^T A_c of a problem's unknowns (per channel c, column-major), with what it
+/// was built from (the compact cells and rows) so that a problem extending that one can
+/// tell whether it may start from it.
+struct NormalMatrices {
+  std::vector<int> cell_of;  ///< the problem's compact index -> cell
+  std::size_t rows = 0;
+  std::vector<double> G[3];  ///< cell_of.size()^2 each
+};
+
 /// A with the unreachable columns removed, in row (CSR) and column (CSC) form,
 /// plus the observations. Unknowns are lambda[3*j + c] for compact cell j.
 struct LinearProblem {
@@ -34,6 +46,10 @@ struct LinearProblem {
   std::vector<std::array<float, 3>> col_val;
   std::vector<std::int64_t> col_pos;    ///< CSR position of each CSC entry
   std::vector<double> y;  ///< 3*rows observations
+  /// The normal matrices of this problem's leading unknowns, when they are known (a
+  /// problem made by WithColumns from one whose matrices were built): the solver then
+  /// builds only the appended unknowns' rows and columns of G.
+  std::shared_ptr<const NormalMatrices> base_normal;
 
   std::size_t rows() const { return row_start.empty() ? 0 : row_start.size() - 1; }
   /// out = A * lambda (3*rows).
@@ -45,6 +61,20 @@ struct LinearProblem {
 /// Builds the problem from A and the observation of each row (3 per row), keeping
 /// only the cells with at least one entry.
 LinearProblem MakeLinearProblem(const TransportMatrix& A, const std::vector<double>& y);
+
+/// MakeLinearProblem(AppendColumns(A, columns), y) for base = MakeLinearProblem(A, y) and
+/// A.cells == cells, entry for entry, in one linear pass over base (no transposition); the
+/// new problem keeps base's normal matrices (base.base_normal, when they cover all of base)
+/// so that a solve builds G only for the appended columns.
+LinearProblem WithColumns(const LinearProblem& base, int cells, const std::vector<std::vector<float>>& columns);
+
+/// G = A^T A per channel for every unknown of `p` (from p.base_normal where it applies: its
+/// block is copied and only the rest is summed). Column j sums the rows touching cell j in
+/// row order, so the result does not depend on the thread count, nor on whether a base
+/// block was used.
+void BuildNormalMatrices(const LinearProblem& p, std::vector<double> G[3]);
+/// The same, kept with what it was built from (LinearProblem::base_normal).
+std::shared_ptr<const NormalMatrices> MakeNormalMatrices(const LinearProblem& p);
 
 class Objective {
  public:

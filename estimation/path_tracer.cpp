@@ -84,10 +84,12 @@ using detail::PixelsToTrace;
 using detail::PathContinues;
 
 /// One camera sample of pixel (x, y): calls sink(cell, rgb weight) for every
-/// contribution; the pixel value is sum(weight * lambda_cell) / spp.
-template <class Sink>
+/// contribution; the pixel value is sum(weight * lambda_cell) / spp. At every surface
+/// interaction it also calls vertex(hit, offset origin, throughput x albedo / pi) (lights
+/// other than the map: RenderEnvironment's VertexLight).
+template <class Sink, class VertexSink>
 void TracePath(const RayTracer& scene, const EnvMap& env, const CellSampler& sampler, const Camera& cam, int x,
-               int y, Rng& rng, const TracerOptions& opt, Counters& cnt, Sink&& sink) {
+               int y, Rng& rng, const TracerOptions& opt, Counters& cnt, Sink&& sink, VertexSink&& vertex) {
   ++cnt.paths;
   Eigen::Vector3d origin = cam.center();
   Eigen::Vector3d dir = cam.RayDirection(x + rng.Uniform() - 0.5, y + rng.Uniform() - 0.5);
@@ -103,6 +105,7 @@ void TracePath(const RayTracer& scene, const EnvMap& env, const CellSampler& sam
     const Eigen::Vector3d& n = hit.shading;
     const Eigen::Vector3d rho = hit.albedo;
     const Eigen::Vector3d off = hit.position + hit.geometric * (4 * eps);
+    vertex(hit, off, Eigen::Vector3d(T.cwiseProduct(rho) * kInvPi));
     // 1. Next-event estimation towards a cell.
     {
       const NextEvent e = SampleNextEvent(scene, env, sampler, n, hit.geometric, off, rng);
@@ -129,6 +132,8 @@ void TracePath(const RayTracer& scene, const EnvMap& env, const CellSampler& sam
   }
 }
 
+constexpr auto NoVertex = [](const SurfacePoint&, const Eigen::Vector3d&, const Eigen::Vector3d&) {};
+
 void CheckOptions(const TracerOptions& o) {
   if (o.spp < 1) throw InputError("spp must be at least 1");
   if (o.bounces < 1) throw InputError("bounces must be at least 1");
@@ -149,7 +154,7 @@ TransportMatrix TraceTransport(const RayTracer& scene, const EnvMap& env, const 
     for (int s = 0; s < opt.spp; ++s) {
       Rng rng(opt.seed, px.view, px.pixel, s);
       TracePath(scene, env, sampler, cam, x, y, rng, opt, cnt,
-                [&](int j, const Eigen::Vector3d& wgt) { entries.emplace_back(j, wgt); });
+                [&](int j, const Eigen::Vector3d& wgt) { entries.emplace_back(j, wgt); }, NoVertex);
     }
     std::stable_sort(entries.begin(), entries.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
     auto& row = rows[i];
@@ -197,6 +202,13 @@ TransportMatrix TraceTransport(const RayTracer& scene, const EnvMap& env, const 
 std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
                                         const std::vector<double>& lambda, const CellSampler& sampler,
                                         const TracerOptions& opt, bool all_pixels, TraceStats* stats) {
+  return RenderEnvironment(scene, env, views, lambda, sampler, opt, all_pixels, VertexLight(), stats);
+}
+
+std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
+                                        const std::vector<double>& lambda, const CellSampler& sampler,
+                                        const TracerOptions& opt, bool all_pixels, const VertexLight& lights,
+                                        TraceStats* stats) {
   CheckOptions(opt);
   LP_CHECK(lambda.size() == 3 * static_cast<std::size_t>(env.size()), "lambda size");
   Stopwatch sw;
@@ -209,9 +221,18 @@ std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& en
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     for (int s = 0; s < opt.spp; ++s) {
       Rng rng(opt.seed, px.view, px.pixel, s);
-      TracePath(scene, env, sampler, cam, x, y, rng, opt, cnt, [&](int j, const Eigen::Vector3d& wgt) {
+      const auto cell = [&](int j, const Eigen::Vector3d& wgt) {
         sum += wgt.cwiseProduct(Eigen::Vector3d(lambda[3 * j], lambda[3 * j + 1], lambda[3 * j + 2]));
-      });
+      };
+      if (!lights) {
+        TracePath(scene, env, sampler, cam, x, y, rng, opt, cnt, cell, NoVertex);
+        continue;
+      }
+      std::uint64_t key = (static_cast<std::uint64_t>(px.pixel) << 32) ^ (static_cast<std::uint64_t>(s) << 8);
+      TracePath(scene, env, sampler, cam, x, y, rng, opt, cnt, cell,
+                [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
+                  sum += w.cwiseProduct(lights(hit, off, ++key, cnt.rays));
+                });
     }
     float* p = out[px.view].at(x, y);
     for (int c = 0; c < 3; ++c) p[c] = static_cast<float>(sum[c] / opt.spp);

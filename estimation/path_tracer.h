@@ -83,4 +83,18 @@ std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& en
                                         const TracerOptions& options, bool all_pixels,
                                         TraceStats* stats = nullptr);
 
+/// Light from sources other than the map reaching a path vertex (`hit`, shadow rays from
+/// `origin`): the radiance factor that, times the vertex's throughput x albedo / pi, the
+/// pixel receives (e.g. I cos / d^2 x visibility for a point light). `key` is distinct per
+/// vertex of each sample (for deterministic jitter); `rays` counts the shadow rays it casts.
+using VertexLight = std::function<Eigen::Vector3d(const SurfacePoint& hit, const Eigen::Vector3d& origin,
+                                                  std::uint64_t key, std::int64_t& rays)>;
+
+/// The same render with `lights` added at every vertex of the same paths (one pass for the
+/// map and the lights; see RenderLighting in point_lights.h).
+std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
+                                        const std::vector<double>& lambda, const CellSampler& sampler,
+                                        const TracerOptions& options, bool all_pixels, const VertexLight& lights,
+                                        TraceStats* stats = nullptr);
+
 }  // namespace lp

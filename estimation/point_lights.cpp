@@ -224,6 +224,39 @@ void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& v, co
   });
 }
 
+namespace {
+
+/// What the point lights send to a path vertex (per unit of its weight); one shadow ray
+/// per lamp, to a point of its disc jittered by `key`.
+Eigen::Vector3d LampsAtVertex(const RayTracer& scene, const std::vector<PointLight>& lights, const SurfacePoint& hit,
+                              const Eigen::Vector3d& off, std::uint64_t key, std::int64_t& rays) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const PointLight& light : lights) {
+    Eigen::Vector3d l;
+    double d = 0;
+    const double f = Falloff(off, hit.shading, hit.geometric, light.position, &l, &d);
+    if (f == 0) continue;
+    ++rays;
+    const double seen = SphereVisibility(scene, off, light.position, light.radius, l, d, key, 1);
+    if (seen > 0) sum += light.intensity * (f * seen);
+  }
+  return sum;
+}
+
+}  // namespace
+
+std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, const std::vector<double>& lambda,
+                                     const CellSampler& sampler, const std::vector<PointLight>& lights,
+                                     const std::vector<View>& views, const TracerOptions& options, bool all_pixels,
+                                     TraceStats* stats) {
+  VertexLight lamps;
+  if (!lights.empty())
+    lamps = [&](const SurfacePoint& hit, const Eigen::Vector3d& off, std::uint64_t key, std::int64_t& rays) {
+      return LampsAtVertex(scene, lights, hit, off, key, rays);
+    };
+  return RenderEnvironment(scene, env, views, lambda, sampler, options, all_pixels, lamps, stats);
+}
+
 std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vector<View>& views,
                                         const std::vector<PointLight>& lights, const TracerOptions& opt,
                                         bool all_pixels, TraceStats* stats) {
@@ -240,16 +273,7 @@ std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vecto
       std::uint64_t key = (static_cast<std::uint64_t>(px.pixel) << 32) ^ (static_cast<std::uint64_t>(s) << 8);
       WalkPath(scene, cam, x, y, rng, opt, cnt,
                [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
-                 ++key;
-                 for (const PointLight& light : lights) {
-                   Eigen::Vector3d l;
-                   double d = 0;
-                   const double f = Falloff(off, hit.shading, hit.geometric, light.position, &l, &d);
-                   if (f == 0) continue;
-                   ++cnt.rays;
-                   const double seen = SphereVisibility(scene, off, light.position, light.radius, l, d, key, 1);
-                   if (seen > 0) sum += w.cwiseProduct(light.intensity) * (f * seen);
-                 }
+                 sum += w.cwiseProduct(LampsAtVertex(scene, lights, hit, off, ++key, cnt.rays));
                });
     }
     float* p = out[px.view].at(x, y);

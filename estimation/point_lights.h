@@ -68,6 +68,15 @@ void PointLightColumn(const RayTracer& scene, const ShadingVertices& vertices, c
 void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& vertices, const Eigen::Vector3d& towards,
                             std::vector<float>* out);
 
+/// Renders each view under the map (`lambda`, 3 per cell of `env`, NEE by `sampler`) and
+/// the point lights together, in one pass: at every vertex of the map's paths, one shadow
+/// ray to each lamp (a jittered point of its disc). The same as RenderEnvironment plus
+/// RenderPointLights, for about the map's cost alone.
+std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, const std::vector<double>& lambda,
+                                     const CellSampler& sampler, const std::vector<PointLight>& lights,
+                                     const std::vector<View>& views, const TracerOptions& options, bool all_pixels,
+                                     TraceStats* stats = nullptr);
+
 /// Renders each view under the point lights (every pixel when `all_pixels`, else only the
 /// valid ones): the forward model of the columns above, with options.spp paths per pixel.
 std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vector<View>& views,

@@ -228,41 +228,6 @@ void Report(const SolverOptions& o, int it, double e, const std::vector<double>&
   o.on_iteration(info);
 }
 
-/// G_c = A_c^T A_c for the 3 channels, column-major L x L. Column j gathers the
-/// rows touching cell j (upper triangle, i >= j) into one interleaved buffer (the 3
-/// channels of an entry share a cache line), so the sum order is fixed: the result
-/// does not depend on the thread count. Then split and mirrored.
-void BuildNormalMatrices(const LinearProblem& p, std::vector<double> G[3]) {
-  const int L = p.unknown_cells;
-  for (int c = 0; c < 3; ++c) G[c].assign(static_cast<std::size_t>(L) * L, 0.0);
-  ParallelForChunks(0, L, 8, [&](std::size_t jb, std::size_t je) {
-    std::vector<double> acc(3 * static_cast<std::size_t>(L));
-    for (std::size_t j = jb; j < je; ++j) {
-      std::fill(acc.begin() + 3 * j, acc.end(), 0.0);
-      for (std::int64_t k = p.col_start[j]; k < p.col_start[j + 1]; ++k) {
-        const int r = p.col_row[k];
-        const double a0 = p.col_val[k][0], a1 = p.col_val[k][1], a2 = p.col_val[k][2];
-        const std::int64_t end = p.row_start[r + 1];
-        for (std::int64_t q = p.col_pos[k]; q < end; ++q) {
-          double* g = &acc[3 * static_cast<std::size_t>(p.col[q])];
-          const float* v = p.val[q].data();
-          g[0] += a0 * v[0];
-          g[1] += a1 * v[1];
-          g[2] += a2 * v[2];
-        }
-      }
-      for (int c = 0; c < 3; ++c) {
-        double* col = &G[c][j * L];
-        for (int i = static_cast<int>(j); i < L; ++i) col[i] = acc[3 * static_cast<std::size_t>(i) + c];
-      }
-    }
-  });
-  for (int c = 0; c < 3; ++c)
-    for (int j = 0; j < L; ++j)
-      for (int i = j + 1; i < L; ++i)
-        G[c][static_cast<std::size_t>(i) * L + j] = G[c][static_cast<std::size_t>(j) * L + i];
-}
-
 /// Majorize-minimize. The Cauchy loss has curvature rho'' <= 1, so around the current
 /// point lambda_k the data term is majorized by a quadratic with the constant matrix
 /// G = A^T A (plus a tiny proximal term mu*I that keeps it positive definite):

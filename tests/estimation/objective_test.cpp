@@ -56,5 +56,76 @@ TEST(Objective, TransposeIsTheAdjoint) {
   EXPECT_NEAR(a, b, 1e-9 * std::abs(a));
 }
 
+/// Dense columns for WithColumns: one all zero (not an unknown), one with holes, one full,
+/// one non-zero in a single channel only.
+std::vector<std::vector<float>> ExtraColumns(std::size_t rows) {
+  std::vector<std::vector<float>> cols(4, std::vector<float>(3 * rows, 0.0f));
+  for (std::size_t r = 0; r < rows; ++r) {
+    if (r % 3 != 0)
+      for (int c = 0; c < 3; ++c) cols[1][3 * r + c] = static_cast<float>(0.1 + 0.01 * r + c);
+    for (int c = 0; c < 3; ++c) cols[2][3 * r + c] = static_cast<float>(std::cos(0.3 * r + c) + 1.5);
+    if (r % 5 == 2) cols[3][3 * r + 1] = 0.25f;
+  }
+  return cols;
+}
+
+TEST(Objective, WithColumnsIsAppendColumnsEntryForEntry) {
+  auto rp = test::MakeRandomProblem(60, 12, 0.3, 0.0, 9);
+  rp.A.cells = 14;  // two cells no row touches: compact indices differ from cells
+  const std::vector<std::vector<float>> cols = ExtraColumns(rp.A.rows());
+  const LinearProblem want = MakeLinearProblem(AppendColumns(rp.A, cols), rp.y);
+  const LinearProblem got = WithColumns(MakeLinearProblem(rp.A, rp.y), rp.A.cells, cols);
+  EXPECT_EQ(got.unknown_cells, 12 + 3);
+  EXPECT_EQ(got.cell_of, want.cell_of);
+  EXPECT_EQ(got.row_start, want.row_start);
+  EXPECT_EQ(got.col, want.col);
+  EXPECT_EQ(got.val, want.val);
+  EXPECT_EQ(got.col_start, want.col_start);
+  EXPECT_EQ(got.col_row, want.col_row);
+  EXPECT_EQ(got.col_val, want.col_val);
+  EXPECT_EQ(got.col_pos, want.col_pos);
+  EXPECT_EQ(got.y, want.y);
+}
+
+TEST(Objective, NormalMatricesFromABaseBlockAreTheSameBitForBit) {
+  const auto rp = test::MakeRandomProblem(70, 11, 0.35, 0.0, 13);
+  LinearProblem base = MakeLinearProblem(rp.A, rp.y);
+  base.base_normal = MakeNormalMatrices(base);
+  const std::vector<std::vector<float>> cols = ExtraColumns(rp.A.rows());
+  const LinearProblem extended = WithColumns(base, rp.A.cells, cols);
+  ASSERT_TRUE(extended.base_normal);
+  LinearProblem plain = extended;
+  plain.base_normal.reset();
+  std::vector<double> a[3], b[3];
+  BuildNormalMatrices(extended, a);
+  BuildNormalMatrices(plain, b);
+  const int L = extended.unknown_cells;
+  for (int c = 0; c < 3; ++c) {
+    ASSERT_EQ(a[c].size(), static_cast<std::size_t>(L) * L);
+    EXPECT_EQ(a[c], b[c]) << "channel " << c;
+  }
+  // Against the definition, G_c(i, j) = sum_r A_ric A_rjc, summed densely.
+  std::vector<double> dense(static_cast<std::size_t>(extended.rows()) * L * 3, 0.0);
+  for (std::size_t r = 0; r < extended.rows(); ++r)
+    for (std::int64_t k = extended.row_start[r]; k < extended.row_start[r + 1]; ++k)
+      for (int c = 0; c < 3; ++c) dense[(r * L + extended.col[k]) * 3 + c] = extended.val[k][c];
+  for (int c = 0; c < 3; ++c)
+    for (int i = 0; i < L; ++i)
+      for (int j = 0; j < L; ++j) {
+        double g = 0;
+        for (std::size_t r = 0; r < extended.rows(); ++r) g += dense[(r * L + i) * 3 + c] * dense[(r * L + j) * 3 + c];
+        EXPECT_NEAR(a[c][static_cast<std::size_t>(j) * L + i], g, 1e-9 * (1 + std::abs(g)));
+      }
+  // A base over other rows is not used (its block, doubled, would show).
+  LinearProblem other = extended;
+  auto wrong = std::make_shared<NormalMatrices>(*extended.base_normal);
+  wrong->rows += 1;
+  for (double& v : wrong->G[0]) v *= 2;
+  other.base_normal = wrong;
+  std::vector<double> o[3];
+  BuildNormalMatrices(other, o);
+  EXPECT_EQ(o[0], b[0]);
+}
+
 }  // namespace
 }  // namespace lp
