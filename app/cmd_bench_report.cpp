@@ -101,7 +101,7 @@ double RelitError(const Case& c, const EnvMap& env, const std::vector<double>& l
   t.spp = eval_spp;
   t.seed = 4242;
   const CellSampler sampler(env, lambda, {}, run.nee_floor);
-  const auto img = RenderLighting(*c.tracer, env, lambda, sampler, points, {c.held_out}, t, false);
+  const auto img = RenderLighting(*c.tracer, env, lambda, sampler, points, {}, {c.held_out}, t, false);
   return RelativeImageRmse(img[0], c.held_out.image, c.held_out.valid);
 }
 

@@ -66,6 +66,10 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
   cmd.add_option("--point-spp", o->point_lights.spp, "paths per pixel the point lights' columns and positions use")
       ->capture_default_str()
       ->check(CLI::Range(1, 1024));
+  cmd.add_option("--directional-lights", o->directional_lights,
+                 "try a directional light (a sun: sharp shadows) where the map concentrates its power; 0 = never "
+                 "(needs --point-lights > 0)")
+      ->capture_default_str();
   cmd.add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
   cmd.add_option("--seed", o->tracer.seed, "random seed (same seed => same result for any thread count)")
       ->capture_default_str();
@@ -133,9 +137,9 @@ static std::string Fmt(const char* fmt, double a, double b, double c, double d, 
   return buf;
 }
 
-/// lights.json: the map (when it lights anything) and the point lights.
+/// lights.json: the map (when it lights anything), the point lights and the directional ones.
 static void WriteLights(const fs::path& out, const EstimateResult& r) {
-  LightsFile lights{"", r.point_lights};
+  LightsFile lights{"", r.point_lights, r.directional_lights};
   for (double v : r.lambda)
     if (v > 0) lights.environment = "envmap.exr";
   WriteTextAtomically(out / "lights.json", LightsJson(lights));
@@ -260,7 +264,11 @@ static json LeftOutJson(const SceneBundle& bundle, const EstimateResult& r) {
 }
 
 static json PointLightsJson(const std::vector<PointLight>& lights) {
-  return json::parse(LightsJson({"", lights}))["point_lights"];
+  return json::parse(LightsJson({"", lights, {}}))["point_lights"];
+}
+
+static json DirectionalLightsJson(const std::vector<DirectionalLight>& lights) {
+  return json::parse(LightsJson({"", {}, lights}))["directional_lights"];
 }
 
 static json RoundsJson(const EstimateResult& r) {
@@ -288,6 +296,7 @@ static json FinalJson(const EstimateResult& r) {
   if (std::isfinite(r.final_position_error_share)) result["position_error_share"] = r.final_position_error_share;
   result["rendered_fraction"] = r.rendered_fraction;
   result["point_lights"] = PointLightsJson(r.point_lights);
+  result["directional_lights"] = DirectionalLightsJson(r.directional_lights);
   result["scene_centre"] = {r.scene_centre.x(), r.scene_centre.y(), r.scene_centre.z()};
   return result;
 }

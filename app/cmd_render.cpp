@@ -1,5 +1,5 @@
 // `lightprobe render`: relight every view of a scene bundle under a given environment, or
-// under an estimate's lights.json (map and point lights).
+// under an estimate's lights.json (map, point lights and directional lights).
 #include <cstdio>
 #include <filesystem>
 #include <sstream>
@@ -66,7 +66,7 @@ Run AddRender(CLI::App& app) {
   cmd->add_option("--out", *out, "output directory")->required();
   auto* e = cmd->add_option("--envmap", *envmap, "equirectangular linear .exr/.hdr (convention: docs/formats.md)");
   auto* u = cmd->add_option("--uniform", *uniform, "uniform environment radiance R,G,B");
-  auto* l = cmd->add_option("--lights", *lights, "an estimate's lights.json: its map and point lights");
+  auto* l = cmd->add_option("--lights", *lights, "an estimate's lights.json: its map, point lights and directional lights");
   e->excludes(u);
   l->excludes(e);
   l->excludes(u);
@@ -94,15 +94,12 @@ Run AddRender(CLI::App& app) {
         lambda = ReadEnvironment((fs::path(*lights).parent_path() / file.environment).string(), env);
     }
     RayTracer tracer(b.mesh);
-    std::vector<ImageRGB> imgs;
-    if (!lambda.empty()) {  // the map and the lamps on the same paths
-      CellSampler sampler(env, lambda, {}, 0.2);
-      imgs = RenderLighting(tracer, env, lambda, sampler, file.point_lights, b.views, *o, true);
-    } else if (!file.point_lights.empty()) {
-      imgs = RenderPointLights(tracer, b.views, file.point_lights, *o, true);
-    }
-    if (imgs.empty())  // a lights.json with neither: everything is black
-      for (const View& v : b.views) imgs.emplace_back(v.camera.width, v.camera.height);
+    // The map and the lights on the same paths (a lights.json without a map: a dark one;
+    // with nothing at all, everything is black).
+    if (lambda.empty()) lambda.assign(3 * env.size(), 0.0);
+    const CellSampler sampler(env, lambda, {}, 0.2);
+    const std::vector<ImageRGB> imgs =
+        RenderLighting(tracer, env, lambda, sampler, file.point_lights, file.directional_lights, b.views, *o, true);
     for (std::size_t k = 0; k < imgs.size(); ++k) {
       const std::string name = "render_view" + std::to_string(k);
       WriteExr(fs::path(*out) / (name + ".exr"), imgs[k]);

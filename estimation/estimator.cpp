@@ -5,6 +5,7 @@
 #include <memory>
 #include <sstream>
 
+#include "common/color.h"
 #include "common/error.h"
 #include "common/parallel.h"
 #include "common/timer.h"
@@ -37,6 +38,11 @@ std::vector<double> CollectObservations(const std::vector<View>& views) {
 
 namespace {
 
+std::vector<double> Plus(std::vector<double> a, const std::vector<double>& b) {
+  for (std::size_t i = 0; i < a.size(); ++i) a[i] += b[i];
+  return a;
+}
+
 std::string Fmt(const char* fmt, double a, double b = 0, double c = 0, double d = 0) {
   char buf[256];
   std::snprintf(buf, sizeof buf, fmt, a, b, c, d);
@@ -51,10 +57,13 @@ struct RoundProblem {
   /// The point-light columns' positions (the lights so far, or candidates).
   std::vector<Eigen::Vector3d> positions;
   std::vector<double> radii;  ///< theirs (0: a point), one per position
+  /// The directional lights' columns' directions, after the point lights'.
+  std::vector<Eigen::Vector3d> directions;
 
-  /// The unknowns over every column (3 per column): the map's cells, then `positions`.
+  /// The unknowns over every column (3 per column): the map's cells, then `positions`,
+  /// then `directions`.
   std::vector<double> Scatter(const std::vector<double>& compact, int cells) const {
-    std::vector<double> full(3 * (cells + positions.size()), 0.0);
+    std::vector<double> full(3 * (cells + positions.size() + directions.size()), 0.0);
     for (int k = 0; k < problem->unknown_cells; ++k)
       for (int c = 0; c < 3; ++c) full[3 * problem->cell_of[k] + c] = compact[3 * k + c];
     return full;
@@ -66,6 +75,15 @@ struct RoundProblem {
       const double* v = &full[3 * (cells + i)];
       if (v[0] > 0 || v[1] > 0 || v[2] > 0)
         out.push_back({positions[i], Eigen::Vector3d(v[0], v[1], v[2]), i < radii.size() ? radii[i] : 0.0});
+    }
+    return out;
+  }
+  /// The directional lights of a full vector (those with any irradiance).
+  std::vector<DirectionalLight> Suns(const std::vector<double>& full, int cells) const {
+    std::vector<DirectionalLight> out;
+    for (std::size_t i = 0; i < directions.size(); ++i) {
+      const double* v = &full[3 * (cells + positions.size() + i)];
+      if (v[0] > 0 || v[1] > 0 || v[2] > 0) out.push_back({directions[i], Eigen::Vector3d(v[0], v[1], v[2]), 0.0});
     }
     return out;
   }
@@ -117,8 +135,7 @@ class Estimator {
   std::vector<std::vector<float>> PointColumns(int round, int first, RoundProblem* rp);
   bool FitPointLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info);
   std::vector<PointLight> Candidates(RoundInfo* info);
-  void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const ShadingVertices& vertices,
-                       const char* step = "lights");
+  void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const char* step = "lights");
   void SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info, bool graduated);
   void FoldLights(std::vector<PointLight>* lights, int round);
   bool FitRadii(std::vector<PointLight>* lights);
@@ -135,6 +152,25 @@ class Estimator {
   std::vector<PointLight> InImageUnits(std::vector<PointLight> lights) const {
     for (PointLight& l : lights) l.intensity *= res_.image_mean;
     return lights;
+  }
+  std::vector<DirectionalLight> InImageUnits(std::vector<DirectionalLight> lights) const {
+    for (DirectionalLight& l : lights) l.irradiance *= res_.image_mean;
+    return lights;
+  }
+  // The directional light (docs/method.md, "Directional lights").
+  bool FitDirectionalLight(RoundInfo* info);
+  std::vector<double> LightsRender(const std::vector<PointLight>& points, const std::vector<DirectionalLight>& suns);
+  /// The lights' robust objective on vertices_, `base` the rest of the image held.
+  PointFitProblem FitProblem(const std::vector<double>* base) const {
+    PointFitProblem fit;
+    fit.scene = scene_.get();
+    fit.vertices = &vertices_;
+    fit.y = &y_;
+    fit.base = base;
+    fit.sigma = res_.objective_params.sigma;
+    fit.alpha = res_.objective_params.alpha * opt_.point_lights.weight;
+    fit.beta = res_.objective_params.beta;
+    return fit;
   }
 
   const SceneBundle& bundle_;
@@ -158,6 +194,7 @@ class Estimator {
   TransportMatrix holdout_held_;
   // Near lights.
   std::vector<PointLight> points_;  ///< the point lights so far, normalized units
+  std::vector<DirectionalLight> suns_;  ///< the directional lights so far, normalized units
   ShadingVertices vertices_;        ///< the rounds', for the lights' columns and positions
   /// The last few columns on vertices_ (Column), cleared when vertices_ change.
   struct CachedColumn {
@@ -247,7 +284,7 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   // Point lights: round 1 searches for them; later rounds trace their columns only if any
   // were found (the far-light scenes pay for the search alone).
   MakeMapProblem();
-  if (NearLights() && (round == 1 || !points_.empty()))
+  if ((NearLights() && round == 1) || !points_.empty() || !suns_.empty())
     rp.problem = std::make_shared<LinearProblem>(WithColumns(*map_problem_, cells_, PointColumns(round, first, &rp)));
   else
     rp.problem = map_problem_;
@@ -269,7 +306,8 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
     const int j = problem.cell_of[k], i = j - cells_;
     for (int c = 0; c < 3; ++c)
       rp.init[3 * k + c] = j < cells_ ? lambda_[3 * j + c]
-                                           : points_[i].intensity[c];
+                           : i < static_cast<int>(points_.size()) ? points_[i].intensity[c]
+                                                                   : suns_[i - points_.size()].irradiance[c];
   }
   return rp;
 }
@@ -316,8 +354,12 @@ std::vector<std::vector<float>> Estimator::PointColumns(int round, int first, Ro
   for (const PointLight& l : points_) {
     rp->positions.push_back(l.position);
     rp->radii.push_back(l.radius);
+    columns.push_back(Column(l.position, l.radius));
+  }
+  for (const DirectionalLight& d : suns_) {
+    rp->directions.push_back(d.direction);
     columns.emplace_back();
-    columns.back() = Column(l.position, l.radius);
+    DirectionalLightColumn(*scene_, vertices_, d.direction, &columns.back());
   }
   return columns;
 }
@@ -341,8 +383,9 @@ bool WeightedIntensity(const std::vector<float>& col, const std::vector<double>&
 /// (columns from fewer paths) whose column best explains what the lights so far leave
 /// (its intensity by least squares, scored by the Cauchy loss), then all the lights so far
 /// refined together; until max_lights, or until the next light does not lower the loss.
-/// The candidates' columns come from one path per pixel, and so do the refinements of the
-/// trials of a second light and more (FitPointLights refines them all on the round's).
+/// The candidates' columns come from one path per pixel; the trials are refined on the
+/// round's vertices (refining a second lamp's trials on the candidates' placed the
+/// near-light scene's lamp 1.4 cm off instead of 1.1).
 std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
   TracerOptions topt = opt_.tracer;
   topt.cancelled = opt_.cancelled;
@@ -383,9 +426,7 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
     if (best < 0) break;
     std::vector<PointLight> trial = lights;
     trial.push_back({positions[best], best_I, 0});
-    // The first light is refined on the round's vertices, the trials of more lights on the
-    // candidates' (a far-light scene tries up to max_lights of them for nothing).
-    RefinePositions(&trial, info, lights.empty() ? vertices_ : coarse, "search");
+    RefinePositions(&trial, info, "search");
     // What the lights leave, and whether the new one earned its place.
     std::vector<double> r = y_;
     std::vector<float> col;
@@ -425,7 +466,7 @@ void Estimator::Score(ConvergenceRow* row, const std::vector<double>& env_lambda
                       const std::vector<PointLight>& points) const {
   row->point_lights = static_cast<int>(points.size());
   if (truth_.empty()) return;
-  row->angular_error_deg = DominantAngularErrorDeg(env_, env_lambda, points, centre_, truth_);
+  row->angular_error_deg = DominantAngularErrorDeg(env_, env_lambda, points, centre_, truth_, suns_);
   row->position_error_m = WorstPositionError(points, truth_, centre_, opt_.point_lights.far * radius_);
 }
 
@@ -510,10 +551,13 @@ void Estimator::Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo*
   res_.rendered_fraction = a_new.empty() ? 0.0 : rendered / a_new.size();
 
   lambda_.swap(next);
+  if (!rp.directions.empty()) suns_ = rp.Suns(full, cells_);
   if (NearLights() && (info->round == 1 || !points_.empty())) info->lights_moved = FitPointLights(rp, full, info);
+  if (info->round == 1 && opt_.directional_lights && FitDirectionalLight(info)) info->lights_moved = true;
   info->lambda = lambda_;
   for (double& v : info->lambda) v *= res_.image_mean;
   info->point_lights = InImageUnits(points_);
+  info->directional_lights = InImageUnits(suns_);
   info->end_seconds = Now();
   res_.kkt_violation = sr.kkt_violation;
   res_.rounds.push_back(*info);
@@ -539,7 +583,7 @@ bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>
   // round 1's does (graduated; see Solve).
   for (int pass = 0; pass < (candidates ? 4 : 1) && !kept.empty(); ++pass) {
     const std::vector<PointLight> start = kept;
-    RefinePositions(&kept, info, vertices_);
+    RefinePositions(&kept, info);
     FoldLights(&kept, info->round);
     SolveWithLights(&kept, info, candidates && pass == 0);
     // A light that renders too little of the light seen cannot be kept (SelectModel): drop
@@ -595,7 +639,7 @@ bool Estimator::FitRadii(std::vector<PointLight>* lights) {
   CheckCancel();
   bool changed = false;
   const double sigma = res_.objective_params.sigma;
-  const std::vector<double> map = A_.Multiply(lambda_);
+  const std::vector<double> map = Plus(A_.Multiply(lambda_), LightsRender({}, suns_));
   for (std::size_t k = 0; k < lights->size(); ++k) {
     std::vector<double> base = map;
     std::vector<float> col;
@@ -680,27 +724,35 @@ void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info
     rp.radii.push_back((*lights)[k].radius);
     columns[k] = Column((*lights)[k].position, (*lights)[k].radius);
   }
+  for (const DirectionalLight& d : suns_) {  // held in the solve with the rest
+    rp.directions.push_back(d.direction);
+    columns.emplace_back();
+    DirectionalLightColumn(*scene_, vertices_, d.direction, &columns.back());
+  }
   rp.problem = std::make_shared<LinearProblem>(WithColumns(*map_problem_, cells_, columns));
   const LinearProblem& problem = *rp.problem;
   rp.init.resize(3 * problem.unknown_cells);
   for (int k = 0; k < problem.unknown_cells; ++k) {
     const int j = problem.cell_of[k];
+    const std::size_t i = j - cells_;
     for (int c = 0; c < 3; ++c)
-      rp.init[3 * k + c] = j < cells_ ? lambda_[3 * j + c] : (*lights)[j - cells_].intensity[c];
+      rp.init[3 * k + c] = j < cells_ ? lambda_[3 * j + c]
+                           : i < lights->size() ? (*lights)[i].intensity[c]
+                                                : suns_[i - lights->size()].irradiance[c];
   }
   const SolveResult sr = Solve(rp, info->round, info, graduated);
   std::vector<double> full = rp.Scatter(sr.lambda, cells_);
   *lights = rp.Lights(full, cells_);
+  suns_ = rp.Suns(full, cells_);
   full.resize(3 * cells_);
   for (int j = 0; j < cells_; ++j)  // cells this problem did not reach keep their value
     if (reachable_[j]) std::copy(&full[3 * j], &full[3 * j] + 3, &lambda_[3 * j]);
 }
 
-/// Levenberg-Marquardt on the lights' positions and intensities, the map's render held
-/// fixed, on `vertices` (this round's, or the search's coarser ones); every accepted step
+/// Levenberg-Marquardt on the lights' positions and intensities, the map's render (and the
+/// directional lights') held fixed, on this round's shading vertices; every accepted step
 /// is a convergence row.
-void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const ShadingVertices& vertices,
-                                const char* step) {
+void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const char* step) {
   if (lights->empty()) return;
   // The logged objective is the whole one: the map's penalty (held fixed here) added.
   double map_penalty = 0;
@@ -709,15 +761,8 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
       map_penalty += res_.objective_params.alpha * env_.solid_angle(j) / kAlphaReferenceSolidAngle *
                      std::log1p(res_.objective_params.beta *
                                 std::max(0.0, lambda_[3 * j] + lambda_[3 * j + 1] + lambda_[3 * j + 2]));
-  std::vector<double> base = A_.Multiply(lambda_);
-  PointFitProblem fit;
-  fit.scene = scene_.get();
-  fit.vertices = &vertices;
-  fit.y = &y_;
-  fit.base = &base;
-  fit.sigma = res_.objective_params.sigma;
-  fit.alpha = res_.objective_params.alpha * opt_.point_lights.weight;
-  fit.beta = res_.objective_params.beta;
+  std::vector<double> base = Plus(A_.Multiply(lambda_), LightsRender({}, suns_));
+  const PointFitProblem fit = FitProblem(&base);
   const int first_iteration = res_.convergence.empty() ? 0 : res_.convergence.back().iteration + 1;
   const double rows = static_cast<double>(y_.size());
   info->light_iterations = RefinePointLights(fit, lights, 12, [&](int it, double E, double sse,
@@ -783,6 +828,130 @@ void Estimator::SelectModel(std::vector<PointLight>* lights) {
     else lights->erase(lights->begin() + k);
   }
   std::reverse(lights->begin(), lights->end());  // strongest first
+}
+
+/// The render of point and directional lights on vertices_ (3 per row).
+std::vector<double> Estimator::LightsRender(const std::vector<PointLight>& points,
+                                            const std::vector<DirectionalLight>& suns) {
+  std::vector<double> out(y_.size(), 0.0);
+  std::vector<float> col;
+  for (const PointLight& l : points) {
+    col = Column(l.position, l.radius);
+    for (std::size_t e = 0; e < out.size(); ++e) out[e] += l.intensity[e % 3] * col[e];
+  }
+  for (const DirectionalLight& d : suns) {
+    DirectionalLightColumn(*scene_, vertices_, d.direction, &col);
+    for (std::size_t e = 0; e < out.size(); ++e) out[e] += d.irradiance[e % 3] * col[e];
+  }
+  return out;
+}
+
+/// A directional light where the map concentrates its power (docs/method.md, "Directional
+/// lights"): the brightest cell's neighbourhood (cells within 2.5 ring spacings) holding
+/// most of the map's power is taken out of the map as one light from its power-weighted
+/// direction with its irradiance, refined continuously (direction on the sphere and
+/// irradiance, the rest held), and kept only if the held-out pixels want it, as a lamp
+/// is; then the map, the lamps and it are solved together. True when one was added.
+bool Estimator::FitDirectionalLight(RoundInfo* info) {
+  CheckCancel();
+  if (vertices_.size() == 0) return false;  // no near-light model: no vertices to light
+  int peak = -1;
+  double total = 0, best = 0;
+  std::vector<double> power(cells_, 0.0);
+  for (int j = 0; j < cells_; ++j) {
+    power[j] = std::max(0.0, Luminance(lambda_[3 * j], lambda_[3 * j + 1], lambda_[3 * j + 2])) * env_.solid_angle(j);
+    total += power[j];
+    if (power[j] > best) best = power[j], peak = j;
+  }
+  if (peak < 0 || !(total > 0)) return false;
+  const double reach = std::cos(2.5 * kPi / env_.rings());
+  DirectionalLight sun;
+  Eigen::Vector3d dir = Eigen::Vector3d::Zero();
+  double near = 0;
+  std::vector<int> cells;
+  for (int j = 0; j < cells_; ++j)
+    if (env_.direction(j).dot(env_.direction(peak)) > reach) {
+      cells.push_back(j);
+      near += power[j];
+      dir += power[j] * env_.direction(j);
+      for (int c = 0; c < 3; ++c) sun.irradiance[c] += std::max(0.0, lambda_[3 * j + c]) * env_.solid_angle(j);
+    }
+  const double share = near / total;
+  if (share < opt_.directional_min_share || !(dir.norm() > 0)) return false;
+  // From the centre of the map's spread (the mean shift of DominantDirections), which a
+  // far light's cells surround.
+  const std::vector<Eigen::Vector3d> dominant = DominantDirections(env_, lambda_, 1);
+  sun.direction = dominant.empty() ? dir.normalized() : dominant[0];
+  // The map without those cells, and the lamps, held while the light is refined.
+  std::vector<double> without = lambda_;
+  for (int j : cells) std::fill(&without[3 * j], &without[3 * j] + 3, 0.0);
+  {  // and the cells must light a good part of the scene, as a lamp must (min_share)
+    std::vector<double> only(lambda_.size(), 0.0);
+    for (int j : cells) std::copy(&lambda_[3 * j], &lambda_[3 * j] + 3, &only[3 * j]);
+    double rendered = 0, seen = 0;
+    const std::vector<double> render = A_.Multiply(only);
+    for (std::size_t e = 0; e < render.size(); ++e) rendered += render[e], seen += y_[e];
+    if (!(rendered >= opt_.point_lights.min_share * seen)) return false;
+  }
+  // First the light alone (with the lamps): the rest of the map still holds part of the
+  // light it spread (the cells under it hold 30-40 % of a sun's), and held fixed that
+  // smear pulls the direction towards itself.
+  std::vector<double> base = LightsRender(points_, {});
+  const PointFitProblem fit = FitProblem(&base);
+  const double rows = static_cast<double>(y_.size());
+  const auto log = [&](int, double E, double sse, const DirectionalLight& now) {
+    ConvergenceRow row;
+    row.wall_seconds = Now();
+    row.round = info->round;
+    row.iteration = res_.convergence.empty() ? 0 : res_.convergence.back().iteration + 1;
+    row.sigma = fit.sigma;
+    row.albedo_pass = res_.albedo_passes;
+    row.objective = E;  // (the map's penalty left out: held fixed here)
+    row.relative_rmse = std::sqrt(sse / rows);
+    row.photometric_rmse = row.relative_rmse * res_.image_mean;
+    row.step = "sun";
+    const std::vector<DirectionalLight> kept = suns_;
+    suns_ = {now};
+    Score(&row, without, points_);
+    suns_ = kept;
+    res_.convergence.push_back(row);
+    if (opt_.on_convergence) opt_.on_convergence(row);
+    CheckCancel();
+  };
+  RefineDirectionalLight(fit, &sun, 12, log);
+  SearchDirectionalLight(fit, &sun, 2, 0.05, log);
+  // Model selection: the held-out loss of the map (its cells under the light emptied) with
+  // the light, against the map as it is.
+  const double without_loss = HoldoutLoss(points_);
+  const std::vector<double> map = lambda_;
+  lambda_ = without;
+  DirectionalStandIn stand_in{sun.direction, sun.irradiance};
+  const double with_loss = HoldoutLoss(points_, &stand_in);
+  const bool keep = with_loss < (1 - opt_.point_lights.min_gain) * without_loss;
+  char line[400];
+  std::snprintf(line, sizeof line,
+                "directional light from (%.4f, %.4f, %.4f) in place of %zu cells holding %.3g of the map's power: "
+                "held-out loss %.6g with it, %.6g with the cells: %s",
+                sun.direction.x(), sun.direction.y(), sun.direction.z(), cells.size(), share, with_loss, without_loss,
+                keep ? "kept" : "dropped");
+  res_.point_light_choices.push_back(line);
+  Progress(line);
+  if (!keep) {
+    lambda_ = map;
+    return false;
+  }
+  suns_ = {sun};
+  SolveWithLights(&points_, info, false);
+  // Then against the map solved with it (it has given the light its cells held), and once
+  // more together.
+  if (!suns_.empty()) {
+    sun = suns_[0];
+    base = Plus(A_.Multiply(lambda_), LightsRender(points_, {}));
+    SearchDirectionalLight(fit, &sun, 1, 0.05, log);
+    suns_ = {sun};
+    SolveWithLights(&points_, info, false);
+  }
+  return true;
 }
 
 /// A point light's unit column on vertices_ (PointLightColumn), from the cache when the
@@ -882,7 +1051,8 @@ bool Estimator::RefineAlbedo(int pass) {
                  static_cast<double>(mesh_.positions.size()), opt_.albedo_samples));
     std::vector<float> irradiance;
     {
-      VertexRadiance radiance(*scene_, env_, lambda_, opt_.tracer.bounces, opt_.tracer.seed * 7919 + pass, points_);
+      VertexRadiance radiance(*scene_, env_, lambda_, opt_.tracer.bounces, opt_.tracer.seed * 7919 + pass, points_,
+                              suns_);
       for (int done = 0; done < opt_.albedo_samples; done += 2) {  // Cancel is polled between steps
         radiance.Refine(std::min(2, opt_.albedo_samples - done));
         CheckCancel();
@@ -915,8 +1085,10 @@ void Estimator::Conclude() {
   res_.final_relative_rmse = res_.convergence.empty() ? 0 : res_.convergence.back().relative_rmse;
   res_.final_rmse = res_.final_relative_rmse * res_.image_mean;
   res_.point_lights = InImageUnits(points_);
+  res_.directional_lights = InImageUnits(suns_);
   if (!truth_.empty()) {
-    res_.final_angular_error_deg = DominantAngularErrorDeg(env_, res_.lambda, res_.point_lights, centre_, truth_);
+    res_.final_angular_error_deg =
+        DominantAngularErrorDeg(env_, res_.lambda, res_.point_lights, centre_, truth_, res_.directional_lights);
     res_.final_position_error_m =
         WorstPositionError(res_.point_lights, truth_, centre_, opt_.point_lights.far * radius_,
                            &res_.final_position_error_share);
@@ -943,7 +1115,8 @@ void Estimator::RenderFittedViews() {
   if (opt_.render_spp > 0) topt.spp = opt_.render_spp;
   topt.cancelled = opt_.cancelled;
   CellSampler sampler(env_, res_.lambda, reachable_, opt_.tracer.nee_floor);
-  res_.renders = RenderLighting(*scene_, env_, res_.lambda, sampler, res_.point_lights, bundle_.views, topt, true);
+  res_.renders = RenderLighting(*scene_, env_, res_.lambda, sampler, res_.point_lights, res_.directional_lights,
+                                bundle_.views, topt, true);
   CheckCancel();
   res_.render_seconds = rs.Seconds();
   Progress(Fmt("relit %.0f view(s) in %.2f s", bundle_.views.size(), res_.render_seconds));

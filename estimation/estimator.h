@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "estimation/directional_light.h"
 #include "estimation/objective.h"
 #include "estimation/path_tracer.h"
 #include "estimation/point_light.h"
@@ -66,6 +67,15 @@ struct EstimateOptions {
   SolverOptions solver_options;
   int max_rounds = 4;
   PointLightOptions point_lights;
+  /// A directional light (a sun: sharp shadows) where the map concentrates its power
+  /// (docs/method.md, "Directional lights"): tried after round 1 when the brightest cell's
+  /// neighbourhood holds at least directional_min_share of the map's power and renders at
+  /// least PointLightOptions::min_share of the light seen, kept when the held-out pixels
+  /// want it (as a point light: PointLightOptions::holdout, min_gain). Needs the near-light
+  /// model's shading vertices (point_lights.max_lights > 0). Off by default until the
+  /// stability suite's measures count a directional light's power as the map's (issue 21).
+  bool directional_lights = false;
+  double directional_min_share = 0.25;
   /// Albedo refinement (intrinsic decomposition, scene/albedo.h), when the mesh has
   /// `shaded` colours (a reconstruction; a bundle with known albedo needs none): after the
   /// rounds settle, the colours seen are de-lit by the estimate's irradiance at every vertex
@@ -116,8 +126,9 @@ struct ConvergenceRow {
   /// nearest point light (infinite without one); NaN otherwise.
   double position_error_m = std::nan("");
   /// "solve" (the map's and lights' intensities on a fixed A), "lights" (a step of the
-  /// lights' refinement, the map held) or "search" (round 1's search for lamps, the map
-  /// dark: each light it adds starts a new descent). The objective is the same function
+  /// lights' refinement, the map held), "search" (round 1's search for lamps, the map
+  /// dark: each light it adds starts a new descent) or "sun" (a directional light's
+  /// refinement, the map without its cells and the lamps held). The objective is the same function
   /// in all (the Cauchy loss and every penalty); it never rises from one row to the next
   /// within a round except where a search starts or adds a light, or where the number of
   /// point lights changes (a light dropped: the model changed).
@@ -136,6 +147,7 @@ struct RoundInfo {
   double end_seconds = 0;      ///< wall clock at the end of the round (with time_offset)
   std::vector<double> lambda;  ///< the estimate after this round (3 * cells, image units)
   std::vector<PointLight> point_lights;  ///< after this round (image units)
+  std::vector<DirectionalLight> directional_lights;  ///< after this round (image units)
   int light_iterations = 0;    ///< steps of the positions' refinement
   bool lights_moved = false;   ///< the point lights changed or moved more than 2 % of their distance
 };
@@ -168,6 +180,8 @@ struct EstimateResult {
   std::vector<Eigen::Vector3d> dominant;
   /// The near part of the lighting (image units), strongest first.
   std::vector<PointLight> point_lights;
+  /// The sharp far part (a sun), strongest first; its cells of the map are empty.
+  std::vector<DirectionalLight> directional_lights;
   /// Why each light was kept or dropped (model selection), one line each.
   std::vector<std::string> point_light_choices;
   Eigen::Vector3d scene_centre = Eigen::Vector3d::Zero();  ///< the mesh's bounding box's centre

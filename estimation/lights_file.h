@@ -1,9 +1,11 @@
 #pragma once
 /// lights.json (docs/formats.md): an estimate's lighting as other programs take it, the
-/// environment map (far) by file and the point lights (near) by value.
+/// environment map (far) by file, the point lights (near) and the directional lights (a
+/// sun) by value.
 #include <string>
 #include <vector>
 
+#include "estimation/directional_light.h"
 #include "estimation/point_light.h"
 
 namespace lp {
@@ -13,13 +15,16 @@ struct LightsFile {
   /// empty when the map is empty.
   std::string environment;
   std::vector<PointLight> point_lights;
+  std::vector<DirectionalLight> directional_lights;
 };
 
 /// The file's text (JSON, 2-space indent, a final newline).
 std::string LightsJson(const LightsFile& lights);
 /// Parses lights.json text (`name` for errors); keys it does not know are ignored. Throws
 /// InputError when malformed (a position or intensity not 3 finite numbers, a negative
-/// intensity or radius).
+/// intensity or radius; a direction of length 0 (others are normalized), a negative
+/// irradiance, an angular radius outside [0, pi/2)). A file without "directional_lights"
+/// (written before they existed) has none.
 LightsFile ParseLightsJson(const std::string& text, const std::string& name);
 
 }  // namespace lp

@@ -174,6 +174,23 @@ double SphereVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const 
   return static_cast<double>(seen) / rays;
 }
 
+double ConeVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const Eigen::Vector3d& l, double angular_radius,
+                      std::uint64_t key, int rays) {
+  if (!(angular_radius > 0)) return scene.Occluded(p, l) ? 0.0 : 1.0;
+  const Eigen::Vector3d t = (std::abs(l.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY())
+                                .cross(l)
+                                .normalized();
+  const Eigen::Vector3d b = l.cross(t);
+  const double turn = HashUnit(key), jitter = HashUnit(key ^ 0x5DEECE66Dull), spread = std::tan(angular_radius);
+  int seen = 0;
+  for (int i = 0; i < rays; ++i) {  // the disc at unit distance, as SphereVisibility's
+    const double rho = spread * std::sqrt((i + jitter) / rays);
+    const double a = 2 * kPi * (turn + i * 0.6180339887498949);
+    seen += !scene.Occluded(p, (l + rho * (std::cos(a) * t + std::sin(a) * b)).normalized());
+  }
+  return static_cast<double>(seen) / rays;
+}
+
 void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& q,
                       std::vector<float>* out, std::vector<float>* jacobian, double radius) {
   const std::size_t rows = v.rows();
@@ -208,29 +225,45 @@ void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Ei
 }
 
 void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& towards,
-                            std::vector<float>* out) {
+                            std::vector<float>* out, std::vector<float>* jacobian) {
   const Eigen::Vector3d l = towards.normalized();
   out->assign(3 * v.rows(), 0.0f);
+  if (jacobian) jacobian->assign(9 * v.rows(), 0.0f);
   ParallelForChunks(0, v.rows(), 64, [&](std::size_t b, std::size_t e) {
     for (std::size_t r = b; r < e; ++r) {
       Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      Eigen::Matrix3d jac = Eigen::Matrix3d::Zero();  // (channel, coordinate)
       for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
-        const double cn = v.normal[k].cast<double>().dot(l), cg = v.geometric[k].cast<double>().dot(l);
+        const Eigen::Vector3d n = v.normal[k].cast<double>();
+        const double cn = n.dot(l), cg = v.geometric[k].cast<double>().dot(l);
         if (!(cn > 0 && cg > 0) || scene.Occluded(v.position[k].cast<double>(), l)) continue;
-        sum += v.weight[k].cast<double>() * cn;
+        const Eigen::Vector3d w = v.weight[k].cast<double>();
+        sum += w * cn;
+        if (jacobian) jac += w * (n - cn * l).transpose();  // d cos / d l on the unit sphere
       }
       for (int c = 0; c < 3; ++c) (*out)[3 * r + c] = static_cast<float>(sum[c]);
+      if (jacobian)
+        for (int c = 0; c < 3; ++c)
+          for (int a = 0; a < 3; ++a) (*jacobian)[9 * r + 3 * c + a] = static_cast<float>(jac(c, a));
     }
   });
 }
 
 namespace {
 
-/// What the point lights send to a path vertex (per unit of its weight); one shadow ray
-/// per lamp, to a point of its disc jittered by `key`.
-Eigen::Vector3d LampsAtVertex(const RayTracer& scene, const std::vector<PointLight>& lights, const SurfacePoint& hit,
+/// What the point lights (and directional ones) send to a path vertex (per unit of its
+/// weight); one shadow ray per light, to a point of its disc jittered by `key`.
+Eigen::Vector3d LampsAtVertex(const RayTracer& scene, const std::vector<PointLight>& lights,
+                              const std::vector<DirectionalLight>& directional, const SurfacePoint& hit,
                               const Eigen::Vector3d& off, std::uint64_t key, std::int64_t& rays) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const DirectionalLight& light : directional) {
+    const double cn = hit.shading.dot(light.direction), cg = hit.geometric.dot(light.direction);
+    if (!(cn > 0 && cg > 0)) continue;
+    ++rays;
+    const double seen = ConeVisibility(scene, off, light.direction, light.angular_radius, key, 1);
+    if (seen > 0) sum += light.irradiance * (cn * seen);
+  }
   for (const PointLight& light : lights) {
     Eigen::Vector3d l;
     double d = 0;
@@ -247,12 +280,12 @@ Eigen::Vector3d LampsAtVertex(const RayTracer& scene, const std::vector<PointLig
 
 std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, const std::vector<double>& lambda,
                                      const CellSampler& sampler, const std::vector<PointLight>& lights,
-                                     const std::vector<View>& views, const TracerOptions& options, bool all_pixels,
-                                     TraceStats* stats) {
+                                     const std::vector<DirectionalLight>& directional, const std::vector<View>& views,
+                                     const TracerOptions& options, bool all_pixels, TraceStats* stats) {
   VertexLight lamps;
-  if (!lights.empty())
+  if (!lights.empty() || !directional.empty())
     lamps = [&](const SurfacePoint& hit, const Eigen::Vector3d& off, std::uint64_t key, std::int64_t& rays) {
-      return LampsAtVertex(scene, lights, hit, off, key, rays);
+      return LampsAtVertex(scene, lights, directional, hit, off, key, rays);
     };
   return RenderEnvironment(scene, env, views, lambda, sampler, options, all_pixels, lamps, stats);
 }
@@ -273,7 +306,7 @@ std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vecto
       std::uint64_t key = (static_cast<std::uint64_t>(px.pixel) << 32) ^ (static_cast<std::uint64_t>(s) << 8);
       WalkPath(scene, cam, x, y, rng, opt, cnt,
                [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
-                 sum += w.cwiseProduct(LampsAtVertex(scene, lights, hit, off, ++key, cnt.rays));
+                 sum += w.cwiseProduct(LampsAtVertex(scene, lights, {}, hit, off, ++key, cnt.rays));
                });
     }
     float* p = out[px.view].at(x, y);
@@ -410,6 +443,145 @@ int RefinePointLights(const PointFitProblem& p, std::vector<PointLight>* lights,
     if (!accepted) break;
   }
   return it;
+}
+
+namespace {
+
+/// Residuals y - base - E c(l) of one directional light, its column and Jacobian.
+std::vector<double> DirectionalResidual(const PointFitProblem& p, const DirectionalLight& light, std::vector<float>* col,
+                                        std::vector<float>* jac) {
+  DirectionalLightColumn(*p.scene, *p.vertices, light.direction, col, jac);
+  std::vector<double> r(p.y->size());
+  for (std::size_t i = 0; i < r.size(); ++i) r[i] = (*p.y)[i] - (*p.base)[i] - light.irradiance[i % 3] * (*col)[i];
+  return r;
+}
+
+}  // namespace
+
+int RefineDirectionalLight(const PointFitProblem& p, DirectionalLight* light, int max_iterations,
+                           const std::function<void(int, double, double, const DirectionalLight&)>& log) {
+  std::vector<float> col, jac;
+  std::vector<double> r = DirectionalResidual(p, *light, &col, &jac);
+  const auto energy = [&](const DirectionalLight& l, const std::vector<double>& res) {
+    return CauchyLoss(res, p.sigma) + p.alpha * std::log1p(p.beta * std::max(0.0, l.irradiance.sum()));
+  };
+  double E = energy(*light, r), mu = 1e-3;
+  int it = 0;
+  for (; it < max_iterations; ++it) {
+    // Unknowns: two steps across the direction (an orthonormal frame t, u of its tangent
+    // plane) and the irradiance; the same reweighted normal equations as RefinePointLights.
+    const Eigen::Vector3d& l = light->direction;
+    const Eigen::Vector3d t = (std::abs(l.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY()).cross(l).normalized();
+    const Eigen::Vector3d u = l.cross(t);
+    Eigen::Matrix<double, 5, 5> H = Eigen::Matrix<double, 5, 5>::Zero();
+    Eigen::Matrix<double, 5, 1> g = Eigen::Matrix<double, 5, 1>::Zero(), J;
+    for (std::size_t i = 0; i < r.size(); ++i) {
+      if (col[i] == 0) continue;
+      const std::size_t row = i / 3;
+      const int c = static_cast<int>(i % 3);
+      const Eigen::Vector3d d(jac[9 * row + 3 * c], jac[9 * row + 3 * c + 1], jac[9 * row + 3 * c + 2]);
+      J.setZero();
+      J[0] = light->irradiance[c] * d.dot(t);
+      J[1] = light->irradiance[c] * d.dot(u);
+      J[2 + c] = col[i];
+      const double w = 1 / (1 + r[i] * r[i] / (p.sigma * p.sigma));
+      H += w * J * J.transpose();
+      g += w * r[i] * J;
+    }
+    for (int c = 0; c < 3; ++c) g[2 + c] -= p.alpha * p.beta / (1 + p.beta * std::max(0.0, light->irradiance.sum()));
+    bool accepted = false;
+    for (int tries = 0; tries < 8 && !accepted; ++tries) {
+      Eigen::Matrix<double, 5, 5> M = H;
+      for (int a = 0; a < 5; ++a) M(a, a) += mu * std::max(H(a, a), 1e-12);
+      const Eigen::Matrix<double, 5, 1> step = M.ldlt().solve(g);
+      if (!step.allFinite()) {
+        mu *= 10;
+        continue;
+      }
+      DirectionalLight trial = *light;
+      trial.direction = (l + step[0] * t + step[1] * u).normalized();
+      trial.irradiance = (light->irradiance + step.segment<3>(2)).cwiseMax(0.0);
+      std::vector<float> tcol, tjac;
+      std::vector<double> tr = DirectionalResidual(p, trial, &tcol, &tjac);
+      const double tE = energy(trial, tr);
+      if (tE < E) {
+        accepted = true;
+        const double drop = (E - tE) / std::max(E, 1e-300);
+        *light = trial;
+        col.swap(tcol);
+        jac.swap(tjac);
+        r.swap(tr);
+        E = tE;
+        mu = std::max(mu / 3, 1e-9);
+        if (log) {
+          double sse = 0;
+          for (double v : r) sse += v * v;
+          log(it + 1, E, sse, *light);
+        }
+        if (drop < 1e-6) return it + 1;
+      } else {
+        mu *= 10;
+      }
+    }
+    if (!accepted) break;
+  }
+  return it;
+}
+
+int SearchDirectionalLight(const PointFitProblem& p, DirectionalLight* light, double start_deg, double stop_deg,
+                           const std::function<void(int, double, double, const DirectionalLight&)>& log) {
+  constexpr double kDeg = 3.14159265358979323846 / 180;
+  const double s2 = p.sigma * p.sigma;
+  // The energy at a direction, its irradiance refitted by reweighted least squares.
+  const auto evaluate = [&](DirectionalLight* l, double* sse) {
+    std::vector<float> col;
+    DirectionalLightColumn(*p.scene, *p.vertices, l->direction, &col);
+    std::vector<double> left(col.size()), w(col.size(), 1.0);
+    for (std::size_t i = 0; i < col.size(); ++i) left[i] = (*p.y)[i] - (*p.base)[i];
+    for (int it = 0; it < 4; ++it) {
+      Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
+      for (std::size_t i = 0; i < col.size(); ++i) {
+        const double r = left[i] - l->irradiance[i % 3] * col[i];
+        w[i] = 1 / (1 + r * r / s2);
+        num[i % 3] += w[i] * col[i] * left[i];
+        den[i % 3] += w[i] * double(col[i]) * col[i];
+      }
+      for (int c = 0; c < 3; ++c) l->irradiance[c] = den[c] > 0 ? std::max(0.0, num[c] / den[c]) : 0.0;
+    }
+    std::vector<double> r(col.size());
+    *sse = 0;
+    for (std::size_t i = 0; i < col.size(); ++i) {
+      r[i] = left[i] - l->irradiance[i % 3] * col[i];
+      *sse += r[i] * r[i];
+    }
+    return CauchyLoss(r, p.sigma) + p.alpha * std::log1p(p.beta * std::max(0.0, l->irradiance.sum()));
+  };
+  double sse = 0;
+  double E = evaluate(light, &sse);
+  int moves = 0;
+  for (double step = start_deg * kDeg; step >= stop_deg * kDeg * 0.999;) {
+    const Eigen::Vector3d& d = light->direction;
+    const Eigen::Vector3d t = (std::abs(d.x()) < 0.9 ? Eigen::Vector3d::UnitX() : Eigen::Vector3d::UnitY()).cross(d).normalized();
+    const Eigen::Vector3d u = d.cross(t);
+    bool moved = false;
+    for (const Eigen::Vector3d& off : {t, Eigen::Vector3d(-t), u, Eigen::Vector3d(-u)}) {
+      DirectionalLight trial = *light;
+      trial.direction = (d + std::tan(step) * off).normalized();
+      double trial_sse = 0;
+      const double tE = evaluate(&trial, &trial_sse);
+      if (tE < E) {
+        *light = trial;
+        E = tE;
+        sse = trial_sse;
+        moved = true;
+        ++moves;
+        if (log) log(moves, E, sse, *light);
+        break;
+      }
+    }
+    if (!moved) step *= 0.5;
+  }
+  return moves;
 }
 
 }  // namespace lp

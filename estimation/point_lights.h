@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 
 #include "common/image.h"
+#include "estimation/directional_light.h"
 #include "estimation/envmap.h"
 #include "estimation/point_light.h"
 #include "estimation/path_tracer.h"
@@ -64,18 +65,26 @@ void PointLightColumn(const RayTracer& scene, const ShadingVertices& vertices, c
                       std::vector<float>* out, std::vector<float>* jacobian = nullptr, double radius = 0);
 
 /// The column of a directional light of unit irradiance (on a surface facing it) from unit
-/// world direction `towards` (towards the light): out[3*row + c]. A far light's stand-in.
+/// world direction `towards` (towards the light): out[3*row + c]. When `jacobian` is given
+/// it receives the derivative with respect to the direction moved on the unit sphere
+/// (towards + delta, normalized; visibility held fixed) at [9*row + 3*c + k].
 void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& vertices, const Eigen::Vector3d& towards,
-                            std::vector<float>* out);
+                            std::vector<float>* out, std::vector<float>* jacobian = nullptr);
 
-/// Renders each view under the map (`lambda`, 3 per cell of `env`, NEE by `sampler`) and
-/// the point lights together, in one pass: at every vertex of the map's paths, one shadow
-/// ray to each lamp (a jittered point of its disc). The same as RenderEnvironment plus
-/// RenderPointLights, for about the map's cost alone.
+/// The share of a light of `angular_radius` (a disc around unit direction l, as seen from
+/// p) that p sees: one shadow ray along l when sharp, else `rays` jittered stratified rays
+/// across the disc, the pattern drawn from a hash of `key` (as SphereVisibility's).
+double ConeVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const Eigen::Vector3d& l, double angular_radius,
+                      std::uint64_t key, int rays = kSphereShadowRays);
+
+/// Renders each view under the map (`lambda`, 3 per cell of `env`, NEE by `sampler`), the
+/// point lights and the directional lights together, in one pass: at every vertex of the
+/// map's paths, one shadow ray to each light (a jittered point of its disc). The same as
+/// RenderEnvironment plus RenderPointLights, for about the map's cost alone.
 std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, const std::vector<double>& lambda,
                                      const CellSampler& sampler, const std::vector<PointLight>& lights,
-                                     const std::vector<View>& views, const TracerOptions& options, bool all_pixels,
-                                     TraceStats* stats = nullptr);
+                                     const std::vector<DirectionalLight>& directional, const std::vector<View>& views,
+                                     const TracerOptions& options, bool all_pixels, TraceStats* stats = nullptr);
 
 /// Renders each view under the point lights (every pixel when `all_pixels`, else only the
 /// valid ones): the forward model of the columns above, with options.spp paths per pixel.
@@ -118,5 +127,19 @@ struct PointFitProblem {
 int RefinePointLights(
     const PointFitProblem& problem, std::vector<PointLight>* lights, int max_iterations = 12,
     const std::function<void(int, double, double, const std::vector<PointLight>&)>& log = {});
+
+/// The same for one directional light (its direction on the unit sphere and its
+/// irradiance; `problem.alpha` its activation penalty), the rest of the image held fixed.
+int RefineDirectionalLight(const PointFitProblem& problem, DirectionalLight* light, int max_iterations = 12,
+                           const std::function<void(int, double, double, const DirectionalLight&)>& log = {});
+
+/// A compass search for a directional light's direction on the sphere (steps of start_deg
+/// across it, halved when no step lowers the energy, down to stop_deg), its irradiance
+/// refitted by reweighted least squares at each: the shadows' edges move with the
+/// direction, which RefineDirectionalLight's derivative (visibility held fixed) cannot see.
+/// Returns the moves taken; `log` is called after each.
+int SearchDirectionalLight(const PointFitProblem& problem, DirectionalLight* light, double start_deg = 2,
+                           double stop_deg = 0.05,
+                           const std::function<void(int, double, double, const DirectionalLight&)>& log = {});
 
 }  // namespace lp

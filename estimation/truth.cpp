@@ -135,8 +135,8 @@ double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lam
 
 double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lambda,
                                const std::vector<PointLight>& points, const Eigen::Vector3d& centre,
-                               const std::vector<TruthLight>& truth) {
-  if (points.empty() || truth.empty()) return DominantAngularErrorDeg(env, lambda, truth);
+                               const std::vector<TruthLight>& truth, const std::vector<DirectionalLight>& suns) {
+  if ((points.empty() && suns.empty()) || truth.empty()) return DominantAngularErrorDeg(env, lambda, truth);
   std::vector<TruthLight> sorted = truth;
   std::sort(sorted.begin(), sorted.end(), [](const auto& a, const auto& b) { return a.weight > b.weight; });
   const int n = std::min<int>(2, static_cast<int>(sorted.size()));
@@ -156,6 +156,8 @@ double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lam
     lights.emplace_back(Luminance(p.intensity.x(), p.intensity.y(), p.intensity.z()) / r.squaredNorm(),
                         r.normalized());
   }
+  for (const DirectionalLight& d : suns)
+    lights.emplace_back(Luminance(d.irradiance.x(), d.irradiance.y(), d.irradiance.z()), d.direction);
   std::sort(lights.begin(), lights.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
   if (lights.empty()) return 180.0;
   double sum = 0;

@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 
+#include "estimation/directional_light.h"
 #include "estimation/envmap.h"
 #include "estimation/point_light.h"
 
@@ -52,11 +53,12 @@ double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lam
 /// directions (up to 2) and the point lights' directions from `centre`, ranked by the
 /// irradiance each gives at the centre (a map mode: the luminance x solid angle of the
 /// cells within 30 degrees of it; a point light: luminance(I) / d^2); the strongest
-/// min(2, truth lights) of them are compared as above. Without point lights this is the
-/// function above.
+/// min(2, truth lights) of them are compared as above. A directional light counts with
+/// luminance(irradiance) from its direction. Without point or directional lights this is
+/// the function above.
 double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lambda,
                                const std::vector<PointLight>& points, const Eigen::Vector3d& centre,
-                               const std::vector<TruthLight>& truth);
+                               const std::vector<TruthLight>& truth, const std::vector<DirectionalLight>& suns = {});
 
 /// The worst distance (metres) from a true near light (one with a position less than
 /// `far_distance` from `centre`) to the nearest estimated point light; NaN when the truth

@@ -13,8 +13,9 @@
 namespace lp {
 
 VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, std::vector<double> lambda, int bounces,
-                               std::uint64_t seed, std::vector<PointLight> points)
-    : scene_(scene), env_(env), lambda_(std::move(lambda)), points_(std::move(points)), bounces_(bounces),
+                               std::uint64_t seed, std::vector<PointLight> points, std::vector<DirectionalLight> suns)
+    : scene_(scene), env_(env), lambda_(std::move(lambda)), points_(std::move(points)), suns_(std::move(suns)),
+      bounces_(bounces),
       seed_(seed) {
   LP_CHECK(static_cast<int>(lambda_.size()) == 3 * env.size(), "lambda has " << lambda_.size() << " values for "
                                                                                << env.size() << " cells");
@@ -30,9 +31,14 @@ namespace {
 /// The point lights' irradiance / pi at `origin` (already off the surface) with shading
 /// normal `n`: a shadow ray each, light below the geometric horizon absorbed.
 Eigen::Vector3d PointLightsIncident(const RayTracer& scene, const std::vector<PointLight>& points,
-                                    const Eigen::Vector3d& origin, const Eigen::Vector3d& n,
-                                    const Eigen::Vector3d& geometric, std::uint64_t key) {
+                                    const std::vector<DirectionalLight>& suns, const Eigen::Vector3d& origin,
+                                    const Eigen::Vector3d& n, const Eigen::Vector3d& geometric, std::uint64_t key) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const DirectionalLight& l : suns) {
+    const double c = n.dot(l.direction);
+    if (c <= 0 || geometric.dot(l.direction) <= 0) continue;
+    sum += l.irradiance * (ConeVisibility(scene, origin, l.direction, l.angular_radius, key, 1) * c / kPi);
+  }
   for (const PointLight& l : points) {
     const Eigen::Vector3d r = l.position - origin;
     const double d = r.norm();
@@ -69,9 +75,9 @@ void VertexRadiance::Refine(int samples) {
         for (int bounce = 0; bounce < bounces_; ++bounce) {
           const NextEvent ne = SampleNextEvent(scene_, env_, *sampler_, n, geometric, origin, rng);
           if (ne.visible) sum_[v] += throughput.cwiseProduct(cell(ne.cell)) * ne.weight;
-          if (!points_.empty())
+          if (!points_.empty() || !suns_.empty())
             sum_[v] += throughput.cwiseProduct(PointLightsIncident(
-                scene_, points_, origin, n, geometric, (static_cast<std::uint64_t>(v) << 24) ^ (static_cast<std::uint64_t>(s) << 4) ^
+                scene_, points_, suns_, origin, n, geometric, (static_cast<std::uint64_t>(v) << 24) ^ (static_cast<std::uint64_t>(s) << 4) ^
                                                   static_cast<std::uint64_t>(bounce)));
           const double u1 = rng.Uniform(), u2 = rng.Uniform();
           const Eigen::Vector3d dir = SampleCosine(n, u1, u2);

@@ -12,6 +12,7 @@
 #include <Eigen/Core>
 
 #include "estimation/envmap.h"
+#include "estimation/directional_light.h"
 #include "estimation/point_light.h"
 #include "scene/ray_tracer.h"
 #include "scene/scene_bundle.h"
@@ -25,9 +26,10 @@ class VertexRadiance {
   /// `lambda`: 3 * env.size() linear radiances (the estimate); `bounces` >= 1 (1 = direct
   /// light only). `scene` must outlive this object and be built from the mesh whose
   /// vertices are shaded (its normals orient the hemispheres). `points`: the near lights,
-  /// in the same units as `lambda` (intensity / d^2 is an irradiance).
+  /// in the same units as `lambda` (intensity / d^2 is an irradiance); `suns`: the
+  /// directional lights (their irradiance in the same units).
   VertexRadiance(const RayTracer& scene, const EnvMap& env, std::vector<double> lambda, int bounces = 3,
-                 std::uint64_t seed = 1, std::vector<PointLight> points = {});
+                 std::uint64_t seed = 1, std::vector<PointLight> points = {}, std::vector<DirectionalLight> suns = {});
   ~VertexRadiance();
 
   /// Adds `samples` paths per vertex (parallel over vertices; deterministic per seed).
@@ -45,6 +47,7 @@ class VertexRadiance {
   const EnvMap& env_;
   std::vector<double> lambda_;
   std::vector<PointLight> points_;
+  std::vector<DirectionalLight> suns_;
   int bounces_;
   std::uint64_t seed_;
   int samples_ = 0;

@@ -158,7 +158,7 @@ void EstimateJob::RefineLit(const SceneBundle& scene, const EstimateResult& resu
     if (result.albedo.size() == mesh.positions.size()) mesh.albedo = result.albedo;  // refined
     const RayTracer tracer(std::move(mesh));
     VertexRadiance radiance(tracer, result.env, result.lambda, std::max(1, settings_.options.tracer.bounces), 1,
-                            result.point_lights);
+                            result.point_lights, result.directional_lights);
     const int target = settings_.lit_samples;
     int step = 2;
     // The error shading follows the radiance's noise down: recomputed at 2 samples, then

@@ -7,8 +7,10 @@
 // the estimate at 64 samples per pixel (the convergence log's fit is measured on the
 // transport's own few paths per pixel and carries their noise).
 // The far scenes (a sun and sky) come back with no point light.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <functional>
 
 #include <gtest/gtest.h>
 
@@ -100,6 +102,87 @@ TEST(LampRecovery, SunAndSkyComesBackWithoutAPointLight) {
   EXPECT_EQ(r.lambda, alone.lambda) << "with no lamp kept, the map is the map alone's";
   std::printf("sun-and-sky: dominant light %.2f deg off, fitted %.4f\n", r.final_angular_error_deg,
               r.final_relative_rmse);
+}
+
+/// The estimate's render of a view (map, lamps and directional lights on the same paths).
+ImageRGB Relight(const SceneBundle& bundle, const View& view, const EstimateResult& r) {
+  const RayTracer tracer(bundle.mesh);
+  TracerOptions t;
+  t.spp = 64;
+  t.seed = 4242;
+  const CellSampler sampler(r.env, r.lambda, {}, t.nee_floor);
+  return RenderLighting(tracer, r.env, r.lambda, sampler, r.point_lights, r.directional_lights, {view}, t, false)[0];
+}
+
+/// The relative RMSE of `render` against `image` over the image's edges (the 5 % of its
+/// pixels with the largest luminance step to a neighbour: here the shadows' edges and the
+/// room's corners), over the image's mean.
+double EdgeError(const ImageRGB& render, const ImageRGB& image) {
+  const auto lum = [](const ImageRGB& im, int u, int v) {
+    const float* p = im.at(u, v);
+    return 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+  };
+  std::vector<std::pair<double, int>> steps;
+  double mean = 0;
+  for (int y = 0; y + 1 < image.height; ++y)
+    for (int x = 0; x + 1 < image.width; ++x) {
+      const double l = lum(image, x, y);
+      steps.push_back({std::max(std::abs(lum(image, x + 1, y) - l), std::abs(lum(image, x, y + 1) - l)), y * image.width + x});
+      mean += l;
+    }
+  mean /= steps.size();
+  std::sort(steps.begin(), steps.end(), std::greater<>());
+  const std::size_t top = steps.size() / 20;
+  double sse = 0;
+  for (std::size_t i = 0; i < top; ++i) {
+    const int x = steps[i].second % image.width, y = steps[i].second / image.width;
+    const double d = lum(render, x, y) - lum(image, x, y);
+    sse += d * d;
+  }
+  return std::sqrt(sse / top) / mean;
+}
+
+// Issue 21: the sun (0.53 degrees, 10 km away) of sun-and-sky comes back as a directional
+// light where the map alone spreads it over ~20 cells: direction within 0.5 degrees,
+// irradiance within 5 %, the fitted view within 5 % and a held-out one within 8 % (rendered
+// at 64 spp), and the shadows' edges where the image has them: the error over the image's
+// sharpest 5 % of pixels (EdgeError) at most half the map alone's, whose sun smeared over
+// ~20 cells softens them. The sky (1/1000 of the sun's irradiance) is printed, not
+// asserted: at alpha 3 the activation penalty drops it (docs/method.md, known gaps).
+TEST(LampRecovery, TheSunComesBackAsADirectionalLight) {
+  SynthOptions so;
+  so.held_out_views = 1;
+  const SynthScene s = MakeSynth("sun-and-sky", so, "");
+  SceneBundle fit = s.bundle;
+  const View held_out = fit.views.at(1);
+  fit.views.resize(1);
+  EstimateOptions eo;
+  eo.render = false;
+  eo.directional_lights = true;
+  const EstimateResult r = Estimate(fit, eo);
+  ASSERT_EQ(r.directional_lights.size(), 1u);
+  EXPECT_TRUE(r.point_lights.empty());
+  const SphereLight& sun = s.lighting.lights.at(0);
+  const Eigen::Vector3d towards = (sun.position - s.lighting.center).normalized();
+  const double angle = std::acos(std::min(1.0, r.directional_lights[0].direction.dot(towards))) * 180 / kPi;
+  const double d2 = (sun.position - s.lighting.center).squaredNorm();
+  const Eigen::Vector3d irradiance = sun.rgb_power / (4 * kPi * d2);
+  const double fitted = RelativeImageRmse(Relight(fit, fit.views[0], r), fit.views[0].image, fit.views[0].valid);
+  const double held = RelativeImageRmse(Relight(fit, held_out, r), held_out.image, held_out.valid);
+  double sky = 0;
+  for (double v : r.lambda) sky += v;
+  eo.directional_lights = false;
+  const EstimateResult alone = Estimate(fit, eo);
+  const double edges = EdgeError(Relight(fit, fit.views[0], r), fit.views[0].image),
+               soft = EdgeError(Relight(fit, fit.views[0], alone), fit.views[0].image);
+  std::printf("sun-and-sky: sun %.3f deg off, irradiance %.4f vs %.4f, fitted %.4f, held-out %.4f; error on the "
+              "edges %.4f (the map alone %.4f); the map's sum %.3g\n",
+              angle, r.directional_lights[0].irradiance.x(), irradiance.x(), fitted, held, edges, soft, sky);
+  EXPECT_LT(angle, 0.5);
+  EXPECT_NEAR(r.directional_lights[0].irradiance.x() / irradiance.x(), 1.0, 0.05);
+  EXPECT_LT(fitted, 0.05);
+  EXPECT_LT(held, 0.08);
+  EXPECT_LT(edges, 0.5 * soft);
 }
 
 }  // namespace

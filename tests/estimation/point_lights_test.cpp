@@ -170,6 +170,37 @@ TEST(PointLights, ThePositionDerivativeMatchesCentralDifferences) {
   EXPECT_LT(worst, 2e-3 * scale) << "worst " << worst << " of " << scale;  // float columns: ~1e-4 measured
 }
 
+TEST(PointLights, TheDirectionDerivativeMatchesCentralDifferences) {
+  // A directional light's column against its direction moved on the sphere (towards + d,
+  // normalized): a plane and a ball, the light high enough that no shadow edge moves within h.
+  RayTracer scene(Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)));
+  const Camera cam = test::LookAt({1.5, -1.5, 1.5}, {0, 0, 0.1}, 24, 18, 50);
+  std::vector<View> views{test::BlankView(cam)};
+  TracerOptions o;
+  o.spp = 2;
+  o.bounces = 2;
+  const ShadingVertices v = GatherShadingVertices(scene, views, o);
+  const Eigen::Vector3d l = Eigen::Vector3d(0.3, 0.4, 1.0).normalized();
+  std::vector<float> col, jac, plus, minus;
+  DirectionalLightColumn(scene, v, l, &col, &jac);
+  const double h = 1e-4;
+  double worst = 0, scale = 0;
+  for (int a = 0; a < 3; ++a) {
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    d[a] = h;
+    DirectionalLightColumn(scene, v, (l + d).normalized(), &plus);
+    DirectionalLightColumn(scene, v, (l - d).normalized(), &minus);
+    for (std::size_t r = 0; r < v.rows(); ++r)
+      for (int c = 0; c < 3; ++c) {
+        const double fd = (double(plus[3 * r + c]) - minus[3 * r + c]) / (2 * h);
+        worst = std::max(worst, std::abs(fd - jac[9 * r + 3 * c + a]));
+        scale = std::max(scale, std::abs(fd));
+      }
+  }
+  EXPECT_GT(scale, 0);
+  EXPECT_LT(worst, 2e-2 * scale) << "worst " << worst << " of " << scale;
+}
+
 TEST(PointLights, RefinementFindsTheLampFromHalfAMetreAway) {
   // The lamp of a plane and a ball rendered by the forward model; the refinement starts
   // 0.5 m off with the wrong intensity and must come back (positions to 1 cm).
@@ -194,17 +225,36 @@ TEST(PointLights, RefinementFindsTheLampFromHalfAMetreAway) {
 }
 
 TEST(LightsFile, RoundTripsAndRefusesBadLights) {
-  const LightsFile in{"envmap.exr", {{{1, 2, 3}, {0.5, 0.25, 0}, 0.05}}};
+  const LightsFile in{"envmap.exr", {{{1, 2, 3}, {0.5, 0.25, 0}, 0.05}}, {}};
   const LightsFile out = ParseLightsJson(LightsJson(in), "lights.json");
   EXPECT_EQ(out.environment, "envmap.exr");
   ASSERT_EQ(out.point_lights.size(), 1u);
   EXPECT_EQ(out.point_lights[0].position, in.point_lights[0].position);
   EXPECT_EQ(out.point_lights[0].intensity, in.point_lights[0].intensity);
   EXPECT_EQ(out.point_lights[0].radius, 0.05);
-  // Unknown keys are ignored; no environment and no lights is an empty lighting.
-  const LightsFile empty = ParseLightsJson(R"({"point_lights": [], "directional_lights": []})", "x");
+  EXPECT_TRUE(out.directional_lights.empty());
+  EXPECT_NE(LightsJson(in).find("\"directional_lights\": []"), std::string::npos);  // always present
+  // Directional lights: the direction is normalized, the rest kept.
+  LightsFile sun;
+  sun.directional_lights.push_back({{0, 3, 4}, {2, 1.5, 1}, 0.0046});
+  const LightsFile back = ParseLightsJson(LightsJson(sun), "lights.json");
+  ASSERT_EQ(back.directional_lights.size(), 1u);
+  EXPECT_TRUE(back.directional_lights[0].direction.isApprox(Eigen::Vector3d(0, 0.6, 0.8), 1e-15));
+  EXPECT_EQ(back.directional_lights[0].irradiance, Eigen::Vector3d(2, 1.5, 1));
+  EXPECT_EQ(back.directional_lights[0].angular_radius, 0.0046);
+  EXPECT_TRUE(back.point_lights.empty());
+  // Unknown keys are ignored; no environment and no lights is an empty lighting, and a file
+  // from before directional lights has none.
+  const LightsFile empty = ParseLightsJson(R"({"point_lights": [], "directional_lights": [], "x": 1})", "x");
   EXPECT_TRUE(empty.environment.empty());
   EXPECT_TRUE(empty.point_lights.empty());
+  EXPECT_TRUE(ParseLightsJson(R"({"point_lights": []})", "x").directional_lights.empty());
+  for (const char* bad : {R"({"directional_lights": [{"direction": [0, 0, 0], "irradiance": [1, 1, 1]}]})",
+                          R"({"directional_lights": [{"direction": [0, 0, 1], "irradiance": [1, -1, 1]}]})",
+                          R"({"directional_lights": [{"direction": [0, 0, 1]}]})", R"({"directional_lights": 3})",
+                          R"({"directional_lights": [{"direction": [0, 0, 1], "irradiance": [1, 1, 1], "angular_radius": 2}]})",
+                          R"({"directional_lights": [{"direction": [0, 1e308, 1e308], "irradiance": [1, 1, 1]}]})"})
+    EXPECT_THROW(ParseLightsJson(bad, "x"), InputError) << bad;
   for (const char* bad : {R"({"point_lights": [{"position": [0, 0], "intensity": [1, 1, 1]}]})",
                           R"({"point_lights": [{"position": [0, 0, 0], "intensity": [1, -1, 1]}]})",
                           R"({"point_lights": [{"intensity": [1, 1, 1]}]})", R"({"point_lights": {}})",
