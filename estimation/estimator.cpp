@@ -291,15 +291,16 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   info->trace_seconds = ts.Seconds();
   info->nonzeros = static_cast<std::int64_t>(rp.problem->col.size());
   const LinearProblem& problem = *rp.problem;
-  info->unknown_cells = problem.unknown_cells;
+  info->unknown_cells = static_cast<int>(  // the map's (the lights' columns are unknowns too)
+      std::count_if(problem.cell_of.begin(), problem.cell_of.end(), [&](int j) { return j < cells_; }));
   // Cells no sampled path reached are not unknowns, and are not sampled again.
   std::fill(reachable_.begin(), reachable_.end(), 0);
   for (int j : problem.cell_of)
     if (j < cells_) reachable_[j] = 1;
   Progress(Fmt("round %.0f: traced in %.2f s, %.0f unknown cells of ", round, info->trace_seconds,
-               problem.unknown_cells) +
+               info->unknown_cells) +
            std::to_string(cells_) + ", " + std::to_string(A_.nonzeros()) + " non-zeros");
-  if (problem.unknown_cells == 0)
+  if (info->unknown_cells == 0)
     throw InputError(SceneFile(), "no sampled path reaches the environment (camera inside closed geometry?)");
   rp.init.resize(3 * problem.unknown_cells);
   for (int k = 0; k < problem.unknown_cells; ++k) {
@@ -947,9 +948,10 @@ bool Estimator::FitDirectionalLight(RoundInfo* info) {
   if (!suns_.empty()) {
     sun = suns_[0];
     base = Plus(A_.Multiply(lambda_), LightsRender(points_, {}));
-    SearchDirectionalLight(fit, &sun, 1, 0.05, log);
-    suns_ = {sun};
-    SolveWithLights(&points_, info, false);
+    if (SearchDirectionalLight(fit, &sun, 1, 0.05, log) > 0) {  // it moved: solve again
+      suns_ = {sun};
+      SolveWithLights(&points_, info, false);
+    }
   }
   return true;
 }
@@ -1093,7 +1095,7 @@ void Estimator::Conclude() {
         WorstPositionError(res_.point_lights, truth_, centre_, opt_.point_lights.far * radius_,
                            &res_.final_position_error_share);
   }
-  res_.dominant = DominantDirections(env_, res_.lambda, 2);
+  res_.dominant = DominantDirections(env_, res_.lambda, res_.directional_lights, 2);
   // A fit that renders (almost) nothing is the activation penalty winning over data it no
   // longer hears: a Cauchy scale far below the residuals makes every pixel an outlier.
   if (res_.rendered_fraction < 0.01) {

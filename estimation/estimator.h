@@ -72,9 +72,8 @@ struct EstimateOptions {
   /// neighbourhood holds at least directional_min_share of the map's power and renders at
   /// least PointLightOptions::min_share of the light seen, kept when the held-out pixels
   /// want it (as a point light: PointLightOptions::holdout, min_gain). Needs the near-light
-  /// model's shading vertices (point_lights.max_lights > 0). Off by default until the
-  /// stability suite's measures count a directional light's power as the map's (issue 21).
-  bool directional_lights = false;
+  /// model's shading vertices (point_lights.max_lights > 0).
+  bool directional_lights = true;
   double directional_min_share = 0.25;
   /// Albedo refinement (intrinsic decomposition, scene/albedo.h), when the mesh has
   /// `shaded` colours (a reconstruction; a bundle with known albedo needs none): after the
@@ -130,8 +129,9 @@ struct ConvergenceRow {
   /// dark: each light it adds starts a new descent) or "sun" (a directional light's
   /// refinement, the map without its cells and the lamps held). The objective is the same function
   /// in all (the Cauchy loss and every penalty); it never rises from one row to the next
-  /// within a round except where a search starts or adds a light, or where the number of
-  /// point lights changes (a light dropped: the model changed).
+  /// within a round except where a search starts or adds a light, where the number of
+  /// point lights changes (a light dropped: the model changed), and at a directional
+  /// light's rows ("sun", which leave the map's penalty out) and the solve after them.
   const char* step = "solve";
 };
 
@@ -177,7 +177,7 @@ struct EstimateResult {
   double final_angular_error_deg = std::nan("");
   double kkt_violation = 0;
   bool objective_increased = false;
-  std::vector<Eigen::Vector3d> dominant;
+  std::vector<Eigen::Vector3d> dominant;  ///< the strongest light directions (map and directional lights)
   /// The near part of the lighting (image units), strongest first.
   std::vector<PointLight> point_lights;
   /// The sharp far part (a sun), strongest first; its cells of the map are empty.

@@ -116,6 +116,26 @@ std::vector<Eigen::Vector3d> DominantDirections(const EnvMap& env, const std::ve
   return out;
 }
 
+std::vector<Eigen::Vector3d> DominantDirections(const EnvMap& env, const std::vector<double>& lambda,
+                                                const std::vector<DirectionalLight>& suns, int count) {
+  if (suns.empty()) return DominantDirections(env, lambda, count);
+  std::vector<std::pair<double, Eigen::Vector3d>> lights;
+  const double near = std::cos(30 * 3.14159265358979323846 / 180);
+  for (const Eigen::Vector3d& d : DominantDirections(env, lambda, count)) {
+    double e = 0;
+    for (int j = 0; j < env.size(); ++j)
+      if (env.direction(j).dot(d) > near)
+        e += std::max(0.0, Luminance(lambda[3 * j], lambda[3 * j + 1], lambda[3 * j + 2])) * env.solid_angle(j);
+    lights.emplace_back(e, d);
+  }
+  for (const DirectionalLight& s : suns)
+    lights.emplace_back(Luminance(s.irradiance.x(), s.irradiance.y(), s.irradiance.z()), s.direction);
+  std::stable_sort(lights.begin(), lights.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<Eigen::Vector3d> out;
+  for (int k = 0; k < std::min<int>(count, static_cast<int>(lights.size())); ++k) out.push_back(lights[k].second);
+  return out;
+}
+
 double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lambda,
                                const std::vector<TruthLight>& truth) {
   if (truth.empty()) return std::nan("");

@@ -44,6 +44,12 @@ void CentreTruthLights(std::vector<TruthLight>* truth, const Eigen::Vector3d& ce
 std::vector<Eigen::Vector3d> DominantDirections(const EnvMap& env, const std::vector<double>& lambda, int count,
                                                 double separation_deg = 30);
 
+/// The same with directional lights beside the map: the map's dominant directions (each
+/// weighted by the luminance power within 30 degrees of it) and the lights' (weighted by
+/// their irradiance's luminance), strongest first, at most `count`.
+std::vector<Eigen::Vector3d> DominantDirections(const EnvMap& env, const std::vector<double>& lambda,
+                                                const std::vector<DirectionalLight>& suns, int count);
+
 /// Mean angle (degrees) between each truth light (the strongest min(k, 2) with a
 /// direction) and the nearest of the estimate's dominant directions.
 double DominantAngularErrorDeg(const EnvMap& env, const std::vector<double>& lambda,

@@ -96,6 +96,7 @@ EstimateOptions EstimateJob::Callbacks() {
       s.lambda = info.lambda;
       s.dominant = dominant;
       s.point_lights = info.point_lights;
+      s.directional_lights = info.directional_lights;
       ++s.version;
       s.progress = static_cast<double>(info.round) / (max_rounds + 1);
       if (std::isnan(s.seconds_to_first)) s.seconds_to_first = t;
@@ -141,6 +142,7 @@ void EstimateJob::Run(SceneSource source) {
     s.result = result;
     s.lambda = result->lambda;
     s.point_lights = result->point_lights;
+    s.directional_lights = result->directional_lights;
     s.dominant = result->dominant;
     if (!s.env) s.env = std::make_shared<const EnvMap>(result->env);
     ++s.version;

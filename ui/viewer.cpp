@@ -554,6 +554,12 @@ void Viewer::PanelEstimate() {
                   l.intensity.x(), l.intensity.y(), l.intensity.z());
     }
   }
+  for (std::size_t k = 0; k < est_.directional_lights.size(); ++k) {
+    const DirectionalLight& l = est_.directional_lights[k];
+    if (k == 0) ImGui::Text("sun (directional light), towards it in the world frame:");
+    ImGui::Text("(%.3f, %.3f, %.3f)  E %.3g %.3g %.3g", l.direction.x(), l.direction.y(), l.direction.z(),
+                l.irradiance.x(), l.irradiance.y(), l.irradiance.z());
+  }
   if (!est_.export_message.empty()) ImGui::TextWrapped("%s", est_.export_message.c_str());
   if (ImGui::CollapsingHeader("Settings")) {
     ImGui::SliderInt("rings", &settings_.rings, 5, 41);

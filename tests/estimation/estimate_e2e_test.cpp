@@ -114,6 +114,14 @@ TEST(EstimateEndToEnd, ImageScaledBy1000ScalesTheEstimate) {
     num += std::pow(r2.lambda[i] - 1000 * r1.lambda[i], 2);
     den += std::pow(1000 * r1.lambda[i], 2);
   }
+  // The lights beside the map scale too (a sun, when one is taken), and nothing else changes.
+  ASSERT_EQ(r1.directional_lights.size(), r2.directional_lights.size());
+  for (std::size_t k = 0; k < r1.directional_lights.size(); ++k) {
+    num += (r2.directional_lights[k].irradiance - 1000 * r1.directional_lights[k].irradiance).squaredNorm();
+    den += (1000 * r1.directional_lights[k].irradiance).squaredNorm();
+    EXPECT_LT(AngleDeg(r1.directional_lights[k].direction, r2.directional_lights[k].direction), 1e-6);
+  }
+  ASSERT_GT(den, 0);
   EXPECT_LT(std::sqrt(num / den), 1e-6);
 }
 

@@ -95,6 +95,7 @@ TEST(LampRecovery, SunAndSkyComesBackWithoutAPointLight) {
   const SynthScene s = MakeSynth("sun-and-sky", so, "");
   EstimateOptions eo;
   eo.render = false;
+  eo.directional_lights = false;  // the lamp search alone: it must leave the map as it was
   const EstimateResult r = Estimate(s.bundle, eo);
   EXPECT_TRUE(r.point_lights.empty());
   eo.point_lights.max_lights = 0;
@@ -158,8 +159,7 @@ TEST(LampRecovery, TheSunComesBackAsADirectionalLight) {
   fit.views.resize(1);
   EstimateOptions eo;
   eo.render = false;
-  eo.directional_lights = true;
-  const EstimateResult r = Estimate(fit, eo);
+  const EstimateResult r = Estimate(fit, eo);  // directional lights are on by default
   ASSERT_EQ(r.directional_lights.size(), 1u);
   EXPECT_TRUE(r.point_lights.empty());
   const SphereLight& sun = s.lighting.lights.at(0);

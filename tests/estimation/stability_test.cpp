@@ -34,8 +34,10 @@ void ExpectHealthy(const EstimateResult& r) {
     // descent, and a light dropped (far, or not earning its place) changes the model: the
     // objective falls within every other step and from step to step.
     // After the search the map's first solve steps the Cauchy scale down again (graduated).
+    // A directional light's refinement ("sun") leaves the map's penalty out, so its rows
+    // and the solve after them start new descents too.
     if (a.round == b.round && std::string(b.step) != "search" && a.point_lights == b.point_lights &&
-        a.sigma == b.sigma) {
+        a.sigma == b.sigma && std::string(a.step) != "sun" && std::string(b.step) != "sun") {
       EXPECT_LE(b.objective, a.objective * (1 + 1e-12)) << "round " << b.round << " it " << b.iteration;
     }
   }
@@ -100,7 +102,17 @@ double PowerNear(const EnvMap& env, const std::vector<double>& lambda, const Eig
   return p;
 }
 
-double TotalPower(const EnvMap& env, const std::vector<double>& lambda) { return PowerNear(env, lambda, {0, 0, 1}, 181); }
+/// The same for an estimate: its map's and its directional lights' within `deg` of `d` (a
+/// directional light's irradiance on a surface facing it is the power of the cells it
+/// stands for).
+double PowerNear(const EstimateResult& r, const Eigen::Vector3d& d, double deg) {
+  double p = PowerNear(r.env, r.lambda, d, deg);
+  for (const DirectionalLight& sun : r.directional_lights)
+    if (AngleDeg(sun.direction, d) <= deg) p += Luminance(sun.irradiance.x(), sun.irradiance.y(), sun.irradiance.z());
+  return p;
+}
+
+double TotalPower(const EstimateResult& r) { return PowerNear(r, {0, 0, 1}, 181); }
 
 /// The estimate's dominant light is at `d`, not in a neighbouring cell of `grid` (the map
 /// the truth was made on): within `cells` of its ring spacing (a neighbour is one spacing
@@ -122,7 +134,7 @@ TEST(Stability, LightsOneMillionApart) {
   ExpectHealthy(r);
   // The strong light is where it is, with its power (the weak one is 1e-6 of the image: noise).
   const double truth = 1e3 * env.solid_angle(strong);
-  EXPECT_NEAR(PowerNear(r.env, r.lambda, env.direction(strong), 45) / truth, 1.0, 0.1);
+  EXPECT_NEAR(PowerNear(r, env.direction(strong), 45) / truth, 1.0, 0.1);
   ExpectLightAt(r, env, env.direction(strong));
   EXPECT_LT(r.final_relative_rmse, 0.3);  // Monte Carlo noise of A at 32 spp and of the image
 }
@@ -145,7 +157,7 @@ TEST(Stability, SunAndA1000TimesDimmerSky) {
   const Eigen::Vector3d d = (sun.position - s.lighting.center).normalized();
   const double omega = 2 * M_PI * (1 - std::sqrt(1 - std::pow(sun.radius / (sun.position - s.lighting.center).norm(), 2)));
   const Eigen::Vector3d L = sun.Radiance();
-  EXPECT_NEAR(PowerNear(r.env, r.lambda, d, 45) / (Luminance(L.x(), L.y(), L.z()) * omega), 1.0, 0.3);
+  EXPECT_NEAR(PowerNear(r, d, 45) / (Luminance(L.x(), L.y(), L.z()) * omega), 1.0, 0.3);
   ExpectLightAt(r, r.env, d);
 }
 
@@ -165,7 +177,7 @@ TEST_P(Albedo, KnownLightComesBack) {
   eo.tracer.spp = 32;
   const EstimateResult r = Estimate(b, eo);
   ExpectHealthy(r);
-  EXPECT_NEAR(PowerNear(r.env, r.lambda, env.direction(j), 45) / (2.0 * env.solid_angle(j)), 1.0, 0.15);
+  EXPECT_NEAR(PowerNear(r, env.direction(j), 45) / (2.0 * env.solid_angle(j)), 1.0, 0.15);
   ExpectLightAt(r, env, env.direction(j));
   EXPECT_LT(r.final_relative_rmse, 0.5);
 }
@@ -190,7 +202,7 @@ TEST(Stability, LightsNoObservedPointCanSeeAreLeftOutOrZero) {
     if (r.left_out[k]) {
       EXPECT_EQ(r.lambda[3 * k] + r.lambda[3 * k + 1] + r.lambda[3 * k + 2], 0.0);
     }
-  EXPECT_NEAR(PowerNear(r.env, r.lambda, env.direction(above), 45) / (2.0 * env.solid_angle(above)), 1.0, 0.2);
+  EXPECT_NEAR(PowerNear(r, env.direction(above), 45) / (2.0 * env.solid_angle(above)), 1.0, 0.2);
   ExpectLightAt(r, env, env.direction(above));
 }
 
@@ -208,7 +220,7 @@ TEST(Stability, SixtyOneRingsWithFourSamplesPerPixel) {
   // (with a per-cell penalty this case fitted nothing: relative RMSE 0.95).
   EXPECT_LT(r.final_relative_rmse, 0.3);
   const int j = CellAt(coarse, 30, 50);
-  EXPECT_NEAR(PowerNear(r.env, r.lambda, coarse.direction(j), 45) / (2.0 * coarse.solid_angle(j)), 1.0, 0.4);
+  EXPECT_NEAR(PowerNear(r, coarse.direction(j), 45) / (2.0 * coarse.solid_angle(j)), 1.0, 0.4);
   // 4 samples per pixel over 1,000 small cells: 13.6 degrees measured (a neighbour of the
   // 9-ring truth is 22.5 degrees away).
   ExpectLightAt(r, coarse, coarse.direction(j), 0.75);
@@ -295,10 +307,10 @@ TEST_P(ObjectiveParamsExtreme, StaysHealthy) {
   eo.objective.sigma = pc.sigma;
   const EstimateResult r = Estimate(b, eo);
   ExpectHealthy(r);
-  const double ratio = PowerNear(r.env, r.lambda, env.direction(j), 45) / (2.0 * env.solid_angle(j));
+  const double ratio = PowerNear(r, env.direction(j), 45) / (2.0 * env.solid_angle(j));
   if (pc.alpha * pc.beta > 1e9) {
     // The penalty outweighs any data: nothing is lit, and the result says so.
-    EXPECT_EQ(TotalPower(r.env, r.lambda), 0.0);
+    EXPECT_EQ(TotalPower(r), 0.0);
     EXPECT_LT(r.rendered_fraction, 0.01);
     ASSERT_EQ(r.warnings.size(), 1u);
     EXPECT_EQ(r.warnings[0].rfind("the estimate lights nothing", 0), 0u) << r.warnings[0];
@@ -310,7 +322,7 @@ TEST_P(ObjectiveParamsExtreme, StaysHealthy) {
     EXPECT_TRUE(r.warnings.empty()) << pc.name;
   }
   // Whatever the parameters, a dark result is never silent.
-  if (TotalPower(r.env, r.lambda) == 0.0) {
+  if (TotalPower(r) == 0.0) {
     EXPECT_FALSE(r.warnings.empty()) << pc.name;
   }
 }
@@ -339,8 +351,8 @@ TEST_P(SmallSigma, ColdStartStillFindsTheLight) {
   eo.point_lights.max_lights = 0;  // the map's cold start (see the case above)
   const EstimateResult r = Estimate(b, eo);
   ExpectHealthy(r);
-  EXPECT_NEAR(PowerNear(r.env, r.lambda, env.direction(j), 45) / (2.0 * env.solid_angle(j)), 1.0, 0.15);
-  EXPECT_GT(PowerNear(r.env, r.lambda, env.direction(j), 45), 0.8 * TotalPower(r.env, r.lambda));
+  EXPECT_NEAR(PowerNear(r, env.direction(j), 45) / (2.0 * env.solid_angle(j)), 1.0, 0.15);
+  EXPECT_GT(PowerNear(r, env.direction(j), 45), 0.8 * TotalPower(r));
   ExpectLightAt(r, env, env.direction(j));
   EXPECT_TRUE(r.warnings.empty());
   // Round 1's log runs through the scales without restarting its iteration count.
@@ -383,7 +395,7 @@ TEST(Stability, SceneInMillimetresGivesTheSameLighting) {
   for (View& v : b.views) v.camera.world_from_camera.block<3, 1>(0, 3) *= 1000.0;
   const EstimateResult mm = Estimate(b, Small());
   ExpectHealthy(mm);
-  EXPECT_NEAR(PowerNear(mm.env, mm.lambda, env.direction(j), 45) / PowerNear(m.env, m.lambda, env.direction(j), 45),
+  EXPECT_NEAR(PowerNear(mm, env.direction(j), 45) / PowerNear(m, env.direction(j), 45),
               1.0, 0.02);
   EXPECT_NEAR(mm.final_relative_rmse, m.final_relative_rmse, 0.01);
 }
@@ -416,7 +428,7 @@ TEST(Stability, DegenerateAndDuplicateTrianglesAndFlippedNormals) {
   EXPECT_EQ(SanitizeMesh(&dup.mesh, "dup"), 2);
   const EstimateResult d = Estimate(dup, Small());
   ExpectHealthy(d);
-  EXPECT_NEAR(PowerNear(d.env, d.lambda, env.direction(j), 45) / PowerNear(base.env, base.lambda, env.direction(j), 45),
+  EXPECT_NEAR(PowerNear(d, env.direction(j), 45) / PowerNear(base, env.direction(j), 45),
               1.0, 0.05);
 }
 
