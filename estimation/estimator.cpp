@@ -57,8 +57,9 @@ struct RoundProblem {
   /// The point-light columns' positions (the lights so far, or candidates).
   std::vector<Eigen::Vector3d> positions;
   std::vector<double> radii;  ///< theirs (0: a point), one per position
-  /// The directional lights' columns' directions, after the point lights'.
+  /// The directional lights' columns' directions (and angular radii), after the point lights'.
   std::vector<Eigen::Vector3d> directions;
+  std::vector<double> angular_radii;
 
   /// The unknowns over every column (3 per column): the map's cells, then `positions`,
   /// then `directions`.
@@ -83,7 +84,7 @@ struct RoundProblem {
     std::vector<DirectionalLight> out;
     for (std::size_t i = 0; i < directions.size(); ++i) {
       const double* v = &full[3 * (cells + positions.size() + i)];
-      if (v[0] > 0 || v[1] > 0 || v[2] > 0) out.push_back({directions[i], Eigen::Vector3d(v[0], v[1], v[2]), 0.0});
+      if (v[0] > 0 || v[1] > 0 || v[2] > 0) out.push_back({directions[i], Eigen::Vector3d(v[0], v[1], v[2]), angular_radii[i]});
     }
     return out;
   }
@@ -143,6 +144,7 @@ class Estimator {
   /// A directional light (unit direction towards it, irradiance on a surface facing it).
   struct DirectionalStandIn {
     Eigen::Vector3d direction, irradiance;
+    double angular_radius = 0;
   };
   double HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalStandIn* directional = nullptr);
   double RenderedShare(const PointLight& light);
@@ -359,8 +361,9 @@ std::vector<std::vector<float>> Estimator::PointColumns(int round, int first, Ro
   }
   for (const DirectionalLight& d : suns_) {
     rp->directions.push_back(d.direction);
+    rp->angular_radii.push_back(d.angular_radius);
     columns.emplace_back();
-    DirectionalLightColumn(*scene_, vertices_, d.direction, &columns.back());
+    DirectionalLightColumn(*scene_, vertices_, d.direction, &columns.back(), nullptr, d.angular_radius);
   }
   return columns;
 }
@@ -727,8 +730,9 @@ void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info
   }
   for (const DirectionalLight& d : suns_) {  // held in the solve with the rest
     rp.directions.push_back(d.direction);
+    rp.angular_radii.push_back(d.angular_radius);
     columns.emplace_back();
-    DirectionalLightColumn(*scene_, vertices_, d.direction, &columns.back());
+    DirectionalLightColumn(*scene_, vertices_, d.direction, &columns.back(), nullptr, d.angular_radius);
   }
   rp.problem = std::make_shared<LinearProblem>(WithColumns(*map_problem_, cells_, columns));
   const LinearProblem& problem = *rp.problem;
@@ -841,7 +845,7 @@ std::vector<double> Estimator::LightsRender(const std::vector<PointLight>& point
     for (std::size_t e = 0; e < out.size(); ++e) out[e] += l.intensity[e % 3] * col[e];
   }
   for (const DirectionalLight& d : suns) {
-    DirectionalLightColumn(*scene_, vertices_, d.direction, &col);
+    DirectionalLightColumn(*scene_, vertices_, d.direction, &col, nullptr, d.angular_radius);
     for (std::size_t e = 0; e < out.size(); ++e) out[e] += d.irradiance[e % 3] * col[e];
   }
   return out;
@@ -894,10 +898,17 @@ bool Estimator::FitDirectionalLight(RoundInfo* info) {
     for (std::size_t e = 0; e < render.size(); ++e) rendered += render[e], seen += y_[e];
     if (!(rendered >= opt_.point_lights.min_share * seen)) return false;
   }
-  // First the light alone (with the lamps): the rest of the map still holds part of the
-  // light it spread (the cells under it hold 30-40 % of a sun's), and held fixed that
-  // smear pulls the direction towards itself.
-  std::vector<double> base = LightsRender(points_, {});
+  // First against the map without the cells within kSunClear of the light (and the
+  // lamps): the cells next to the light's own still hold much of the light the map spread
+  // (those within 2.5 spacings hold 30-40 % of a sun's), and held fixed that smear pulls the
+  // direction towards itself (13 degrees on sun-and-sky); a map left dark instead makes the
+  // light explain every other light too (14 degrees on two-light).
+  constexpr double kSunClear = 35;  // degrees
+  std::vector<double> cleared = lambda_;
+  for (int j = 0; j < cells_; ++j)
+    if (env_.direction(j).dot(sun.direction) > std::cos(kSunClear * kPi / 180))
+      std::fill(&cleared[3 * j], &cleared[3 * j] + 3, 0.0);
+  std::vector<double> base = Plus(A_.Multiply(cleared), LightsRender(points_, {}));
   const PointFitProblem fit = FitProblem(&base);
   const double rows = static_cast<double>(y_.size());
   const auto log = [&](int, double E, double sse, const DirectionalLight& now) {
@@ -919,22 +930,40 @@ bool Estimator::FitDirectionalLight(RoundInfo* info) {
     if (opt_.on_convergence) opt_.on_convergence(row);
     CheckCancel();
   };
+  // The angular radius (soft shadows: a wide far light) before the search too, or a wide
+  // light's direction is sought by shadow edges it does not have.
   RefineDirectionalLight(fit, &sun, 12, log);
+  FitAngularRadius(fit, &sun);
   SearchDirectionalLight(fit, &sun, 2, 0.05, log);
+  FitAngularRadius(fit, &sun);
+  // A light at least as wide as the widest radius tried is the map's: the cells render a
+  // light that wide as well as a disc does, and its direction is poorly held by its soft
+  // shadows (one-light's and two-light's 5.7-degree lights come back 2-7 degrees off this
+  // way, against 0.8-5 in the map; the albedo refinement de-lit worse under them).
+  if (sun.angular_radius >= kMaxAngularRadiusDeg * kPi / 180 * 0.999) {
+    char line[300];
+    std::snprintf(line, sizeof line,
+                  "directional light from (%.4f, %.4f, %.4f): at least %.3g deg wide: a wide far light, left to "
+                  "the map",
+                  sun.direction.x(), sun.direction.y(), sun.direction.z(), kMaxAngularRadiusDeg);
+    res_.point_light_choices.push_back(line);
+    Progress(line);
+    return false;
+  }
   // Model selection: the held-out loss of the map (its cells under the light emptied) with
   // the light, against the map as it is.
   const double without_loss = HoldoutLoss(points_);
   const std::vector<double> map = lambda_;
   lambda_ = without;
-  DirectionalStandIn stand_in{sun.direction, sun.irradiance};
+  DirectionalStandIn stand_in{sun.direction, sun.irradiance, sun.angular_radius};
   const double with_loss = HoldoutLoss(points_, &stand_in);
   const bool keep = with_loss < (1 - opt_.point_lights.min_gain) * without_loss;
   char line[400];
   std::snprintf(line, sizeof line,
-                "directional light from (%.4f, %.4f, %.4f) in place of %zu cells holding %.3g of the map's power: "
-                "held-out loss %.6g with it, %.6g with the cells: %s",
-                sun.direction.x(), sun.direction.y(), sun.direction.z(), cells.size(), share, with_loss, without_loss,
-                keep ? "kept" : "dropped");
+                "directional light from (%.4f, %.4f, %.4f), angular radius %.3g deg, in place of %zu cells holding "
+                "%.3g of the map's power: held-out loss %.6g with it, %.6g with the cells: %s",
+                sun.direction.x(), sun.direction.y(), sun.direction.z(), sun.angular_radius * 180 / kPi, cells.size(),
+                share, with_loss, without_loss, keep ? "kept" : "dropped");
   res_.point_light_choices.push_back(line);
   Progress(line);
   if (!keep) {
@@ -988,7 +1017,8 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
     columns[k] = Column(lights[k].position, lights[k].radius);
   if (directional) {
     columns.emplace_back();
-    DirectionalLightColumn(*scene_, vertices_, directional->direction, &columns.back());
+    DirectionalLightColumn(*scene_, vertices_, directional->direction, &columns.back(), nullptr,
+                           directional->angular_radius);
   }
   std::vector<double> y_fit, y_held;
   for (std::size_t r = 0; r < holdout_.size(); ++r)

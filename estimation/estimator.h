@@ -72,8 +72,10 @@ struct EstimateOptions {
   /// neighbourhood holds at least directional_min_share of the map's power and renders at
   /// least PointLightOptions::min_share of the light seen, kept when the held-out pixels
   /// want it (as a point light: PointLightOptions::holdout, min_gain). Needs the near-light
-  /// model's shading vertices (point_lights.max_lights > 0).
-  bool directional_lights = true;
+  /// model's shading vertices (point_lights.max_lights > 0). Off by default: on the
+  /// stability suite's room lit by one 22-degree cell it takes a sharp light that explains
+  /// the held-out pixels better but de-lights the albedo worse (docs/method.md).
+  bool directional_lights = false;
   double directional_min_share = 0.25;
   /// Albedo refinement (intrinsic decomposition, scene/albedo.h), when the mesh has
   /// `shaded` colours (a reconstruction; a bundle with known albedo needs none): after the

@@ -225,7 +225,7 @@ void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Ei
 }
 
 void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& towards,
-                            std::vector<float>* out, std::vector<float>* jacobian) {
+                            std::vector<float>* out, std::vector<float>* jacobian, double angular_radius) {
   const Eigen::Vector3d l = towards.normalized();
   out->assign(3 * v.rows(), 0.0f);
   if (jacobian) jacobian->assign(9 * v.rows(), 0.0f);
@@ -236,8 +236,11 @@ void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& v, co
       for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
         const Eigen::Vector3d n = v.normal[k].cast<double>();
         const double cn = n.dot(l), cg = v.geometric[k].cast<double>().dot(l);
-        if (!(cn > 0 && cg > 0) || scene.Occluded(v.position[k].cast<double>(), l)) continue;
-        const Eigen::Vector3d w = v.weight[k].cast<double>();
+        if (!(cn > 0 && cg > 0)) continue;
+        const double seen =
+            ConeVisibility(scene, v.position[k].cast<double>(), l, angular_radius, static_cast<std::uint64_t>(k));
+        if (seen == 0) continue;
+        const Eigen::Vector3d w = v.weight[k].cast<double>() * seen;
         sum += w * cn;
         if (jacobian) jac += w * (n - cn * l).transpose();  // d cos / d l on the unit sphere
       }
@@ -450,7 +453,7 @@ namespace {
 /// Residuals y - base - E c(l) of one directional light, its column and Jacobian.
 std::vector<double> DirectionalResidual(const PointFitProblem& p, const DirectionalLight& light, std::vector<float>* col,
                                         std::vector<float>* jac) {
-  DirectionalLightColumn(*p.scene, *p.vertices, light.direction, col, jac);
+  DirectionalLightColumn(*p.scene, *p.vertices, light.direction, col, jac, light.angular_radius);
   std::vector<double> r(p.y->size());
   for (std::size_t i = 0; i < r.size(); ++i) r[i] = (*p.y)[i] - (*p.base)[i] - light.irradiance[i % 3] * (*col)[i];
   return r;
@@ -528,34 +531,42 @@ int RefineDirectionalLight(const PointFitProblem& p, DirectionalLight* light, in
   return it;
 }
 
+namespace {
+
+/// A directional light's energy (Cauchy loss and penalty) at its direction and angular
+/// radius, its irradiance refitted there by reweighted least squares (4 passes); `sse`
+/// receives the sum of squared residuals.
+double DirectionalEnergy(const PointFitProblem& p, DirectionalLight* l, double* sse) {
+  const double s2 = p.sigma * p.sigma;
+  std::vector<float> col;
+  DirectionalLightColumn(*p.scene, *p.vertices, l->direction, &col, nullptr, l->angular_radius);
+  std::vector<double> left(col.size()), w(col.size(), 1.0);
+  for (std::size_t i = 0; i < col.size(); ++i) left[i] = (*p.y)[i] - (*p.base)[i];
+  for (int it = 0; it < 4; ++it) {
+    Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < col.size(); ++i) {
+      const double r = left[i] - l->irradiance[i % 3] * col[i];
+      w[i] = 1 / (1 + r * r / s2);
+      num[i % 3] += w[i] * col[i] * left[i];
+      den[i % 3] += w[i] * double(col[i]) * col[i];
+    }
+    for (int c = 0; c < 3; ++c) l->irradiance[c] = den[c] > 0 ? std::max(0.0, num[c] / den[c]) : 0.0;
+  }
+  std::vector<double> r(col.size());
+  *sse = 0;
+  for (std::size_t i = 0; i < col.size(); ++i) {
+    r[i] = left[i] - l->irradiance[i % 3] * col[i];
+    *sse += r[i] * r[i];
+  }
+  return CauchyLoss(r, p.sigma) + p.alpha * std::log1p(p.beta * std::max(0.0, l->irradiance.sum()));
+}
+
+}  // namespace
+
 int SearchDirectionalLight(const PointFitProblem& p, DirectionalLight* light, double start_deg, double stop_deg,
                            const std::function<void(int, double, double, const DirectionalLight&)>& log) {
   constexpr double kDeg = 3.14159265358979323846 / 180;
-  const double s2 = p.sigma * p.sigma;
-  // The energy at a direction, its irradiance refitted by reweighted least squares.
-  const auto evaluate = [&](DirectionalLight* l, double* sse) {
-    std::vector<float> col;
-    DirectionalLightColumn(*p.scene, *p.vertices, l->direction, &col);
-    std::vector<double> left(col.size()), w(col.size(), 1.0);
-    for (std::size_t i = 0; i < col.size(); ++i) left[i] = (*p.y)[i] - (*p.base)[i];
-    for (int it = 0; it < 4; ++it) {
-      Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
-      for (std::size_t i = 0; i < col.size(); ++i) {
-        const double r = left[i] - l->irradiance[i % 3] * col[i];
-        w[i] = 1 / (1 + r * r / s2);
-        num[i % 3] += w[i] * col[i] * left[i];
-        den[i % 3] += w[i] * double(col[i]) * col[i];
-      }
-      for (int c = 0; c < 3; ++c) l->irradiance[c] = den[c] > 0 ? std::max(0.0, num[c] / den[c]) : 0.0;
-    }
-    std::vector<double> r(col.size());
-    *sse = 0;
-    for (std::size_t i = 0; i < col.size(); ++i) {
-      r[i] = left[i] - l->irradiance[i % 3] * col[i];
-      *sse += r[i] * r[i];
-    }
-    return CauchyLoss(r, p.sigma) + p.alpha * std::log1p(p.beta * std::max(0.0, l->irradiance.sum()));
-  };
+  const auto evaluate = [&](DirectionalLight* l, double* sse) { return DirectionalEnergy(p, l, sse); };
   double sse = 0;
   double E = evaluate(light, &sse);
   int moves = 0;
@@ -582,6 +593,25 @@ int SearchDirectionalLight(const PointFitProblem& p, DirectionalLight* light, do
     if (!moved) step *= 0.5;
   }
   return moves;
+}
+
+double FitAngularRadius(const PointFitProblem& p, DirectionalLight* light) {
+  constexpr double kDeg = 3.14159265358979323846 / 180;
+  double sse = 0, best_sse = 0;
+  DirectionalLight sharp = *light;
+  sharp.angular_radius = 0;
+  const double sharp_energy = DirectionalEnergy(p, &sharp, &sse);
+  DirectionalLight best = sharp;
+  double best_energy = sharp_energy;
+  for (double deg = kMaxAngularRadiusDeg / 32; deg <= kMaxAngularRadiusDeg; deg *= 2) {
+    DirectionalLight trial = *light;
+    trial.angular_radius = deg * kDeg;
+    const double e = DirectionalEnergy(p, &trial, &sse);
+    if (e < best_energy) best_energy = e, best = trial, best_sse = sse;
+  }
+  (void)best_sse;
+  *light = best_energy < (1 - 0.005) * sharp_energy ? best : sharp;
+  return light->angular_radius;
 }
 
 }  // namespace lp

@@ -67,9 +67,11 @@ void PointLightColumn(const RayTracer& scene, const ShadingVertices& vertices, c
 /// The column of a directional light of unit irradiance (on a surface facing it) from unit
 /// world direction `towards` (towards the light): out[3*row + c]. When `jacobian` is given
 /// it receives the derivative with respect to the direction moved on the unit sphere
-/// (towards + delta, normalized; visibility held fixed) at [9*row + 3*c + k].
+/// (towards + delta, normalized; visibility held fixed) at [9*row + 3*c + k]. With an
+/// `angular_radius` (a disc of that half-angle) each vertex sends kSphereShadowRays shadow
+/// rays across it (ConeVisibility, a fixed pattern per vertex).
 void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& vertices, const Eigen::Vector3d& towards,
-                            std::vector<float>* out, std::vector<float>* jacobian = nullptr);
+                            std::vector<float>* out, std::vector<float>* jacobian = nullptr, double angular_radius = 0);
 
 /// The share of a light of `angular_radius` (a disc around unit direction l, as seen from
 /// p) that p sees: one shadow ray along l when sharp, else `rays` jittered stratified rays
@@ -141,5 +143,13 @@ int RefineDirectionalLight(const PointFitProblem& problem, DirectionalLight* lig
 int SearchDirectionalLight(const PointFitProblem& problem, DirectionalLight* light, double start_deg = 2,
                            double stop_deg = 0.05,
                            const std::function<void(int, double, double, const DirectionalLight&)>& log = {});
+
+/// The widest angular radius FitAngularRadius tries (degrees).
+constexpr double kMaxAngularRadiusDeg = 8;
+
+/// The angular radius (soft shadows) of a directional light on a grid (0 and 0.25 to
+/// kMaxAngularRadiusDeg, doubling), its irradiance refitted at each, the rest held: the
+/// lowest energy wins when it beats the sharp light's by 0.5 %. Returns the radius (radians).
+double FitAngularRadius(const PointFitProblem& problem, DirectionalLight* light);
 
 }  // namespace lp

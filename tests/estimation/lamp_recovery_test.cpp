@@ -159,7 +159,8 @@ TEST(LampRecovery, TheSunComesBackAsADirectionalLight) {
   fit.views.resize(1);
   EstimateOptions eo;
   eo.render = false;
-  const EstimateResult r = Estimate(fit, eo);  // directional lights are on by default
+  eo.directional_lights = true;
+  const EstimateResult r = Estimate(fit, eo);
   ASSERT_EQ(r.directional_lights.size(), 1u);
   EXPECT_TRUE(r.point_lights.empty());
   const SphereLight& sun = s.lighting.lights.at(0);

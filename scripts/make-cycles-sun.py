@@ -1,0 +1,190 @@
+# Renders tests/data/cycles/sun with Blender Cycles: independent truth for directional lights
+# (issue 21). A room corner (a 3 x 3 m floor and two 1.6 m walls, light grey) with a box and
+# a tall block on the floor, lit by a sun lamp of 0.53 degrees (Blender's "Sun", its
+# strength the irradiance in W/m^2 on a surface facing it) and a uniform sky whose
+# irradiance on an open floor is 1/1000 of the sun's, seen by one 160x120 pinhole camera
+# (and a held-out second view from elsewhere). Writes scene bundles that lightprobe reads
+# (OUT_DIR: view 0, OUT_DIR_holdout: view 1; mesh.ply, scene.json, view0.exr, truth.json
+# with the render settings and the sun's direction and irradiance).
+#
+#   blender -b -noaudio --factory-startup --python scripts/make-cycles-sun.py -- OUT_DIR [SPP]
+#
+# (apt-get install blender; Debian 12 has 3.4.1.) Colours as in make-cycles-interreflection.py.
+import json
+import math
+import os
+import sys
+
+import bpy
+import mathutils
+
+argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+out_dir = os.path.abspath(argv[0] if argv else "tests/data/cycles/sun")
+spp = int(argv[1]) if len(argv) > 1 else 1024
+W, H = 160, 120
+SUN_DIRECTION = mathutils.Vector((0.55, 0.35, 0.76)).normalized()  # towards the sun
+SUN_IRRADIANCE = 3.0  # W/m^2 on a surface facing it
+SUN_ANGLE_DEG = 0.53  # the sun's angular diameter
+SKY_RADIANCE = SUN_IRRADIANCE / 1000 / math.pi  # an open floor receives pi x this
+
+
+def srgb_to_linear(c):
+    c = c / 255.0
+    return c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
+
+
+WALL = (200, 200, 200)
+BOX = (200, 120, 70)
+BLOCK = (90, 140, 200)
+quads = []
+
+
+def quad(a, b, c, d, colour):
+    quads.append(([a, b, c, d], colour))
+
+
+def box(x0, x1, y0, y1, z1, colour):
+    quad((x0, y0, z1), (x1, y0, z1), (x1, y1, z1), (x0, y1, z1), colour)
+    quad((x0, y0, 0), (x1, y0, 0), (x1, y0, z1), (x0, y0, z1), colour)
+    quad((x1, y0, 0), (x1, y1, 0), (x1, y1, z1), (x1, y0, z1), colour)
+    quad((x1, y1, 0), (x0, y1, 0), (x0, y1, z1), (x1, y1, z1), colour)
+    quad((x0, y1, 0), (x0, y0, 0), (x0, y0, z1), (x0, y1, z1), colour)
+
+
+# The corner: floor z = 0 over [0, 3]^2, walls at x = 0 and y = 0, 1.6 m high; the sun comes
+# from +x +y above, so both walls are lit and the objects cast shadows towards them.
+quad((0, 0, 0), (3, 0, 0), (3, 3, 0), (0, 3, 0), WALL)
+quad((0, 0, 0), (0, 3, 0), (0, 3, 1.6), (0, 0, 1.6), WALL)
+quad((0, 0, 0), (0, 0, 1.6), (3, 0, 1.6), (3, 0, 0), WALL)
+box(0.9, 1.5, 0.8, 1.4, 0.5, BOX)
+box(1.9, 2.2, 1.7, 2.0, 1.1, BLOCK)
+# --- the scene bundle's mesh (ASCII PLY, sRGB uchar colours) ---
+with open(os.path.join(out_dir, "mesh.ply"), "w") as f:
+    f.write("ply\nformat ascii 1.0\ncomment made by scripts/make-cycles-sun.py\n")
+    f.write("element vertex %d\nproperty float x\nproperty float y\nproperty float z\n" % (4 * len(quads)))
+    f.write("property uchar red\nproperty uchar green\nproperty uchar blue\n")
+    f.write("element face %d\nproperty list uchar int vertex_indices\nend_header\n" % len(quads))
+    for corners, c in quads:
+        for p in corners:
+            f.write("%g %g %g %d %d %d\n" % (p[0], p[1], p[2], c[0], c[1], c[2]))
+    for k in range(len(quads)):
+        f.write("4 %d %d %d %d\n" % (4 * k, 4 * k + 1, 4 * k + 2, 4 * k + 3))
+
+# --- the same in Blender ---
+for obj in list(bpy.data.objects):
+    bpy.data.objects.remove(obj, do_unlink=True)
+materials = {}
+for colour in (WALL, BOX, BLOCK):
+    m = bpy.data.materials.new("albedo_%d_%d_%d" % colour)
+    m.use_nodes = True
+    nodes = m.node_tree.nodes
+    nodes.clear()
+    bsdf = nodes.new("ShaderNodeBsdfDiffuse")
+    bsdf.inputs["Color"].default_value = [srgb_to_linear(c) for c in colour] + [1.0]
+    bsdf.inputs["Roughness"].default_value = 0.0  # Lambert
+    out = nodes.new("ShaderNodeOutputMaterial")
+    m.node_tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    materials[colour] = m
+verts, faces, face_colour = [], [], []
+for corners, c in quads:
+    faces.append([len(verts) + i for i in range(4)])
+    verts.extend(corners)
+    face_colour.append(c)
+mesh = bpy.data.meshes.new("corner")
+mesh.from_pydata(verts, [], faces)
+mesh.update()
+obj = bpy.data.objects.new("corner", mesh)
+bpy.context.scene.collection.objects.link(obj)
+order = [WALL, BOX, BLOCK]
+for c in order:
+    obj.data.materials.append(materials[c])
+for poly, c in zip(mesh.polygons, face_colour):
+    poly.material_index = order.index(c)
+    poly.use_smooth = False
+
+world = bpy.data.worlds.new("sky")
+world.use_nodes = True
+bg = world.node_tree.nodes["Background"]
+bg.inputs["Color"].default_value = (1, 1, 1, 1)
+bg.inputs["Strength"].default_value = SKY_RADIANCE
+bpy.context.scene.world = world
+sun_data = bpy.data.lights.new("sun", type="SUN")
+sun_data.energy = SUN_IRRADIANCE
+sun_data.angle = math.radians(SUN_ANGLE_DEG)
+sun = bpy.data.objects.new("sun", sun_data)
+sun.rotation_euler = SUN_DIRECTION.to_track_quat("Z", "Y").to_euler()  # a sun shines along its -z
+bpy.context.scene.collection.objects.link(sun)
+
+# Cameras: OpenCV convention in scene.json (x right, y down, z forward), Blender's looks down
+# its -z with +y up. Principal point at the image centre: (W - 1) / 2 with pixel centres at
+# integers. View 0 is fitted, view 1 held out.
+VIEWS = [((4.2, 3.6, 2.2), (1.0, 1.0, 0.35)), ((3.4, 0.9, 1.9), (0.8, 1.6, 0.4))]
+scene = bpy.context.scene
+scene.render.engine = "CYCLES"
+scene.cycles.device = "CPU"
+scene.cycles.samples = spp
+scene.cycles.use_adaptive_sampling = False
+scene.cycles.use_denoising = False
+scene.cycles.seed = 11
+scene.cycles.max_bounces = 64
+scene.cycles.diffuse_bounces = 64
+scene.cycles.glossy_bounces = 0
+scene.cycles.transmission_bounces = 0
+scene.cycles.transparent_max_bounces = 0
+scene.cycles.sample_clamp_direct = 0.0
+scene.cycles.sample_clamp_indirect = 0.0
+scene.cycles.light_sampling_threshold = 0.0
+scene.cycles.pixel_filter_type = "BOX"
+scene.cycles.filter_width = 1.0
+scene.render.film_transparent = False
+scene.render.resolution_x = W
+scene.render.resolution_y = H
+scene.render.resolution_percentage = 100
+scene.render.pixel_aspect_x = scene.render.pixel_aspect_y = 1
+scene.view_settings.view_transform = "Standard"
+scene.view_settings.look = "None"
+scene.view_settings.exposure = 0.0
+scene.view_settings.gamma = 1.0
+scene.render.image_settings.file_format = "OPEN_EXR"
+scene.render.image_settings.color_depth = "32"
+scene.render.image_settings.color_mode = "RGB"
+scene.render.image_settings.exr_codec = "ZIP"
+cam_data = bpy.data.cameras.new("cam")
+cam_data.sensor_fit = "HORIZONTAL"
+cam_data.sensor_width = 36.0
+hfov = math.radians(60.0)
+cam_data.lens = 0.5 * cam_data.sensor_width / math.tan(0.5 * hfov)
+cam = bpy.data.objects.new("cam", cam_data)
+bpy.context.scene.collection.objects.link(cam)
+scene.camera = cam
+truth = {"scene": "cycles-sun", "blender_version": bpy.app.version_string, "spp": spp,
+         "lights": [{"type": "sun", "direction": list(SUN_DIRECTION), "rgb": [SUN_IRRADIANCE] * 3,
+                     "irradiance_rgb_W_per_m2": [SUN_IRRADIANCE] * 3, "angular_diameter_deg": SUN_ANGLE_DEG}],
+         "world": {"type": "uniform", "radiance": [SKY_RADIANCE] * 3},
+         "render": {"engine": "CYCLES", "max_bounces": 64, "diffuse_bounces": 64, "pixel_filter": "BOX",
+                    "filter_width_px": 1.0, "view_transform": "Standard", "denoising": False,
+                    "adaptive_sampling": False, "seed": 11},
+         "albedo_srgb": {"walls": WALL, "box": BOX, "block": BLOCK}}
+for k, (eye, target) in enumerate(VIEWS):
+    d = out_dir if k == 0 else out_dir + "_holdout"
+    os.makedirs(d, exist_ok=True)
+    if k > 0:
+        with open(os.path.join(out_dir, "mesh.ply")) as src, open(os.path.join(d, "mesh.ply"), "w") as dst:
+            dst.write(src.read())
+    eye, target = mathutils.Vector(eye), mathutils.Vector(target)
+    cam.location = eye
+    cam.rotation_euler = (target - eye).to_track_quat("-Z", "Y").to_euler()
+    bpy.context.view_layer.update()
+    scene.render.filepath = os.path.join(d, "view0.exr")
+    bpy.ops.render.render(write_still=True)
+    m = cam.matrix_world
+    R = m.to_3x3() @ mathutils.Matrix(((1, 0, 0), (0, -1, 0), (0, 0, -1)))  # OpenCV axes
+    wfc = [[R[r][0], R[r][1], R[r][2], m[r][3]] for r in range(3)] + [[0, 0, 0, 1]]
+    fx = cam_data.lens / cam_data.sensor_width * W
+    view = {"image": "view0.exr", "width": W, "height": H, "fx": fx, "fy": fx, "cx": (W - 1) / 2,
+            "cy": (H - 1) / 2, "world_from_camera": wfc}
+    with open(os.path.join(d, "scene.json"), "w") as f:
+        json.dump({"mesh": "mesh.ply", "up": [0, 0, 1], "views": [view]}, f, indent=2)
+    with open(os.path.join(d, "truth.json"), "w") as f:
+        json.dump(dict(truth, view="fitted" if k == 0 else "held out"), f, indent=2)
+print("wrote", out_dir)
