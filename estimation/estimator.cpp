@@ -933,14 +933,16 @@ bool Estimator::FitDirectionalLight(RoundInfo* info) {
   // The angular radius (soft shadows: a wide far light) before the search too, or a wide
   // light's direction is sought by shadow edges it does not have.
   RefineDirectionalLight(fit, &sun, 12, log);
-  FitAngularRadius(fit, &sun);
-  SearchDirectionalLight(fit, &sun, 2, 0.05, log);
-  FitAngularRadius(fit, &sun);
+  const auto wide = [&] { return sun.angular_radius >= kMaxAngularRadiusDeg * kPi / 180 * 0.999; };
+  if (FitAngularRadius(fit, &sun), !wide()) {  // (a wide light is left at once: see below)
+    SearchDirectionalLight(fit, &sun, 2, 0.05, log);
+    FitAngularRadius(fit, &sun);
+  }
   // A light at least as wide as the widest radius tried is the map's: the cells render a
   // light that wide as well as a disc does, and its direction is poorly held by its soft
   // shadows (one-light's and two-light's 5.7-degree lights come back 2-7 degrees off this
   // way, against 0.8-5 in the map; the albedo refinement de-lit worse under them).
-  if (sun.angular_radius >= kMaxAngularRadiusDeg * kPi / 180 * 0.999) {
+  if (wide()) {
     char line[300];
     std::snprintf(line, sizeof line,
                   "directional light from (%.4f, %.4f, %.4f): at least %.3g deg wide: a wide far light, left to "
