@@ -133,7 +133,8 @@ class Estimator {
   void MakeMapProblem();
   // The near-light steps (docs/method.md, "Point lights").
   bool NearLights() const { return opt_.point_lights.max_lights > 0; }
-  std::vector<std::vector<float>> PointColumns(int round, int first, RoundProblem* rp);
+  void GatherVertices(int round, int first);
+  RoundProblem WithLights(const std::vector<PointLight>& lights);
   bool FitPointLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info);
   std::vector<PointLight> Candidates(RoundInfo* info);
   void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const char* step = "lights");
@@ -282,14 +283,11 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   CheckCancel();
   A_ = (opt_.combine_rounds && round > first) ? Combine(A_, Ar) : std::move(Ar);
 
-  RoundProblem rp;
-  // Point lights: round 1 searches for them; later rounds trace their columns only if any
-  // were found (the far-light scenes pay for the search alone).
   MakeMapProblem();
-  if ((NearLights() && round == 1) || !points_.empty() || !suns_.empty())
-    rp.problem = std::make_shared<LinearProblem>(WithColumns(*map_problem_, cells_, PointColumns(round, first, &rp)));
-  else
-    rp.problem = map_problem_;
+  // Point lights: round 1 searches for them; later rounds trace their columns (and the
+  // directional lights') only if any were found (the far-light scenes pay for the search alone).
+  if ((NearLights() && round == 1) || !points_.empty() || !suns_.empty()) GatherVertices(round, first);
+  RoundProblem rp = WithLights(points_);
   info->trace_seconds = ts.Seconds();
   info->nonzeros = static_cast<std::int64_t>(rp.problem->col.size());
   const LinearProblem& problem = *rp.problem;
@@ -304,14 +302,6 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
            std::to_string(cells_) + ", " + std::to_string(A_.nonzeros()) + " non-zeros");
   if (info->unknown_cells == 0)
     throw InputError(SceneFile(), "no sampled path reaches the environment (camera inside closed geometry?)");
-  rp.init.resize(3 * problem.unknown_cells);
-  for (int k = 0; k < problem.unknown_cells; ++k) {
-    const int j = problem.cell_of[k], i = j - cells_;
-    for (int c = 0; c < 3; ++c)
-      rp.init[3 * k + c] = j < cells_ ? lambda_[3 * j + c]
-                           : i < static_cast<int>(points_.size()) ? points_[i].intensity[c]
-                                                                   : suns_[i - points_.size()].irradiance[c];
-  }
   return rp;
 }
 
@@ -324,9 +314,9 @@ void Estimator::MakeMapProblem() {
   holdout_held_ = TransportMatrix();
 }
 
-/// The point lights' columns for this round, from the shading vertices of this round's
-/// paths and (like A) of the rounds before it under the same albedo.
-std::vector<std::vector<float>> Estimator::PointColumns(int round, int first, RoundProblem* rp) {
+/// The shading vertices the lights' columns come from: this round's paths and (like A) the
+/// rounds' before it under the same albedo.
+void Estimator::GatherVertices(int round, int first) {
   TracerOptions topt = opt_.tracer;
   topt.cancelled = opt_.cancelled;
   topt.spp = opt_.point_lights.spp;
@@ -353,19 +343,37 @@ std::vector<std::vector<float>> Estimator::PointColumns(int round, int first, Ro
       holdout_[r] = h % 1000 < share;
     }
   }
+}
+
+/// The round's problem with `lights` and the directional lights so far as columns after the
+/// map's (the map's problem itself when there are none), warm-started from the estimate so far.
+RoundProblem Estimator::WithLights(const std::vector<PointLight>& lights) {
+  RoundProblem rp;
   std::vector<std::vector<float>> columns;
-  for (const PointLight& l : points_) {
-    rp->positions.push_back(l.position);
-    rp->radii.push_back(l.radius);
+  for (const PointLight& l : lights) {
+    rp.positions.push_back(l.position);
+    rp.radii.push_back(l.radius);
     columns.push_back(Column(l.position, l.radius));
   }
   for (const DirectionalLight& d : suns_) {
-    rp->directions.push_back(d.direction);
-    rp->angular_radii.push_back(d.angular_radius);
+    rp.directions.push_back(d.direction);
+    rp.angular_radii.push_back(d.angular_radius);
     columns.emplace_back();
     DirectionalLightColumn(*scene_, vertices_, d.direction, &columns.back(), nullptr, d.angular_radius);
   }
-  return columns;
+  rp.problem = columns.empty() ? map_problem_
+                               : std::make_shared<LinearProblem>(WithColumns(*map_problem_, cells_, columns));
+  const LinearProblem& problem = *rp.problem;
+  rp.init.resize(3 * problem.unknown_cells);
+  for (int k = 0; k < problem.unknown_cells; ++k) {
+    const int j = problem.cell_of[k];
+    const std::size_t i = j - cells_;
+    for (int c = 0; c < 3; ++c)
+      rp.init[3 * k + c] = j < cells_ ? lambda_[3 * j + c]
+                           : i < lights.size() ? lights[i].intensity[c]
+                                               : suns_[i - lights.size()].irradiance[c];
+  }
+  return rp;
 }
 
 /// The intensity (per channel, >= 0) whose multiple of `col` best fits `target` in least
@@ -721,30 +729,7 @@ void Estimator::FoldLights(std::vector<PointLight>* lights, int round) {
 /// (warm-started; rows logged), lambda_ and `lights` updated; lights left dark are dropped.
 void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info, bool graduated) {
   CheckCancel();
-  RoundProblem rp;
-  std::vector<std::vector<float>> columns(lights->size());
-  for (std::size_t k = 0; k < lights->size(); ++k) {
-    rp.positions.push_back((*lights)[k].position);
-    rp.radii.push_back((*lights)[k].radius);
-    columns[k] = Column((*lights)[k].position, (*lights)[k].radius);
-  }
-  for (const DirectionalLight& d : suns_) {  // held in the solve with the rest
-    rp.directions.push_back(d.direction);
-    rp.angular_radii.push_back(d.angular_radius);
-    columns.emplace_back();
-    DirectionalLightColumn(*scene_, vertices_, d.direction, &columns.back(), nullptr, d.angular_radius);
-  }
-  rp.problem = std::make_shared<LinearProblem>(WithColumns(*map_problem_, cells_, columns));
-  const LinearProblem& problem = *rp.problem;
-  rp.init.resize(3 * problem.unknown_cells);
-  for (int k = 0; k < problem.unknown_cells; ++k) {
-    const int j = problem.cell_of[k];
-    const std::size_t i = j - cells_;
-    for (int c = 0; c < 3; ++c)
-      rp.init[3 * k + c] = j < cells_ ? lambda_[3 * j + c]
-                           : i < lights->size() ? (*lights)[i].intensity[c]
-                                                : suns_[i - lights->size()].irradiance[c];
-  }
+  const RoundProblem rp = WithLights(*lights);  // the directional lights held in the solve with the rest
   const SolveResult sr = Solve(rp, info->round, info, graduated);
   std::vector<double> full = rp.Scatter(sr.lambda, cells_);
   *lights = rp.Lights(full, cells_);
