@@ -376,6 +376,8 @@ ImageRGB ReadHdr(const fs::path& path) {
 
 void WriteExr(const fs::path& path, const ImageRGB& image) { WriteMat(path, ToMat(image)); }
 
+void WriteHdr(const fs::path& path, const ImageRGB& image) { WriteMat(path, ToMat(image)); }
+
 ImageRgb8 EncodeSrgb8(const ImageRGB& image, float exposure) {
   ImageRgb8 out{image.width, image.height, std::vector<std::uint8_t>(image.data.size())};
   for (std::size_t i = 0; i < image.data.size(); ++i) {

@@ -45,6 +45,8 @@ ImageRGB ReadHdr(const std::filesystem::path& path);
 
 /// 32-bit float OpenEXR, linear.
 void WriteExr(const std::filesystem::path& path, const ImageRGB& image);
+/// Radiance .hdr (RGBE, run-length encoded), linear; top row first. `path` ends in .hdr.
+void WriteHdr(const std::filesystem::path& path, const ImageRGB& image);
 /// Linear RGB to what an 8-bit camera stores: times `exposure`, clipped to [0, 1],
 /// sRGB-encoded (non-finite values become 0).
 ImageRgb8 EncodeSrgb8(const ImageRGB& image, float exposure = 1.f);

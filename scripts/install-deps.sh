@@ -12,6 +12,7 @@ PACKAGES=(
   libgtest-dev libgmock-dev libbenchmark-dev
   nlohmann-json3-dev libcli11-dev
   clang libclang-rt-14-dev
+  blender python3-numpy
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -1,0 +1,181 @@
+#include "exports/gltf.h"
+
+#include <cmath>
+#include <cstring>
+
+#include <Eigen/Geometry>
+#include <nlohmann/json.hpp>
+
+#include "common/atomic_file.h"
+#include "common/image_io.h"
+#include "exports/axes.h"
+
+namespace lp {
+namespace fs = std::filesystem;
+using nlohmann::json;
+namespace {
+
+constexpr int kFloat = 5126, kUnsignedInt = 5125;
+constexpr int kArrayBuffer = 34962, kElementArrayBuffer = 34963;
+
+/// scene.bin and the views and accessors into it.
+class Buffer {
+ public:
+  /// Appends floats (`components` per element) and returns the accessor's index.
+  int AddVec3(const std::vector<Eigen::Vector3f>& values, bool bounds, json* gltf) {
+    const std::size_t offset = Append(values.data(), values.size() * sizeof(Eigen::Vector3f));
+    json accessor = {{"bufferView", AddView(offset, values.size() * 12, kArrayBuffer, gltf)},
+                     {"componentType", kFloat}, {"count", values.size()}, {"type", "VEC3"}};
+    if (bounds) {
+      Eigen::Vector3f lo = Eigen::Vector3f::Constant(INFINITY), hi = -lo;
+      for (const auto& v : values) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+      accessor["min"] = {lo.x(), lo.y(), lo.z()};
+      accessor["max"] = {hi.x(), hi.y(), hi.z()};
+    }
+    (*gltf)["accessors"].push_back(accessor);
+    return static_cast<int>((*gltf)["accessors"].size()) - 1;
+  }
+  int AddIndices(const std::vector<Eigen::Vector3i>& triangles, json* gltf) {
+    std::vector<std::uint32_t> idx;
+    idx.reserve(3 * triangles.size());
+    for (const auto& t : triangles)
+      for (int k = 0; k < 3; ++k) idx.push_back(static_cast<std::uint32_t>(t[k]));
+    const std::size_t offset = Append(idx.data(), idx.size() * 4);
+    (*gltf)["accessors"].push_back({{"bufferView", AddView(offset, idx.size() * 4, kElementArrayBuffer, gltf)},
+                                    {"componentType", kUnsignedInt}, {"count", idx.size()}, {"type", "SCALAR"}});
+    return static_cast<int>((*gltf)["accessors"].size()) - 1;
+  }
+  const std::string& bytes() const { return bytes_; }
+
+ private:
+  std::size_t Append(const void* p, std::size_t n) {
+    while (bytes_.size() % 4) bytes_.push_back('\0');
+    const std::size_t offset = bytes_.size();
+    bytes_.append(static_cast<const char*>(p), n);
+    return offset;
+  }
+  static int AddView(std::size_t offset, std::size_t length, int target, json* gltf) {
+    (*gltf)["bufferViews"].push_back({{"buffer", 0}, {"byteOffset", offset}, {"byteLength", length}, {"target", target}});
+    return static_cast<int>((*gltf)["bufferViews"].size()) - 1;
+  }
+  std::string bytes_;
+};
+
+json Vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+/// Column-major, as glTF stores node matrices.
+json ColumnMajor(const Eigen::Matrix4d& m) {
+  json a = json::array();
+  for (int c = 0; c < 4; ++c)
+    for (int r = 0; r < 4; ++r) a.push_back(m(r, c));
+  return a;
+}
+
+void AddMesh(const ExportScene& s, const Eigen::Matrix3f& G, Buffer* buffer, json* gltf) {
+  std::vector<Eigen::Vector3f> positions, normals;
+  positions.reserve(s.mesh.positions.size());
+  for (const auto& p : s.mesh.positions) positions.push_back(G * p);
+  for (const auto& n : s.mesh.normals) normals.push_back((G * n).normalized());
+  json attributes = {{"POSITION", buffer->AddVec3(positions, true, gltf)},
+                     {"NORMAL", buffer->AddVec3(normals, false, gltf)},
+                     {"COLOR_0", buffer->AddVec3(s.mesh.albedo, false, gltf)}};  // linear, as glTF's are
+  (*gltf)["meshes"].push_back(
+      {{"name", "lightprobe"},
+       {"primitives", {{{"attributes", attributes}, {"indices", buffer->AddIndices(s.mesh.triangles, gltf)},
+                        {"material", 0}, {"mode", 4}}}}});
+  // Lambertian: the vertex colour is the albedo (base colour x COLOR_0), no metal, fully rough,
+  // no specular layer.
+  (*gltf)["materials"].push_back(
+      {{"name", "albedo"},
+       {"pbrMetallicRoughness", {{"baseColorFactor", {1, 1, 1, 1}}, {"metallicFactor", 0.0}, {"roughnessFactor", 1.0}}},
+       {"extensions", {{"KHR_materials_specular", {{"specularFactor", 0.0}}}}}});
+  (*gltf)["nodes"].push_back({{"name", "lightprobe_mesh"}, {"mesh", 0}});
+}
+
+void AddCameras(const ExportScene& s, const Eigen::Matrix3d& G, json* gltf) {
+  Eigen::Matrix4d to_gltf = Eigen::Matrix4d::Identity();
+  to_gltf.block<3, 3>(0, 0) = G;
+  const Eigen::Matrix4d flip = Eigen::Vector4d(1, -1, -1, 1).asDiagonal();  // OpenCV axes to glTF's camera's
+  for (std::size_t k = 0; k < s.cameras.size(); ++k) {
+    const Camera& c = s.cameras[k];
+    const double yfov = 2 * std::atan(0.5 * c.height / c.fy);
+    (*gltf)["cameras"].push_back({{"name", "keyframe_" + std::to_string(k)},
+                                  {"type", "perspective"},
+                                  {"perspective",
+                                   {{"yfov", yfov}, {"aspectRatio", (c.width / c.fx) / (c.height / c.fy)},
+                                    {"znear", 0.01}, {"zfar", 1000.0}}},
+                                  {"extras", {{"width", c.width}, {"height", c.height}, {"fx", c.fx}, {"fy", c.fy},
+                                              {"cx", c.cx}, {"cy", c.cy}}}});
+    (*gltf)["nodes"].push_back({{"name", "keyframe_" + std::to_string(k)},
+                                {"camera", static_cast<int>(k)},
+                                {"matrix", ColumnMajor(to_gltf * c.world_from_camera * flip)}});
+  }
+}
+
+void AddLights(const ExportScene& s, const Eigen::Matrix3d& G, json* gltf) {
+  json lights = json::array();
+  auto add_node = [&](json node) {
+    node["extensions"] = {{"KHR_lights_punctual", {{"light", static_cast<int>(lights.size()) - 1}}}};
+    (*gltf)["nodes"].push_back(node);
+  };
+  for (std::size_t k = 0; k < s.point_lights.size(); ++k) {
+    const PointLight& l = s.point_lights[k];
+    Eigen::Vector3d colour;
+    const double i = SplitColour(l.intensity, &colour);
+    const std::string name = "point_light_" + std::to_string(k);
+    lights.push_back({{"name", name}, {"type", "point"}, {"color", Vec(colour)}, {"intensity", kLumensPerWatt * i},
+                      {"extras", {{"radius", l.radius}, {"radiant_intensity", Vec(l.intensity)}}}});
+    add_node({{"name", name}, {"translation", Vec(G * l.position)}});
+  }
+  for (std::size_t k = 0; k < s.directional_lights.size(); ++k) {
+    const DirectionalLight& d = s.directional_lights[k];
+    Eigen::Vector3d colour;
+    const double e = SplitColour(d.irradiance, &colour);
+    const std::string name = "sun_" + std::to_string(k);
+    lights.push_back({{"name", name}, {"type", "directional"}, {"color", Vec(colour)}, {"intensity", kLumensPerWatt * e},
+                      {"extras", {{"angular_radius", d.angular_radius}, {"irradiance", Vec(d.irradiance)}}}});
+    // A directional light shines along its node's -Z: turn +Z onto the direction towards it.
+    const Eigen::Quaterniond q = Eigen::Quaterniond::FromTwoVectors(Eigen::Vector3d::UnitZ(), G * d.direction);
+    add_node({{"name", name}, {"rotation", {q.x(), q.y(), q.z(), q.w()}}});
+  }
+  if (!lights.empty()) {
+    (*gltf)["extensions"]["KHR_lights_punctual"] = {{"lights", lights}};
+    (*gltf)["extensionsUsed"].push_back("KHR_lights_punctual");
+  }
+}
+
+}  // namespace
+
+std::vector<std::string> WriteGltfExport(const ExportScene& s, const fs::path& dir) {
+  const ExportAxes axes(s.up);
+  const Eigen::Matrix3d& G = axes.gltf_from_world;
+  json gltf = {{"asset", {{"version", "2.0"}, {"generator", "lightprobe export --format gltf"}}},
+               {"extensionsUsed", {"KHR_materials_specular"}},
+               {"accessors", json::array()}, {"bufferViews", json::array()}, {"nodes", json::array()}};
+  Buffer buffer;
+  AddMesh(s, G.cast<float>(), &buffer, &gltf);
+  AddCameras(s, G, &gltf);
+  AddLights(s, G, &gltf);
+  json scene_nodes = json::array();
+  for (std::size_t k = 0; k < gltf["nodes"].size(); ++k) scene_nodes.push_back(k);
+  gltf["scenes"] = {{{"name", "lightprobe"}, {"nodes", scene_nodes}}};
+  gltf["scene"] = 0;
+  gltf["buffers"] = {{{"uri", "scene.bin"}, {"byteLength", buffer.bytes().size()}}};
+  std::vector<std::string> files = {"scene.gltf", "scene.bin"};
+  if (s.environment.height > 0) {
+    // The same picture as Blender's world.exr: three.js maps glTF's frame as Blender maps its own.
+    WriteHdr(dir / "environment.hdr", BlenderWorldImage(s.environment, s.up, s.environment.height));
+    files.push_back("environment.hdr");
+    gltf["extras"] = {{"environment", "environment.hdr"},
+                      {"environment_mapping",
+                       "equirectangular, glTF frame: direction g lands on u = atan2(g.z, g.x) / 2pi + 0.5 "
+                       "(from the left edge), v = asin(g.y) / pi + 0.5 (from the bottom row); three.js: "
+                       "RGBELoader + EquirectangularReflectionMapping"},
+                      {"radiometry", "radiance in the estimate's image units; lights in candela / lux at 683 lm/W"}};
+  }
+  WriteTextAtomically(dir / "scene.bin", buffer.bytes());
+  WriteTextAtomically(dir / "scene.gltf", gltf.dump(2) + "\n");  // last: it names the others
+  return files;
+}
+
+}  // namespace lp

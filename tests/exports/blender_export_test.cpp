@@ -1,0 +1,150 @@
+// The Blender and glTF exports as a user opens them: Debian's Blender builds the scene from
+// the export (scene.py, saved as a .blend and rendered from it; scene.gltf through Blender's
+// own glTF importer), Cycles renders keyframe 0, and the picture must match lightprobe's own
+// render of that view under the same lights.json: an independent renderer reading the files,
+// so a wrong axis, mirror, unit or camera convention in an export shows as a different image.
+// The lights: a map (a sky brighter towards the zenith and one bright patch off to one side,
+// so that a mirror or a turn of the map moves light), a lamp and a sun.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "common/atomic_file.h"
+#include "common/image_io.h"
+#include "estimation/envmap.h"
+#include "estimation/lights_file.h"
+#include "estimation/point_lights.h"
+#include "estimation/synth.h"
+#include "estimation/truth.h"
+#include "exports/export_scene.h"
+#include "scene/ray_tracer.h"
+#include "scene/scene_bundle.h"
+
+namespace lp {
+namespace {
+namespace fs = std::filesystem;
+
+constexpr int kCyclesSamples = 64;
+
+fs::path Scratch(const std::string& name) {
+  const fs::path d = fs::temp_directory_path() / ("lp_blender_export_" + name + "_" + std::to_string(::getpid()));
+  fs::remove_all(d);
+  fs::create_directories(d);
+  return d;
+}
+
+/// The map of the estimate (EnvMap's convention around +Z): 32 x 64.
+ImageRGB TestMap() {
+  ImageRGB map(64, 32);
+  for (int y = 0; y < map.height; ++y)
+    for (int x = 0; x < map.width; ++x) {
+      const double theta = (y + 0.5) / map.height * 3.14159265358979;
+      const float sky = static_cast<float>(0.04 + 0.08 * std::max(0.0, std::cos(theta)));
+      float* p = map.at(x, y);
+      p[0] = 0.8f * sky, p[1] = 0.9f * sky, p[2] = sky;
+      if (x >= 10 && x < 14 && y >= 8 && y < 12) p[0] = 5.f, p[1] = 4.f, p[2] = 3.f;  // azimuth ~65 deg, 53 deg from up
+    }
+  return map;
+}
+
+/// A scene bundle (the lamp-and-sky room, 80 x 60) and an estimate directory beside it.
+struct Fixture {
+  fs::path root, scene, estimate;
+  LightsFile lights;
+  explicit Fixture(const std::string& name) : root(Scratch(name)), scene(root / "scene"), estimate(root / "estimate") {
+    SynthOptions o;
+    o.width = 80, o.height = 60, o.spp = 1;
+    WriteSceneBundle(scene, MakeSynthScene("lamp-and-sky", o, fs::path(LIGHTPROBE_SOURCE_DIR) / "assets"));
+    fs::create_directories(estimate);
+    WriteExr(estimate / "envmap.exr", TestMap());
+    lights.environment = "envmap.exr";
+    PointLight lamp;
+    lamp.position = {1.77, 1.67, 1.75}, lamp.intensity = {2.4, 2.2, 1.9}, lamp.radius = 0.05;
+    lights.point_lights.push_back(lamp);
+    DirectionalLight sun;
+    sun.direction = Eigen::Vector3d(-0.5, 0.3, 0.8).normalized(), sun.irradiance = {0.5, 0.45, 0.35};
+    sun.angular_radius = 0.01;
+    lights.directional_lights.push_back(sun);
+    WriteTextAtomically(estimate / "lights.json", LightsJson(lights));
+  }
+  ~Fixture() { fs::remove_all(root); }
+
+  /// lightprobe's render of keyframe 0 under the estimate (as `render --lights` makes it).
+  ImageRGB OurRender(std::uint64_t seed) const {
+    const SceneBundle b = LoadSceneBundle(scene);
+    const EnvMap env(61, b.up);
+    const std::vector<double> lambda = env.FromEquirect(TestMap());
+    const RayTracer tracer(b.mesh);
+    const CellSampler sampler(env, lambda, {}, 0.2);
+    TracerOptions t;
+    t.spp = 512, t.bounces = 12, t.seed = seed;
+    return RenderLighting(tracer, env, lambda, sampler, lights.point_lights, lights.directional_lights, {b.views[0]}, t,
+                          true)[0];
+  }
+};
+
+/// Runs Debian's Blender in the background; its output goes to `log`.
+void RunBlender(const std::string& args, const fs::path& log) {
+  const std::string cmd = "blender -b -noaudio --factory-startup --python-exit-code 3 " + args + " > '" + log.string() + "' 2>&1";
+  const int rc = std::system(cmd.c_str());
+  std::ifstream in(log);
+  std::stringstream text;
+  text << in.rdbuf();
+  ASSERT_EQ(rc, 0) << "blender failed (scripts/install-deps.sh installs it): " << cmd << "\n" << text.str();
+}
+
+double Rmse(const ImageRGB& a, const ImageRGB& b) {
+  return RelativeImageRmse(a, b, std::vector<std::uint8_t>(a.pixels(), 1));
+}
+
+/// Cycles' two renders (seeds 1 and 2) against lightprobe's two: the error beyond the four
+/// renders' noise (each pair's difference is its noise times sqrt 2).
+void ExpectSamePicture(const ImageRGB& cycles1, const ImageRGB& cycles2, const Fixture& f) {
+  ASSERT_EQ(cycles1.width, 80);
+  ASSERT_EQ(cycles1.height, 60);
+  const ImageRGB ours1 = f.OurRender(1), ours2 = f.OurRender(2);
+  const double noise_cycles = Rmse(cycles1, cycles2) / std::sqrt(2.0), noise_ours = Rmse(ours1, ours2) / std::sqrt(2.0);
+  const double error = Rmse(cycles1, ours1);
+  const double beyond = std::sqrt(std::max(0.0, error * error - noise_cycles * noise_cycles - noise_ours * noise_ours));
+  double mean_c = 0, mean_o = 0;
+  for (std::size_t i = 0; i < cycles1.data.size(); ++i) mean_c += cycles1.data[i], mean_o += ours1.data[i];
+  std::printf("relative RMSE %.4f (noise: Cycles %.4f, lightprobe %.4f); beyond the noise %.4f; mean %.5f vs %.5f\n",
+              error, noise_cycles, noise_ours, beyond, mean_c / cycles1.data.size(), mean_o / ours1.data.size());
+  EXPECT_LT(beyond, 0.05);
+  EXPECT_NEAR(mean_c / mean_o, 1.0, 0.03);
+}
+
+TEST(BlenderExport, ACyclesRenderOfTheSavedBlendMatchesLightprobesRender) {
+  const Fixture f("blender");
+  const fs::path out = f.root / "blender";
+  WriteExport(LoadExportScene(f.scene, f.estimate), ExportFormat::kBlender, out);
+  const fs::path blend = f.root / "saved" / "scene.blend";  // elsewhere: the .blend must stand alone
+  ASSERT_NO_FATAL_FAILURE(RunBlender("--python '" + (out / "scene.py").string() + "' -- --save '" + blend.string() + "'", f.root / "build.log"));
+  ASSERT_TRUE(fs::exists(blend));
+  fs::remove(out / "world.exr");
+  std::string py = "import bpy; s = bpy.context.scene; s.cycles.samples = " + std::to_string(kCyclesSamples) + "\n";
+  for (int seed : {1, 2})
+    py += "s.cycles.seed = " + std::to_string(seed) + "; s.render.filepath = '" + (f.root / "cycles").string() +
+          std::to_string(seed) + ".exr'; bpy.ops.render.render(write_still=True)\n";
+  WriteTextAtomically(f.root / "render.py", py);
+  ASSERT_NO_FATAL_FAILURE(
+      RunBlender("'" + blend.string() + "' --python '" + (f.root / "render.py").string() + "'", f.root / "render.log"));
+  ExpectSamePicture(ReadImageLinear(f.root / "cycles1.exr"), ReadImageLinear(f.root / "cycles2.exr"), f);
+}
+
+TEST(GltfExport, ACyclesRenderThroughBlendersGltfImporterMatchesLightprobesRender) {
+  const Fixture f("gltf");
+  const fs::path out = f.root / "gltf";
+  WriteExport(LoadExportScene(f.scene, f.estimate), ExportFormat::kGltf, out);
+  ASSERT_NO_FATAL_FAILURE(RunBlender("--python '" + (fs::path(LIGHTPROBE_SOURCE_DIR) / "tests/exports/render_gltf.py").string() + "' -- '" +
+                 out.string() + "' '" + (f.root / "cycles").string() + "' " + std::to_string(kCyclesSamples) + " 1 2",
+                                     f.root / "render.log"));
+  ExpectSamePicture(ReadImageLinear(f.root / "cycles1.exr"), ReadImageLinear(f.root / "cycles2.exr"), f);
+}
+
+}  // namespace
+}  // namespace lp
