@@ -29,6 +29,10 @@ expect "unknown synthetic scene" "$exe" synth nope --out "$tmp/x"
 expect "exactly one of --envmap, --uniform or --lights" "$exe" render "$tmp/s" --out "$tmp/o"
 printf "{\"point_lights\": [{\"position\": [0, 0, 1], \"intensity\": [1, -1, 1]}]}" > "$tmp/bad_lights.json"
 expect "intensity is negative" "$exe" render "$tmp/s" --out "$tmp/o" --lights "$tmp/bad_lights.json"
+mkdir -p "$tmp/est" && cp "$tmp/bad_lights.json" "$tmp/est/lights.json"
+expect "lights.json: .*intensity is negative" "$exe" export "$tmp/s" "$tmp/est" --format gltf --out "$tmp/o"
+expect "lights.json: file not found" "$exe" export "$tmp/s" "$tmp/nope" --format sh --out "$tmp/o"
+expect "expected blender, gltf or sh, got 'obj'" "$exe" export "$tmp/s" "$tmp/est" --format obj --out "$tmp/o"
 expect "nee-floor: Value 2 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --nee-floor 2 --quiet
 expect "albedo-passes: Value 9 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --albedo-passes 9 --quiet
 expect "albedo-samples: Value 0 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --albedo-samples 0 --quiet

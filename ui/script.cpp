@@ -211,7 +211,19 @@ bool WaitLit(const Call& c) {
 }
 
 bool Export(const Call& c) {
-  if (c.first()) c.v.session.Export(c.word(1));
+  if (c.first()) {
+    std::vector<ExportFormat> formats;  // `export DIR [blender,gltf,sh]`
+    if (c.line.words.size() > 2) {
+      std::stringstream list(c.word(2));
+      std::string name;
+      try {
+        while (std::getline(list, name, ',')) formats.push_back(ParseExportFormat(name));
+      } catch (const InputError& e) {
+        c.Fail(e.what());
+      }
+    }
+    c.v.session.Export(c.word(1), formats);
+  }
   return true;
 }
 

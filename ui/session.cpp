@@ -408,7 +408,7 @@ struct Session::Impl {
     job->Start(std::move(snapshot), std::move(joined_there));
   }
 
-  void DoExport(const std::string& dir) {
+  void DoExport(const std::string& dir, const std::vector<ExportFormat>& formats) {
     std::shared_ptr<const SceneBundle> scene;
     std::shared_ptr<const EstimateResult> result;
     EstimateOptions used;
@@ -430,6 +430,14 @@ struct Session::Impl {
       WriteSceneBundle(written.dir, written);
       if (options.write_estimate) options.write_estimate((fs::path(dir) / "estimate").string(), written, used, *result);
       message = "exported " + (fs::path(dir) / "scene").string() + " and " + (fs::path(dir) / "estimate").string();
+      if (!formats.empty()) {
+        if (!options.write_estimate) throw InputError("no estimate writer: the formats need lights.json");
+        const ExportScene exported = LoadExportScene(fs::path(dir) / "scene", fs::path(dir) / "estimate");
+        for (ExportFormat f : formats) {
+          WriteExport(exported, f, fs::path(dir) / ToString(f));
+          message += std::string(", ") + ToString(f);
+        }
+      }
       ok = true;
     } catch (const std::exception& e) {
       message = std::string("export failed: ") + e.what();
@@ -583,7 +591,7 @@ void Session::CancelEstimate() {
   if (impl_->job) impl_->job->Cancel();
 }
 
-void Session::Export(const std::string& dir) {
+void Session::Export(const std::string& dir, const std::vector<ExportFormat>& formats) {
   if (impl_->exporting.exchange(true)) {
     std::lock_guard<std::mutex> lock(impl_->mutex);
     impl_->export_message = "exporting: wait for the export in progress";
@@ -595,8 +603,8 @@ void Session::Export(const std::string& dir) {
     impl_->export_state = ExportState::kExporting;
     impl_->export_message = "exporting to " + dir;
   }
-  impl_->exporter = std::thread([this, dir] {
-    impl_->DoExport(dir);
+  impl_->exporter = std::thread([this, dir, formats] {
+    impl_->DoExport(dir, formats);
     impl_->exporting = false;
   });
 }

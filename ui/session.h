@@ -16,6 +16,7 @@
 
 #include "capture/frame.h"
 #include "estimation/estimator.h"
+#include "exports/export_scene.h"
 #include "ui/status.h"
 #include "reconstruction/reconstruction_run.h"
 
@@ -70,8 +71,9 @@ class Session {
   /// Writes DIR/scene (the bundle: mesh with albedo, keyframes; from a reconstruction also
   /// its log, trajectory and calibration, as `reconstruct` writes them) and DIR/estimate
   /// (envmap.exr, convergence.csv, ...) of the last finished estimate, on a background
-  /// thread; each file atomically. The outcome lands in EstimateStatus::export_message.
-  void Export(const std::string& dir);
+  /// thread; each file atomically; then each of `formats` into DIR/<format> (blender, gltf,
+  /// sh: what `lightprobe export` writes). The outcome lands in EstimateStatus::export_message.
+  void Export(const std::string& dir, const std::vector<ExportFormat>& formats = {});
 
   LiveStatus live() const;
   EstimateStatus estimate() const;

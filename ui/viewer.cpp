@@ -530,7 +530,18 @@ void Viewer::PanelEstimate() {
     ImGui::InputText("##export", export_field_, sizeof export_field_);
     ImGui::SameLine();
     const bool exporting = est_.export_state == ExportState::kExporting;
-    if (!exporting && ImGui::Button("Export") && est_.result) session_.Export(export_field_);
+    if (!exporting && ImGui::Button("Export") && est_.result) {
+      std::vector<ExportFormat> formats;
+      for (ExportFormat f : {ExportFormat::kBlender, ExportFormat::kGltf, ExportFormat::kSh})
+        if (export_formats_[static_cast<int>(f)]) formats.push_back(f);
+      session_.Export(export_field_, formats);
+    }
+    // Besides the scene and the estimate: the formats of `lightprobe export`, each into DIR/<format>.
+    ImGui::Checkbox("Blender", &export_formats_[0]);
+    ImGui::SameLine();
+    ImGui::Checkbox("glTF", &export_formats_[1]);
+    ImGui::SameLine();
+    ImGui::Checkbox("SH", &export_formats_[2]);
   }
   char overlay[64];
   std::snprintf(overlay, sizeof overlay, "%s %.0f%%", ToString(est_.state), 100 * est_.progress);

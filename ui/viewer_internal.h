@@ -103,6 +103,7 @@ class Viewer {
   char record_field_[512] = "lightprobe-recording.oni";
   float record_seconds_ = 10;
   char export_field_[512] = "lightprobe-export";
+  bool export_formats_[3] = {false, false, false};  // blender, gltf, sh (ExportFormat's order)
   float seek_frame_ = 0;
   float speed_ = 1.f;
 

@@ -171,7 +171,7 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
                            "orbit 1.2 0.3\n"
                            "frames 3\n"
                            "screenshot " << (a / "7-orbit.png").string() << "\n"
-                           "export " << (a / "export").string() << "\n"
+                           "export " << (a / "export").string() << " blender,gltf,sh\n"
                            "wait-export 600\n"
                            "state " << (a / "8-done.json").string() << "\n"
                            "quit\n";
@@ -230,6 +230,9 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
   EXPECT_TRUE(fs::exists(a / "export" / "scene" / "mesh.ply"));
   EXPECT_TRUE(fs::exists(a / "export" / "scene" / "reconstruction.csv")) << "the bundle reconstruct writes";
   EXPECT_TRUE(fs::exists(a / "export" / "scene" / "trajectory.log"));
+  // The formats chosen beside Export, as `lightprobe export` writes them.
+  for (const char* f : {"blender/scene.py", "blender/mesh.ply", "gltf/scene.gltf", "gltf/scene.bin", "sh/lighting.json"})
+    EXPECT_TRUE(fs::exists(a / "export" / f)) << f;
 }
 
 /// Opens `input` in the window, estimates it with `settings` (the script's key=value words),
