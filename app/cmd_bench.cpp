@@ -15,8 +15,10 @@
 #include "capture/openni.h"
 #include "common/atomic_file.h"
 #include "common/parallel.h"
+#include "common/rng.h"
 #include "common/timer.h"
 #include "estimation/path_tracer.h"
+#include "estimation/sampling.h"
 #include "scene/ray_tracer.h"
 #include "estimation/synth.h"
 
@@ -283,11 +285,61 @@ void BenchSize(const BenchOptions& o, const std::string& size, BenchTables* tabl
   if (o.Want("fd")) BenchFd(o, size, scene, env, b, trace_s, tables);
 }
 
+/// The tracer's ray throughput against Embree's own over the same BVH: a render of the
+/// frag115 scene (the real reconstructed mesh) counts its rays (paths, next-event shadow
+/// rays) and seconds; then as many rays of the same kinds (camera rays through jittered
+/// pixels, and cosine-distributed rays leaving their hits) go through rtcIntersect1 alone.
+void RaysBench(BenchTables* tables) {
+  SynthOptions so;
+  so.spp = 1;
+  const SceneBundle b = MakeSynthScene("frag115", so, DefaultDataDir());
+  const RayTracer scene(b.mesh);
+  const EnvMap env(21, b.up);
+  const std::vector<double> white(3 * env.size(), 1.0);
+  TracerOptions t;
+  t.spp = 32;
+  TraceStats stats;
+  double tracer_s = INFINITY, embree_s = INFINITY;  // the fastest of 3, alternating (a noisy machine)
+  const CellSampler sampler(env, white, {}, t.nee_floor);
+  RenderEnvironment(scene, env, b.views, white, sampler, t, true, &stats);
+  // The same number of rays for Embree alone (made before the clock starts).
+  std::vector<std::pair<Eigen::Vector3f, Eigen::Vector3f>> rays;
+  const Camera& cam = b.views[0].camera;
+  Rng rng(11);
+  while (static_cast<std::int64_t>(rays.size()) < stats.rays) {
+    const Eigen::Vector3d o = cam.center();
+    const Eigen::Vector3d d = cam.RayDirection(rng.Uniform() * cam.width - 0.5, rng.Uniform() * cam.height - 0.5);
+    rays.emplace_back(o.cast<float>(), d.cast<float>());
+    SurfacePoint hit;
+    if (!scene.Intersect(o, d, &hit)) continue;
+    const Eigen::Vector3d w = SampleCosine(hit.shading, rng.Uniform(), rng.Uniform());
+    rays.emplace_back((hit.position + hit.geometric * (4 * scene.epsilon())).cast<float>(), w.cast<float>());
+  }
+  std::int64_t hits = 0;
+  for (int rep = 0; rep < 3; ++rep) {
+    Stopwatch sw;
+    RenderEnvironment(scene, env, b.views, white, sampler, t, true);
+    tracer_s = std::min(tracer_s, sw.Seconds());
+    sw = Stopwatch();
+    hits = scene.CountHits(rays);
+    embree_s = std::min(embree_s, sw.Seconds());
+  }
+  const double tracer_rate = stats.rays / tracer_s, embree_rate = rays.size() / embree_s;
+  char note[256];
+  std::snprintf(note, sizeof note, "%lld triangles, %.2f Mrays/s (%lld rays, 32 spp, hit records, NEE, sampling)",
+                static_cast<long long>(b.mesh.triangles.size()), tracer_rate / 1e6, static_cast<long long>(stats.rays));
+  tables->Row("160x120", "rays: the tracer (frag115), fastest of 3", tracer_s, 0, NAN, note);
+  std::snprintf(note, sizeof note, "%.2f Mrays/s (%zu rays, %.0f %% hit); tracer / Embree = %.2f", embree_rate / 1e6,
+                rays.size(), 100.0 * hits / rays.size(), tracer_rate / embree_rate);
+  tables->Row("160x120", "rays: Embree rtcIntersect1 alone, same BVH, fastest of 3", embree_s, 0, NAN, note);
+}
+
 void RunBench(const BenchOptions& o) {
   ThreadLimit limit(o.threads);
   BenchTables tables;
   if (o.Want("replay")) ReplayBench(fs::path(o.out), tables.row());
   if (o.Want("reconstruct")) ReconstructionBench(tables.row());
+  if (o.Want("rays")) RaysBench(&tables);
   if (o.Want("estimate") || o.Want("solvers") || o.Want("fd"))
     for (const std::string& size : o.sizes) BenchSize(o, size, &tables);
   char mem[64];
@@ -317,9 +369,10 @@ Run AddBench(CLI::App& app) {
   auto o = std::make_shared<BenchOptions>();
   cmd->add_option("--parts", o->parts,
                   "which parts to run: estimate (full estimates), solvers (same A), fd, replay (.oni throughput), "
-                  "reconstruct (frames/s by stage, OpenCV baseline, meshing a room)")
+                  "reconstruct (frames/s by stage, OpenCV baseline, meshing a room), rays (the tracer's ray "
+                  "throughput against Embree alone)")
       ->capture_default_str()
-      ->check(CLI::IsMember({"estimate", "solvers", "fd", "replay", "reconstruct"}));
+      ->check(CLI::IsMember({"estimate", "solvers", "fd", "replay", "reconstruct", "rays"}));
   cmd->add_option("--out", o->out, "directory for bench.csv and bench.md")->capture_default_str();
   cmd->add_option("--sizes", o->sizes, "image sizes WxH")->capture_default_str();
   cmd->add_option("--gradient-cap", o->cap, "seconds the gradient solver may run per problem")->capture_default_str();

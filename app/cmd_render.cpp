@@ -62,6 +62,7 @@ Run AddRender(CLI::App& app) {
   auto rings = std::make_shared<int>(61);
   auto threads = std::make_shared<int>(0);
   auto o = std::make_shared<TracerOptions>();
+  o->bounces = kRenderBounces;  // a relight without the estimator's cap (docs/method.md)
   cmd->add_option("SCENE_DIR", *scene, "scene bundle directory")->required();
   cmd->add_option("--out", *out, "output directory")->required();
   auto* e = cmd->add_option("--envmap", *envmap, "equirectangular linear .exr/.hdr (convention: docs/formats.md)");

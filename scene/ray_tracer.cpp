@@ -1,5 +1,7 @@
 #include "scene/ray_tracer.h"
 
+#include "common/parallel.h"
+
 #include <cmath>
 #include <limits>
 
@@ -51,24 +53,48 @@ RayTracer::RayTracer(Mesh mesh) : impl_(std::make_unique<Impl>()), mesh_(std::mo
 
 RayTracer::~RayTracer() = default;
 
-bool RayTracer::Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, SurfacePoint* hit,
-                          double tmax) const {
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
+namespace {
+/// An Embree ray from `o` along `d` over (tnear, tfar), with no hit yet.
+RTCRayHit RayHit(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float tnear, float tfar) {
   RTCRayHit rh;
-  rh.ray.org_x = static_cast<float>(o.x());
-  rh.ray.org_y = static_cast<float>(o.y());
-  rh.ray.org_z = static_cast<float>(o.z());
-  rh.ray.dir_x = static_cast<float>(d.x());
-  rh.ray.dir_y = static_cast<float>(d.y());
-  rh.ray.dir_z = static_cast<float>(d.z());
-  rh.ray.tnear = static_cast<float>(epsilon_);
-  rh.ray.tfar = static_cast<float>(std::min(tmax, 1e30));
+  rh.ray.org_x = o.x(), rh.ray.org_y = o.y(), rh.ray.org_z = o.z();
+  rh.ray.dir_x = d.x(), rh.ray.dir_y = d.y(), rh.ray.dir_z = d.z();
+  rh.ray.tnear = tnear;
+  rh.ray.tfar = tfar;
   rh.ray.mask = 0xFFFFFFFFu;
   rh.ray.flags = 0;
   rh.ray.time = 0;
   rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
   rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  return rh;
+}
+}  // namespace
+
+std::int64_t RayTracer::CountHits(const std::vector<std::pair<Eigen::Vector3f, Eigen::Vector3f>>& rays) const {
+  std::vector<std::int64_t> hits((rays.size() + 4095) / 4096, 0);
+  ParallelForChunks(0, rays.size(), 4096, [&](std::size_t lo, std::size_t hi) {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    std::int64_t n = 0;
+    for (std::size_t i = lo; i < hi; ++i) {
+      const auto& [o, d] = rays[i];
+      RTCRayHit rh = RayHit(o, d, static_cast<float>(epsilon_), 1e30f);
+      rtcIntersect1(impl_->scene, &ctx, &rh);
+      n += rh.hit.geomID != RTC_INVALID_GEOMETRY_ID;
+    }
+    hits[lo / 4096] = n;
+  });
+  std::int64_t total = 0;
+  for (std::int64_t h : hits) total += h;
+  return total;
+}
+
+bool RayTracer::Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, SurfacePoint* hit,
+                          double tmax) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh = RayHit(o.cast<float>(), d.cast<float>(), static_cast<float>(epsilon_),
+                        static_cast<float>(std::min(tmax, 1e30)));
   rtcIntersect1(impl_->scene, &ctx, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
   const int prim = static_cast<int>(rh.hit.primID);

@@ -3,6 +3,10 @@
 /// (the one file that would absorb the Embree 3 -> 4 API change).
 #include <memory>
 
+#include <cstdint>
+#include <utility>
+#include <vector>
+
 #include <Eigen/Core>
 
 #include "scene/mesh.h"
@@ -32,6 +36,10 @@ class RayTracer {
                  double tmax = 1e30) const;
   /// True if anything lies along origin + t*dir, t in (epsilon, tmax).
   bool Occluded(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double tmax = 1e30) const;
+  /// Embree alone, for the tracer's throughput benchmark (`lightprobe bench --parts rays`):
+  /// rtcIntersect1 on each ray (origin, unit direction) over this BVH, on all cores, with no
+  /// hit record made; returns how many hit.
+  std::int64_t CountHits(const std::vector<std::pair<Eigen::Vector3f, Eigen::Vector3f>>& rays) const;
 
   /// Ray offset used to leave a surface, proportional to the scene size.
   double epsilon() const { return epsilon_; }

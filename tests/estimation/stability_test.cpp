@@ -203,7 +203,10 @@ TEST(Stability, LightsNoObservedPointCanSeeAreLeftOutOrZero) {
       EXPECT_EQ(r.lambda[3 * k] + r.lambda[3 * k + 1] + r.lambda[3 * k + 2], 0.0);
     }
   EXPECT_NEAR(PowerNear(r, env.direction(above), 45) / (2.0 * env.solid_angle(above)), 1.0, 0.2);
-  ExpectLightAt(r, env, env.direction(above));
+  // The lit cell's neighbours share its light at 32 spp: 7.6 degrees measured, and 4.5-10.5
+  // over seeds 1-4 (truth rendered with 64 bounces), so three quarters of a cell (16.9); a
+  // light one cell off is 22.5 away.
+  ExpectLightAt(r, env, env.direction(above), 0.75);
 }
 
 TEST(Stability, SixtyOneRingsWithFourSamplesPerPixel) {
