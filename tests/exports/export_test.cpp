@@ -22,6 +22,7 @@
 #include "exports/gltf.h"
 #include "exports/sh.h"
 #include "scene/ray_tracer.h"
+#include "scene/scene_bundle.h"
 #include "tests/test_util.h"
 
 namespace lp {
@@ -321,6 +322,28 @@ TEST(GltfExport, LightsCamerasAndBuffersByHand) {
   EXPECT_NEAR(m[13].get<double>(), 1.5, 1e-9);
   EXPECT_NEAR(m[14].get<double>(), 2.0, 1e-9);
   EXPECT_NEAR(j["cameras"][0]["perspective"]["aspectRatio"].get<double>(), 80.0 / 60, 1e-9);
+  fs::remove_all(dir);
+}
+
+TEST(Export, TheRefinedAlbedoMeshReplacesTheBundles) {
+  // ESTIMATE_DIR/albedo_mesh.ply (the de-lit mesh) when the estimate wrote one, else the bundle's.
+  const fs::path dir = Scratch("refined");
+  SceneBundle b;
+  b.mesh = test::Plane(2, 0.5);
+  b.views.push_back(test::BlankView(test::LookAt({0, -2, 1.5}, {0, 0, 0}, 8, 6, 60)));
+  b.views[0].image = ImageRGB(8, 6, 0.1f);
+  WriteSceneBundle(dir / "scene", b);
+  fs::create_directories(dir / "estimate");
+  WriteTextAtomically(dir / "estimate" / "lights.json", "{\"point_lights\": []}");
+  EXPECT_NEAR(LoadExportScene(dir / "scene", dir / "estimate").mesh.albedo[0].x(), 0.5, 0.01);
+  Mesh refined = b.mesh;
+  for (auto& a : refined.albedo) a = Eigen::Vector3f(0.2f, 0.3f, 0.4f);
+  WritePly(dir / "estimate" / "albedo_mesh.ply", refined);
+  const ExportScene s = LoadExportScene(dir / "scene", dir / "estimate");
+  EXPECT_NEAR(s.mesh.albedo[0].y(), 0.3, 0.01);
+  EXPECT_NE(s.mesh_source.find("albedo_mesh.ply"), std::string::npos);
+  EXPECT_EQ(s.cameras.size(), 1u);
+  EXPECT_EQ(s.environment.height, 0) << "no map in lights.json: none exported";
   fs::remove_all(dir);
 }
 
