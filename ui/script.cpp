@@ -159,6 +159,7 @@ void ApplySetting(const Call& c, const std::string& w, EstimateOptions* o) {
   else if (key == "rounds") o->max_rounds = static_cast<int>(x);
   else if (key == "render-spp") o->render_spp = static_cast<int>(x);
   else if (key == "point-lights") o->point_lights.max_lights = static_cast<int>(x);  // 0: the map alone
+  else if (key == "directional-lights") o->directional_lights = x != 0;  // 1: look for a sun
   else if (key == "change") o->change_threshold = x;  // stop when the image changes less (0: run every round)
   else if (key == "albedo-passes") {
     if (x < 0 || x > kMaxAlbedoPasses || x != std::floor(x))

@@ -318,6 +318,7 @@ void Viewer::DrawScene(const Rect& r) {
   glDisable(GL_DEPTH_TEST);
   lines_.Clear();
   AddLampMarkers(size);
+  AddSunMarkers(size);
   lines_.Draw();
   view_projection_ = vp;
   RenderTarget::Unbind();
@@ -349,6 +350,32 @@ void Viewer::AddLampMarkers(float size) {
       for (int b = a + 1; b < 3; ++b)
         for (int i = 0; i < 2; ++i)
           for (int j = 0; j < 2; ++j) lines_.Add(tip[2 * a + i], tip[2 * b + j], color);
+  }
+}
+
+/// Each directional light as a sun far out along its direction (a ring facing the scene with
+/// eight rays), in its colour, with a dashed line to the scene's centre.
+void Viewer::AddSunMarkers(float size) {
+  const float reach = camera_.distance * 0.45f;  // inside the view, short of the dominant light's star
+  for (const DirectionalLight& l : est_.directional_lights) {
+    const Eigen::Vector3f d = l.direction.normalized().cast<float>(), centre = camera_.target + reach * d;
+    const double peak = l.irradiance.maxCoeff();
+    Eigen::Vector3f color = peak > 0 ? Eigen::Vector3f((l.irradiance / peak).cast<float>()) : Eigen::Vector3f::Ones();
+    color = color.cwiseMax(0.15f);
+    const Eigen::Vector3f a = d.unitOrthogonal(), b = d.cross(a);
+    const float r = size;
+    constexpr int kSegments = 16;
+    for (int k = 0; k < kSegments; ++k) {
+      const float t0 = 6.2831853f * k / kSegments, t1 = 6.2831853f * (k + 1) / kSegments;
+      lines_.Add(centre + r * (std::cos(t0) * a + std::sin(t0) * b), centre + r * (std::cos(t1) * a + std::sin(t1) * b),
+                 color);
+      if (k % 2 == 0)
+        lines_.Add(centre + 1.3f * r * (std::cos(t0) * a + std::sin(t0) * b),
+                   centre + 1.8f * r * (std::cos(t0) * a + std::sin(t0) * b), color);
+    }
+    for (int k = 0; k < 10; k += 2)
+      lines_.Add(camera_.target + (k / 10.f) * (centre - camera_.target),
+                 camera_.target + ((k + 1) / 10.f) * (centre - camera_.target), color);
   }
 }
 
@@ -579,6 +606,8 @@ void Viewer::PanelEstimate() {
     ImGui::SliderInt("rounds", &settings_.max_rounds, 1, 6);
     ImGui::SliderInt("point lights", &settings_.point_lights.max_lights, 0, 8);
     if (ImGui::IsItemHovered()) ImGui::SetTooltip("at most this many lamps beside the map; 0 = the map alone");
+    ImGui::Checkbox("directional light (a sun)", &settings_.directional_lights);
+    if (ImGui::IsItemHovered()) ImGui::SetTooltip("look for a sun with sharp shadows where the map has one bright spot");
     ImGui::SliderInt("albedo passes", &settings_.albedo_passes, 0, kMaxAlbedoPasses);
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip("refine the reconstruction's albedo under the estimate (de-lit colours), then more rounds");

@@ -53,6 +53,7 @@ class Viewer {
   void SyncShading();
   void DrawScene(const Rect& r);
   void AddLampMarkers(float size);
+  void AddSunMarkers(float size);
   std::string SceneKey(const Rect& r) const;
   void HandleMouse(const Rect& r);
   void PanelSource();
