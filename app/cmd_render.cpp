@@ -23,12 +23,7 @@ namespace {
 
 /// An equirectangular map file as per-cell radiance of `env`.
 std::vector<double> ReadEnvironment(const std::string& file, const EnvMap& env) {
-  const fs::path p(file);
-  ImageRGB map = p.extension() == ".hdr" ? ReadHdr(p) : ReadImageLinear(p);
-  if (map.width != 2 * map.height) throw InputError(file, "environment map must be equirectangular (width = 2*height)");
-  for (float v : map.data)
-    if (!std::isfinite(v) || v < 0) throw InputError(file, "environment map has negative or non-finite values");
-  return env.FromEquirect(map);
+  return env.FromEquirect(ReadEquirectMap(file));
 }
 
 std::vector<double> ParseUniform(const std::string& text, const EnvMap& env) {

@@ -5,6 +5,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/error.h"
+#include "common/image_io.h"
 
 namespace lp {
 using nlohmann::json;
@@ -83,6 +84,14 @@ LightsFile ParseLightsJson(const std::string& text, const std::string& name) {
     out.directional_lights.push_back(d);
   }
   return out;
+}
+
+ImageRGB ReadEquirectMap(const std::filesystem::path& file) {
+  ImageRGB map = file.extension() == ".hdr" ? ReadHdr(file) : ReadImageLinear(file);
+  if (map.width != 2 * map.height) throw InputError(file.string(), "environment map must be equirectangular (width = 2*height)");
+  for (float v : map.data)
+    if (!std::isfinite(v) || v < 0) throw InputError(file.string(), "environment map has negative or non-finite values");
+  return map;
 }
 
 }  // namespace lp

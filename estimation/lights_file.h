@@ -2,9 +2,11 @@
 /// lights.json (docs/formats.md): an estimate's lighting as other programs take it, the
 /// environment map (far) by file, the point lights (near) and the directional lights (a
 /// sun) by value.
+#include <filesystem>
 #include <string>
 #include <vector>
 
+#include "common/image.h"
 #include "estimation/directional_light.h"
 #include "estimation/point_light.h"
 
@@ -26,5 +28,10 @@ std::string LightsJson(const LightsFile& lights);
 /// irradiance, an angular radius outside [0, pi/2)). A file without "directional_lights"
 /// (written before they existed) has none.
 LightsFile ParseLightsJson(const std::string& text, const std::string& name);
+
+/// Reads an equirectangular map file (.exr/.pfm/.png linear, or Radiance .hdr: lights.json's
+/// `environment`, `render --envmap`). Throws InputError naming the file when it is not
+/// 2:1 or holds a negative or non-finite value.
+ImageRGB ReadEquirectMap(const std::filesystem::path& file);
 
 }  // namespace lp

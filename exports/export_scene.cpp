@@ -22,12 +22,7 @@ ExportScene LoadExportScene(const fs::path& scene_dir, const fs::path& estimate_
   s.point_lights = lights.point_lights;
   s.directional_lights = lights.directional_lights;
   if (!lights.environment.empty()) {
-    const fs::path map_path = estimate_dir / lights.environment;
-    s.environment = map_path.extension() == ".hdr" ? ReadHdr(map_path) : ReadImageLinear(map_path);
-    if (s.environment.width != 2 * s.environment.height)
-      throw InputError(map_path.string(), "environment map must be equirectangular (width = 2*height)");
-    for (float v : s.environment.data)
-      if (!std::isfinite(v) || v < 0) throw InputError(map_path.string(), "environment map has negative or non-finite values");
+    s.environment = ReadEquirectMap(estimate_dir / lights.environment);
   }
   SceneBundle b = LoadSceneBundle(scene_dir);
   s.up = b.up.normalized();
