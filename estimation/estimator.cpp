@@ -448,6 +448,22 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
     }
     const double trial_loss = loss(r);
     if (!(trial_loss < (1 - opt_.point_lights.min_gain) * best_loss)) break;
+    // A light that renders too little of the light seen would be dropped right after the
+    // search (FitPointLights): the search ends there instead of refining it with the rest
+    // and trying more (the far-light scenes' and the lamps' spurious second lights).
+    const double share = RenderedShare(trial.back());
+    if (share < opt_.point_lights.min_share) {
+      const Eigen::Vector3d q = trial.back().position;
+      char line[240];
+      std::snprintf(line, sizeof line,
+                    "search: a light at (%.3f, %.3f, %.3f) renders %.3g of the light seen: not kept, the search ends",
+                    q.x(), q.y(), q.z(), share);
+      res_.point_light_choices.push_back(line);
+      Progress(line);
+      trial.pop_back();  // the others as refined beside it
+      lights = std::move(trial);
+      break;
+    }
     lights = std::move(trial);
     residual = std::move(r);
     best_loss = trial_loss;
@@ -593,11 +609,14 @@ bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>
   // map together on the moved lights' columns, until the lights stay.
   // After round 1's search the map is dark: its first solve steps the Cauchy scale down as
   // round 1's does (graduated; see Solve).
+  // The search refined its lights with the map dark, which leaves them the map's light to
+  // explain too: the map is solved beside them before their positions are refined again.
+  if (candidates && !kept.empty()) SolveWithLights(&kept, info, true);
   for (int pass = 0; pass < (candidates ? 4 : 1) && !kept.empty(); ++pass) {
     const std::vector<PointLight> start = kept;
     RefinePositions(&kept, info);
     FoldLights(&kept, info->round);
-    SolveWithLights(&kept, info, candidates && pass == 0);
+    SolveWithLights(&kept, info, false);
     // A light that renders too little of the light seen cannot be kept (SelectModel): drop
     // it now rather than refine it (the far-light scenes' lights end here).
     const std::size_t before = kept.size();

@@ -223,6 +223,29 @@ double RelativeImageRmse(const ImageRGB& image, const ImageRGB& reference, const
   return std::sqrt(se / n) / (sum / n);
 }
 
+double RelativeImageRmseBeyondNoise(const ImageRGB& image, const ImageRGB& image2, const ImageRGB& reference,
+                                    const ImageRGB& reference2, const std::vector<std::uint8_t>& valid,
+                                    double* noise_image, double* noise_reference) {
+  const auto sum = [&](const ImageRGB& im) {
+    double s = 0;
+    for (std::size_t p = 0; p < valid.size(); ++p)
+      if (valid[p])
+        for (int c = 0; c < 3; ++c) s += im.data[3 * p + c];
+    return s;
+  };
+  // RelativeImageRmse(a, b) is over b's mean: rescaled to the reference's, over sqrt 2.
+  const double reference_sum = sum(reference);
+  const auto noise = [&](const ImageRGB& a, const ImageRGB& b) {
+    return RelativeImageRmse(a, b, valid) * sum(b) / reference_sum / std::sqrt(2.0);
+  };
+  const double error = RelativeImageRmse(image, reference, valid);
+  const double ni = noise(image, image2), nr = noise(reference, reference2);
+  if (noise_image) *noise_image = ni;
+  if (noise_reference) *noise_reference = nr;
+  if (!std::isfinite(error) || !std::isfinite(ni) || !std::isfinite(nr)) return std::nan("");
+  return std::sqrt(std::max(0.0, error * error - ni * ni - nr * nr));
+}
+
 double EnvMapRelativeError(const EnvMap& env, const std::vector<double>& lambda, const std::vector<double>& truth,
                            const std::vector<std::uint8_t>& left_out) {
   if (truth.empty()) return std::nan("");

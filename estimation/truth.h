@@ -79,6 +79,17 @@ double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
 /// sqrt(mean squared difference) / mean reference value. NaN without valid pixels.
 double RelativeImageRmse(const ImageRGB& image, const ImageRGB& reference, const std::vector<std::uint8_t>& valid);
 
+/// The same error with the Monte Carlo noise of both sides taken out: `image` and `image2`
+/// are two renders of one estimate with independent samples, `reference` and `reference2`
+/// two of the truth. Each pair's difference is its noise times sqrt 2, so
+/// sqrt(max(0, e^2 - n_i^2 - n_r^2)) with e = RelativeImageRmse(image, reference), n_i that of
+/// image against image2 over sqrt 2, n_r the same for the references (all over the mean of
+/// `reference`). The noises go to `noise_image` and `noise_reference` when given. NaN without
+/// valid pixels.
+double RelativeImageRmseBeyondNoise(const ImageRGB& image, const ImageRGB& image2, const ImageRGB& reference,
+                                    const ImageRGB& reference2, const std::vector<std::uint8_t>& valid,
+                                    double* noise_image = nullptr, double* noise_reference = nullptr);
+
 /// Relative error of an estimated map against the true per-cell radiance (both 3 per cell):
 /// sqrt(sum_j Omega_j |l_j - t_j|^2 / sum_j Omega_j |t_j|^2) over the cells not left out
 /// (cells no path reached are unobservable; `left_out` may be empty). NaN if `truth` is empty.

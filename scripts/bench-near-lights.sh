@@ -3,18 +3,27 @@
 # estimated with --point-lights 0 and then with the default, alternating, REPEATS times each
 # (default 2), reading report.json: the time is each model's fastest run (the least
 # disturbed on a shared machine), the fit and the lamp the last run's (same seed, same result).
-# Usage: [REPEATS=n] scripts/bench-near-lights.sh [path/to/lightprobe] > table.md
+# Usage: [REPEATS=n] [SCENES="cornerbox_one_light near-light ..."] scripts/bench-near-lights.sh [path/to/lightprobe] > table.md
+# (SCENES: a subset of the default list, in its names; cornerbox_one_light is the Cycles bundle,
+# demo the bundled far-light scene, the rest synth scenes)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 exe=${1:-$root/build/app/lightprobe}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-scenes=(near-light lamp-0.5m lamp-1m lamp-2m lamp-4m two-lamps lamp-and-sky one-light sun-and-sky two-light)
-for s in "${scenes[@]}"; do "$exe" synth "$s" --out "$tmp/$s" >/dev/null; done
+read -r -a names <<< "${SCENES:-cornerbox_one_light demo near-light lamp-0.5m lamp-1m lamp-2m lamp-4m two-lamps lamp-and-sky one-light sun-and-sky two-light}"
+dirs=()
+for s in "${names[@]}"; do
+  case "$s" in
+    cornerbox_one_light) dirs+=("$root/tests/data/cycles/cornerbox_one_light") ;;
+    demo) dirs+=("$root/assets/demo") ;;
+    *) "$exe" synth "$s" --out "$tmp/$s" >/dev/null; dirs+=("$tmp/$s") ;;
+  esac
+done
 echo "| scene | K | total s | fitted | angle ° | point lights | radius m | lamp | time ratio |"
 echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- |"
 repeats=${REPEATS:-2}
-for s in "$root/tests/data/cycles/cornerbox_one_light" "$root/assets/demo" "${scenes[@]/#/$tmp/}"; do
+for s in "${dirs[@]}"; do
   for ((i = 0; i < repeats; ++i)); do
     for k in 0 4; do
       "$exe" estimate "$s" --out "$tmp/out$k" --point-lights $k --quiet >/dev/null

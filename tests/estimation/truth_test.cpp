@@ -74,6 +74,32 @@ TEST(RelativeImageRmse, AgainstHandComputedValues) {
   EXPECT_TRUE(std::isnan(RelativeImageRmse(img, ref, {0, 0})));
 }
 
+TEST(RelativeImageRmseBeyondNoise, AgainstHandComputedValues) {
+  // One pixel, reference mean 2 (values 2, 2, 2). The render is 3, 2, 2: error sqrt(1 / 3) / 2,
+  // squared 1 / 12. The second render 3, 2, 4 differs by (0, 0, 2): its pair's RMSE over
+  // image2's mean (3) is sqrt(4 / 3) / 3, rescaled to the reference's mean (x 3 / 2) and over
+  // sqrt 2: n_i^2 = (4 / 3) / 4 / 2 = 1 / 6. The second reference 2, 2, 2.6: differs by 0.6,
+  // RMSE over its mean (6.6 / 3 = 2.2) sqrt(0.12) / 2.2, rescaled x 2.2 / 2 and over sqrt 2:
+  // n_r^2 = 0.12 / 4 / 2 = 0.015.
+  ImageRGB ref(1, 1), ref2(1, 1), img(1, 1), img2(1, 1);
+  const float r[3] = {2, 2, 2}, r2[3] = {2, 2, 2.6f}, i[3] = {3, 2, 2}, i2[3] = {3, 2, 4};
+  for (int k = 0; k < 3; ++k) ref.data[k] = r[k], ref2.data[k] = r2[k], img.data[k] = i[k], img2.data[k] = i2[k];
+  double ni = 0, nr = 0;
+  // 1 / 12 - 1 / 6 - 0.015 < 0: all of it is noise.
+  EXPECT_EQ(RelativeImageRmseBeyondNoise(img, img2, ref, ref2, {1}, &ni, &nr), 0.0);
+  EXPECT_NEAR(ni * ni, 1.0 / 6, 1e-6);
+  EXPECT_NEAR(nr * nr, 0.015, 1e-6);
+  // Noise-free renders (each pair equal): the plain error, sqrt(1 / 12).
+  EXPECT_NEAR(RelativeImageRmseBeyondNoise(img, img, ref, ref, {1}), std::sqrt(1.0 / 12), 1e-7);
+  // A render 5, 2, 2 (error^2 = 9 / 12 = 0.75) with the noises above: sqrt(0.75 - 1/6 - 0.015).
+  ImageRGB far(1, 1), far2(1, 1);
+  const float f[3] = {5, 2, 2}, f2[3] = {5, 2, 4};
+  for (int k = 0; k < 3; ++k) far.data[k] = f[k], far2.data[k] = f2[k];
+  // far2's mean is 11 / 3: n_i^2 = (4 / 3) / (11 / 3)^2 * (11 / 3)^2 / 4 / 2 = 1 / 6 again.
+  EXPECT_NEAR(RelativeImageRmseBeyondNoise(far, far2, ref, ref2, {1}), std::sqrt(0.75 - 1.0 / 6 - 0.015), 1e-6);
+  EXPECT_TRUE(std::isnan(RelativeImageRmseBeyondNoise(img, img2, ref, ref2, {0})));
+}
+
 TEST(EnvMapRelativeError, AgainstHandComputedValues) {
   // Two rings: one cell at each pole, each 2 pi steradians.
   const EnvMap env(2, Eigen::Vector3d::UnitZ());
