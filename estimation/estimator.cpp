@@ -607,10 +607,10 @@ bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>
   if (candidates && kept.empty()) lambda_ = map;  // no lamp: the round's map stands
   // Block coordinate descent: the positions (the map held), then the intensities and the
   // map together on the moved lights' columns, until the lights stay.
-  // After round 1's search the map is dark: its first solve steps the Cauchy scale down as
-  // round 1's does (graduated; see Solve).
   // The search refined its lights with the map dark, which leaves them the map's light to
-  // explain too: the map is solved beside them before their positions are refined again.
+  // explain too: the map is solved beside them before their positions are refined again,
+  // stepping the Cauchy scale down from the dark start as round 1's first solve does
+  // (graduated; see Solve).
   if (candidates && !kept.empty()) SolveWithLights(&kept, info, true);
   for (int pass = 0; pass < (candidates ? 4 : 1) && !kept.empty(); ++pass) {
     const std::vector<PointLight> start = kept;

@@ -206,39 +206,49 @@ double WorstPositionError(const std::vector<PointLight>& points, const std::vect
   return worst;
 }
 
-double RelativeImageRmse(const ImageRGB& image, const ImageRGB& reference, const std::vector<std::uint8_t>& valid) {
-  LP_CHECK(image.width == reference.width && image.height == reference.height, "image size mismatch");
+namespace {
+
+/// The RMSE of `image` against `other` over the valid pixels, and `scale`'s mean there (both
+/// over the same values); n = 0 without valid pixels.
+struct RmseAndMean {
+  double rmse = 0, mean = 0;
+  std::int64_t n = 0;
+};
+RmseAndMean Rmse(const ImageRGB& image, const ImageRGB& other, const ImageRGB& scale,
+                 const std::vector<std::uint8_t>& valid) {
+  LP_CHECK(image.width == other.width && image.height == other.height, "image size mismatch");
   double se = 0, sum = 0;
   std::int64_t n = 0;
   for (std::size_t p = 0; p < valid.size(); ++p) {
     if (!valid[p]) continue;
     for (int c = 0; c < 3; ++c) {
-      const double d = double(image.data[3 * p + c]) - reference.data[3 * p + c];
+      const double d = double(image.data[3 * p + c]) - other.data[3 * p + c];
       se += d * d;
-      sum += reference.data[3 * p + c];
+      sum += scale.data[3 * p + c];
     }
     n += 3;
   }
-  if (n == 0 || !(sum > 0)) return std::nan("");
-  return std::sqrt(se / n) / (sum / n);
+  if (n == 0) return {};
+  return {std::sqrt(se / n), sum / n, n};
+}
+
+}  // namespace
+
+double RelativeImageRmse(const ImageRGB& image, const ImageRGB& reference, const std::vector<std::uint8_t>& valid) {
+  const RmseAndMean e = Rmse(image, reference, reference, valid);
+  if (e.n == 0 || !(e.mean > 0)) return std::nan("");
+  return e.rmse / e.mean;
 }
 
 double RelativeImageRmseBeyondNoise(const ImageRGB& image, const ImageRGB& image2, const ImageRGB& reference,
                                     const ImageRGB& reference2, const std::vector<std::uint8_t>& valid,
                                     double* noise_image, double* noise_reference) {
-  const auto sum = [&](const ImageRGB& im) {
-    double s = 0;
-    for (std::size_t p = 0; p < valid.size(); ++p)
-      if (valid[p])
-        for (int c = 0; c < 3; ++c) s += im.data[3 * p + c];
-    return s;
-  };
-  // RelativeImageRmse(a, b) is over b's mean: rescaled to the reference's, over sqrt 2.
-  const double reference_sum = sum(reference);
-  const auto noise = [&](const ImageRGB& a, const ImageRGB& b) {
-    return RelativeImageRmse(a, b, valid) * sum(b) / reference_sum / std::sqrt(2.0);
-  };
+  // Every RMSE over the reference's mean; each pair's difference is its noise times sqrt 2.
   const double error = RelativeImageRmse(image, reference, valid);
+  const auto noise = [&](const ImageRGB& a, const ImageRGB& b) {
+    const RmseAndMean e = Rmse(a, b, reference, valid);
+    return e.n == 0 || !(e.mean > 0) ? std::nan("") : e.rmse / e.mean / std::sqrt(2.0);
+  };
   const double ni = noise(image, image2), nr = noise(reference, reference2);
   if (noise_image) *noise_image = ni;
   if (noise_reference) *noise_reference = nr;
