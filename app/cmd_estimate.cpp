@@ -57,6 +57,11 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
   cmd.add_option("--albedo-samples", o->albedo_samples, "paths per vertex for the irradiance an albedo pass de-lights by")
       ->capture_default_str()
       ->check(CLI::Range(1, 4096));
+  cmd.add_option("--trace-pixels", o->trace_pixels,
+                 "trace the mesh clustered on a grid of this many pixels (what one spans on the nearest tenth of "
+                 "the surfaces seen) where it is finer; 0 = trace the bundle's mesh as it is")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 64.0));
   cmd.add_option("--render-spp", o->render_spp, "samples per pixel of the final relit render (0 = --spp)")
       ->capture_default_str();
   cmd.add_option("--point-lights", o->point_lights.max_lights,
@@ -218,7 +223,8 @@ static json SettingsJson(const EstimateOptions& o, const EstimateResult& r) {
           {"seed", o.tracer.seed}, {"threads", HardwareThreads()}, {"nee_floor", o.tracer.nee_floor},
           {"min_throughput", o.tracer.min_throughput}, {"combine_rounds", o.combine_rounds},
           {"albedo_passes", o.albedo_passes}, {"albedo_samples", o.albedo_samples},
-          {"point_lights", o.point_lights.max_lights}, {"point_spp", o.point_lights.spp}};
+          {"point_lights", o.point_lights.max_lights}, {"point_spp", o.point_lights.spp},
+          {"trace_pixels", o.trace_pixels}};
 }
 
 /// report.json's "seconds": where the time went.
@@ -324,7 +330,12 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
   rep["seconds"] = SecondsJson(r, command_seconds);
   rep["albedo"] = WriteAlbedo(out, bundle, r);
   rep["left_out"] = LeftOutJson(bundle, r);
-  rep["trace"] = {{"paths", r.trace.paths}, {"rays", r.trace.rays}};
+  rep["trace"] = {{"paths", r.trace.paths},
+                  {"rays", r.trace.rays},
+                  {"mesh", {{"triangles", r.traced_triangles},
+                            {"vertices", r.traced_vertices},
+                            {"grid_m", r.trace_cell_m},
+                            {"cluster_seconds", r.cluster_seconds}}}};
   rep["rounds"] = RoundsJson(r);
   rep["views"] = views;
   rep["image_mean"] = r.image_mean;

@@ -11,6 +11,7 @@
 #include "common/timer.h"
 #include "scene/albedo.h"
 #include "scene/ray_tracer.h"
+#include "scene/simplify.h"
 #include "estimation/point_lights.h"
 #include "estimation/sampling.h"
 #include "estimation/vertex_radiance.h"
@@ -108,6 +109,9 @@ class Estimator {
   /// De-lights the colours seen by the estimate's irradiance and segments them again into
   /// the albedo the next rounds run under; false when there is nothing to divide by.
   bool RefineAlbedo(int pass);
+  std::vector<float> OverClusters(const std::vector<float>& values) const;
+  int AlbedoPaths() const;
+  Mesh WithAlbedoOf(const Mesh& full) const;
   /// The estimate in image units, its scores and what the user should know about it.
   void Conclude();
   /// Relit renders of the fitted views under the estimate.
@@ -127,6 +131,7 @@ class Estimator {
   }
   std::string SceneFile() const { return (bundle_.dir / "scene.json").string(); }
   void Observe();
+  Mesh TracedMesh();
   RoundProblem TraceRound(int round, int first, RoundInfo* info);
   SolveResult Solve(const RoundProblem& rp, int round, RoundInfo* info, bool graduated);
   void Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo* info);
@@ -185,7 +190,9 @@ class Estimator {
   std::vector<double> y_;  ///< observations over their mean
   std::vector<TruthLight> truth_;
   std::unique_ptr<RayTracer> scene_;
-  Mesh mesh_;  ///< the mesh whose albedo is refined (empty until then)
+  /// Per vertex of the bundle's mesh: its vertex in the traced mesh (empty: the same mesh).
+  std::vector<int> cluster_;
+  Mesh mesh_;  ///< the bundle's mesh, whose albedo is refined (empty until then)
   std::vector<double> lambda_;  ///< the estimate, normalized units, 3 per cell
   std::vector<std::uint8_t> reachable_;  ///< per cell: some sampled path reached it
   TransportMatrix A_;  ///< the map's columns, averaged over the rounds under one albedo
@@ -227,10 +234,13 @@ Estimator::Estimator(const SceneBundle& bundle, const EstimateOptions& options)
   cells_ = env_.size();
   Observe();
   Stopwatch bvh;
-  scene_ = std::make_unique<RayTracer>(bundle_.mesh);
+  scene_ = std::make_unique<RayTracer>(TracedMesh());
   res_.bvh_seconds = bvh.Seconds();
-  centre_ = res_.scene_centre = scene_->center();
-  radius_ = scene_->radius();
+  // The scene's centre and size are the bundle's mesh's (truth.json's measures use them).
+  Eigen::Vector3f lo, hi;
+  MeshBounds(bundle_.mesh, &lo, &hi);
+  centre_ = res_.scene_centre = (0.5f * (lo + hi)).cast<double>();
+  radius_ = std::max(1e-9, 0.5 * (hi - lo).cast<double>().norm());
   if (bundle_.truth_json) {
     truth_ = ParseTruthLights(*bundle_.truth_json, (bundle_.dir / "truth.json").string());
     CentreTruthLights(&truth_, centre_);
@@ -238,6 +248,33 @@ Estimator::Estimator(const SceneBundle& bundle, const EstimateOptions& options)
   // Start dark and uniform (paper): every cell equally likely to be sampled.
   lambda_.assign(3 * cells_, 1e-3);
   reachable_.assign(cells_, 1);
+}
+
+/// The bundle's mesh, clustered on a grid of opt_.trace_pixels pixels where it is finer
+/// than that (cluster_ then maps its vertices to the traced mesh's).
+Mesh Estimator::TracedMesh() {
+  const Mesh& full = bundle_.mesh;
+  res_.traced_triangles = static_cast<int>(full.triangles.size());
+  res_.traced_vertices = static_cast<int>(full.positions.size());
+  if (!(opt_.trace_pixels > 0)) return full;
+  Stopwatch cs;
+  std::vector<Camera> cameras;
+  for (const View& v : bundle_.views) cameras.push_back(v.camera);
+  const float pixel = FiniteQuantile(PixelFootprints(full, cameras), 0.1);
+  const float cell = static_cast<float>(opt_.trace_pixels) * pixel;
+  if (!(cell >= kMinTraceCellEdges * MedianEdgeLength(full))) return full;
+  ClusteredMesh coarse = ClusterVertices(full, cell);
+  SanitizeMesh(&coarse.mesh, bundle_.mesh_file);
+  cluster_ = std::move(coarse.cluster);
+  res_.trace_cell_m = cell;
+  res_.traced_triangles = static_cast<int>(coarse.mesh.triangles.size());
+  res_.traced_vertices = static_cast<int>(coarse.mesh.positions.size());
+  res_.cluster_seconds = cs.Seconds();
+  char line[200];
+  std::snprintf(line, sizeof line, "traced mesh: %d triangles, %d vertices (a grid of %.2f cm, %g pixel(s)) in %.2f s",
+                res_.traced_triangles, res_.traced_vertices, 100 * cell, opt_.trace_pixels, res_.cluster_seconds);
+  Progress(line);
+  return std::move(coarse.mesh);
 }
 
 /// The valid pixels as observations normalized to mean 1, and the penalty at their scale.
@@ -1076,8 +1113,62 @@ bool Estimator::AlbedoRefinable() {
   else if (bundle_.mesh.shaded.size() != bundle_.mesh.positions.size())
     res_.albedo_left_out = AlbedoLeftOut::kKnownAlbedo;
   if (res_.albedo_left_out != AlbedoLeftOut::kRefined) return false;
-  mesh_ = scene_->mesh();
+  mesh_ = bundle_.mesh;
   return true;
+}
+
+/// Per vertex of the bundle's mesh, the mean of `values` over the vertices of its cluster
+/// whose normals are within 37 degrees of its own (a box's edge keeps its faces apart).
+std::vector<float> Estimator::OverClusters(const std::vector<float>& values) const {
+  if (cluster_.empty()) return values;
+  const Mesh& full = bundle_.mesh;
+  std::vector<int> start(scene_->mesh().positions.size() + 1, 0), members(cluster_.size());
+  for (int c : cluster_)
+    if (c >= 0) ++start[c + 1];
+  for (std::size_t c = 1; c < start.size(); ++c) start[c] += start[c - 1];
+  std::vector<int> fill(start.begin(), start.end() - 1);
+  for (std::size_t v = 0; v < cluster_.size(); ++v)
+    if (cluster_[v] >= 0) members[fill[cluster_[v]]++] = static_cast<int>(v);
+  std::vector<float> out(values);
+  ParallelForChunks(0, cluster_.size(), 1024, [&](std::size_t b, std::size_t e) {
+    for (std::size_t v = b; v < e; ++v) {
+      if (cluster_[v] < 0) continue;
+      double sum = 0;
+      int n = 0;
+      for (int k = start[cluster_[v]]; k < start[cluster_[v] + 1]; ++k)
+        if (full.normals[members[k]].dot(full.normals[v]) > 0.8f) {
+          sum += values[members[k]];
+          ++n;
+        }
+      if (n > 0) out[v] = static_cast<float>(sum / n);
+    }
+  });
+  return out;
+}
+
+/// The traced mesh under the albedo of `full` (the bundle's mesh): each cluster its vertices' mean.
+Mesh Estimator::WithAlbedoOf(const Mesh& full) const {
+  if (cluster_.empty()) return full;
+  Mesh traced = scene_->mesh();
+  std::vector<Eigen::Vector3d> sum(traced.positions.size(), Eigen::Vector3d::Zero());
+  std::vector<int> count(traced.positions.size(), 0);
+  for (std::size_t v = 0; v < cluster_.size(); ++v)
+    if (cluster_[v] >= 0) {
+      sum[cluster_[v]] += full.albedo[v].cast<double>();
+      ++count[cluster_[v]];
+    }
+  for (std::size_t i = 0; i < sum.size(); ++i)
+    if (count[i] > 0) traced.albedo[i] = (sum[i] / count[i]).cast<float>();
+  return traced;
+}
+
+/// Paths per vertex of the bundle's mesh for the albedo pass's irradiance: albedo_samples,
+/// or on a clustered mesh about that many per cluster (at least 2 per vertex; OverClusters
+/// averages them).
+int Estimator::AlbedoPaths() const {
+  if (cluster_.empty()) return opt_.albedo_samples;
+  const double share = static_cast<double>(scene_->mesh().positions.size()) / bundle_.mesh.positions.size();
+  return std::min(opt_.albedo_samples, std::max(2, static_cast<int>(std::lround(opt_.albedo_samples * share))));
 }
 
 bool Estimator::RefineAlbedo(int pass) {
@@ -1085,17 +1176,22 @@ bool Estimator::RefineAlbedo(int pass) {
   Stopwatch as;
   int segments = -1;  // an estimate that lights nothing (warned in Conclude) has no irradiance
   if (res_.rendered_fraction >= 0.01) {
+    const int paths = AlbedoPaths();
     Progress(Fmt("albedo pass %.0f: de-lighting %.0f vertices (%.0f paths each)", pass,
-                 static_cast<double>(mesh_.positions.size()), opt_.albedo_samples));
+                 static_cast<double>(mesh_.positions.size()), paths));
     std::vector<float> irradiance;
     {
-      VertexRadiance radiance(*scene_, env_, lambda_, opt_.tracer.bounces, opt_.tracer.seed * 7919 + pass, points_,
-                              suns_);
-      for (int done = 0; done < opt_.albedo_samples; done += 2) {  // Cancel is polled between steps
-        radiance.Refine(std::min(2, opt_.albedo_samples - done));
+      // The bundle's mesh itself (a clustered mesh folds where a flat surface crosses a
+      // cell's boundary, and a vertex there can sit behind its neighbours' triangles).
+      std::unique_ptr<RayTracer> full;
+      if (!cluster_.empty()) full = std::make_unique<RayTracer>(mesh_);
+      VertexRadiance radiance(full ? *full : *scene_, env_, lambda_, opt_.tracer.bounces,
+                              opt_.tracer.seed * 7919 + pass, points_, suns_);
+      for (int done = 0; done < paths; done += 2) {  // Cancel is polled between steps
+        radiance.Refine(std::min(2, paths - done));
         CheckCancel();
       }
-      irradiance = radiance.Irradiance();
+      irradiance = OverClusters(radiance.Irradiance());
     }  // before the scene it refers to is replaced
     segments = DelightAlbedo(&mesh_, irradiance);
   }
@@ -1106,7 +1202,7 @@ bool Estimator::RefineAlbedo(int pass) {
     return false;
   }
   res_.albedo_segments = segments;
-  scene_ = std::make_unique<RayTracer>(mesh_);
+  scene_ = std::make_unique<RayTracer>(WithAlbedoOf(mesh_));
   columns_.clear();  // they saw the old albedo
   res_.albedo_passes = pass;
   Progress(Fmt("albedo pass %.0f: de-lit %.0f vertices into %.0f segments in %.2f s", pass,
@@ -1115,7 +1211,7 @@ bool Estimator::RefineAlbedo(int pass) {
 }
 
 void Estimator::Conclude() {
-  if (res_.albedo_passes > 0) res_.albedo = scene_->mesh().albedo;
+  if (res_.albedo_passes > 0) res_.albedo = mesh_.albedo;
   res_.left_out.assign(cells_, 0);
   for (int j = 0; j < cells_; ++j) res_.left_out[j] = !reachable_[j];
   res_.lambda = lambda_;

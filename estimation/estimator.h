@@ -27,6 +27,9 @@ constexpr double kAlphaReferenceSolidAngle = 4 * 3.14159265358979323846 / 522;
 /// non-convexity; see Estimate).
 constexpr double kGraduatedSigmaStart = 0.5;
 
+/// The traced mesh is clustered only where its grid is at least this many median edges.
+constexpr double kMinTraceCellEdges = 1.5;
+
 /// The most albedo passes an estimate takes (EstimateOptions::albedo_passes is 0 .. this):
 /// the command line, the viewer's setting and its script check against it.
 constexpr int kMaxAlbedoPasses = 5;
@@ -77,6 +80,16 @@ struct EstimateOptions {
   /// the held-out pixels better but de-lights the albedo worse (docs/method.md).
   bool directional_lights = false;
   double directional_min_share = 0.25;
+  /// The mesh the estimator traces (docs/method.md, "The traced mesh"): the bundle's mesh
+  /// clustered on a grid of this many pixels, a pixel being what one spans on the nearest
+  /// tenth of the surfaces the views see (PixelFootprints), when that grid is at least
+  /// kMinTraceCellEdges of the mesh's median edges (a mesh no finer than the pixels is traced
+  /// as it is); 0 always traces the bundle's mesh. The albedo refinement still de-lights
+  /// every vertex of the bundle's mesh (about albedo_samples paths per cluster, averaged
+  /// over it), and the result's albedo is per vertex of it. Off by default: on the demo it
+  /// places the lamp closer and takes 0.69x the time, but fits the images worse
+  /// (docs/benchmarks.md, session 18).
+  double trace_pixels = 0;
   /// Albedo refinement (intrinsic decomposition, scene/albedo.h), when the mesh has
   /// `shaded` colours (a reconstruction; a bundle with known albedo needs none): after the
   /// rounds settle, the colours seen are de-lit by the estimate's irradiance at every vertex
@@ -174,6 +187,11 @@ struct EstimateResult {
   TraceStats trace;
   double image_mean = 1;  ///< normalization
   double bvh_seconds = 0, total_seconds = 0, render_seconds = 0;
+  /// The mesh the estimator traced (EstimateOptions::trace_pixels): its triangles and
+  /// vertices, the grid it was clustered on (m; 0: the bundle's mesh as it is) and the
+  /// seconds clustering took (in bvh_seconds too).
+  int traced_triangles = 0, traced_vertices = 0;
+  double trace_cell_m = 0, cluster_seconds = 0;
   int observations = 0;   ///< valid pixels over all views
   double final_rmse = 0, final_relative_rmse = 0;
   double final_angular_error_deg = std::nan("");
