@@ -111,7 +111,7 @@ class Estimator {
   bool RefineAlbedo(int pass);
   std::vector<float> OverClusters(const std::vector<float>& values) const;
   int AlbedoPaths() const;
-  Mesh WithAlbedoOf(const Mesh& full) const;
+  Mesh WithAlbedoOf(const Mesh& full, const std::vector<float>& irradiance) const;
   /// The estimate in image units, its scores and what the user should know about it.
   void Conclude();
   /// Relit renders of the fitted views under the estimate.
@@ -1146,19 +1146,21 @@ std::vector<float> Estimator::OverClusters(const std::vector<float>& values) con
   return out;
 }
 
-/// The traced mesh under the albedo of `full` (the bundle's mesh): each cluster its vertices' mean.
-Mesh Estimator::WithAlbedoOf(const Mesh& full) const {
+/// The traced mesh under the albedo of `full` (the bundle's mesh): each cluster its
+/// vertices' mean weighted by `irradiance` (what each adds to the light the cluster sends:
+/// a vertex in the dark, whose de-lit albedo is least sure, adds least).
+Mesh Estimator::WithAlbedoOf(const Mesh& full, const std::vector<float>& irradiance) const {
   if (cluster_.empty()) return full;
   Mesh traced = scene_->mesh();
   std::vector<Eigen::Vector3d> sum(traced.positions.size(), Eigen::Vector3d::Zero());
-  std::vector<int> count(traced.positions.size(), 0);
+  std::vector<double> weight(traced.positions.size(), 0);
   for (std::size_t v = 0; v < cluster_.size(); ++v)
-    if (cluster_[v] >= 0) {
-      sum[cluster_[v]] += full.albedo[v].cast<double>();
-      ++count[cluster_[v]];
+    if (cluster_[v] >= 0 && irradiance[v] > 0) {
+      sum[cluster_[v]] += irradiance[v] * full.albedo[v].cast<double>();
+      weight[cluster_[v]] += irradiance[v];
     }
   for (std::size_t i = 0; i < sum.size(); ++i)
-    if (count[i] > 0) traced.albedo[i] = (sum[i] / count[i]).cast<float>();
+    if (weight[i] > 0) traced.albedo[i] = (sum[i] / weight[i]).cast<float>();
   return traced;
 }
 
@@ -1175,11 +1177,11 @@ bool Estimator::RefineAlbedo(int pass) {
   CheckCancel();
   Stopwatch as;
   int segments = -1;  // an estimate that lights nothing (warned in Conclude) has no irradiance
+  std::vector<float> irradiance;
   if (res_.rendered_fraction >= 0.01) {
     const int paths = AlbedoPaths();
     Progress(Fmt("albedo pass %.0f: de-lighting %.0f vertices (%.0f paths each)", pass,
                  static_cast<double>(mesh_.positions.size()), paths));
-    std::vector<float> irradiance;
     {
       // The bundle's mesh itself (a clustered mesh folds where a flat surface crosses a
       // cell's boundary, and a vertex there can sit behind its neighbours' triangles).
@@ -1202,7 +1204,7 @@ bool Estimator::RefineAlbedo(int pass) {
     return false;
   }
   res_.albedo_segments = segments;
-  scene_ = std::make_unique<RayTracer>(WithAlbedoOf(mesh_));
+  scene_ = std::make_unique<RayTracer>(WithAlbedoOf(mesh_, irradiance));
   columns_.clear();  // they saw the old albedo
   res_.albedo_passes = pass;
   Progress(Fmt("albedo pass %.0f: de-lit %.0f vertices into %.0f segments in %.2f s", pass,

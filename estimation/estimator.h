@@ -86,10 +86,9 @@ struct EstimateOptions {
   /// kMinTraceCellEdges of the mesh's median edges (a mesh no finer than the pixels is traced
   /// as it is); 0 always traces the bundle's mesh. The albedo refinement still de-lights
   /// every vertex of the bundle's mesh (about albedo_samples paths per cluster, averaged
-  /// over it), and the result's albedo is per vertex of it. Off by default: on the demo it
-  /// places the lamp closer and takes 0.69x the time, but fits the images worse
-  /// (docs/benchmarks.md, session 18).
-  double trace_pixels = 0;
+  /// over it), and the result's albedo is per vertex of it (each cluster's the mean of its
+  /// vertices' weighted by their irradiance).
+  double trace_pixels = 1;
   /// Albedo refinement (intrinsic decomposition, scene/albedo.h), when the mesh has
   /// `shaded` colours (a reconstruction; a bundle with known albedo needs none): after the
   /// rounds settle, the colours seen are de-lit by the estimate's irradiance at every vertex

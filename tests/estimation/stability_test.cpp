@@ -513,25 +513,36 @@ TEST(Stability, AlbedoRefinementComesCloserToTheTrueAlbedo) {
     ASSERT_GT(DelightAlbedo(&oracle, radiance.Irradiance()), 0);
     EXPECT_LT(AlbedoLogError(b.mesh, oracle.albedo, true_albedo), 0.25 * flattened);
   }
-  EstimateOptions eo = Small();
-  eo.albedo_passes = 0;
-  const EstimateResult off = Estimate(b, eo);
-  eo.albedo_passes = 1;
-  const EstimateResult on = Estimate(b, eo);
-  ExpectHealthy(on);
-  EXPECT_TRUE(off.albedo.empty());
-  ASSERT_EQ(on.albedo.size(), b.mesh.positions.size());
-  EXPECT_EQ(on.albedo_passes, 1);
-  EXPECT_GT(on.rounds.size(), off.rounds.size()) << "the rounds went on under the new albedo";
-  // Under an estimate (not the truth) it gets part of the way: the fixed point of light and
-  // albedo is not the truth (the albedo-shading ambiguity; docs/method.md), but it is
-  // closer to it than the colour seen, and it explains the images much better.
-  const double refined = AlbedoLogError(b.mesh, on.albedo, true_albedo);
-  EXPECT_LT(refined, 0.9 * flattened) << "flattened " << flattened << ", refined " << refined;
-  EXPECT_LT(on.final_relative_rmse, 0.7 * off.final_relative_rmse);
-  for (const Eigen::Vector3f& a : on.albedo) {
-    EXPECT_TRUE(a.allFinite());
-    EXPECT_LE(a.maxCoeff(), 0.95f);
+  // The mesh as it is, and clustered on grids of 1 (the default) and 2 pixels (the estimator
+  // then traces the clusters and de-lights the full mesh: docs/method.md, "The traced
+  // mesh"). Measured (albedo log error, fit after): 0.340, 0.098; 0.338, 0.099; 0.338, 0.110.
+  for (const double trace_pixels : {0.0, 1.0, 2.0}) {
+    SCOPED_TRACE("trace_pixels " + std::to_string(trace_pixels));
+    EstimateOptions eo = Small();
+    eo.trace_pixels = trace_pixels;
+    eo.albedo_passes = 0;
+    const EstimateResult off = Estimate(b, eo);
+    eo.albedo_passes = 1;
+    const EstimateResult on = Estimate(b, eo);
+    ExpectHealthy(on);
+    EXPECT_EQ(on.trace_cell_m > 0, trace_pixels > 0) << on.traced_triangles << " triangles traced";
+    EXPECT_TRUE(off.albedo.empty());
+    ASSERT_EQ(on.albedo.size(), b.mesh.positions.size());
+    EXPECT_EQ(on.albedo_passes, 1);
+    EXPECT_GT(on.rounds.size(), off.rounds.size()) << "the rounds went on under the new albedo";
+    // Under an estimate (not the truth) it gets part of the way: the fixed point of light and
+    // albedo is not the truth (the albedo-shading ambiguity; docs/method.md), but it is
+    // closer to it than the colour seen, and it explains the images much better.
+    const double refined = AlbedoLogError(b.mesh, on.albedo, true_albedo);
+    std::printf("trace_pixels %g (%d of %zu triangles): albedo log error flattened %.4f, refined %.4f; fit %.4f -> %.4f\n",
+                trace_pixels, on.traced_triangles, b.mesh.triangles.size(), flattened, refined,
+                off.final_relative_rmse, on.final_relative_rmse);
+    EXPECT_LT(refined, 0.9 * flattened) << "flattened " << flattened << ", refined " << refined;
+    EXPECT_LT(on.final_relative_rmse, 0.7 * off.final_relative_rmse);
+    for (const Eigen::Vector3f& a : on.albedo) {
+      EXPECT_TRUE(a.allFinite());
+      EXPECT_LE(a.maxCoeff(), 0.95f);
+    }
   }
 }
 
