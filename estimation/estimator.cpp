@@ -263,8 +263,19 @@ Mesh Estimator::TracedMesh() {
   const float pixel = FiniteQuantile(PixelFootprints(full, cameras), 0.1);
   const float cell = static_cast<float>(opt_.trace_pixels) * pixel;
   if (!(cell >= kMinTraceCellEdges * MedianEdgeLength(full))) return full;
-  ClusteredMesh coarse = ClusterVertices(full, cell);
-  SanitizeMesh(&coarse.mesh, bundle_.mesh_file);
+  ClusteredMesh coarse;
+  try {
+    coarse = ClusterVertices(full, cell);
+    SanitizeMesh(&coarse.mesh, bundle_.mesh_file);
+  } catch (const InputError&) {  // a mesh within a few cells: nothing to leave out
+    return full;
+  }
+  // A mesh only a few cells across folds into a sliver of itself: trace it as it is.
+  if (MeshArea(coarse.mesh) < kMinTracedArea * MeshArea(full)) {
+    Progress("traced mesh: the bundle's (a grid of " + std::to_string(100 * cell) +
+             " cm would keep too little of its surface)");
+    return full;
+  }
   cluster_ = std::move(coarse.cluster);
   res_.trace_cell_m = cell;
   res_.traced_triangles = static_cast<int>(coarse.mesh.triangles.size());
@@ -1118,7 +1129,8 @@ bool Estimator::AlbedoRefinable() {
 }
 
 /// Per vertex of the bundle's mesh, the mean of `values` over the vertices of its cluster
-/// whose normals are within 37 degrees of its own (a box's edge keeps its faces apart).
+/// whose normals are within 37 degrees of its own (a box's edge keeps its faces apart); a
+/// vertex with none keeps its own value.
 std::vector<float> Estimator::OverClusters(const std::vector<float>& values) const {
   if (cluster_.empty()) return values;
   const Mesh& full = bundle_.mesh;
@@ -1135,7 +1147,9 @@ std::vector<float> Estimator::OverClusters(const std::vector<float>& values) con
       if (cluster_[v] < 0) continue;
       double sum = 0;
       int n = 0;
-      for (int k = start[cluster_[v]]; k < start[cluster_[v] + 1]; ++k)
+      // At most 64 members each (a mesh far finer than the pixels would make this quadratic).
+      const int first = start[cluster_[v]], size = start[cluster_[v] + 1] - first, step = std::max(1, size / 64);
+      for (int k = first; k < first + size; k += step)
         if (full.normals[members[k]].dot(full.normals[v]) > 0.8f) {
           sum += values[members[k]];
           ++n;

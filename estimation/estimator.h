@@ -29,6 +29,8 @@ constexpr double kGraduatedSigmaStart = 0.5;
 
 /// The traced mesh is clustered only where its grid is at least this many median edges.
 constexpr double kMinTraceCellEdges = 1.5;
+/// and where the clustered mesh keeps at least this share of the surface's area.
+constexpr double kMinTracedArea = 0.5;
 
 /// The most albedo passes an estimate takes (EstimateOptions::albedo_passes is 0 .. this):
 /// the command line, the viewer's setting and its script check against it.

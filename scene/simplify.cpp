@@ -179,4 +179,13 @@ float MedianEdgeLength(const Mesh& mesh) {
   return FiniteQuantile(std::move(len), 0.5);
 }
 
+double MeshArea(const Mesh& mesh) {
+  double area = 0;
+  for (const Eigen::Vector3i& t : mesh.triangles) {
+    const Eigen::Vector3d a = mesh.positions[t[0]].cast<double>();
+    area += 0.5 * (mesh.positions[t[1]].cast<double>() - a).cross(mesh.positions[t[2]].cast<double>() - a).norm();
+  }
+  return area;
+}
+
 }  // namespace lp

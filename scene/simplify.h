@@ -35,4 +35,7 @@ float FiniteQuantile(std::vector<float> v, double q);
 /// The median length of the mesh's edges (each triangle's three, once per triangle).
 float MedianEdgeLength(const Mesh& mesh);
 
+/// The summed area of the mesh's triangles (m^2).
+double MeshArea(const Mesh& mesh);
+
 }  // namespace lp

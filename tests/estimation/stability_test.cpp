@@ -435,6 +435,22 @@ TEST(Stability, DegenerateAndDuplicateTrianglesAndFlippedNormals) {
               1.0, 0.05);
 }
 
+TEST(Stability, AFineMeshWithinAFewPixelsIsTracedAsItIs) {
+  // A ball of 3 cm radius and 8,192 triangles (edges under 3 mm) 5 m from a 16 x 12 camera:
+  // a pixel there spans 36 cm, so the grid would fold the ball into a cluster or two and
+  // leave no triangle: the estimator traces it as it is and goes on.
+  SceneBundle b;
+  b.mesh = test::Ball(0.03, 0.5, 64, 128);
+  for (Eigen::Vector3f& p : b.mesh.positions) p += Eigen::Vector3f(5.f, 0.f, 0.f);
+  View v = test::BlankView(test::LookAt({0, 0, 0}, {5, 0, 0}, 16, 12, 60));
+  for (float& x : v.image.data) x = 0.3f;
+  b.views.push_back(v);
+  const EstimateResult r = Estimate(b, Small());
+  ExpectHealthy(r);
+  EXPECT_EQ(r.trace_cell_m, 0);
+  EXPECT_EQ(r.traced_triangles, static_cast<int>(b.mesh.triangles.size()));
+}
+
 TEST(Stability, CameraInsideClosedGeometryIsAClearError) {
   SceneBundle b;
   b.mesh = test::Ball(1.0, 0.5);

@@ -68,12 +68,7 @@ Mesh Box(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi, int n) {
   return out;
 }
 
-double Area(const Mesh& m) {
-  double a = 0;
-  for (const Eigen::Vector3i& t : m.triangles)
-    a += 0.5 * (m.positions[t[1]] - m.positions[t[0]]).cross(m.positions[t[2]] - m.positions[t[0]]).norm();
-  return a;
-}
+TEST(MeshArea, AUnitSquareOfManyTriangles) { EXPECT_NEAR(MeshArea(Grid(37, 1.0, 0.2)), 1.0, 1e-9); }
 
 TEST(ClusterVertices, AFlatSquareStaysInItsPlaneWithItsArea) {
   // A plane lying exactly on a cell boundary (z = 0) and one between boundaries.
@@ -83,8 +78,8 @@ TEST(ClusterVertices, AFlatSquareStaysInItsPlaneWithItsArea) {
     EXPECT_LT(c.mesh.triangles.size() * 10, fine.triangles.size()) << "z " << z;
     for (const Eigen::Vector3f& p : c.mesh.positions) ASSERT_NEAR(p.z(), z, 1e-6) << "z " << z;
     // The clusters of the border pull it in by at most half a cell on each side.
-    EXPECT_GT(Area(c.mesh), (1.0 - 0.05) * (1.0 - 0.05)) << "z " << z;
-    EXPECT_LE(Area(c.mesh), 1.0 + 1e-4) << "z " << z;
+    EXPECT_GT(MeshArea(c.mesh), (1.0 - 0.05) * (1.0 - 0.05)) << "z " << z;
+    EXPECT_LE(MeshArea(c.mesh), 1.0 + 1e-4) << "z " << z;
     for (const Eigen::Vector3f& n : c.mesh.normals) EXPECT_NEAR(n.z(), 1.f, 1e-6f);
   }
 }
@@ -105,7 +100,7 @@ TEST(ClusterVertices, CornersStayWhereTheyWere) {
     const float to_face = std::min((p - lo).cwiseAbs().minCoeff(), (p - hi).cwiseAbs().minCoeff());
     EXPECT_LT(to_face, 1e-5f) << p.transpose();
   }
-  EXPECT_NEAR(Area(c.mesh), Area(fine), 1e-3 * Area(fine));
+  EXPECT_NEAR(MeshArea(c.mesh), MeshArea(fine), 1e-3 * MeshArea(fine));
 }
 
 TEST(ClusterVertices, EachVertexMapsToItsCellsVertexAndAttributesAverage) {
