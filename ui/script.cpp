@@ -161,6 +161,10 @@ void ApplySetting(const Call& c, const std::string& w, EstimateOptions* o) {
   else if (key == "point-lights") o->point_lights.max_lights = static_cast<int>(x);  // 0: the map alone
   else if (key == "directional-lights") o->directional_lights = x != 0;  // 1: look for a sun
   else if (key == "change") o->change_threshold = x;  // stop when the image changes less (0: run every round)
+  else if (key == "trace-pixels") {  // the traced mesh's grid in pixels (0: the bundle's mesh)
+    if (!(x >= 0 && x <= 64)) c.Fail("trace-pixels is 0 .. 64, not " + value.words[0]);
+    o->trace_pixels = x;
+  }
   else if (key == "albedo-passes") {
     if (x < 0 || x > kMaxAlbedoPasses || x != std::floor(x))
       c.Fail("albedo-passes is 0 .. " + std::to_string(kMaxAlbedoPasses) + ", not " + value.words[0]);

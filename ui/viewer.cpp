@@ -608,6 +608,11 @@ void Viewer::PanelEstimate() {
     if (ImGui::IsItemHovered()) ImGui::SetTooltip("at most this many lamps beside the map; 0 = the map alone");
     ImGui::Checkbox("directional light (a sun)", &settings_.directional_lights);
     if (ImGui::IsItemHovered()) ImGui::SetTooltip("look for a sun with sharp shadows where the map has one bright spot");
+    float trace_pixels = static_cast<float>(settings_.trace_pixels);
+    if (ImGui::SliderFloat("traced mesh (pixels)", &trace_pixels, 0.f, 4.f, "%.1f"))
+      settings_.trace_pixels = trace_pixels;
+    if (ImGui::IsItemHovered())
+      ImGui::SetTooltip("trace the mesh clustered on a grid of this many pixels (faster); 0 = the full mesh");
     ImGui::SliderInt("albedo passes", &settings_.albedo_passes, 0, kMaxAlbedoPasses);
     if (ImGui::IsItemHovered())
       ImGui::SetTooltip("refine the reconstruction's albedo under the estimate (de-lit colours), then more rounds");

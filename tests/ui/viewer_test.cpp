@@ -143,7 +143,7 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
                            "frames 3\n"
                            "screenshot " << (a / "2-reconstructed.png").string() << "\n"
                            "state " << (a / "2-reconstructed.json").string() << "\n"
-                           "estimate rings=13 spp=16 bounces=2 rounds=2 render-spp=16 point-lights=1\n"
+                           "estimate rings=13 spp=16 bounces=2 rounds=2 render-spp=16 point-lights=1 trace-pixels=2\n"
                            "wait-first 900\n"
                            "screenshot " << (a / "3-first-estimate.png").string() << "\n"
                            "wait-estimate 1200\n"
