@@ -61,7 +61,7 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
                  "trace the mesh clustered on a grid of this many pixels (what one spans on the nearest tenth of "
                  "the surfaces seen) where it is finer; 0 = trace the bundle's mesh as it is")
       ->capture_default_str()
-      ->check(CLI::Range(0.0, 64.0));
+      ->check(CLI::Range(0.0, kMaxTracePixels));
   cmd.add_option("--render-spp", o->render_spp, "samples per pixel of the final relit render (0 = --spp)")
       ->capture_default_str();
   cmd.add_option("--point-lights", o->point_lights.max_lights,

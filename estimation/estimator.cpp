@@ -237,10 +237,8 @@ Estimator::Estimator(const SceneBundle& bundle, const EstimateOptions& options)
   scene_ = std::make_unique<RayTracer>(TracedMesh());
   res_.bvh_seconds = bvh.Seconds();
   // The scene's centre and size are the bundle's mesh's (truth.json's measures use them).
-  Eigen::Vector3f lo, hi;
-  MeshBounds(bundle_.mesh, &lo, &hi);
-  centre_ = res_.scene_centre = (0.5f * (lo + hi)).cast<double>();
-  radius_ = std::max(1e-9, 0.5 * (hi - lo).cast<double>().norm());
+  BoundingSphere(bundle_.mesh, &centre_, &radius_);
+  res_.scene_centre = centre_;
   if (bundle_.truth_json) {
     truth_ = ParseTruthLights(*bundle_.truth_json, (bundle_.dir / "truth.json").string());
     CentreTruthLights(&truth_, centre_);

@@ -31,6 +31,8 @@ constexpr double kGraduatedSigmaStart = 0.5;
 constexpr double kMinTraceCellEdges = 1.5;
 /// and where the clustered mesh keeps at least this share of the surface's area.
 constexpr double kMinTracedArea = 0.5;
+/// EstimateOptions::trace_pixels is 0 .. this.
+constexpr double kMaxTracePixels = 64;
 
 /// The most albedo passes an estimate takes (EstimateOptions::albedo_passes is 0 .. this):
 /// the command line, the viewer's setting and its script check against it.

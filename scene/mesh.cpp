@@ -168,6 +168,13 @@ void MeshBounds(const Mesh& mesh, Eigen::Vector3f* lo, Eigen::Vector3f* hi) {
     }
 }
 
+void BoundingSphere(const Mesh& mesh, Eigen::Vector3d* centre, double* radius) {
+  Eigen::Vector3f lo, hi;
+  MeshBounds(mesh, &lo, &hi);
+  *centre = (0.5f * (lo + hi)).cast<double>();
+  *radius = std::max(1e-9, 0.5 * (hi - lo).cast<double>().norm());
+}
+
 Mesh UvSphere(const Eigen::Vector3f& c, float r, const Eigen::Vector3f& albedo, int rings, int segments) {
   Mesh m;
   for (int i = 0; i <= rings; ++i) {

@@ -63,4 +63,8 @@ Mesh RefineMesh(const Mesh& mesh, int min_triangles);
 /// Axis-aligned bounds of the vertices used by triangles.
 void MeshBounds(const Mesh& mesh, Eigen::Vector3f* lo, Eigen::Vector3f* hi);
 
+/// The centre of those bounds and the radius of the sphere through their corners (at least
+/// 1e-9): the scene's centre and size as the tracer and the estimator take them.
+void BoundingSphere(const Mesh& mesh, Eigen::Vector3d* centre, double* radius);
+
 }  // namespace lp

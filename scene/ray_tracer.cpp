@@ -23,10 +23,7 @@ struct RayTracer::Impl {
 RayTracer::RayTracer(Mesh mesh) : impl_(std::make_unique<Impl>()), mesh_(std::move(mesh)) {
   LP_CHECK(!mesh_.triangles.empty(), "empty mesh");
   LP_CHECK(mesh_.normals.size() == mesh_.positions.size(), "mesh lacks normals (call SanitizeMesh)");
-  Eigen::Vector3f lo, hi;
-  MeshBounds(mesh_, &lo, &hi);
-  center_ = (0.5f * (lo + hi)).cast<double>();
-  radius_ = std::max(1e-9, 0.5 * (hi - lo).cast<double>().norm());
+  BoundingSphere(mesh_, &center_, &radius_);
   epsilon_ = 1e-5 * radius_;
 
   // No "threads=N" here: with the TBB tasking system that would cap the whole process.

@@ -136,13 +136,6 @@ ClusteredMesh ClusterVertices(const Mesh& mesh, float cell) {
     if (i == 0 || tris[i].first != tris[i - 1].first) m.triangles.push_back(tris[i].second);
   if (m.triangles.empty())
     throw InputError("a grid of " + std::to_string(cell) + " m leaves the mesh no triangle");
-  // A vertex whose normals cancelled (a thin sheet folded into one cell) takes its triangles'.
-  if (has_normals) {
-    Mesh with_faces = m;
-    ComputeVertexNormals(&with_faces);
-    for (std::size_t i = 0; i < k; ++i)
-      if (m.normals[i].squaredNorm() == 0) m.normals[i] = with_faces.normals[i];
-  }
   return out;
 }
 

@@ -19,7 +19,8 @@ struct ClusteredMesh {
 /// one cell become one vertex, placed where the summed squared distance to the planes of
 /// its triangles is least (Lindstrom 2000; corners and edges stay where they were, flat
 /// parts take the cluster's mean), kept within the cell and a half around it, else the
-/// mean. Albedo, colours seen and normals are the cluster's means (normals normalized).
+/// mean. Albedo, colours seen and normals are the cluster's means (normals normalized; zero
+/// where they cancel, as in a thin sheet folded into one cell: SanitizeMesh replaces those).
 /// Triangles whose corners fall into fewer than three clusters vanish, as do repeats.
 /// Throws InputError when nothing is left (a cell larger than the mesh).
 ClusteredMesh ClusterVertices(const Mesh& mesh, float cell);

@@ -162,7 +162,8 @@ void ApplySetting(const Call& c, const std::string& w, EstimateOptions* o) {
   else if (key == "directional-lights") o->directional_lights = x != 0;  // 1: look for a sun
   else if (key == "change") o->change_threshold = x;  // stop when the image changes less (0: run every round)
   else if (key == "trace-pixels") {  // the traced mesh's grid in pixels (0: the bundle's mesh)
-    if (!(x >= 0 && x <= 64)) c.Fail("trace-pixels is 0 .. 64, not " + value.words[0]);
+    if (!(x >= 0 && x <= kMaxTracePixels))
+      c.Fail("trace-pixels is 0 .. " + std::to_string(static_cast<int>(kMaxTracePixels)) + ", not " + value.words[0]);
     o->trace_pixels = x;
   }
   else if (key == "albedo-passes") {

@@ -116,8 +116,12 @@ TEST(ClusterVertices, EachVertexMapsToItsCellsVertexAndAttributesAverage) {
   // Albedo is the members' mean: 0.2 left of x = 0, 0.8 right (x = 0 is a cell boundary).
   for (std::size_t k = 0; k < c.mesh.positions.size(); ++k) {
     const float a = c.mesh.albedo[k].x();
-    if (c.mesh.positions[k].x() < -0.01f) EXPECT_NEAR(a, 0.2f, 1e-6f);
-    if (c.mesh.positions[k].x() > 0.01f) EXPECT_NEAR(a, 0.8f, 1e-6f);
+    if (c.mesh.positions[k].x() < -0.01f) {
+      EXPECT_NEAR(a, 0.2f, 1e-6f);
+    }
+    if (c.mesh.positions[k].x() > 0.01f) {
+      EXPECT_NEAR(a, 0.8f, 1e-6f);
+    }
   }
 }
 
