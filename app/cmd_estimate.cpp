@@ -33,7 +33,7 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
   cmd.add_option("--rings", o->rings, "rings of the environment map (21 -> 522 directions)")
       ->capture_default_str()
       ->check(CLI::Range(kMinRings, kMaxRings));
-  cmd.add_option("--spp", o->tracer.spp, "path samples per pixel per round")->capture_default_str();
+  cmd.add_option("--spp", o->tracer.spp, "the map's path samples per pixel per round (after round 1 fewer, down to a quarter, where the map renders under half the light)")->capture_default_str();
   cmd.add_option("--bounces", o->tracer.bounces, "surface interactions per path (1 = direct only)")
       ->capture_default_str();
   cmd.add_option("--solver", *solver, "fast (majorize-minimize NNQP) or gradient (paper's projected GD)")
@@ -62,7 +62,7 @@ void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, 
                  "the surfaces seen) where it is finer; 0 = trace the bundle's mesh as it is")
       ->capture_default_str()
       ->check(CLI::Range(0.0, kMaxTracePixels));
-  cmd.add_option("--render-spp", o->render_spp, "samples per pixel of the final relit render (0 = --spp)")
+  cmd.add_option("--render-spp", o->render_spp, "samples per pixel of the final relit render, every pixel traced again; 0 = the fit itself (A lambda) where it used the pixels, the rest traced at 64")
       ->capture_default_str();
   cmd.add_option("--point-lights", o->point_lights.max_lights,
                  "point lights (lamps in the room) at most, beside the environment map; 0 = the map alone")
@@ -224,7 +224,7 @@ static json SettingsJson(const EstimateOptions& o, const EstimateResult& r) {
           {"min_throughput", o.tracer.min_throughput}, {"combine_rounds", o.combine_rounds},
           {"albedo_passes", o.albedo_passes}, {"albedo_samples", o.albedo_samples},
           {"point_lights", o.point_lights.max_lights}, {"point_spp", o.point_lights.spp},
-          {"trace_pixels", o.trace_pixels}};
+          {"trace_pixels", o.trace_pixels}, {"render_spp", o.render_spp}};
 }
 
 /// report.json's "seconds": where the time went.
@@ -280,7 +280,7 @@ static json DirectionalLightsJson(const std::vector<DirectionalLight>& lights) {
 static json RoundsJson(const EstimateResult& r) {
   json rounds = json::array();
   for (const auto& ri : r.rounds)
-    rounds.push_back({{"round", ri.round}, {"trace_seconds", ri.trace_seconds}, {"solve_seconds", ri.solve_seconds},
+    rounds.push_back({{"round", ri.round}, {"spp", ri.spp}, {"trace_seconds", ri.trace_seconds}, {"solve_seconds", ri.solve_seconds},
                       {"solver_iterations", ri.solver_iterations}, {"objective", ri.objective},
                       {"change", ri.change}, {"image_change", ri.image_change}, {"kkt_violation", ri.kkt_violation},
                       {"nonzeros", ri.nonzeros}, {"unknown_cells", ri.unknown_cells},

@@ -26,8 +26,8 @@ ui::ViewerOptions DefaultViewerOptions() {
                                 const EstimateResult& result) {
     WriteEstimateOutputs(dir, bundle, options, result, result.total_seconds);
   };
-  // The window is interactive: a smaller final relit render (the lit mesh refines anyway).
-  o.estimate.render_spp = 64;
+  // The window is interactive: the relit keyframes are the fit itself (as estimate's default).
+  o.estimate.render_spp = 0;
   return o;
 }
 

@@ -114,7 +114,7 @@ class Estimator {
   Mesh WithAlbedoOf(const Mesh& full, const std::vector<float>& irradiance) const;
   /// The estimate in image units, its scores and what the user should know about it.
   void Conclude();
-  /// Relit renders of the fitted views under the estimate.
+  /// Relit renders of the fitted views under the estimate (EstimateOptions::render_spp).
   void RenderFittedViews();
   EstimateResult TakeResult() {
     res_.total_seconds = clock_.Seconds();
@@ -130,7 +130,13 @@ class Estimator {
     if (opt_.cancelled && opt_.cancelled()) throw Cancelled();
   }
   std::string SceneFile() const { return (bundle_.dir / "scene.json").string(); }
+  static std::vector<View> UnusedPixels(std::vector<View> views);
+  void PutFit(std::vector<ImageRGB>* renders);
   void Observe();
+  void UseViews(int stride);
+  int FirstRoundStride() const;
+  int MapSamples(int round) const;
+  double MapShare();
   Mesh TracedMesh();
   RoundProblem TraceRound(int round, int first, RoundInfo* info);
   SolveResult Solve(const RoundProblem& rp, int round, RoundInfo* info, bool graduated);
@@ -187,7 +193,13 @@ class Estimator {
   EstimateResult res_;
   const EnvMap& env_;  ///< res_.env
   int cells_ = 0;
-  std::vector<double> y_;  ///< observations over their mean
+  /// The views the rounds fit (the bundle's, or round 1's grid of their pixels: UseViews)
+  /// and their grid's stride.
+  std::vector<View> views_;
+  int stride_ = 0;
+  /// The share of the rendered light that is the map's (the rest the lights'), after the last round.
+  double map_share_ = 1;
+  std::vector<double> y_;  ///< their observations over the mean of all the valid pixels'
   std::vector<TruthLight> truth_;
   std::unique_ptr<RayTracer> scene_;
   /// Per vertex of the bundle's mesh: its vertex in the traced mesh (empty: the same mesh).
@@ -286,31 +298,65 @@ Mesh Estimator::TracedMesh() {
   return std::move(coarse.mesh);
 }
 
-/// The valid pixels as observations normalized to mean 1, and the penalty at their scale.
+/// The valid pixels' mean (the normalization) and count; the rounds' observations are
+/// set by UseViews.
 void Estimator::Observe() {
-  y_ = CollectObservations(bundle_.views);
-  res_.observations = static_cast<int>(y_.size() / 3);
-  if (y_.empty()) throw InputError(SceneFile(), "every pixel of every view is masked or invalid");
+  const std::vector<double> y = CollectObservations(bundle_.views);
+  res_.observations = static_cast<int>(y.size() / 3);
+  if (y.empty()) throw InputError(SceneFile(), "every pixel of every view is masked or invalid");
   double mean = 0;
-  for (double v : y_) mean += v;
-  mean /= y_.size();
+  for (double v : y) mean += v;
+  mean /= y.size();
   if (!(mean > 0) || !std::isfinite(mean)) throw InputError(SceneFile(), "the observed pixels are all black");
   res_.image_mean = mean;
-  for (double& v : y_) v /= mean;
+  res_.objective_params = opt_.objective;
+  UseViews(1);
+}
+
+/// The rounds from now on fit the valid pixels on a grid of `stride` (1: all of them):
+/// the observations normalized to mean 1, and the penalty at their scale. What was traced
+/// on other pixels is dropped.
+void Estimator::UseViews(int stride) {
+  stride_ = stride;
+  views_ = bundle_.views;
+  if (stride > 1)
+    for (View& v : views_)
+      for (std::size_t p = 0; p < v.valid.size(); ++p)
+        if ((p % v.camera.width) % stride != 0 || (p / v.camera.width) % stride != 0) v.valid[p] = 0;
+  y_ = CollectObservations(views_);
+  for (double& v : y_) v /= res_.image_mean;
   // alpha is given per 19,200 observed pixels (one 160x120 view): the data term grows with
   // the number of observations, and so must the penalty, or the balance between them
   // (how many cells light the scene) would change with resolution and view count.
-  res_.objective_params = opt_.objective;
-  res_.objective_params.alpha = opt_.objective.alpha * res_.observations / kAlphaReferencePixels;
+  res_.objective_params.alpha = opt_.objective.alpha * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
+  A_ = TransportMatrix();
+  vertices_ = ShadingVertices();
+  columns_.clear();
+  holdout_.clear();
+  holdout_fit_.reset();
+}
+
+/// Round 1's grid of pixels: the widest that keeps kFirstRoundPixels of the valid ones
+/// (a first estimate needs no more; 1 where there are fewer).
+int Estimator::FirstRoundStride() const {
+  int stride = 1;
+  while (res_.observations / ((stride + 1.0) * (stride + 1.0)) >= kFirstRoundPixels) ++stride;
+  return stride;
 }
 
 void Estimator::RunRounds() {
   const int first = static_cast<int>(res_.rounds.size()) + 1, last = first + opt_.max_rounds - 1;
+  int since = first;  // the first round on the current pixels and albedo
   for (int round = first; round <= last; ++round) {
     CheckCancel();
+    const int stride = round == 1 ? FirstRoundStride() : 1;
+    if (stride != stride_) {
+      UseViews(stride);
+      since = round;
+    }
     RoundInfo info;
     info.round = round;
-    const RoundProblem rp = TraceRound(round, first, &info);
+    const RoundProblem rp = TraceRound(round, since, &info);
     const SolveResult sr = Solve(rp, round, &info, round == 1);
     Update(rp, sr, &info);
     if (round > first && info.image_change < opt_.change_threshold && !info.lights_moved) break;
@@ -325,15 +371,21 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   TracerOptions topt = opt_.tracer;
   topt.seed = opt_.tracer.seed * 1000003ull + round;
   topt.cancelled = opt_.cancelled;  // a cancelled trace stops within 64 pixels
-  TransportMatrix Ar = TraceTransport(*scene_, env_, bundle_.views, sampler, topt, &res_.trace);
+  topt.spp = MapSamples(round);
+  info->spp = topt.spp;
+  TransportMatrix Ar = TraceTransport(*scene_, env_, views_, sampler, topt, &res_.trace);
   CheckCancel();
+  const double trace_a = ts.Seconds();
   A_ = (opt_.combine_rounds && round > first) ? Combine(A_, Ar) : std::move(Ar);
-
   MakeMapProblem();
+  const double normal = ts.Seconds();
   // Point lights: round 1 searches for them; later rounds trace their columns (and the
   // directional lights') only if any were found (the far-light scenes pay for the search alone).
   if ((NearLights() && round == 1) || !points_.empty() || !suns_.empty()) GatherVertices(round, first);
   RoundProblem rp = WithLights(points_);
+  Progress(Fmt("round %.0f: A traced at %.0f samples per pixel in %.2f s", round, topt.spp, trace_a) +
+           Fmt(", combined and its normal matrices in %.2f s, the lights' vertices and columns in %.2f s",
+               normal - trace_a, ts.Seconds() - normal));
   info->trace_seconds = ts.Seconds();
   info->nonzeros = static_cast<std::int64_t>(rp.problem->col.size());
   const LinearProblem& problem = *rp.problem;
@@ -349,6 +401,26 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   if (info->unknown_cells == 0)
     throw InputError(SceneFile(), "no sampled path reaches the environment (camera inside closed geometry?)");
   return rp;
+}
+
+/// The share of the estimate's rendered light (over the fitted pixels) that is the map's.
+double Estimator::MapShare() {
+  if (points_.empty() && suns_.empty()) return 1;
+  double map = 0, lights = 0;
+  for (double v : A_.Multiply(lambda_)) map += v;
+  for (double v : LightsRender(points_, suns_)) lights += v;
+  return map + lights > 0 ? map / (map + lights) : 1.0;
+}
+
+/// The map's samples per pixel in `round`: tracer.spp in round 1 (nothing known yet), then
+/// in proportion to the share of the light the map renders (its noise reaches the fit in
+/// that proportion: a map that renders half the light or more gets them all), at least a
+/// quarter of them (a map left dark can still take light back).
+int Estimator::MapSamples(int round) const {
+  const int spp = opt_.tracer.spp;
+  if (round == 1) return spp;
+  const double share = std::clamp(2 * map_share_, 0.25, 1.0);
+  return std::max(1, static_cast<int>(std::lround(share * spp)));
 }
 
 /// A_'s problem and its normal matrices, built once per round: the round's solves append
@@ -367,7 +439,7 @@ void Estimator::GatherVertices(int round, int first) {
   topt.cancelled = opt_.cancelled;
   topt.spp = opt_.point_lights.spp;
   topt.seed = opt_.tracer.seed * 1000003ull + 500 + round;
-  ShadingVertices fresh = GatherShadingVertices(*scene_, bundle_.views, topt);
+  ShadingVertices fresh = GatherShadingVertices(*scene_, views_, topt);
   CheckCancel();
   columns_.clear();
   if (opt_.combine_rounds && round > first) {
@@ -381,7 +453,7 @@ void Estimator::GatherVertices(int round, int first) {
     holdout_.resize(vertices_.rows());
     const std::uint64_t share = static_cast<std::uint64_t>(opt_.point_lights.holdout * 1000);
     for (std::size_t r = 0; r < holdout_.size(); ++r) {
-      const int width = bundle_.views[A_.row_view[r]].camera.width;
+      const int width = views_[A_.row_view[r]].camera.width;
       const std::uint64_t block = (A_.row_pixel[r] / width / 8) * 100003ull + (A_.row_pixel[r] % width) / 8;
       std::uint64_t h = (static_cast<std::uint64_t>(A_.row_view[r]) << 40) ^ block;
       h = (h ^ (h >> 33)) * 0xff51afd7ed558ccdull;
@@ -445,17 +517,20 @@ bool WeightedIntensity(const std::vector<float>& col, const std::vector<double>&
 /// round's vertices (refining a second lamp's trials on the candidates' placed the
 /// near-light scene's lamp 1.4 cm off instead of 1.1).
 std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
+  Stopwatch cs;
   TracerOptions topt = opt_.tracer;
   topt.cancelled = opt_.cancelled;
   topt.spp = opt_.point_lights.candidate_spp;
   topt.seed = opt_.tracer.seed * 1000003ull + 400;
-  const ShadingVertices coarse = GatherShadingVertices(*scene_, bundle_.views, topt);
+  const ShadingVertices coarse = GatherShadingVertices(*scene_, views_, topt);
   const std::vector<Eigen::Vector3d> positions = CandidatePositions(centre_, radius_, bundle_.up);
   std::vector<std::vector<float>> columns(positions.size());
   for (std::size_t i = 0; i < positions.size(); ++i) {
     CheckCancel();
     PointLightColumn(*scene_, coarse, positions[i], &columns[i]);
   }
+  Progress(Fmt("search: %.0f candidate positions' columns at %.0f path(s) per pixel in %.2f s",
+               static_cast<double>(positions.size()), topt.spp, cs.Seconds()));
   const double s2 = res_.objective_params.sigma * res_.objective_params.sigma;
   const auto loss = [&](const std::vector<double>& r) { return CauchyLoss(r, res_.objective_params.sigma); };
   std::fill(lambda_.begin(), lambda_.end(), 1e-3);
@@ -628,6 +703,7 @@ void Estimator::Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo*
   if (!rp.directions.empty()) suns_ = rp.Suns(full, cells_);
   if (NearLights() && (info->round == 1 || !points_.empty())) info->lights_moved = FitPointLights(rp, full, info);
   if (info->round == 1 && opt_.directional_lights && FitDirectionalLight(info)) info->lights_moved = true;
+  map_share_ = MapShare();
   info->lambda = lambda_;
   for (double& v : info->lambda) v *= res_.image_mean;
   info->point_lights = InImageUnits(points_);
@@ -843,6 +919,7 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
 /// map and the other lights, fitted without the held-out pixels, predict them worse
 /// without it.
 void Estimator::SelectModel(std::vector<PointLight>* lights) {
+  Stopwatch ms;
   std::sort(lights->begin(), lights->end(), [&](const PointLight& a, const PointLight& b) {
     return a.intensity.sum() / (a.position - centre_).squaredNorm() <
            b.intensity.sum() / (b.position - centre_).squaredNorm();
@@ -883,6 +960,7 @@ void Estimator::SelectModel(std::vector<PointLight>* lights) {
     else lights->erase(lights->begin() + k);
   }
   std::reverse(lights->begin(), lights->end());  // strongest first
+  Progress(Fmt("model selection in %.2f s", ms.Seconds()));
 }
 
 /// The render of point and directional lights on vertices_ (3 per row).
@@ -1260,14 +1338,44 @@ void Estimator::RenderFittedViews() {
   Stopwatch rs;
   TracerOptions topt = opt_.tracer;
   topt.seed = opt_.tracer.seed * 1000003ull + 999;
-  if (opt_.render_spp > 0) topt.spp = opt_.render_spp;
+  topt.spp = opt_.render_spp > 0 ? opt_.render_spp : kMaskedRenderSpp;
   topt.cancelled = opt_.cancelled;
   CellSampler sampler(env_, res_.lambda, reachable_, opt_.tracer.nee_floor);
-  res_.renders = RenderLighting(*scene_, env_, res_.lambda, sampler, res_.point_lights, res_.directional_lights,
-                                bundle_.views, topt, true);
+  if (opt_.render_spp > 0) {
+    res_.renders = RenderLighting(*scene_, env_, res_.lambda, sampler, res_.point_lights, res_.directional_lights,
+                                  bundle_.views, topt, true);
+  } else {
+    res_.renders = RenderLighting(*scene_, env_, res_.lambda, sampler, res_.point_lights, res_.directional_lights,
+                                  UnusedPixels(views_), topt, false);
+    PutFit(&res_.renders);
+  }
   CheckCancel();
   res_.render_seconds = rs.Seconds();
-  Progress(Fmt("relit %.0f view(s) in %.2f s", bundle_.views.size(), res_.render_seconds));
+  Progress(Fmt(opt_.render_spp > 0 ? "relit %.0f view(s) in %.2f s (%.0f samples per pixel)"
+                                   : "relit %.0f view(s) in %.2f s (the fit, and the pixels it did not use at %.0f "
+                                     "samples per pixel)",
+               bundle_.views.size(), res_.render_seconds, topt.spp));
+}
+
+/// The views with only the pixels the fit did not use marked valid.
+std::vector<View> Estimator::UnusedPixels(std::vector<View> views) {
+  for (View& v : views) {
+    const std::size_t n = static_cast<std::size_t>(v.camera.width) * v.camera.height;
+    if (v.valid.size() != n) v.valid.assign(n, 0);  // none used: every pixel (as an empty mask renders none)
+    for (auto& b : v.valid) b = !b;
+  }
+  return views;
+}
+
+/// The fitted pixels of `renders` set to the fit: the last round's A lambda plus the
+/// point and directional lights' columns, in image units.
+void Estimator::PutFit(std::vector<ImageRGB>* renders) {
+  const std::vector<double> fit = Plus(A_.Multiply(lambda_), LightsRender(points_, suns_));
+  for (std::size_t r = 0; r < A_.rows(); ++r) {
+    ImageRGB& img = (*renders)[A_.row_view[r]];
+    for (int c = 0; c < 3; ++c)
+      img.data[3 * static_cast<std::size_t>(A_.row_pixel[r]) + c] = static_cast<float>(fit[3 * r + c] * res_.image_mean);
+  }
 }
 
 }  // namespace

@@ -27,6 +27,11 @@ constexpr double kAlphaReferenceSolidAngle = 4 * 3.14159265358979323846 / 522;
 /// non-convexity; see Estimate).
 constexpr double kGraduatedSigmaStart = 0.5;
 
+/// Round 1 (the first estimate) fits the valid pixels on the widest grid that keeps this
+/// many of them (every 2nd pixel of every 2nd row of the demo's 4 views); the rounds after
+/// fit them all.
+constexpr double kFirstRoundPixels = 16000;
+
 /// The traced mesh is clustered only where its grid is at least this many median edges.
 constexpr double kMinTraceCellEdges = 1.5;
 /// and where the clustered mesh keeps at least this share of the surface's area.
@@ -37,6 +42,8 @@ constexpr double kMaxTracePixels = 64;
 /// The most albedo passes an estimate takes (EstimateOptions::albedo_passes is 0 .. this):
 /// the command line, the viewer's setting and its script check against it.
 constexpr int kMaxAlbedoPasses = 5;
+/// Samples per pixel of the pixels the fit did not use in the default final render.
+constexpr int kMaskedRenderSpp = 64;
 /// EstimateOptions::rings is kMinRings .. kMaxRings.
 constexpr int kMinRings = 2, kMaxRings = 181;
 
@@ -68,6 +75,8 @@ struct PointLightOptions {
 
 struct EstimateOptions {
   int rings = 21;
+  /// tracer.spp: the map's samples per pixel in round 1; later rounds trace fewer where the
+  /// map renders less than half the light (down to a quarter of them; docs/method.md).
   TracerOptions tracer;
   ObjectiveParams objective;
   SolverKind solver = SolverKind::kFast;
@@ -106,8 +115,12 @@ struct EstimateOptions {
   double change_threshold = 0.02;
   /// Average A over rounds, weighted by sample counts (all rounds are unbiased).
   bool combine_rounds = true;
-  /// Samples per pixel of the final relighting render (0 = tracer.spp).
-  int render_spp = 256;
+  /// The final relit render of the fitted views: 0 (the default) renders their valid pixels
+  /// as the fit itself, the last round's A lambda plus the lights' columns (no new paths;
+  /// its error is the fit's, in-sample), and traces only the pixels the fit did not use
+  /// (masked, no depth) at kMaskedRenderSpp; N > 0 traces every pixel again at N samples
+  /// (an independent render, at N / tracer.spp of a round's cost per pixel).
+  int render_spp = 0;
   bool render = true;
   /// Wall-clock origin for the convergence log (seconds already spent before Estimate).
   double time_offset = 0;
@@ -155,6 +168,7 @@ struct ConvergenceRow {
 
 struct RoundInfo {
   int round = 0;
+  int spp = 0;  ///< the map's samples per pixel this round (EstimateOptions::tracer.spp, or fewer)
   double trace_seconds = 0, solve_seconds = 0;
   int solver_iterations = 0;
   double objective = 0, kkt_violation = 0;
