@@ -144,6 +144,8 @@ class Estimator {
   void MakeMapProblem();
   // The near-light steps (docs/method.md, "Point lights").
   bool NearLights() const { return opt_.point_lights.max_lights > 0; }
+  /// Whether `round` looks for a directional light (round 1; it fits every pixel then).
+  bool SunRound(int round) const { return NearLights() && opt_.directional_lights && round == 1; }
   void GatherVertices(int round, int first);
   RoundProblem WithLights(const std::vector<PointLight>& lights);
   bool FitPointLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info);
@@ -340,6 +342,10 @@ void Estimator::UseViews(int stride) {
 /// (a first estimate needs no more; 1 where there are fewer).
 int Estimator::FirstRoundStride() const {
   int stride = 1;
+  // A sun's shadow edges are a few pixels wide, and round 1 looks for it: every pixel then
+  // (tried on a grid, the Cycles sun's light came back within 1 degree but lost to the
+  // cells on the held-out pixels).
+  if (opt_.directional_lights) return 1;
   while (res_.observations / ((stride + 1.0) * (stride + 1.0)) >= kFirstRoundPixels) ++stride;
   return stride;
 }
@@ -381,7 +387,8 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   const double normal = ts.Seconds();
   // Point lights: round 1 searches for them; later rounds trace their columns (and the
   // directional lights') only if any were found (the far-light scenes pay for the search alone).
-  if ((NearLights() && round == 1) || !points_.empty() || !suns_.empty()) GatherVertices(round, first);
+  if ((NearLights() && round == 1) || SunRound(round) || !points_.empty() || !suns_.empty())
+    GatherVertices(round, first);
   RoundProblem rp = WithLights(points_);
   Progress(Fmt("round %.0f: A traced at %.0f samples per pixel in %.2f s", round, topt.spp, trace_a) +
            Fmt(", combined and its normal matrices in %.2f s, the lights' vertices and columns in %.2f s",
@@ -437,7 +444,9 @@ void Estimator::MakeMapProblem() {
 void Estimator::GatherVertices(int round, int first) {
   TracerOptions topt = opt_.tracer;
   topt.cancelled = opt_.cancelled;
-  topt.spp = opt_.point_lights.spp;
+  // Round 1 on a grid of the pixels is a first estimate: half the paths (the rounds after
+  // refine its lights on every pixel).
+  topt.spp = stride_ > 1 ? std::max(1, opt_.point_lights.spp / 2) : opt_.point_lights.spp;
   topt.seed = opt_.tracer.seed * 1000003ull + 500 + round;
   ShadingVertices fresh = GatherShadingVertices(*scene_, views_, topt);
   CheckCancel();
@@ -702,7 +711,7 @@ void Estimator::Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo*
   lambda_.swap(next);
   if (!rp.directions.empty()) suns_ = rp.Suns(full, cells_);
   if (NearLights() && (info->round == 1 || !points_.empty())) info->lights_moved = FitPointLights(rp, full, info);
-  if (info->round == 1 && opt_.directional_lights && FitDirectionalLight(info)) info->lights_moved = true;
+  if (SunRound(info->round) && FitDirectionalLight(info)) info->lights_moved = true;
   map_share_ = MapShare();
   info->lambda = lambda_;
   for (double& v : info->lambda) v *= res_.image_mean;

@@ -28,9 +28,9 @@ constexpr double kAlphaReferenceSolidAngle = 4 * 3.14159265358979323846 / 522;
 constexpr double kGraduatedSigmaStart = 0.5;
 
 /// Round 1 (the first estimate) fits the valid pixels on the widest grid that keeps this
-/// many of them (every 2nd pixel of every 2nd row of the demo's 4 views); the rounds after
-/// fit them all.
-constexpr double kFirstRoundPixels = 16000;
+/// many of them (a quarter of a 160x120 view: every 2nd pixel of every 2nd row of one such
+/// view, every 3rd of every 3rd of the demo's 4); the rounds after fit them all.
+constexpr double kFirstRoundPixels = 4800;
 
 /// The traced mesh is clustered only where its grid is at least this many median edges.
 constexpr double kMinTraceCellEdges = 1.5;
@@ -84,7 +84,8 @@ struct EstimateOptions {
   int max_rounds = 4;
   PointLightOptions point_lights;
   /// A directional light (a sun: sharp shadows) where the map concentrates its power
-  /// (docs/method.md, "Directional lights"): tried after round 1 when the brightest cell's
+  /// (docs/method.md, "Directional lights"): tried after round 1 (which then fits every
+  /// valid pixel: kFirstRoundPixels is not applied) when the brightest cell's
   /// neighbourhood holds at least directional_min_share of the map's power and renders at
   /// least PointLightOptions::min_share of the light seen, kept when the held-out pixels
   /// want it (as a point light: PointLightOptions::holdout, min_gain). Needs the near-light
