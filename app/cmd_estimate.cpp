@@ -280,7 +280,7 @@ static json DirectionalLightsJson(const std::vector<DirectionalLight>& lights) {
 static json RoundsJson(const EstimateResult& r) {
   json rounds = json::array();
   for (const auto& ri : r.rounds)
-    rounds.push_back({{"round", ri.round}, {"spp", ri.spp}, {"trace_seconds", ri.trace_seconds}, {"solve_seconds", ri.solve_seconds},
+    rounds.push_back({{"round", ri.round}, {"pixels", ri.pixels}, {"spp", ri.spp}, {"trace_seconds", ri.trace_seconds}, {"solve_seconds", ri.solve_seconds},
                       {"solver_iterations", ri.solver_iterations}, {"objective", ri.objective},
                       {"change", ri.change}, {"image_change", ri.image_change}, {"kkt_violation", ri.kkt_violation},
                       {"nonzeros", ri.nonzeros}, {"unknown_cells", ri.unknown_cells},

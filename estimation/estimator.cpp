@@ -381,6 +381,7 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   topt.cancelled = opt_.cancelled;  // a cancelled trace stops within 64 pixels
   topt.spp = MapSamples(round);
   info->spp = topt.spp;
+  info->pixels = static_cast<int>(y_.size() / 3);
   TransportMatrix Ar = TraceTransport(*scene_, env_, views_, sampler, topt, &res_.trace);
   CheckCancel();
   const double trace_a = ts.Seconds();

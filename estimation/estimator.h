@@ -170,6 +170,7 @@ struct ConvergenceRow {
 struct RoundInfo {
   int round = 0;
   int spp = 0;  ///< the map's samples per pixel this round (EstimateOptions::tracer.spp, or fewer)
+  int pixels = 0;  ///< the valid pixels it fitted (round 1: a grid of them; kFirstRoundPixels)
   double trace_seconds = 0, solve_seconds = 0;
   int solver_iterations = 0;
   double objective = 0, kkt_violation = 0;

@@ -54,6 +54,14 @@ TEST(Cycles, TheLampComesBackAtItsPlaceWithItsIntensity) {
   o.render = false;
   const EstimateResult r = Estimate(bundle, o);
   ASSERT_EQ(r.point_lights.size(), 1u) << "one lamp lights this room";
+  // Round 1 found it on every 2nd pixel of every 2nd row (kFirstRoundPixels), the rounds
+  // after fit them all, and trace the map at a quarter of the samples: the lamp renders
+  // nearly all the light.
+  ASSERT_GE(r.rounds.size(), 2u);
+  EXPECT_EQ(r.rounds[0].pixels, 80 * 60);
+  EXPECT_EQ(r.rounds[1].pixels, r.observations);
+  EXPECT_EQ(r.rounds[0].spp, 64);
+  EXPECT_EQ(r.rounds[1].spp, 16);
   const PointLight& l = r.point_lights[0];
   const double error = (l.position - lamp).norm();
   std::printf("lamp at (%.3f, %.3f, %.3f), %.3f m (%.1f %% of its distance) from the truth; intensity %.3f %.3f %.3f "
