@@ -127,12 +127,17 @@ TEST(EstimateEndToEnd, TwoLampsComeBackAsTwoPointLights) {
   }
 }
 
-TEST(EstimateEndToEnd, ImageScaledBy1000ScalesTheEstimate) {
+/// A synthetic scene of `w` x `h` pixels rendered at `spp`.
+SceneBundle Synth(const char* name, int w, int h, int spp) {
   SynthOptions so;
-  so.width = 48;
-  so.height = 36;
-  so.spp = 64;
-  SceneBundle b = MakeSynthScene("one-light", so, "");
+  so.width = w;
+  so.height = h;
+  so.spp = spp;
+  return MakeSynthScene(name, so, "");
+}
+
+TEST(EstimateEndToEnd, ImageScaledBy1000ScalesTheEstimate) {
+  SceneBundle b = Synth("one-light", 48, 36, 64);
   EstimateOptions eo;
   eo.render = false;
   eo.max_rounds = 2;
@@ -161,11 +166,7 @@ TEST(EstimateEndToEnd, TheRelitViewIsTheFitWhereItUsedThePixelsAndARenderElsewhe
   // left out are lit, and the image is the one a render traced anew (render_spp > 0, the
   // same estimate) gives, pixel for pixel within its noise (a pixel put in another's place
   // would not be).
-  SynthOptions so;
-  so.width = 40;
-  so.height = 30;
-  so.spp = 64;
-  SceneBundle b = MakeSynthScene("one-light", so, "");
+  SceneBundle b = Synth("one-light", 40, 30, 64);
   View& v = b.views[0];
   const int w = v.camera.width;
   for (int y = 0; y < 10; ++y)
@@ -206,11 +207,7 @@ TEST(EstimateEndToEnd, TheRelitViewIsTheFitWhereItUsedThePixelsAndARenderElsewhe
 }
 
 TEST(EstimateEndToEnd, SameSeedBitIdenticalForAnyThreadCount) {
-  SynthOptions so;
-  so.width = 40;
-  so.height = 30;
-  so.spp = 32;
-  const SceneBundle b = MakeSynthScene("two-light", so, "");
+  const SceneBundle b = Synth("two-light", 40, 30, 32);
   EstimateOptions eo;
   eo.tracer.spp = 16;
   eo.render_spp = 16;
