@@ -347,7 +347,17 @@ int Estimator::FirstRoundStride() const {
   // (tried on a grid, the Cycles sun's light came back within 1 degree but lost to the
   // cells on the held-out pixels).
   if (opt_.directional_lights) return 1;
-  while (res_.observations / ((stride + 1.0) * (stride + 1.0)) >= kFirstRoundPixels) ++stride;
+  // Counted on the grid itself: a mask can leave a grid's pixels all masked.
+  const auto on_grid = [&](int s) {
+    int n = 0;
+    for (const View& v : bundle_.views)
+      for (std::size_t p = 0; p < v.valid.size(); ++p)
+        n += v.valid[p] && (p % v.camera.width) % s == 0 && (p / v.camera.width) % s == 0;
+    return n;
+  };
+  while (res_.observations / ((stride + 1.0) * (stride + 1.0)) >= kFirstRoundPixels &&
+         on_grid(stride + 1) >= kFirstRoundPixels)
+    ++stride;
   return stride;
 }
 

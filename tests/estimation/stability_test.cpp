@@ -124,6 +124,27 @@ void ExpectLightAt(const EstimateResult& r, const EnvMap& grid, const Eigen::Vec
   EXPECT_LT(angle, bound) << "the light came back in another cell";
 }
 
+TEST(Stability, AMaskThatEmptiesRoundOnesGridLeavesRoundOneOnEveryPixel) {
+  // 320x240 with every even column masked: 38,400 valid pixels would put round 1 on a grid
+  // of every 2nd pixel (kFirstRoundPixels), and that grid would hold none of them.
+  SceneBundle b = Room(320, 240);
+  View& v = b.views[0];
+  for (std::size_t p = 0; p < v.valid.size(); ++p)
+    if ((p % v.camera.width) % 2 == 0) v.valid[p] = 0;
+  EstimateOptions eo = Small();
+  eo.tracer.spp = 2;
+  eo.max_rounds = 1;
+  eo.point_lights.max_lights = 0;
+  const EstimateResult r = Estimate(b, eo);
+  ExpectHealthy(r);
+  ASSERT_EQ(r.rounds.size(), 1u);
+  EXPECT_EQ(r.rounds[0].pixels, r.observations);
+  // Unmasked, the same room's round 1 is on the grid (the case above is the guard's).
+  SceneBundle all = Room(320, 240);
+  const EstimateResult grid = Estimate(all, eo);
+  EXPECT_LT(grid.rounds[0].pixels, grid.observations / 4);
+}
+
 TEST(Stability, LightsOneMillionApart) {
   SceneBundle b = Room();
   const EnvMap env(9, b.up);
