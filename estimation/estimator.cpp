@@ -316,6 +316,12 @@ void Estimator::Observe() {
   UseViews(1);
 }
 
+/// Whether pixel `p` of an image `width` wide is on the grid of every `stride`-th pixel of
+/// every `stride`-th row.
+bool OnGrid(std::size_t p, int width, int stride) {
+  return (p % width) % stride == 0 && (p / width) % stride == 0;
+}
+
 /// The rounds from now on fit the valid pixels on a grid of `stride` (1: all of them):
 /// the observations normalized to mean 1, and the penalty at their scale. What was traced
 /// on other pixels is dropped.
@@ -325,7 +331,7 @@ void Estimator::UseViews(int stride) {
   if (stride > 1)
     for (View& v : views_)
       for (std::size_t p = 0; p < v.valid.size(); ++p)
-        if ((p % v.camera.width) % stride != 0 || (p / v.camera.width) % stride != 0) v.valid[p] = 0;
+        if (!OnGrid(p, v.camera.width, stride)) v.valid[p] = 0;
   y_ = CollectObservations(views_);
   for (double& v : y_) v /= res_.image_mean;
   // alpha is given per 19,200 observed pixels (one 160x120 view): the data term grows with
@@ -352,7 +358,7 @@ int Estimator::FirstRoundStride() const {
     int n = 0;
     for (const View& v : bundle_.views)
       for (std::size_t p = 0; p < v.valid.size(); ++p)
-        n += v.valid[p] && (p % v.camera.width) % s == 0 && (p / v.camera.width) % s == 0;
+        n += v.valid[p] && OnGrid(p, v.camera.width, s);
     return n;
   };
   while (res_.observations / ((stride + 1.0) * (stride + 1.0)) >= kFirstRoundPixels &&
@@ -1366,17 +1372,13 @@ void Estimator::RenderFittedViews() {
   topt.spp = opt_.render_spp > 0 ? opt_.render_spp : kMaskedRenderSpp;
   topt.cancelled = opt_.cancelled;
   CellSampler sampler(env_, res_.lambda, reachable_, opt_.tracer.nee_floor);
-  if (opt_.render_spp > 0) {
-    res_.renders = RenderLighting(*scene_, env_, res_.lambda, sampler, res_.point_lights, res_.directional_lights,
-                                  bundle_.views, topt, true);
-  } else {
-    res_.renders = RenderLighting(*scene_, env_, res_.lambda, sampler, res_.point_lights, res_.directional_lights,
-                                  UnusedPixels(views_), topt, false);
-    PutFit(&res_.renders);
-  }
+  const bool traced = opt_.render_spp > 0;  // every pixel; else the fit and the pixels it did not use
+  res_.renders = RenderLighting(*scene_, env_, res_.lambda, sampler, res_.point_lights, res_.directional_lights,
+                                traced ? bundle_.views : UnusedPixels(views_), topt, traced);
+  if (!traced) PutFit(&res_.renders);
   CheckCancel();
   res_.render_seconds = rs.Seconds();
-  Progress(Fmt(opt_.render_spp > 0 ? "relit %.0f view(s) in %.2f s (%.0f samples per pixel)"
+  Progress(Fmt(traced ? "relit %.0f view(s) in %.2f s (%.0f samples per pixel)"
                                    : "relit %.0f view(s) in %.2f s (the fit, and the pixels it did not use at %.0f "
                                      "samples per pixel)",
                bundle_.views.size(), res_.render_seconds, topt.spp));
