@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
 
 #include <Eigen/Dense>
 
@@ -533,35 +534,128 @@ int RefineDirectionalLight(const PointFitProblem& p, DirectionalLight* light, in
 
 namespace {
 
-/// A directional light's energy (Cauchy loss and penalty) at its direction and angular
-/// radius, its irradiance refitted there by reweighted least squares (4 passes); `sse`
-/// receives the sum of squared residuals.
-double DirectionalEnergy(const PointFitProblem& p, DirectionalLight* l, double* sse) {
+/// The energy (Cauchy loss and penalty) of a light's unit column `col` against what the
+/// rest leaves (`left`), its RGB scale refitted by reweighted least squares (4 passes from
+/// `scale`); `sse` receives the sum of squared residuals.
+double FitScale(const PointFitProblem& p, const std::vector<float>& col, const std::vector<double>& left,
+                Eigen::Vector3d* scale, double* sse) {
   const double s2 = p.sigma * p.sigma;
-  std::vector<float> col;
-  DirectionalLightColumn(*p.scene, *p.vertices, l->direction, &col, nullptr, l->angular_radius);
-  std::vector<double> left(col.size()), w(col.size(), 1.0);
-  for (std::size_t i = 0; i < col.size(); ++i) left[i] = (*p.y)[i] - (*p.base)[i];
   for (int it = 0; it < 4; ++it) {
     Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
     for (std::size_t i = 0; i < col.size(); ++i) {
-      const double r = left[i] - l->irradiance[i % 3] * col[i];
-      w[i] = 1 / (1 + r * r / s2);
-      num[i % 3] += w[i] * col[i] * left[i];
-      den[i % 3] += w[i] * double(col[i]) * col[i];
+      const double r = left[i] - (*scale)[i % 3] * col[i], w = 1 / (1 + r * r / s2);
+      num[i % 3] += w * col[i] * left[i];
+      den[i % 3] += w * double(col[i]) * col[i];
     }
-    for (int c = 0; c < 3; ++c) l->irradiance[c] = den[c] > 0 ? std::max(0.0, num[c] / den[c]) : 0.0;
+    for (int c = 0; c < 3; ++c) (*scale)[c] = den[c] > 0 ? std::max(0.0, num[c] / den[c]) : 0.0;
   }
   std::vector<double> r(col.size());
   *sse = 0;
   for (std::size_t i = 0; i < col.size(); ++i) {
-    r[i] = left[i] - l->irradiance[i % 3] * col[i];
+    r[i] = left[i] - (*scale)[i % 3] * col[i];
     *sse += r[i] * r[i];
   }
-  return CauchyLoss(r, p.sigma) + p.alpha * std::log1p(p.beta * std::max(0.0, l->irradiance.sum()));
+  return CauchyLoss(r, p.sigma) + p.alpha * std::log1p(p.beta * std::max(0.0, scale->sum()));
+}
+
+/// A directional light's energy at its direction and angular radius, its irradiance
+/// refitted there (FitScale).
+double DirectionalEnergy(const PointFitProblem& p, DirectionalLight* l, double* sse) {
+  std::vector<float> col;
+  DirectionalLightColumn(*p.scene, *p.vertices, l->direction, &col, nullptr, l->angular_radius);
+  std::vector<double> left(col.size());
+  for (std::size_t i = 0; i < col.size(); ++i) left[i] = (*p.y)[i] - (*p.base)[i];
+  return FitScale(p, col, left, &l->irradiance, sse);
 }
 
 }  // namespace
+
+namespace {
+
+/// A point light's energy at its position, the other lights' render (`others`) held and
+/// its intensity refitted there (FitScale).
+double PointEnergy(const PointFitProblem& p, const std::vector<float>& others, PointLight* l, double* sse) {
+  std::vector<float> col;
+  PointLightColumn(*p.scene, *p.vertices, l->position, &col, nullptr, l->radius);
+  std::vector<double> left(col.size());
+  for (std::size_t i = 0; i < col.size(); ++i) left[i] = (*p.y)[i] - (*p.base)[i] - others[i];
+  return FitScale(p, col, left, &l->intensity, sse);
+}
+
+}  // namespace
+
+namespace {
+
+/// Every `stride`-th row of a fitting problem: its vertices, observations and base.
+struct RowSubset {
+  ShadingVertices vertices;
+  std::vector<double> y, base;
+  PointFitProblem problem;
+  RowSubset(const PointFitProblem& p, int stride) : problem(p) {
+    const ShadingVertices& v = *p.vertices;
+    for (std::size_t r = 0; r < v.rows(); r += stride) {
+      for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
+        vertices.position.push_back(v.position[k]);
+        vertices.normal.push_back(v.normal[k]);
+        vertices.geometric.push_back(v.geometric[k]);
+        vertices.weight.push_back(v.weight[k]);
+      }
+      vertices.row_start.push_back(static_cast<std::int64_t>(vertices.position.size()));
+      for (int c = 0; c < 3; ++c) {
+        y.push_back((*p.y)[3 * r + c]);
+        base.push_back((*p.base)[3 * r + c]);
+      }
+    }
+    problem.vertices = &vertices;
+    problem.y = &y;
+    problem.base = &base;
+  }
+};
+
+}  // namespace
+
+int SearchPointLights(const PointFitProblem& full, std::vector<PointLight>* lights, const Eigen::Vector3d& centre,
+                      double start, double stop, int max_evaluations, std::size_t max_rows,
+                      const std::function<void(int, double, double, const std::vector<PointLight>&)>& log) {
+  const std::size_t rows = full.vertices->rows();
+  const int stride = max_rows > 0 && rows > max_rows ? static_cast<int>((rows + max_rows - 1) / max_rows) : 1;
+  std::unique_ptr<RowSubset> subset;
+  if (stride > 1) subset = std::make_unique<RowSubset>(full, stride);
+  const PointFitProblem& p = subset ? subset->problem : full;
+  int moves = 0, evaluations = 0;
+  for (std::size_t k = 0; k < lights->size(); ++k) {
+    std::vector<float> others(p.y->size(), 0.0f), col;  // the other lights' render, held
+    for (std::size_t j = 0; j < lights->size(); ++j) {
+      if (j == k) continue;
+      PointLightColumn(*p.scene, *p.vertices, (*lights)[j].position, &col, nullptr, (*lights)[j].radius);
+      for (std::size_t i = 0; i < col.size(); ++i) others[i] += static_cast<float>((*lights)[j].intensity[i % 3] * col[i]);
+    }
+    PointLight& light = (*lights)[k];
+    double sse = 0;
+    double E = PointEnergy(p, others, &light, &sse);
+    const double distance = std::max((light.position - centre).norm(), 1e-6);
+    for (double step = start * distance; step >= stop * distance * 0.999 && evaluations < max_evaluations;) {
+      bool moved = false;
+      for (int a = 0; a < 6 && !moved && evaluations < max_evaluations; ++a) {
+        PointLight trial = light;
+        trial.position[a / 2] += a % 2 ? -step : step;
+        double trial_sse = 0;
+        const double tE = PointEnergy(p, others, &trial, &trial_sse);
+        ++evaluations;
+        if (tE < E) {
+          light = trial;
+          E = tE;
+          sse = trial_sse;
+          moved = true;
+          ++moves;
+          if (log) log(moves, E, sse, *lights);
+        }
+      }
+      if (!moved) step *= 0.5;
+    }
+  }
+  return moves;
+}
 
 int SearchDirectionalLight(const PointFitProblem& p, DirectionalLight* light, double start_deg, double stop_deg,
                            const std::function<void(int, double, double, const DirectionalLight&)>& log) {

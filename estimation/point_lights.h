@@ -130,6 +130,18 @@ int RefinePointLights(
     const PointFitProblem& problem, std::vector<PointLight>* lights, int max_iterations = 12,
     const std::function<void(int, double, double, const std::vector<PointLight>&)>& log = {});
 
+/// A compass search for each light's position in turn (steps of `start` times its distance
+/// from `centre` along the axes, halved when no step lowers the energy, down to `stop`
+/// times it; at most `max_evaluations` columns in all), its intensity refitted at each
+/// place by reweighted least squares, the other lights held: the shadows' edges move with
+/// the light, which RefinePointLights' derivative (visibility held fixed) cannot see. On
+/// more than `max_rows` rows (0: no limit) it looks at an even share of them (every n-th).
+/// Returns the moves taken; `log` is called after each (the energy and the sum of squared
+/// residuals over the rows it looks at).
+int SearchPointLights(const PointFitProblem& problem, std::vector<PointLight>* lights, const Eigen::Vector3d& centre,
+                      double start = 0.02, double stop = 0.002, int max_evaluations = 60, std::size_t max_rows = 0,
+                      const std::function<void(int, double, double, const std::vector<PointLight>&)>& log = {});
+
 /// The same for one directional light (its direction on the unit sphere and its
 /// irradiance; `problem.alpha` its activation penalty), the rest of the image held fixed.
 int RefineDirectionalLight(const PointFitProblem& problem, DirectionalLight* light, int max_iterations = 12,
