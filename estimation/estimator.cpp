@@ -945,11 +945,12 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
     CheckCancel();
   };
   info->light_iterations = RefinePointLights(fit, lights, 12, log);
-  // The compass search (steps of 2 % of the light's distance down to 0.2 %, at most 60
-  // columns) looks at a 160 x 120 view's worth of rows: on the demo's four views all of
-  // them cost 11 s for nothing the lamp's place showed.
-  constexpr std::size_t kShadowSearchRows = 19200;
-  if (shadows && SearchPointLights(fit, lights, centre_, 0.02, 0.002, 60, kShadowSearchRows) > 0) {
+  // The compass search (steps of 1 % of the light's distance, then 0.5 %, at most 24
+  // columns) looks at 4,800 rows (every n-th): on all of the demo's four views it cost 11 s
+  // (24 -> 35.5 s), on a 160 x 120 view's 19,200 rows 6-8 s of the Cycles cornerbox's and
+  // lamp-0.5m's 6-7 s, for places no better (docs/method.md, "Refinement").
+  constexpr std::size_t kShadowSearchRows = 4800;
+  if (shadows && SearchPointLights(fit, lights, centre_, 0.01, 0.004, 24, kShadowSearchRows) > 0) {
     ++info->light_iterations;
     std::vector<double> r(y_.size());
     for (std::size_t i = 0; i < r.size(); ++i) r[i] = y_[i] - base[i];

@@ -89,7 +89,7 @@ TEST_P(LampRecovery, OnePointLightAtItsPlace) {
   EXPECT_NEAR(r.final_position_error_m, error, 1e-9) << "the report's number is this one";
 }
 
-// lamp-0.5m, the stiffest: 1.0-1.6 cm off and beyond the noise 6.3-7.4 % / 6.8-8.2 % over
+// lamp-0.5m, the stiffest: 1.2-1.4 cm off and beyond the noise 6.7-7.2 % / 6.6-7.9 % over
 // four seeds of the scene and the estimate since the compass search of the lamp's place
 // (before it 1.1-3.7 cm and 6.4-15.8 % / 7.1-17.0 %: the derivative held the shadows fixed).
 INSTANTIATE_TEST_SUITE_P(Scenes, LampRecovery,
