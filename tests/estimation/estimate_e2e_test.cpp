@@ -108,24 +108,7 @@ TEST(EstimateEndToEnd, ADenseMeshIsTracedClusteredAndTheLampStaysFound) {
   EXPECT_LT(error, 0.05 * distance);
 }
 
-TEST(EstimateEndToEnd, TwoLampsComeBackAsTwoPointLights) {
-  // A warm and a cool 5 cm lamp 1.7 and 1.6 m from the centre: one lamp cannot explain the
-  // images, so the model must take two (measured: both within 1.2 cm).
-  SynthOptions so;
-  const SynthScene s = MakeSynth("two-lamps", so, "");
-  ASSERT_EQ(s.lighting.lights.size(), 2u);
-  EstimateOptions eo;
-  eo.render = false;
-  const EstimateResult r = Estimate(s.bundle, eo);
-  ASSERT_EQ(r.point_lights.size(), 2u);
-  for (const SphereLight& truth : s.lighting.lights) {
-    double best = 1e30;
-    for (const PointLight& l : r.point_lights) best = std::min(best, (l.position - truth.position).norm());
-    const double distance = (truth.position - s.lighting.center).norm();
-    std::printf("lamp %.3f m from its nearest estimate (%.1f %% of %.2f m)\n", best, 100 * best / distance, distance);
-    EXPECT_LT(best, 0.05 * distance);
-  }
-}
+// Two lamps: LampRecovery.TwoLampsEachAtItsPlaceWithItsIntensity.
 
 /// A synthetic scene of `w` x `h` pixels rendered at `spp`.
 SceneBundle Synth(const char* name, int w, int h, int spp) {
