@@ -3,7 +3,10 @@
 # lamp scene (its image from the renderer's sphere light) rendered under a lights.json that
 # holds the true lamp as a point light of the same radius and no map comes back within the
 # Monte Carlo noise of both images; the same lamp moved 10 cm does not (the check can fail);
-# --mesh with the bundle's own mesh gives the same render as without it.
+# --mesh with the bundle's own mesh gives the same render as without it. Then the estimate of
+# that scene: its lights.json, report.json (the model chosen, each round's lights) and
+# convergence.csv (the lamps' columns) say one lamp near the true one, and its lights.json
+# relights the scene as the true lamp does.
 set -eu
 exe="$1"
 . "$(dirname "$0")/check_number.sh"
@@ -32,4 +35,26 @@ for f in render_view0.exr render_view0.png; do [ -s "$tmp/r/$f" ] || { echo "mis
 check_below "the true lamp's render against the image" "$true_err" 0.08
 check_below "the true lamp's error, under a quarter of the moved lamp's" "$(awk -v a="$true_err" -v b="$moved_err" 'BEGIN { print 4 * a - b }')" 0
 [ "$mesh_err" = "$true_err" ] || { echo "--mesh with the bundle's own mesh: $mesh_err, without it $true_err"; exit 1; }
+
+"$exe" estimate "$tmp/s" --out "$tmp/e" --quiet
+python3 - "$tmp" <<'PY'
+import csv, json, math, sys
+t = sys.argv[1]
+truth = json.load(open(t + "/s/truth.json"))["lights"][0]["position"]
+def off(p): return math.dist(p, truth)
+lights = json.load(open(t + "/e/lights.json"))
+assert len(lights["point_lights"]) == 1, lights
+assert off(lights["point_lights"][0]["position"]) < 0.05, ("lights.json", lights["point_lights"])
+report = json.load(open(t + "/e/report.json"))
+assert report["model"]["chosen"] == "environment map + 1 point light(s)", report["model"]["chosen"]
+assert all(len(r["point_lights"]) == 1 for r in report["rounds"]), "a round without its lamp"
+assert off(report["rounds"][-1]["point_lights"][0]["position"]) < 0.05
+rows = list(csv.DictReader(open(t + "/e/convergence.csv")))
+last = rows[-1]
+assert last["point_lights"] == "1" and float(last["position_error_m"]) < 0.05, last
+print("estimate: lamp %.1f cm off; report.json and convergence.csv agree" % (100 * off(lights["point_lights"][0]["position"])))
+PY
+est_err=$("$exe" render "$tmp/s" --lights "$tmp/e/lights.json" --out "$tmp/re" --spp 256 | rmse)
+echo "relative RMSE under the estimate's lights.json: $est_err"
+check_below "the estimate's lights.json relit against the image" "$est_err" 0.08
 echo "render --lights ok"
