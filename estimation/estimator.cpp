@@ -944,7 +944,10 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
     if (opt_.on_convergence) opt_.on_convergence(row);
     CheckCancel();
   };
-  info->light_iterations = RefinePointLights(fit, lights, 12, log);
+  // With the compass search after it (rounds 2 on, the lights near their places), 4
+  // iterations: past them it only tried steps that failed (lamp-0.5m's places and intensities
+  // the same bit for bit, docs/benchmarks.md, session 20).
+  info->light_iterations = RefinePointLights(fit, lights, shadows ? 4 : 12, log);
   // The compass search (steps of 1 % of the light's distance, then 0.5 %, at most 24
   // columns) looks at 4,800 rows (every n-th): on all of the demo's four views it cost 11 s
   // (24 -> 35.5 s), on a 160 x 120 view's 19,200 rows 6-8 s of the Cycles cornerbox's and
