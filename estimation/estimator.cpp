@@ -949,12 +949,23 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
   // the same bit for bit, docs/benchmarks.md, session 20).
   info->light_iterations = RefinePointLights(fit, lights, shadows ? 4 : 12, log);
   // The compass search (steps of 1 % of the light's distance, then 0.5 %, at most 24
-  // columns) looks at 4,800 rows (every n-th): on all of the demo's four views it cost 11 s
+  // columns a light) looks at 4,800 rows (every n-th): on all of the demo's four views it cost 11 s
   // (24 -> 35.5 s), on a 160 x 120 view's 19,200 rows 6-8 s of the Cycles cornerbox's and
   // lamp-0.5m's 6-7 s, for places no better (docs/method.md, "Refinement").
   constexpr std::size_t kShadowSearchRows = 4800;
-  if (shadows && SearchPointLights(fit, lights, centre_, 0.01, 0.004, 24, kShadowSearchRows) > 0) {
-    ++info->light_iterations;
+  if (!shadows) return;
+  const std::vector<PointLight> refined = *lights;
+  const double refined_value = fit.Value(refined);
+  const auto cancel = [&](int, double, double, const std::vector<PointLight>&) { CheckCancel(); };
+  if (SearchPointLights(fit, lights, centre_, 0.01, 0.004, 24, kShadowSearchRows, cancel) == 0) return;
+  // Its steps were taken on a share of the rows: kept only if the whole objective falls too.
+  const double searched_value = fit.Value(*lights);
+  if (!(searched_value < refined_value)) {
+    *lights = refined;
+    return;
+  }
+  ++info->light_iterations;
+  {
     std::vector<double> r(y_.size());
     for (std::size_t i = 0; i < r.size(); ++i) r[i] = y_[i] - base[i];
     for (const PointLight& l : *lights) {
@@ -963,7 +974,7 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
     }
     double sse = 0;
     for (double v : r) sse += v * v;
-    log(0, fit.Value(*lights), sse, *lights);  // one row: the whole objective where the search ended
+    log(0, searched_value, sse, *lights);  // one row: the whole objective where the search ended
   }
 }
 

@@ -609,6 +609,7 @@ struct RowSubset {
     problem.vertices = &vertices;
     problem.y = &y;
     problem.base = &base;
+    problem.alpha /= stride;  // the penalty weighed against a stride-th of the data term, as on all rows
   }
 };
 
@@ -622,7 +623,7 @@ int SearchPointLights(const PointFitProblem& full, std::vector<PointLight>* ligh
   std::unique_ptr<RowSubset> subset;
   if (stride > 1) subset = std::make_unique<RowSubset>(full, stride);
   const PointFitProblem& p = subset ? subset->problem : full;
-  int moves = 0, evaluations = 0;
+  int moves = 0;
   for (std::size_t k = 0; k < lights->size(); ++k) {
     std::vector<float> others(p.y->size(), 0.0f), col;  // the other lights' render, held
     for (std::size_t j = 0; j < lights->size(); ++j) {
@@ -630,20 +631,23 @@ int SearchPointLights(const PointFitProblem& full, std::vector<PointLight>* ligh
       PointLightColumn(*p.scene, *p.vertices, (*lights)[j].position, &col, nullptr, (*lights)[j].radius);
       for (std::size_t i = 0; i < col.size(); ++i) others[i] += static_cast<float>((*lights)[j].intensity[i % 3] * col[i]);
     }
-    PointLight& light = (*lights)[k];
+    // The light as it is, its intensity refitted on these rows: written back only if it moves.
+    PointLight current = (*lights)[k];
     double sse = 0;
-    double E = PointEnergy(p, others, &light, &sse);
-    const double distance = std::max((light.position - centre).norm(), 1e-6);
+    double E = PointEnergy(p, others, &current, &sse);
+    const double distance = std::max((current.position - centre).norm(), 1e-6);
+    int evaluations = 0;
     for (double step = start * distance; step >= stop * distance * 0.999 && evaluations < max_evaluations;) {
       bool moved = false;
       for (int a = 0; a < 6 && !moved && evaluations < max_evaluations; ++a) {
-        PointLight trial = light;
+        PointLight trial = current;
         trial.position[a / 2] += a % 2 ? -step : step;
         double trial_sse = 0;
         const double tE = PointEnergy(p, others, &trial, &trial_sse);
         ++evaluations;
         if (tE < E) {
-          light = trial;
+          current = trial;
+          (*lights)[k] = trial;
           E = tE;
           sse = trial_sse;
           moved = true;

@@ -132,12 +132,13 @@ int RefinePointLights(
 
 /// A compass search for each light's position in turn (steps of `start` times its distance
 /// from `centre` along the axes, halved when no step lowers the energy, down to `stop`
-/// times it; at most `max_evaluations` columns in all), its intensity refitted at each
-/// place by reweighted least squares, the other lights held: the shadows' edges move with
-/// the light, which RefinePointLights' derivative (visibility held fixed) cannot see. On
-/// more than `max_rows` rows (0: no limit) it looks at an even share of them (every n-th).
-/// Returns the moves taken; `log` is called after each (the energy and the sum of squared
-/// residuals over the rows it looks at).
+/// times it; at most `max_evaluations` columns a light, besides one for each other light),
+/// its intensity refitted at each place by reweighted least squares, the other lights held:
+/// the shadows' edges move with the light, which RefinePointLights' derivative (visibility
+/// held fixed) cannot see. A light is changed only where it moves. On more than `max_rows`
+/// rows (0: no limit) it looks at an even share of them (every n-th; the activation penalty
+/// scaled with them). Returns the moves taken; `log` is called after each (light k's energy
+/// and the sum of squared residuals over the rows it looks at).
 int SearchPointLights(const PointFitProblem& problem, std::vector<PointLight>* lights, const Eigen::Vector3d& centre,
                       double start = 0.02, double stop = 0.002, int max_evaluations = 60, std::size_t max_rows = 0,
                       const std::function<void(int, double, double, const std::vector<PointLight>&)>& log = {});
