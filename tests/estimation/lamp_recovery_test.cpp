@@ -129,7 +129,7 @@ TEST(LampRecovery, TwoLampsEachAtItsPlaceWithItsIntensity) {
   EXPECT_LT(held, 0.10);
 }
 
-// lamp-0.5m, the stiffest: 1.2-1.4 cm off and beyond the noise 6.7-7.2 % / 6.6-7.9 % over
+// lamp-0.5m, the stiffest: 1.1-1.4 cm off and beyond the noise 6.1-7.2 % / 6.5-7.9 % over
 // four seeds of the scene and the estimate since the compass search of the lamp's place
 // (before it 1.1-3.7 cm and 6.4-15.8 % / 7.1-17.0 %: the derivative held the shadows fixed).
 INSTANTIATE_TEST_SUITE_P(Scenes, LampRecovery,
