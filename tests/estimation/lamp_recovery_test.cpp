@@ -56,17 +56,35 @@ double RenderError(const SceneBundle& bundle, const View& view, const View& agai
   return RelativeImageRmseBeyondNoise(a, b, view.image, again.image, view.valid);
 }
 
+/// A synthetic scene to fit on its first view, with a held-out view from another viewpoint
+/// and the same two views rendered again with other samples (the references' noise).
+struct HeldOutScene {
+  SynthScene s, again;
+  SceneBundle fit;  ///< the first view only
+  View held_out;
+  explicit HeldOutScene(const char* name) {
+    SynthOptions so;
+    so.held_out_views = 1;
+    s = MakeSynth(name, so, "");
+    so.seed += 1;
+    again = MakeSynth(name, so, "");
+    fit = s.bundle;
+    held_out = fit.views.at(1);
+    fit.views.resize(1);
+  }
+  /// RenderError of the estimate on the fitted view and on the held-out one.
+  void Errors(const EstimateResult& r, double* fitted, double* held, double* fitted_plain, double* held_plain) const {
+    *fitted = RenderError(fit, fit.views[0], again.bundle.views[0], r, fitted_plain);
+    *held = RenderError(fit, held_out, again.bundle.views[1], r, held_plain);
+  }
+};
+
 TEST_P(LampRecovery, OnePointLightAtItsPlace) {
   const LampCase& lc = GetParam();
-  SynthOptions so;
-  so.held_out_views = 1;
-  const SynthScene s = MakeSynth(lc.scene, so, "");
+  const HeldOutScene h(lc.scene);
+  const SynthScene& s = h.s;
+  const SceneBundle& fit = h.fit;
   ASSERT_EQ(s.lighting.lights.size(), 1u);
-  so.seed += 1;  // the same views with other samples: the references' noise
-  const SynthScene again = MakeSynth(lc.scene, so, "");
-  SceneBundle fit = s.bundle;
-  const View held_out = fit.views.at(1);
-  fit.views.resize(1);
   EstimateOptions eo;
   eo.render = false;
   const EstimateResult r = Estimate(fit, eo);
@@ -75,9 +93,8 @@ TEST_P(LampRecovery, OnePointLightAtItsPlace) {
   const Eigen::Vector3d intensity = truth.rgb_power / (4 * kPi);  // a uniform sphere's I = P / 4 pi
   const double distance = (truth.position - s.lighting.center).norm();
   const double error = (r.point_lights[0].position - truth.position).norm();
-  double fitted_plain = 0, held_plain = 0;
-  const double fitted = RenderError(fit, fit.views[0], again.bundle.views[0], r, &fitted_plain),
-               held = RenderError(fit, held_out, again.bundle.views[1], r, &held_plain);
+  double fitted = 0, held = 0, fitted_plain = 0, held_plain = 0;
+  h.Errors(r, &fitted, &held, &fitted_plain, &held_plain);
   std::printf("%s: lamp %.1f cm off (%.1f %% of %.2f m), intensity %.4f vs %.4f, beyond the noise fitted %.3f, "
               "held-out %.3f (plain, 64 spp: %.3f, %.3f)\n",
               lc.scene, 100 * error, 100 * error / distance, distance, r.point_lights[0].intensity.x(), intensity.x(),
@@ -94,18 +111,12 @@ TEST_P(LampRecovery, OnePointLightAtItsPlace) {
 // as the single lamps are (its nearest estimate: position, intensity; the views: fitted and
 // held-out beyond the noise).
 TEST(LampRecovery, TwoLampsEachAtItsPlaceWithItsIntensity) {
-  SynthOptions so;
-  so.held_out_views = 1;
-  const SynthScene s = MakeSynth("two-lamps", so, "");
+  const HeldOutScene h("two-lamps");
+  const SynthScene& s = h.s;
   ASSERT_EQ(s.lighting.lights.size(), 2u);
-  so.seed += 1;
-  const SynthScene again = MakeSynth("two-lamps", so, "");
-  SceneBundle fit = s.bundle;
-  const View held_out = fit.views.at(1);
-  fit.views.resize(1);
   EstimateOptions eo;
   eo.render = false;
-  const EstimateResult r = Estimate(fit, eo);
+  const EstimateResult r = Estimate(h.fit, eo);
   ASSERT_EQ(r.point_lights.size(), 2u);
   for (const SphereLight& truth : s.lighting.lights) {
     const PointLight* nearest = &r.point_lights[0];
@@ -120,9 +131,8 @@ TEST(LampRecovery, TwoLampsEachAtItsPlaceWithItsIntensity) {
     EXPECT_LT(error, 0.05 * distance);
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(nearest->intensity[c], intensity[c], 0.15 * intensity[c]);
   }
-  double fitted_plain = 0, held_plain = 0;
-  const double fitted = RenderError(fit, fit.views[0], again.bundle.views[0], r, &fitted_plain),
-               held = RenderError(fit, held_out, again.bundle.views[1], r, &held_plain);
+  double fitted = 0, held = 0, fitted_plain = 0, held_plain = 0;
+  h.Errors(r, &fitted, &held, &fitted_plain, &held_plain);
   std::printf("two-lamps: beyond the noise fitted %.3f, held-out %.3f (plain, 64 spp: %.3f, %.3f)\n", fitted, held,
               fitted_plain, held_plain);
   EXPECT_LT(fitted, 0.08);
