@@ -166,6 +166,26 @@ class Estimator {
   std::vector<float> Column(const Eigen::Vector3d& position, double radius);
   ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params) const;
   void Score(ConvergenceRow* row, const std::vector<double>& env_lambda, const std::vector<PointLight>& points) const;
+  /// A convergence row of a light's refinement (the objective and the sum of squared
+  /// residuals over y_ as given), scored and step left to the caller.
+  ConvergenceRow LightRow(const RoundInfo& info, double sigma, double objective, double sse) const {
+    ConvergenceRow row;
+    row.wall_seconds = Now();
+    row.round = info.round;
+    row.iteration = res_.convergence.empty() ? 0 : res_.convergence.back().iteration + 1;
+    row.sigma = sigma;
+    row.albedo_pass = res_.albedo_passes;
+    row.objective = objective;
+    row.relative_rmse = std::sqrt(sse / static_cast<double>(y_.size()));
+    row.photometric_rmse = row.relative_rmse * res_.image_mean;
+    return row;
+  }
+  /// Appends a convergence row, tells the caller's callback, and stops here when cancelled.
+  void Push(const ConvergenceRow& row) {
+    res_.convergence.push_back(row);
+    if (opt_.on_convergence) opt_.on_convergence(row);
+    CheckCancel();
+  }
   std::vector<PointLight> InImageUnits(std::vector<PointLight> lights) const {
     for (PointLight& l : lights) l.intensity *= res_.image_mean;
     return lights;
@@ -927,55 +947,49 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
                                 std::max(0.0, lambda_[3 * j] + lambda_[3 * j + 1] + lambda_[3 * j + 2]));
   std::vector<double> base = Plus(A_.Multiply(lambda_), LightsRender({}, suns_));
   const PointFitProblem fit = FitProblem(&base);
-  const double rows = static_cast<double>(y_.size());
-  const auto log = [&](int, double E, double sse, const std::vector<PointLight>& now) {
-    ConvergenceRow row;
-    row.wall_seconds = Now();
-    row.round = info->round;
-    row.iteration = res_.convergence.empty() ? 0 : res_.convergence.back().iteration + 1;
-    row.sigma = fit.sigma;
-    row.albedo_pass = res_.albedo_passes;
-    row.objective = E + map_penalty;
-    row.relative_rmse = std::sqrt(sse / rows);
-    row.photometric_rmse = row.relative_rmse * res_.image_mean;
-    row.step = step;
-    Score(&row, lambda_, now);
-    res_.convergence.push_back(row);
-    if (opt_.on_convergence) opt_.on_convergence(row);
-    CheckCancel();
+  // One convergence row; on a share of the rows (every stride-th) E and the squared
+  // residuals times the stride estimate the whole problem's.
+  const auto logger = [&](int stride) {
+    return [&, stride](int, double E, double sse, const std::vector<PointLight>& now) {
+      ConvergenceRow row = LightRow(*info, fit.sigma, E * stride + map_penalty, sse * stride);
+      row.step = step;
+      Score(&row, lambda_, now);
+      Push(row);
+    };
   };
-  // With the compass search after it (rounds 2 on, the lights near their places), 4
-  // iterations: past them it only tried steps that failed (lamp-0.5m's places and intensities
-  // the same bit for bit, docs/benchmarks.md, session 20).
-  info->light_iterations = RefinePointLights(fit, lights, shadows ? 4 : 12, log);
-  // The compass search (steps of 1 % of the light's distance, then 0.5 %, at most 24
-  // columns a light) looks at 4,800 rows (every n-th): on all of the demo's four views it cost 11 s
-  // (24 -> 35.5 s), on a 160 x 120 view's 19,200 rows 6-8 s of the Cycles cornerbox's and
-  // lamp-0.5m's 6-7 s, for places no better (docs/method.md, "Refinement").
-  constexpr std::size_t kShadowSearchRows = 4800;
-  if (!shadows) return;
-  const std::vector<PointLight> refined = *lights;
-  const double refined_value = fit.Value(refined);
-  const auto cancel = [&](int, double, double, const std::vector<PointLight>&) { CheckCancel(); };
-  if (SearchPointLights(fit, lights, centre_, 0.01, 0.004, 24, kShadowSearchRows, cancel) == 0) return;
-  // Its steps were taken on a share of the rows: kept only if the whole objective falls too.
-  const double searched_value = fit.Value(*lights);
-  if (!(searched_value < refined_value)) {
-    *lights = refined;
+  if (!shadows) {  // round 1: the lights found by the sparse solve, on all rows
+    info->light_iterations = RefinePointLights(fit, lights, 12, logger(1));
     return;
   }
-  ++info->light_iterations;
-  {
-    std::vector<double> r(y_.size());
-    for (std::size_t i = 0; i < r.size(); ++i) r[i] = y_[i] - base[i];
-    for (const PointLight& l : *lights) {
-      const std::vector<float> col = Column(l.position, l.radius);
-      for (std::size_t i = 0; i < r.size(); ++i) r[i] -= l.intensity[i % 3] * col[i];
-    }
-    double sse = 0;
-    for (double v : r) sse += v * v;
-    log(0, searched_value, sse, *lights);  // one row: the whole objective where the search ended
+  // Rounds 2 on, the lights near their places: Levenberg-Marquardt (4 iterations: past them
+  // it only tried steps that failed, docs/benchmarks.md, session 20), then the compass search
+  // (steps of 1 % of the light's distance, then 0.5 %, at most 24 columns a light) that sees
+  // the shadows' edges move. Both look at 4,800 of the rows (every n-th): each column on all
+  // of a 160 x 120 view's 19,200 rows, with a lamp's 4 shadow rays a vertex, costs ~0.25 s
+  // (lamp-0.5m's LM and search on all rows made it 1.6x the map alone's time; the search on
+  // all of the demo's rows cost 11 s, docs/method.md, "Refinement"). What they find is kept
+  // only if the whole objective, over all rows, falls too.
+  constexpr std::size_t kShadowRows = 4800;
+  const std::vector<PointLight> start = *lights;
+  const double start_value = fit.Value(start);
+  const PointFitSubset share(fit, kShadowRows);
+  const auto log = logger(share.stride);
+  const int iterations = RefinePointLights(share.problem, lights, 4, log);
+  const std::vector<PointLight> refined = *lights;
+  const auto cancel = [&](int, double, double, const std::vector<PointLight>&) { CheckCancel(); };
+  const int moves = SearchPointLights(share.problem, lights, centre_, 0.01, 0.004, 24, cancel);
+  double sse = 0, value = fit.Value(*lights, &sse);
+  if (!(value < start_value) && moves > 0) {  // the search's places fail on all rows: LM's?
+    *lights = refined;
+    value = fit.Value(*lights, &sse);
   }
+  if (!(value < start_value)) {
+    *lights = start;
+    info->light_iterations = 0;
+    return;
+  }
+  info->light_iterations = iterations + (moves > 0 ? 1 : 0);
+  logger(1)(0, value, sse, *lights);  // one row: the whole objective where they ended
 }
 
 /// Model selection on the held-out pixels: each light (weakest first) stays only if the
@@ -1101,25 +1115,14 @@ bool Estimator::FitDirectionalLight(RoundInfo* info) {
       std::fill(&cleared[3 * j], &cleared[3 * j] + 3, 0.0);
   std::vector<double> base = Plus(A_.Multiply(cleared), LightsRender(points_, {}));
   const PointFitProblem fit = FitProblem(&base);
-  const double rows = static_cast<double>(y_.size());
   const auto log = [&](int, double E, double sse, const DirectionalLight& now) {
-    ConvergenceRow row;
-    row.wall_seconds = Now();
-    row.round = info->round;
-    row.iteration = res_.convergence.empty() ? 0 : res_.convergence.back().iteration + 1;
-    row.sigma = fit.sigma;
-    row.albedo_pass = res_.albedo_passes;
-    row.objective = E;  // (the map's penalty left out: held fixed here)
-    row.relative_rmse = std::sqrt(sse / rows);
-    row.photometric_rmse = row.relative_rmse * res_.image_mean;
+    ConvergenceRow row = LightRow(*info, fit.sigma, E, sse);  // (the map's penalty left out: held fixed here)
     row.step = "sun";
     const std::vector<DirectionalLight> kept = suns_;
     suns_ = {now};
     Score(&row, without, points_);
     suns_ = kept;
-    res_.convergence.push_back(row);
-    if (opt_.on_convergence) opt_.on_convergence(row);
-    CheckCancel();
+    Push(row);
   };
   // The angular radius (soft shadows: a wide far light) before the search too, or a wide
   // light's direction is sought by shadow edges it does not have.

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <memory>
 
 #include <Eigen/Dense>
 
@@ -368,9 +367,38 @@ double CauchyLoss(const std::vector<double>& r, double sigma) {
   return e;
 }
 
-double PointFitProblem::Value(const std::vector<PointLight>& lights) const {
+double PointFitProblem::Value(const std::vector<PointLight>& lights, double* sse) const {
   std::vector<std::vector<float>> columns;
-  return Energy(*this, lights, Residual(*this, lights, &columns, nullptr));
+  const std::vector<double> r = Residual(*this, lights, &columns, nullptr);
+  if (sse) {
+    *sse = 0;
+    for (double v : r) *sse += v * v;
+  }
+  return Energy(*this, lights, r);
+}
+
+PointFitSubset::PointFitSubset(const PointFitProblem& full, std::size_t max_rows) : problem(full) {
+  const std::size_t rows = full.vertices->rows();
+  if (max_rows == 0 || rows <= max_rows) return;
+  stride = static_cast<int>((rows + max_rows - 1) / max_rows);
+  const ShadingVertices& v = *full.vertices;
+  for (std::size_t r = 0; r < rows; r += stride) {
+    for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
+      vertices.position.push_back(v.position[k]);
+      vertices.normal.push_back(v.normal[k]);
+      vertices.geometric.push_back(v.geometric[k]);
+      vertices.weight.push_back(v.weight[k]);
+    }
+    vertices.row_start.push_back(static_cast<std::int64_t>(vertices.position.size()));
+    for (int c = 0; c < 3; ++c) {
+      y.push_back((*full.y)[3 * r + c]);
+      base.push_back((*full.base)[3 * r + c]);
+    }
+  }
+  problem.vertices = &vertices;
+  problem.y = &y;
+  problem.base = &base;
+  problem.alpha /= stride;
 }
 
 int RefinePointLights(const PointFitProblem& p, std::vector<PointLight>* lights, int max_iterations,
@@ -584,45 +612,10 @@ double PointEnergy(const PointFitProblem& p, const std::vector<float>& others, P
 
 }  // namespace
 
-namespace {
 
-/// Every `stride`-th row of a fitting problem: its vertices, observations and base.
-struct RowSubset {
-  ShadingVertices vertices;
-  std::vector<double> y, base;
-  PointFitProblem problem;
-  RowSubset(const PointFitProblem& p, int stride) : problem(p) {
-    const ShadingVertices& v = *p.vertices;
-    for (std::size_t r = 0; r < v.rows(); r += stride) {
-      for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
-        vertices.position.push_back(v.position[k]);
-        vertices.normal.push_back(v.normal[k]);
-        vertices.geometric.push_back(v.geometric[k]);
-        vertices.weight.push_back(v.weight[k]);
-      }
-      vertices.row_start.push_back(static_cast<std::int64_t>(vertices.position.size()));
-      for (int c = 0; c < 3; ++c) {
-        y.push_back((*p.y)[3 * r + c]);
-        base.push_back((*p.base)[3 * r + c]);
-      }
-    }
-    problem.vertices = &vertices;
-    problem.y = &y;
-    problem.base = &base;
-    problem.alpha /= stride;  // the penalty weighed against a stride-th of the data term, as on all rows
-  }
-};
-
-}  // namespace
-
-int SearchPointLights(const PointFitProblem& full, std::vector<PointLight>* lights, const Eigen::Vector3d& centre,
-                      double start, double stop, int max_evaluations, std::size_t max_rows,
+int SearchPointLights(const PointFitProblem& p, std::vector<PointLight>* lights, const Eigen::Vector3d& centre,
+                      double start, double stop, int max_evaluations,
                       const std::function<void(int, double, double, const std::vector<PointLight>&)>& log) {
-  const std::size_t rows = full.vertices->rows();
-  const int stride = max_rows > 0 && rows > max_rows ? static_cast<int>((rows + max_rows - 1) / max_rows) : 1;
-  std::unique_ptr<RowSubset> subset;
-  if (stride > 1) subset = std::make_unique<RowSubset>(full, stride);
-  const PointFitProblem& p = subset ? subset->problem : full;
   int moves = 0;
   for (std::size_t k = 0; k < lights->size(); ++k) {
     std::vector<float> others(p.y->size(), 0.0f), col;  // the other lights' render, held

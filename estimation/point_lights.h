@@ -118,7 +118,22 @@ struct PointFitProblem {
   const std::vector<double>* y = nullptr;     ///< 3 per row
   const std::vector<double>* base = nullptr;  ///< 3 per row
   double sigma = 0.5, alpha = 3, beta = 1;
-  double Value(const std::vector<PointLight>& lights) const;
+  /// E at these lights; `sse`, when given, receives the sum of squared residuals.
+  double Value(const std::vector<PointLight>& lights, double* sse = nullptr) const;
+};
+/// Every stride-th row of a fitting problem (stride = rows / max_rows rounded up; 1, the
+/// problem itself, when it has no more): its vertices, observations and base, the activation
+/// penalty divided by the stride so that it weighs against the data term as on all rows.
+/// Where a share of the rows is enough to move the lights (each column on it costs that
+/// share); its E times the stride estimates the whole problem's.
+struct PointFitSubset {
+  PointFitSubset(const PointFitProblem& full, std::size_t max_rows);
+  PointFitSubset(const PointFitSubset&) = delete;
+  PointFitSubset& operator=(const PointFitSubset&) = delete;
+  int stride = 1;
+  ShadingVertices vertices;
+  std::vector<double> y, base;
+  PointFitProblem problem;
 };
 
 /// Levenberg-Marquardt on the lights' positions and intensities together (iteratively
@@ -135,12 +150,11 @@ int RefinePointLights(
 /// times it; at most `max_evaluations` columns a light, besides one for each other light),
 /// its intensity refitted at each place by reweighted least squares, the other lights held:
 /// the shadows' edges move with the light, which RefinePointLights' derivative (visibility
-/// held fixed) cannot see. A light is changed only where it moves. On more than `max_rows`
-/// rows (0: no limit) it looks at an even share of them (every n-th; the activation penalty
-/// scaled with them). Returns the moves taken; `log` is called after each (light k's energy
-/// and the sum of squared residuals over the rows it looks at).
+/// held fixed) cannot see. A light is changed only where it moves (a PointFitSubset's
+/// problem makes it look at a share of the rows). Returns the moves taken; `log` is called
+/// after each (light k's energy and the sum of squared residuals).
 int SearchPointLights(const PointFitProblem& problem, std::vector<PointLight>* lights, const Eigen::Vector3d& centre,
-                      double start = 0.02, double stop = 0.002, int max_evaluations = 60, std::size_t max_rows = 0,
+                      double start = 0.02, double stop = 0.002, int max_evaluations = 60,
                       const std::function<void(int, double, double, const std::vector<PointLight>&)>& log = {});
 
 /// The same for one directional light (its direction on the unit sphere and its
