@@ -1,5 +1,5 @@
 // The fixed part of the Blender export's scene.py (after the data block blender.cpp writes).
-// Blender 3.4 (Debian 12) and later.
+// Blender 3.4 (Debian 12) and later; tested with Debian's 3.4.1 only.
 #include "exports/blender.h"
 
 namespace lp {
@@ -12,7 +12,23 @@ import bpy
 import mathutils
 import numpy as np
 
-HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def script_folder():
+    """This script's folder, where mesh.ply and world.exr are: beside __file__ when run by
+    --python; run from Blender's text editor (Scripting > Open > Run Script) __file__ is the
+    text block's name under the .blend's folder, so the text block's own file path is used."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    if os.path.exists(os.path.join(here, MESH)):
+        return here
+    for text in bpy.data.texts:
+        path = bpy.path.abspath(text.filepath) if text.filepath else ""
+        if path and os.path.exists(os.path.join(os.path.dirname(path), MESH)):
+            return os.path.dirname(os.path.abspath(path))
+    sys.exit("scene.py: %s is not beside this script (looked in %s and beside the open text files)" % (MESH, here))
+
+
+HERE = script_folder()
 
 
 def parse_args(argv):
@@ -83,7 +99,8 @@ def add_mesh(scene):
     me.polygons.foreach_set("use_smooth", np.ones(t, dtype=bool))
     me.update()
     if "nx" in vertex.dtype.names:  # the renderer's interpolated normals
-        me.use_auto_smooth = True
+        if hasattr(me, "use_auto_smooth"):  # needed for custom normals before Blender 4.1, gone since
+            me.use_auto_smooth = True
         me.normals_split_custom_set_from_vertices(np.column_stack([vertex["nx"], vertex["ny"], vertex["nz"]]).tolist())
     rgb = srgb_to_linear(np.column_stack([vertex["red"], vertex["green"], vertex["blue"]]) / 255.0)
     rgba = np.column_stack([rgb, np.ones(n)]).astype(np.float32)

@@ -1,4 +1,4 @@
-foreach(sub "" estimate render synth bench)
+foreach(sub "" estimate render synth bench bench-report devices record replay reconstruct calibrate view export)
   execute_process(COMMAND ${EXE} ${sub} --help RESULT_VARIABLE rc OUTPUT_VARIABLE out)
   if(NOT rc EQUAL 0 OR NOT out MATCHES "Usage")
     message(FATAL_ERROR "lightprobe ${sub} --help failed (${rc}): ${out}")
