@@ -62,6 +62,29 @@ TEST(DominantAngularErrorDeg, AgainstHandComputedCellCentres) {
   EXPECT_NEAR(DominantAngularErrorDeg(env, OneCell(env, Eigen::Vector3d::UnitZ()), {z}), 0, 1e-9);
 }
 
+TEST(DominantAngularErrorDeg, TheStrongestAtTheCentreWinsMapModeOrLamp) {
+  // One lit cell along +x (21 rings: solid angle ~ (pi / 20) (2 pi / 40) = 0.0247 sr; radiance
+  // 1: irradiance ~0.0247 at the centre) and a lamp 2 m above the centre, where the one true
+  // light is. Intensity 1: 1 / 2^2 = 0.25 at the centre, the lamp is the estimate's strongest
+  // (0 degrees off); intensity 0.04: 0.01, the map's mode is (90 degrees off, at the equator).
+  const EnvMap env(21, Eigen::Vector3d::UnitZ());
+  const std::vector<double> lambda = OneCell(env, Eigen::Vector3d::UnitX());
+  const Eigen::Vector3d centre(0.5, -0.2, 0.1);
+  const TruthLight z{"point", Eigen::Vector3d::UnitZ(), 1, centre + 2 * Eigen::Vector3d::UnitZ()};
+  const auto lamp = [&](double I) { return PointLight{centre + 2 * Eigen::Vector3d::UnitZ(), Eigen::Vector3d::Constant(I), 0}; };
+  EXPECT_NEAR(DominantAngularErrorDeg(env, lambda, {lamp(1)}, centre, {z}), 0, 1e-9);
+  EXPECT_NEAR(DominantAngularErrorDeg(env, lambda, {lamp(0.04)}, centre, {z}), 90, 1e-6);
+  // A directional light counts by its irradiance: 0.1 from -x beats the cell, 0.01 does not.
+  const auto sun = [](double E) {
+    DirectionalLight d;
+    d.direction = -Eigen::Vector3d::UnitX(), d.irradiance = Eigen::Vector3d::Constant(E);
+    return d;
+  };
+  const TruthLight minus_x{"sun", -Eigen::Vector3d::UnitX(), 1, std::nullopt};
+  EXPECT_NEAR(DominantAngularErrorDeg(env, lambda, {}, centre, {minus_x}, {sun(0.1)}), 0, 1e-9);
+  EXPECT_NEAR(DominantAngularErrorDeg(env, lambda, {}, centre, {minus_x}, {sun(0.01)}), 175.5, 1e-6);
+}
+
 TEST(RelativeImageRmse, AgainstHandComputedValues) {
   ImageRGB ref(2, 1), img(2, 1);
   const float r[6] = {1, 1, 1, 3, 3, 3}, i[6] = {1, 1, 1, 3, 3, 5};
