@@ -3,13 +3,13 @@
 # --directional-lights 0 and 1, alternating, REPEATS times each (default 2; the time is each
 # model's fastest run), on the fitted view of a `synth --held-out 1` bundle; the estimate's
 # lights.json then relights the held-out view (`render --lights`, 256 spp), whose relative
-# RMSE is the held-out error. Usage: [REPEATS=n] scripts/bench-directional.sh [lightprobe] > table.md
+# RMSE is the held-out error. Usage: [REPEATS=n] [SCENES="sun-and-sky ..."] scripts/bench-directional.sh [lightprobe] > table.md
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 exe=${1:-$root/build/app/lightprobe}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-scenes=(sun-and-sky one-light two-light env-studio env-sunset lamp-1m lamp-and-sky two-lamps near-light)
+read -r -a scenes <<< "${SCENES:-sun-and-sky one-light two-light env-studio env-sunset lamp-1m lamp-and-sky two-lamps near-light}"
 repeats=${REPEATS:-2}
 echo "| scene | directional | total s | fitted | held-out | angle ° | suns | sun ° off | lamps | time ratio |"
 echo "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |"

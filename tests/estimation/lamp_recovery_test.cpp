@@ -139,9 +139,9 @@ TEST(LampRecovery, TwoLampsEachAtItsPlaceWithItsIntensity) {
   EXPECT_LT(held, 0.10);
 }
 
-// lamp-0.5m, the stiffest: 1.0-1.6 cm off and beyond the noise 6.1-7.5 % / 6.5-8.4 % over
-// four seeds of the scene and the estimate since the compass search of the lamp's place
-// and its refinement on 4,800 rows (before the search 1.1-3.7 cm and 6.4-15.8 % /
+// lamp-0.5m, the stiffest: 0.8-1.2 cm off and beyond the noise 5.2-7.5 % / 4.9-8.2 % over
+// four seeds of the scene and the estimate since the compass search of the lamp's place,
+// its refinement on 4,800 rows and 5 bounces (before the search 1.1-3.7 cm and 6.4-15.8 % /
 // 7.1-17.0 %: the derivative held the shadows fixed).
 INSTANTIATE_TEST_SUITE_P(Scenes, LampRecovery,
                          ::testing::Values(LampCase{"lamp-0.5m", 0.08, 0.10}, LampCase{"lamp-1m", 0.08, 0.10},

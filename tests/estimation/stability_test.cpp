@@ -244,10 +244,12 @@ TEST(Stability, SixtyOneRingsWithFourSamplesPerPixel) {
   // (with a per-cell penalty this case fitted nothing: relative RMSE 0.95).
   EXPECT_LT(r.final_relative_rmse, 0.3);
   const int j = CellAt(coarse, 30, 50);
+  // Most of the light near the truth: 0.62-0.82 of it within 45 degrees over seeds 1-6 (3
+  // and 5 bounces; 0.71 at the defaults).
   EXPECT_NEAR(PowerNear(r, coarse.direction(j), 45) / (2.0 * coarse.solid_angle(j)), 1.0, 0.4);
-  // 4 samples per pixel over 1,000 small cells: 13.6 degrees measured (a neighbour of the
-  // 9-ring truth is 22.5 degrees away).
-  ExpectLightAt(r, coarse, coarse.direction(j), 0.75);
+  // Not the dominant direction: at 4 samples per pixel over ~4,700 near-collinear cells it is
+  // not determined (13.6-82.6 degrees over seeds 1-4 with 3 bounces, 17.3-46.6 with 5; a
+  // neighbour of the 9-ring truth is 22.5 away). The 32-spp case above holds it.
 }
 
 TEST(Stability, OneValidPixel) {
