@@ -129,13 +129,13 @@ TEST(Cycles, TheSunComesBackAsADirectionalLight) {
   const double angle = AngleDeg(d.direction, sun);
   std::printf("sun %.3f degrees from the truth, irradiance %.3f %.3f %.3f W/m^2 (truth %.3f); residual %.4f\n", angle,
               d.irradiance.x(), d.irradiance.y(), d.irradiance.z(), irradiance, r.final_relative_rmse);
-  // Measured 0.59 degrees (the issue asks 0.5: 0.48 with --point-spp 32, the light's columns'
-  // noise), irradiance +1 %.
-  EXPECT_LT(angle, 1.2);
-  for (int c = 0; c < 3; ++c) EXPECT_NEAR(d.irradiance[c], irradiance, 0.05 * irradiance);
+  // Issue 21 asks 0.5 degrees. Measured 0.25 (5 bounces, the direction searched against the
+  // map solved again until it stays; 0.59 with 3 bounces and one pass), irradiance -0.2 %.
+  EXPECT_LT(angle, 0.5);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(d.irradiance[c], irradiance, 0.02 * irradiance);
   // Both views re-rendered from the estimate at 256 spp (map, lamps and suns on the same
-  // paths): measured 2.7 % fitted (1.9 % at 1024 spp; the fit's own residual, 9.1 %, is its
-  // 8-spp light columns' noise) and 3.6 % held out.
+  // paths): measured 2.8 % fitted (the true sun relit so: 2.8 %; the fit's own residual, ~10 %,
+  // is its 8-spp light columns' noise) and 2.9 % held out.
   auto relit_error = [&](const SceneBundle& b) {
     const RayTracer scene(b.mesh);
     TracerOptions t;
