@@ -176,6 +176,33 @@ TEST(Sh, ASmallCellIsItsRadianceTimesSolidAngleTimesTheBasis) {
   for (int i = 0; i < 9; ++i) EXPECT_NEAR(L[i].y(), 3 * omega * Y[i], 2e-3 * 3 * omega) << i;
 }
 
+TEST(Sh, TheBasisIsTheRealOrthonormalOneInThreeJsOrder) {
+  // Each of the nine functions against its closed form (constants from their definitions,
+  // not the code's decimals), in three.js's SphericalHarmonics3 order, at a generic direction.
+  const Eigen::Vector3d d = Eigen::Vector3d(0.3, -0.5, 0.8).normalized();
+  const double x = d.x(), y = d.y(), z = d.z();
+  const double c0 = 0.5 / std::sqrt(kPi), c1 = std::sqrt(3 / (4 * kPi)), c2 = 0.5 * std::sqrt(15 / kPi),
+               c20 = 0.25 * std::sqrt(5 / kPi), c22 = 0.25 * std::sqrt(15 / kPi);
+  const double expected[9] = {c0, c1 * y, c1 * z, c1 * x, c2 * x * y, c2 * y * z, c20 * (3 * z * z - 1), c2 * x * z,
+                              c22 * (x * x - y * y)};
+  const auto Y = ShBasis(d);
+  for (int i = 0; i < 9; ++i) EXPECT_NEAR(Y[i], expected[i], 1e-12) << i;
+  // Orthonormal over the sphere: the integral of Y_i Y_j by the midpoint rule on a 400 x 800
+  // grid in (theta, phi) is the identity to 1e-4.
+  double gram[9][9] = {};
+  const int nt = 400, np = 800;
+  for (int it = 0; it < nt; ++it)
+    for (int ip = 0; ip < np; ++ip) {
+      const double t = (it + 0.5) * kPi / nt, ph = (ip + 0.5) * 2 * kPi / np;
+      const double w = std::sin(t) * (kPi / nt) * (2 * kPi / np);
+      const auto B = ShBasis(Eigen::Vector3d(std::sin(t) * std::cos(ph), std::sin(t) * std::sin(ph), std::cos(t)));
+      for (int i = 0; i < 9; ++i)
+        for (int j = 0; j < 9; ++j) gram[i][j] += w * B[i] * B[j];
+    }
+  for (int i = 0; i < 9; ++i)
+    for (int j = 0; j < 9; ++j) EXPECT_NEAR(gram[i][j], i == j ? 1.0 : 0.0, 1e-4) << i << "," << j;
+}
+
 TEST(Sh, ADirectionalLightsOrderTwoIrradianceIsOffBySixPercentAtItsPeak) {
   // A delta of irradiance E along d: L_i = E Y_i(d). The order-2 irradiance facing it is
   // E (1/4 + 1/2 + 5/16) = 1.0625 E (exact: E), and facing away 0.0625 E (exact: 0): the
@@ -259,6 +286,35 @@ TEST(ShExport, TheMainLightIsTheSunAndTheCoefficientsLeaveItOut) {
   EXPECT_LT(j["sh9_irradiance_error"]["max"].get<double>(), 0.01);
   // In the Y-up frame the up-down coefficient L10 of the bundle becomes L1-1 (glTF's y).
   EXPECT_NEAR(j["y_up"]["sh9_radiance"][1][0].get<double>(), sky[2].x(), 1e-6);
+  fs::remove_all(dir);
+}
+
+TEST(ShExport, TheYUpCoefficientsAreTheSameFunctionTurned) {
+  // A sky and one bright off-axis patch (every coefficient non-zero, no symmetry to hide a
+  // mirror): the Y-up set evaluated at glTF's (x, z, -y) of a world direction gives what the
+  // bundle's set gives at the direction itself, radiance and irradiance alike.
+  ExportScene s = SmallScene();
+  s.environment = SmoothSky(32);
+  for (int y = 6; y < 9; ++y)
+    for (int x = 11; x < 15; ++x) s.environment.at(x, y)[0] = 8, s.environment.at(x, y)[1] = 5;
+  const fs::path dir = Scratch("sh_yup");
+  WriteExport(s, ExportFormat::kSh, dir);
+  const json j = ReadJson(dir / "lighting.json");
+  const auto read = [](const json& a) {
+    Sh9 sh;
+    for (int i = 0; i < 9; ++i) sh[i] = Eigen::Vector3d(a[i][0].get<double>(), a[i][1].get<double>(), a[i][2].get<double>());
+    return sh;
+  };
+  for (const char* key : {"sh9_radiance", "sh9_irradiance"}) {
+    const Sh9 world = read(j[key]), yup = read(j["y_up"][key]);
+    EXPECT_GT(std::abs(world[4].x()) + std::abs(world[8].x()), 1e-3) << "the patch reaches the second band";
+    for (int k = 0; k < 20; ++k) {
+      const double t = 0.3 + 0.13 * k, p = 2.1 * k;
+      const Eigen::Vector3d d(std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t));
+      const Eigen::Vector3d a = EvaluateSh(world, d), b = EvaluateSh(yup, Eigen::Vector3d(d.x(), d.z(), -d.y()));
+      EXPECT_NEAR((a - b).norm(), 0, 1e-6 * (1 + a.norm())) << key << " " << k;
+    }
+  }
   fs::remove_all(dir);
 }
 
