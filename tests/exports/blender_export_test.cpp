@@ -180,6 +180,13 @@ TEST(BlenderExport, ATurnedBundleRendersTheSameInCycles) {
 // (run from / here, where a path taken from __file__ finds nothing).
 TEST(BlenderExport, RunFromBlendersTextEditorTheScriptFindsItsFiles) {
   const Fixture f("blender_text", false);
+  // Two keyframes: a camera each, keyframe 0 the active one with its resolution.
+  SceneBundle b = LoadSceneBundle(f.scene);
+  View second = b.views[0];
+  second.camera.world_from_camera.block<3, 1>(0, 3) += Eigen::Vector3d(0.3, -0.2, 0.1);
+  b.views.push_back(second);
+  WriteSceneBundle(f.scene, b);
+  const Eigen::Vector3d c1 = second.camera.center();  // up is +Z: Blender's frame is the bundle's
   const fs::path out = f.root / "blender";
   WriteExport(LoadExportScene(f.scene, f.estimate), ExportFormat::kBlender, out);
   WriteTextAtomically(f.root / "run_text.py",
@@ -188,13 +195,20 @@ TEST(BlenderExport, RunFromBlendersTextEditorTheScriptFindsItsFiles) {
                       "with bpy.context.temp_override(edit_text=t):\n"
                       "    bpy.ops.text.run_script()\n"
                       "print('OBJECTS', ' '.join(sorted(o.name for o in bpy.data.objects)))\n"
-                      "print('WORLD', bpy.context.scene.world.node_tree.nodes['Environment Texture'].image.name)\n");
+                      "print('WORLD', bpy.context.scene.world.node_tree.nodes['Environment Texture'].image.name)\n"
+                      "s = bpy.context.scene\n"
+                      "print('ACTIVE %s %dx%d' % (s.camera.name, s.render.resolution_x, s.render.resolution_y))\n"
+                      "print('KEYFRAME1 %.4f %.4f %.4f' % tuple(bpy.data.objects['keyframe_1'].location))\n");
   ASSERT_NO_FATAL_FAILURE(RunBlender("--python '" + (f.root / "run_text.py").string() + "'", f.root / "text.log", "/"));
   std::ifstream in(f.root / "text.log");
   std::stringstream log;
   log << in.rdbuf();
-  EXPECT_NE(log.str().find("OBJECTS keyframe_0 lightprobe_mesh point_light_0"), std::string::npos) << log.str();
+  EXPECT_NE(log.str().find("OBJECTS keyframe_0 keyframe_1 lightprobe_mesh point_light_0"), std::string::npos) << log.str();
   EXPECT_NE(log.str().find("WORLD world.exr"), std::string::npos) << log.str();
+  EXPECT_NE(log.str().find("ACTIVE keyframe_0 80x60"), std::string::npos) << log.str();
+  char where[120];
+  std::snprintf(where, sizeof where, "KEYFRAME1 %.4f %.4f %.4f", c1.x(), c1.y(), c1.z());
+  EXPECT_NE(log.str().find(where), std::string::npos) << where << "\n" << log.str();
 }
 
 TEST(GltfExport, ACyclesRenderThroughBlendersGltfImporterMatchesLightprobesRender) {
