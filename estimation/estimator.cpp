@@ -970,26 +970,31 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
   // all of the demo's rows cost 11 s, docs/method.md, "Refinement"). What they find is kept
   // only if the whole objective, over all rows, falls too.
   constexpr std::size_t kShadowRows = 4800;
+  const auto value = [&](const std::vector<PointLight>& now, double* sse = nullptr) {
+    std::vector<std::vector<float>> columns;  // from the cache: the round's solve made the start's
+    for (const PointLight& l : now) columns.push_back(Column(l.position, l.radius));
+    return fit.Value(now, columns, sse);
+  };
   const std::vector<PointLight> start = *lights;
-  const double start_value = fit.Value(start);
+  const double start_value = value(start);
   const PointFitSubset share(fit, kShadowRows);
   const auto log = logger(share.stride);
   const int iterations = RefinePointLights(share.problem, lights, 4, log);
   const std::vector<PointLight> refined = *lights;
   const auto cancel = [&](int, double, double, const std::vector<PointLight>&) { CheckCancel(); };
   const int moves = SearchPointLights(share.problem, lights, centre_, 0.01, 0.004, 24, cancel);
-  double sse = 0, value = fit.Value(*lights, &sse);
-  if (!(value < start_value) && moves > 0) {  // the search's places fail on all rows: LM's?
+  double sse = 0, ended = value(*lights, &sse);
+  if (!(ended < start_value) && moves > 0) {  // the search's places fail on all rows: LM's?
     *lights = refined;
-    value = fit.Value(*lights, &sse);
+    ended = value(*lights, &sse);
   }
-  if (!(value < start_value)) {
+  if (!(ended < start_value)) {
     *lights = start;
     info->light_iterations = 0;
     return;
   }
   info->light_iterations = iterations + (moves > 0 ? 1 : 0);
-  logger(1)(0, value, sse, *lights);  // one row: the whole objective where they ended
+  logger(1)(0, ended, sse, *lights);  // one row: the whole objective where they ended
 }
 
 /// Model selection on the held-out pixels: each light (weakest first) stays only if the

@@ -368,8 +368,21 @@ double CauchyLoss(const std::vector<double>& r, double sigma) {
 }
 
 double PointFitProblem::Value(const std::vector<PointLight>& lights, double* sse) const {
-  std::vector<std::vector<float>> columns;
-  const std::vector<double> r = Residual(*this, lights, &columns, nullptr);
+  std::vector<std::vector<float>> columns(lights.size());
+  for (std::size_t k = 0; k < lights.size(); ++k)
+    PointLightColumn(*scene, *vertices, lights[k].position, &columns[k], nullptr, lights[k].radius);
+  return Value(lights, columns, sse);
+}
+
+double PointFitProblem::Value(const std::vector<PointLight>& lights, const std::vector<std::vector<float>>& columns,
+                              double* sse) const {
+  LP_CHECK(columns.size() == lights.size(), "a column per light");
+  std::vector<double> r(y->size());
+  for (std::size_t i = 0; i < r.size(); ++i) r[i] = (*y)[i] - (*base)[i];
+  for (std::size_t k = 0; k < lights.size(); ++k) {
+    LP_CHECK(columns[k].size() == r.size(), "a column of the problem's rows");
+    for (std::size_t i = 0; i < r.size(); ++i) r[i] -= lights[k].intensity[i % 3] * columns[k][i];
+  }
   if (sse) {
     *sse = 0;
     for (double v : r) *sse += v * v;

@@ -120,6 +120,10 @@ struct PointFitProblem {
   double sigma = 0.5, alpha = 3, beta = 1;
   /// E at these lights; `sse`, when given, receives the sum of squared residuals.
   double Value(const std::vector<PointLight>& lights, double* sse = nullptr) const;
+  /// The same with the lights' unit columns given (as PointLightColumn makes them on these
+  /// vertices: e.g. from a cache).
+  double Value(const std::vector<PointLight>& lights, const std::vector<std::vector<float>>& columns,
+               double* sse = nullptr) const;
 };
 /// Every stride-th row of a fitting problem (stride = rows / max_rows rounded up; 1, the
 /// problem itself, when it has no more): its vertices, observations and base, the activation

@@ -602,7 +602,7 @@ void Viewer::PanelEstimate() {
   if (ImGui::CollapsingHeader("Settings")) {
     ImGui::SliderInt("rings", &settings_.rings, 5, 41);
     ImGui::SliderInt("samples/pixel", &settings_.tracer.spp, 8, 256);
-    ImGui::SliderInt("bounces", &settings_.tracer.bounces, 1, 5);
+    ImGui::SliderInt("bounces", &settings_.tracer.bounces, 1, 8);
     ImGui::SliderInt("rounds", &settings_.max_rounds, 1, 6);
     ImGui::SliderInt("point lights", &settings_.point_lights.max_lights, 0, 8);
     if (ImGui::IsItemHovered()) ImGui::SetTooltip("at most this many lamps beside the map; 0 = the map alone");
