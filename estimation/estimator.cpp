@@ -963,7 +963,8 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
   }
   // Rounds 2 on, the lights near their places: Levenberg-Marquardt (4 iterations: past them
   // it only tried steps that failed, docs/benchmarks.md, session 20), then the compass search
-  // (steps of 1 % of the light's distance, then 0.5 %, at most 24 columns a light) that sees
+  // (steps of 1 % of the light's distance, then 0.5 %, at most 12 columns a light: 24 cost
+  // the Cycles cornerbox ~1.1 s for the same lamp, docs/benchmarks.md, session 21) that sees
   // the shadows' edges move. Both look at 4,800 of the rows (every n-th): each column on all
   // of a 160 x 120 view's 19,200 rows, with a lamp's 4 shadow rays a vertex, costs ~0.25 s
   // (lamp-0.5m's LM and search on all rows made it 1.6x the map alone's time; the search on
@@ -982,7 +983,7 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
   const int iterations = RefinePointLights(share.problem, lights, 4, log);
   const std::vector<PointLight> refined = *lights;
   const auto cancel = [&](int, double, double, const std::vector<PointLight>&) { CheckCancel(); };
-  const int moves = SearchPointLights(share.problem, lights, centre_, 0.01, 0.004, 24, cancel);
+  const int moves = SearchPointLights(share.problem, lights, centre_, 0.01, 0.004, 12, cancel);
   double sse = 0, ended = value(*lights, &sse);
   if (!(ended < start_value) && moves > 0) {  // the search's places fail on all rows: LM's?
     *lights = refined;

@@ -139,7 +139,7 @@ TEST(LampRecovery, TwoLampsEachAtItsPlaceWithItsIntensity) {
   EXPECT_LT(held, 0.10);
 }
 
-// lamp-0.5m, the stiffest: 0.8-1.2 cm off and beyond the noise 5.2-7.5 % / 4.9-8.2 % over
+// lamp-0.5m, the stiffest: 1.1-1.2 cm off and beyond the noise 6.2-7.0 % / 5.6-7.6 % over
 // four seeds of the scene and the estimate since the compass search of the lamp's place,
 // its refinement on 4,800 rows and 5 bounces (before the search 1.1-3.7 cm and 6.4-15.8 % /
 // 7.1-17.0 %: the derivative held the shadows fixed).
