@@ -335,21 +335,34 @@ std::vector<Eigen::Vector3d> CandidatePositions(const Eigen::Vector3d& centre, d
 
 namespace {
 
-/// Residuals y - base - sum_k I_k c_k over all rows, with the lights' columns (and
-/// Jacobians when asked).
+/// Residuals y - base - sum_k I_k c_k over all rows, the lights' columns given.
 std::vector<double> Residual(const PointFitProblem& p, const std::vector<PointLight>& lights,
-                             std::vector<std::vector<float>>* columns, std::vector<std::vector<float>>* jacobians) {
+                             const std::vector<std::vector<float>>& columns) {
+  LP_CHECK(columns.size() == lights.size(), "a column per light");
   std::vector<double> r(p.y->size());
   for (std::size_t i = 0; i < r.size(); ++i) r[i] = (*p.y)[i] - (*p.base)[i];
-  columns->resize(lights.size());
-  if (jacobians) jacobians->resize(lights.size());
   for (std::size_t k = 0; k < lights.size(); ++k) {
-    PointLightColumn(*p.scene, *p.vertices, lights[k].position, &(*columns)[k],
-                     jacobians ? &(*jacobians)[k] : nullptr, lights[k].radius);
-    const auto& col = (*columns)[k];
-    for (std::size_t i = 0; i < r.size(); ++i) r[i] -= lights[k].intensity[i % 3] * col[i];
+    LP_CHECK(columns[k].size() == r.size(), "a column of the problem's rows");
+    for (std::size_t i = 0; i < r.size(); ++i) r[i] -= lights[k].intensity[i % 3] * columns[k][i];
   }
   return r;
+}
+
+/// The lights' unit columns on the problem's vertices (and their Jacobians when asked).
+void TraceColumns(const PointFitProblem& p, const std::vector<PointLight>& lights,
+                  std::vector<std::vector<float>>* columns, std::vector<std::vector<float>>* jacobians) {
+  columns->resize(lights.size());
+  if (jacobians) jacobians->resize(lights.size());
+  for (std::size_t k = 0; k < lights.size(); ++k)
+    PointLightColumn(*p.scene, *p.vertices, lights[k].position, &(*columns)[k],
+                     jacobians ? &(*jacobians)[k] : nullptr, lights[k].radius);
+}
+
+/// The same residuals, tracing the columns (and Jacobians when asked).
+std::vector<double> Residual(const PointFitProblem& p, const std::vector<PointLight>& lights,
+                             std::vector<std::vector<float>>* columns, std::vector<std::vector<float>>* jacobians) {
+  TraceColumns(p, lights, columns, jacobians);
+  return Residual(p, lights, *columns);
 }
 
 double Energy(const PointFitProblem& p, const std::vector<PointLight>& lights, const std::vector<double>& r) {
@@ -368,21 +381,14 @@ double CauchyLoss(const std::vector<double>& r, double sigma) {
 }
 
 double PointFitProblem::Value(const std::vector<PointLight>& lights, double* sse) const {
-  std::vector<std::vector<float>> columns(lights.size());
-  for (std::size_t k = 0; k < lights.size(); ++k)
-    PointLightColumn(*scene, *vertices, lights[k].position, &columns[k], nullptr, lights[k].radius);
+  std::vector<std::vector<float>> columns;
+  TraceColumns(*this, lights, &columns, nullptr);
   return Value(lights, columns, sse);
 }
 
 double PointFitProblem::Value(const std::vector<PointLight>& lights, const std::vector<std::vector<float>>& columns,
                               double* sse) const {
-  LP_CHECK(columns.size() == lights.size(), "a column per light");
-  std::vector<double> r(y->size());
-  for (std::size_t i = 0; i < r.size(); ++i) r[i] = (*y)[i] - (*base)[i];
-  for (std::size_t k = 0; k < lights.size(); ++k) {
-    LP_CHECK(columns[k].size() == r.size(), "a column of the problem's rows");
-    for (std::size_t i = 0; i < r.size(); ++i) r[i] -= lights[k].intensity[i % 3] * columns[k][i];
-  }
+  const std::vector<double> r = Residual(*this, lights, columns);
   if (sse) {
     *sse = 0;
     for (double v : r) *sse += v * v;
@@ -624,7 +630,6 @@ double PointEnergy(const PointFitProblem& p, const std::vector<float>& others, P
 }
 
 }  // namespace
-
 
 int SearchPointLights(const PointFitProblem& p, std::vector<PointLight>* lights, const Eigen::Vector3d& centre,
                       double start, double stop, int max_evaluations,

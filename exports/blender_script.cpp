@@ -13,7 +13,6 @@ import mathutils
 import numpy as np
 
 
-
 def script_folder():
     """This script's folder, where mesh.ply and world.exr are: beside __file__ when run by
     --python; run from Blender's text editor (Scripting > Open > Run Script) __file__ is the
