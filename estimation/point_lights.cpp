@@ -295,7 +295,8 @@ std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, 
 
 std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vector<View>& views,
                                         const std::vector<PointLight>& lights, const TracerOptions& opt,
-                                        bool all_pixels, TraceStats* stats) {
+                                        bool all_pixels, TraceStats* stats,
+                                        const std::vector<DirectionalLight>& directional) {
   CheckOptions(opt);
   std::vector<ImageRGB> out;
   for (const View& v : views) out.emplace_back(v.camera.width, v.camera.height);
@@ -309,7 +310,7 @@ std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vecto
       std::uint64_t key = (static_cast<std::uint64_t>(px.pixel) << 32) ^ (static_cast<std::uint64_t>(s) << 8);
       WalkPath(scene, cam, x, y, rng, opt, cnt,
                [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
-                 sum += w.cwiseProduct(LampsAtVertex(scene, lights, {}, hit, off, ++key, cnt.rays));
+                 sum += w.cwiseProduct(LampsAtVertex(scene, lights, directional, hit, off, ++key, cnt.rays));
                });
     }
     float* p = out[px.view].at(x, y);

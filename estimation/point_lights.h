@@ -88,11 +88,13 @@ std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, 
                                      const std::vector<DirectionalLight>& directional, const std::vector<View>& views,
                                      const TracerOptions& options, bool all_pixels, TraceStats* stats = nullptr);
 
-/// Renders each view under the point lights (every pixel when `all_pixels`, else only the
-/// valid ones): the forward model of the columns above, with options.spp paths per pixel.
+/// Renders each view under the point lights and the directional ones (every pixel when
+/// `all_pixels`, else only the valid ones): the forward model of the columns above, with
+/// options.spp paths per pixel.
 std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vector<View>& views,
                                         const std::vector<PointLight>& lights, const TracerOptions& options,
-                                        bool all_pixels, TraceStats* stats = nullptr);
+                                        bool all_pixels, TraceStats* stats = nullptr,
+                                        const std::vector<DirectionalLight>& directional = {});
 
 }  // namespace lp
 
