@@ -84,15 +84,13 @@ struct EstimateOptions {
   int max_rounds = 4;
   PointLightOptions point_lights;
   /// A directional light (a sun: sharp shadows) where the map concentrates its power
-  /// (docs/method.md, "Directional lights"): tried after round 1 (which then fits every
-  /// valid pixel: kFirstRoundPixels is not applied) when the brightest cell's
-  /// neighbourhood holds at least directional_min_share of the map's power and renders at
-  /// least PointLightOptions::min_share of the light seen, kept when the held-out pixels
-  /// want it (as a point light: PointLightOptions::holdout, min_gain). Needs the near-light
-  /// model's shading vertices (point_lights.max_lights > 0). Off by default: on the
-  /// stability suite's room lit by one 22-degree cell it takes a sharp light that explains
-  /// the held-out pixels better but de-lights the albedo worse (docs/method.md).
-  bool directional_lights = false;
+  /// (docs/method.md, "Directional lights"): tried in the first round on every pixel
+  /// (round 2 after round 1's grid, else round 1) when the brightest cell's neighbourhood
+  /// holds at least directional_min_share of the map's power and renders at least
+  /// PointLightOptions::min_share of the light seen, kept when the held-out pixels want it
+  /// (PointLightOptions::holdout, min_gain). Needs the near-light model's shading vertices
+  /// (point_lights.max_lights > 0).
+  bool directional_lights = true;
   double directional_min_share = 0.25;
   /// The mesh the estimator traces (docs/method.md, "The traced mesh"): the bundle's mesh
   /// clustered on a grid of this many pixels, a pixel being what one spans on the nearest

@@ -554,7 +554,11 @@ TEST(Stability, AlbedoRefinementComesCloserToTheTrueAlbedo) {
   }
   // The mesh as it is, and clustered on grids of 1 (the default) and 2 pixels (the estimator
   // then traces the clusters and de-lights the full mesh: docs/method.md, "The traced
-  // mesh"). Measured (albedo log error, fit after): 0.340, 0.098; 0.338, 0.099; 0.338, 0.110.
+  // mesh"). Measured (albedo log error; fit before -> after): 0.342, 0.135 -> 0.091; 0.341,
+  // 0.136 -> 0.099; 0.340, 0.150 -> 0.115. The 22-degree cell comes back as a sharp
+  // directional light (held-out loss 1.3 against the cells' 8.2), which fits the images
+  // before the albedo pass better than the map alone's cells (0.164-0.172; after 0.098-0.110,
+  // albedo 0.338-0.339).
   for (const double trace_pixels : {0.0, 1.0, 2.0}) {
     SCOPED_TRACE("trace_pixels " + std::to_string(trace_pixels));
     EstimateOptions eo = Small();
@@ -577,7 +581,7 @@ TEST(Stability, AlbedoRefinementComesCloserToTheTrueAlbedo) {
                 trace_pixels, on.traced_triangles, b.mesh.triangles.size(), flattened, refined,
                 off.final_relative_rmse, on.final_relative_rmse);
     EXPECT_LT(refined, 0.9 * flattened) << "flattened " << flattened << ", refined " << refined;
-    EXPECT_LT(on.final_relative_rmse, 0.7 * off.final_relative_rmse);
+    EXPECT_LT(on.final_relative_rmse, 0.8 * off.final_relative_rmse);  // 0.67-0.76 measured
     for (const Eigen::Vector3f& a : on.albedo) {
       EXPECT_TRUE(a.allFinite());
       EXPECT_LE(a.maxCoeff(), 0.95f);
