@@ -174,6 +174,12 @@ class Estimator {
   };
   double HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalStandIn* directional = nullptr);
   std::vector<float> HeldOutSunColumn(const DirectionalStandIn& light);
+  std::vector<float> TracedSunColumn(DirectionalLight light, const std::vector<std::uint8_t>* rows, int spp,
+                                     std::uint64_t seed);
+  std::vector<int> SkyCells() const;
+ public:
+  void FitSky();
+ private:
   double RenderedShare(const PointLight& light);
   std::vector<float> Column(const Eigen::Vector3d& position, double radius);
   std::vector<float> SunColumn(const DirectionalLight& light);
@@ -1227,6 +1233,14 @@ bool Estimator::FitDirectionalLight(RoundInfo* info) {
   return keep;
 }
 
+/// The cells of a uniform sky: those above the horizon some sampled path reached.
+std::vector<int> Estimator::SkyCells() const {
+  std::vector<int> out;
+  for (int j = 0; j < cells_; ++j)
+    if (reachable_[j] && env_.direction(j).dot(env_.up()) > 0) out.push_back(j);
+  return out;
+}
+
 /// A point light's unit column on vertices_ (PointLightColumn), from the cache when the
 /// same position and radius were asked for since vertices_ last changed: the selection,
 /// the solves and the shares ask for the same lights' columns many times.
@@ -1272,26 +1286,84 @@ double Estimator::RenderedShare(const PointLight& light) {
 /// cells, held-out loss 47.5 against 30.7, with its direction 0.02 degrees off (8 paths:
 /// 83.3; docs/benchmarks.md, session 22).
 std::vector<float> Estimator::HeldOutSunColumn(const DirectionalStandIn& light) {
-  std::vector<View> held = views_;
-  for (std::size_t r = 0; r < holdout_.size(); ++r)
-    if (!holdout_[r]) held[A_.row_view[r]].valid[A_.row_pixel[r]] = 0;
-  TracerOptions topt = opt_.tracer;
-  topt.cancelled = opt_.cancelled;
-  topt.seed = opt_.tracer.seed * 1000003ull + 900;
   DirectionalLight unit;
   unit.direction = light.direction;
-  unit.irradiance = Eigen::Vector3d::Ones();
   unit.angular_radius = light.angular_radius;
-  const std::vector<ImageRGB> images = RenderPointLights(*scene_, held, {}, topt, false, nullptr, {unit});
+  return TracedSunColumn(unit, &holdout_, opt_.tracer.spp, 900);
+}
+
+/// A directional light's unit column traced (`spp` paths a pixel, independent of the
+/// shading vertices' and A's paths: `seed` offsets the tracer's), on the rows `rows` marks
+/// (all when null), in their order.
+std::vector<float> Estimator::TracedSunColumn(DirectionalLight light, const std::vector<std::uint8_t>* rows,
+                                              int spp, std::uint64_t seed) {
+  std::vector<View> traced = views_;
+  if (rows)
+    for (std::size_t r = 0; r < rows->size(); ++r)
+      if (!(*rows)[r]) traced[A_.row_view[r]].valid[A_.row_pixel[r]] = 0;
+  TracerOptions topt = opt_.tracer;
+  topt.cancelled = opt_.cancelled;
+  topt.spp = spp;
+  topt.seed = opt_.tracer.seed * 1000003ull + seed;
+  light.irradiance = Eigen::Vector3d::Ones();
+  const std::vector<ImageRGB> images = RenderPointLights(*scene_, traced, {}, topt, false, nullptr, {light});
   CheckCancel();
   std::vector<float> out;
-  for (std::size_t r = 0; r < holdout_.size(); ++r) {
-    if (!holdout_[r]) continue;
+  for (std::size_t r = 0; r < A_.rows(); ++r) {
+    if (rows && !(*rows)[r]) continue;
     const int width = views_[A_.row_view[r]].camera.width, p = static_cast<int>(A_.row_pixel[r]);
     const float* v = images[A_.row_view[r]].at(p % width, p / width);
     out.insert(out.end(), v, v + 3);
   }
   return out;
+}
+
+/// The sky beside a directional light (docs/method.md, "Directional lights", "The sky"):
+/// after the rounds, a uniform sky above the horizon (one radiance, the sum of A's columns
+/// of those cells) and the light's irradiance fitted together to what the map's cells and
+/// the lamps leave, by instrumental variables: the light's column from the shading vertices
+/// is noisy (16-40 paths), and least squares with it beside a smooth, clean column biases
+/// the light low and moves that light into the sky (sun-and-sky's sky came back 100 times
+/// too bright, its sun 10 % dim); an independently traced column of the light as the
+/// instrument removes that bias. The sky's radiance is added to its cells.
+void Estimator::FitSky() {
+  if (suns_.size() != 1 || vertices_.size() == 0) return;
+  const std::vector<int> cells = SkyCells();
+  if (cells.empty()) return;
+  DirectionalLight& sun = suns_[0];
+  const std::vector<float> x = SunColumn(sun);
+  const std::vector<float> z = TracedSunColumn(sun, nullptr, 2 * opt_.point_lights.spp, 950);
+  std::vector<double> unit(3 * cells_, 0.0);
+  for (int j : cells) std::fill(&unit[3 * j], &unit[3 * j] + 3, 1.0);
+  const std::vector<double> s = A_.Multiply(unit);
+  // What the light and the sky render: the observations less the map's cells and the lamps.
+  const std::vector<double> rest = Plus(A_.Multiply(lambda_), LightsRender(points_, {}));
+  const double sigma = res_.objective_params.sigma;
+  Eigen::Vector3d irradiance = sun.irradiance, sky = Eigen::Vector3d::Zero();
+  for (int c = 0; c < 3; ++c) {
+    Eigen::Matrix2d m = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d v = Eigen::Vector2d::Zero();
+    for (std::size_t e = c; e < y_.size(); e += 3) {
+      const double t = y_[e] - rest[e], r = t - sun.irradiance[c] * x[e];
+      const double w = 1 / (1 + r * r / (sigma * sigma));  // Cauchy's weight at the fit
+      m(0, 0) += w * z[e] * x[e], m(0, 1) += w * z[e] * s[e];
+      m(1, 0) += w * s[e] * x[e], m(1, 1) += w * s[e] * s[e];
+      v(0) += w * z[e] * t, v(1) += w * s[e] * t;
+    }
+    Eigen::Vector2d ab = m.fullPivLu().solve(v);
+    if (!(ab(1) > 0) || !ab.allFinite()) ab = Eigen::Vector2d(m(0, 0) > 0 ? v(0) / m(0, 0) : irradiance[c], 0.0);
+    irradiance[c] = std::max(0.0, ab(0));
+    sky[c] = ab(1);
+  }
+  double up = 0;  // the sky's irradiance on a surface facing up
+  for (int j : cells) up += env_.solid_angle(j) * env_.direction(j).dot(env_.up());
+  Progress(Fmt("the sky beside the directional light: radiance %.4g %.4g %.4g", sky[0], sky[1], sky[2]) +
+           Fmt(" (irradiance facing up %.4g of the light's %.4g -> %.4g)", up * Luminance(sky[0], sky[1], sky[2]),
+               Luminance(sun.irradiance[0], sun.irradiance[1], sun.irradiance[2]),
+               Luminance(irradiance[0], irradiance[1], irradiance[2])));
+  sun.irradiance = irradiance;
+  for (int j : cells)
+    for (int c = 0; c < 3; ++c) lambda_[3 * j + c] += sky[c];
 }
 
 /// The Cauchy loss on the held-out rows of the map and `lights` (and a directional light)
@@ -1538,6 +1610,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& option
   estimator.RunRounds();
   if (estimator.AlbedoRefinable())
     for (int pass = 1; pass <= options.albedo_passes && estimator.RefineAlbedo(pass); ++pass) estimator.RunRounds();
+  estimator.FitSky();
   estimator.Conclude();
   if (options.render) estimator.RenderFittedViews();
   return estimator.TakeResult();

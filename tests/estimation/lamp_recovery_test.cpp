@@ -249,8 +249,12 @@ double EdgeError(const ImageRGB& render, const ImageRGB& image) {
 // irradiance within 5 %, the fitted view within 5 % and a held-out one within 8 % (rendered
 // at 64 spp), and the shadows' edges where the image has them: the error over the image's
 // sharpest 5 % of pixels (EdgeError) at most half the map alone's, whose sun smeared over
-// ~20 cells softens them. The sky (1/1000 of the sun's irradiance) is printed, not
-// asserted: at alpha 3 the activation penalty drops it (docs/method.md, known gaps).
+// ~20 cells softens them. The sky (1/1000 of the sun's irradiance on a surface facing up)
+// is in the map (FitSky), its light from above the horizon, its irradiance facing up within
+// 10 times the truth's: measured 7x (0.5 % of the light where the truth is 0.1 %), because
+// synth renders 4 bounces and the estimator 5 (with --bounces 4 it comes back 6x too dim):
+// the sky is below that mismatch. On Cycles' sun (64 bounces) the same fit gives the sky
+// within 20 % (cycles_test).
 TEST(LampRecovery, TheSunComesBackAsADirectionalLight) {
   SynthOptions so;
   so.held_out_views = 1;
@@ -271,20 +275,28 @@ TEST(LampRecovery, TheSunComesBackAsADirectionalLight) {
   const Eigen::Vector3d irradiance = sun.rgb_power / (4 * kPi * d2);
   const double fitted = RelativeImageRmse(Relight(fit, fit.views[0], r), fit.views[0].image, fit.views[0].valid);
   const double held = RelativeImageRmse(Relight(fit, held_out, r), held_out.image, held_out.valid);
-  double sky = 0;
-  for (double v : r.lambda) sky += v;
+  const double sky_up = irradiance.x() / 1000;  // the scene's sky, facing up
+  double sky = 0, below = 0;  // the map's irradiance on a surface facing up (red), and from below
+  for (int j = 0; j < r.env.size(); ++j) {
+    const double c = r.env.direction(j).dot(fit.up) * r.env.solid_angle(j) * r.lambda[3 * j];
+    (c > 0 ? sky : below) += std::abs(c);
+  }
   eo.directional_lights = false;
   const EstimateResult alone = Estimate(fit, eo);
   const double edges = EdgeError(Relight(fit, fit.views[0], r), fit.views[0].image),
                soft = EdgeError(Relight(fit, fit.views[0], alone), fit.views[0].image);
   std::printf("sun-and-sky: sun %.3f deg off, irradiance %.4f vs %.4f, fitted %.4f, held-out %.4f; error on the "
-              "edges %.4f (the map alone %.4f); the map's sum %.3g\n",
-              angle, r.directional_lights[0].irradiance.x(), irradiance.x(), fitted, held, edges, soft, sky);
+              "edges %.4f (the map alone %.4f); the map's irradiance facing up %.3g (truth %.3g), from below %.3g\n",
+              angle, r.directional_lights[0].irradiance.x(), irradiance.x(), fitted, held, edges, soft, sky,
+              sky_up, below);
   EXPECT_LT(angle, 0.5);
   EXPECT_NEAR(r.directional_lights[0].irradiance.x() / irradiance.x(), 1.0, 0.05);
   EXPECT_LT(fitted, 0.05);
   EXPECT_LT(held, 0.08);
   EXPECT_LT(edges, 0.5 * soft);
+  EXPECT_GT(sky, sky_up) << "the sky is in the map";
+  EXPECT_LT(sky, 10 * sky_up);
+  EXPECT_LT(below, 0.01 * sky) << "and above the horizon";
 }
 
 }  // namespace
