@@ -249,12 +249,12 @@ double EdgeError(const ImageRGB& render, const ImageRGB& image) {
 // irradiance within 5 %, the fitted view within 5 % and a held-out one within 8 % (rendered
 // at 64 spp), and the shadows' edges where the image has them: the error over the image's
 // sharpest 5 % of pixels (EdgeError) at most half the map alone's, whose sun smeared over
-// ~20 cells softens them. The sky (1/1000 of the sun's irradiance on a surface facing up)
-// is in the map (FitSky), its light from above the horizon, its irradiance facing up within
-// 10 times the truth's: measured 7x (0.5 % of the light where the truth is 0.1 %), because
-// synth renders 4 bounces and the estimator 5 (with --bounces 4 it comes back 6x too dim):
-// the sky is below that mismatch. On Cycles' sun (64 bounces) the same fit gives the sky
-// within 20 % (cycles_test).
+// ~20 cells softens them. The sky (1/1000 of the sun's irradiance on a surface facing up,
+// 0.1 % of the light) is below what tells synth's render from the estimator's model: its
+// irradiance facing up comes back 7x the truth here (synth renders 4 bounces, the
+// estimator 5), 6x too dim with --bounces 4, and 0 against a synth of 8 bounces. So here
+// the map's sky is only bounded (at most 10x the truth, nothing from below the horizon);
+// that it is in the map is asserted on Cycles' sun (64 bounces: within 20 %, cycles_test).
 TEST(LampRecovery, TheSunComesBackAsADirectionalLight) {
   SynthOptions so;
   so.held_out_views = 1;
@@ -294,9 +294,8 @@ TEST(LampRecovery, TheSunComesBackAsADirectionalLight) {
   EXPECT_LT(fitted, 0.05);
   EXPECT_LT(held, 0.08);
   EXPECT_LT(edges, 0.5 * soft);
-  EXPECT_GT(sky, sky_up) << "the sky is in the map";
   EXPECT_LT(sky, 10 * sky_up);
-  EXPECT_LT(below, 0.01 * sky) << "and above the horizon";
+  EXPECT_LE(below, 0.01 * sky) << "the map's sky is above the horizon";
 }
 
 }  // namespace
