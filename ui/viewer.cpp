@@ -353,12 +353,18 @@ void Viewer::AddLampMarkers(float size) {
   }
 }
 
+/// Where a directional light's marker is drawn: out along its direction from the orbit
+/// target, inside the view and short of the dominant light's star.
+Eigen::Vector3f Viewer::SunMarkerCentre(const DirectionalLight& l) const {
+  return camera_.target + camera_.distance * 0.45f * l.direction.normalized().cast<float>();
+}
+
 /// Each directional light as a sun far out along its direction (a ring facing the scene with
 /// eight rays), in its colour, with a dashed line to the scene's centre.
 void Viewer::AddSunMarkers(float size) {
-  const float reach = camera_.distance * 0.45f;  // inside the view, short of the dominant light's star
+  sun_marker_size_ = size;
   for (const DirectionalLight& l : est_.directional_lights) {
-    const Eigen::Vector3f d = l.direction.normalized().cast<float>(), centre = camera_.target + reach * d;
+    const Eigen::Vector3f d = l.direction.normalized().cast<float>(), centre = SunMarkerCentre(l);
     const double peak = l.irradiance.maxCoeff();
     Eigen::Vector3f color = peak > 0 ? Eigen::Vector3f((l.irradiance / peak).cast<float>()) : Eigen::Vector3f::Ones();
     color = color.cwiseMax(0.15f);
@@ -875,6 +881,13 @@ void Viewer::WriteState(const std::string& path) const {
   j["estimate"]["point_lights"] = json::array();
   for (const PointLight& l : est_.point_lights)
     j["estimate"]["point_lights"].push_back({{"position", vec(l.position)}, {"intensity", vec(l.intensity)}});
+  j["estimate"]["directional_lights"] = json::array();  // and where the 3D view draws each
+  for (const DirectionalLight& l : est_.directional_lights)
+    j["estimate"]["directional_lights"].push_back({{"direction", vec(l.direction)},
+                                                   {"irradiance", vec(l.irradiance)},
+                                                   {"angular_radius", l.angular_radius},
+                                                   {"marker", vec(SunMarkerCentre(l).cast<double>())},
+                                                   {"marker_radius", sun_marker_size_}});
   j["view3d_projection"] = std::vector<float>(view_projection_.data(), view_projection_.data() + 16);
   j["orbit_target"] = vec(camera_.target.cast<double>());
   if (est_.env)

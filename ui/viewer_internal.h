@@ -54,6 +54,8 @@ class Viewer {
   void DrawScene(const Rect& r);
   void AddLampMarkers(float size);
   void AddSunMarkers(float size);
+  Eigen::Vector3f SunMarkerCentre(const DirectionalLight& l) const;
+  float sun_marker_size_ = 0;  ///< the radius (world units) of the suns' rings last drawn
   std::string SceneKey(const Rect& r) const;
   void HandleMouse(const Rect& r);
   void PanelSource();

@@ -281,6 +281,51 @@ TEST(Viewer, ALampIsDrawnAtItsPosition) {
   ExpectLampMarker(ReadRgb8(a / "lit.png"), state, 0);
 }
 
+// A sun (synth's sun-and-sky, 96 x 72): the estimate takes it as a directional light within
+// half a degree of the truth, and the 3D view draws its ring (radius and centre as the
+// window reports them) out along the true direction from the orbit target, with the dashed
+// line to it.
+TEST(Viewer, ASunIsDrawnTowardsItsDirection) {
+  const fs::path a = kArtifacts / "sun";
+  fs::remove_all(a);
+  fs::create_directories(a);
+  SynthOptions so;
+  so.width = 96;
+  so.height = 72;
+  so.spp = 64;
+  const SynthScene synth = MakeSynth("sun-and-sky", so, "");
+  WriteSceneBundle(a / "scene", synth.bundle);
+  const nlohmann::json state =
+      EstimateInTheWindow(a, (a / "scene").string(), "rings=13 spp=16 bounces=2 rounds=2 render-spp=8 albedo-passes=0");
+  ASSERT_EQ(state["estimate"]["directional_lights"].size(), 1u);
+  const nlohmann::json& sun = state["estimate"]["directional_lights"][0];
+  auto vec = [](const nlohmann::json& j) { return Eigen::Vector3d(j[0], j[1], j[2]); };
+  const Eigen::Vector3d truth = (synth.lighting.lights.at(0).position - synth.lighting.center).normalized();
+  const Eigen::Vector3d target = vec(state["orbit_target"]), marker = vec(sun["marker"]);
+  const double angle = std::acos(std::min(1.0, (marker - target).normalized().dot(truth))) * 180 / M_PI;
+  EXPECT_LT(angle, 0.5) << "the marker is drawn " << angle << " degrees from the true sun";
+  // The ring, computed here from the true direction, the window's centre distance and radius.
+  const Eigen::Vector3d centre = target + (marker - target).norm() * truth;
+  const Eigen::Vector3d u = truth.unitOrthogonal(), w = truth.cross(u);
+  const double r = sun["marker_radius"].get<double>();
+  const ImageRgb8 shot = ReadRgb8(a / "lit.png");
+  int on_ring = 0;
+  for (int k = 0; k < 16; ++k) {
+    const double t = 2 * M_PI * (k + 0.5) / 16;
+    const auto [x, y] = ViewPixel(state, centre + r * (std::cos(t) * u + std::sin(t) * w));
+    on_ring += WhiteAround(shot, x, y, 2) > 0;
+  }
+  int on_line = 0;  // the dashes (the first 10 % of each fifth of the way to the ring's centre)
+  for (double f : {0.05, 0.25, 0.45, 0.65, 0.85}) {
+    const auto [x, y] = ViewPixel(state, target + f * (centre - target));
+    on_line += WhiteAround(shot, x, y, 2) > 0;
+  }
+  std::printf("sun marker %.3f degrees from the truth; %d of 16 ring points and %d of 5 dashes drawn\n", angle,
+              on_ring, on_line);
+  EXPECT_GE(on_ring, 14);
+  EXPECT_GE(on_line, 4);
+}
+
 // A far light (the bundled one-light scene, 200 m away): the map's dominant light is circled
 // on the equirect panel where docs/formats.md's convention puts its direction, and the map is
 // bright there; the mirrored azimuth (where a turned map would put it) has no marker.
