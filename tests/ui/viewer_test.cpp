@@ -256,19 +256,25 @@ nlohmann::json EstimateInTheWindow(const fs::path& dir, const std::string& input
   return ReadJson(dir / "lit.json");
 }
 
+/// Synth's scene `name` at 96 x 72 (64 spp), written as a bundle to dir/scene (dir emptied).
+SynthScene SmallSynth(const std::string& name, const fs::path& dir) {
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  SynthOptions so;
+  so.width = 96;
+  so.height = 72;
+  so.spp = 64;
+  SynthScene synth = MakeSynth(name, so, fs::path(LIGHTPROBE_SOURCE_DIR) / "assets");
+  WriteSceneBundle(dir / "scene", synth.bundle);
+  return synth;
+}
+
 // A lamp 1 m from the scene: the estimate finds it, the window lists it and draws its marker
 // where the 3D view's projection puts the lamp's estimated position (and the true one: within
 // a few pixels), and nowhere near the point mirrored through the orbit target.
 TEST(Viewer, ALampIsDrawnAtItsPosition) {
   const fs::path a = kArtifacts / "lamp";
-  fs::remove_all(a);
-  fs::create_directories(a);
-  SynthOptions so;
-  so.width = 96;
-  so.height = 72;
-  so.spp = 64;
-  const SynthScene synth = MakeSynth("lamp-1m", so, fs::path(LIGHTPROBE_SOURCE_DIR) / "assets");
-  WriteSceneBundle(a / "scene", synth.bundle);
+  const SynthScene synth = SmallSynth("lamp-1m", a);
   const nlohmann::json state =
       EstimateInTheWindow(a, (a / "scene").string(), "rings=9 spp=8 bounces=2 rounds=2 render-spp=8 albedo-passes=0");
   ASSERT_EQ(state["estimate"]["point_lights"].size(), 1u);
@@ -287,14 +293,7 @@ TEST(Viewer, ALampIsDrawnAtItsPosition) {
 // line to it.
 TEST(Viewer, ASunIsDrawnTowardsItsDirection) {
   const fs::path a = kArtifacts / "sun";
-  fs::remove_all(a);
-  fs::create_directories(a);
-  SynthOptions so;
-  so.width = 96;
-  so.height = 72;
-  so.spp = 64;
-  const SynthScene synth = MakeSynth("sun-and-sky", so, "");
-  WriteSceneBundle(a / "scene", synth.bundle);
+  const SynthScene synth = SmallSynth("sun-and-sky", a);
   const nlohmann::json state =
       EstimateInTheWindow(a, (a / "scene").string(), "rings=13 spp=16 bounces=2 rounds=2 render-spp=8 albedo-passes=0");
   ASSERT_EQ(state["estimate"]["directional_lights"].size(), 1u);
