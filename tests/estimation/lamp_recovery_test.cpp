@@ -252,7 +252,7 @@ double EdgeError(const ImageRGB& render, const ImageRGB& image) {
 // ~20 cells softens them. The sky (1/1000 of the sun's irradiance on a surface facing up,
 // 0.1 % of the light) is below what tells synth's render from the estimator's model: its
 // irradiance facing up comes back 7x the truth here (synth renders 4 bounces, the
-// estimator 5), 6x too dim with --bounces 4, and 0 against a synth of 8 bounces. So here
+// estimator 5), 0 against a synth of 8 bounces, 6x too dim with the bounces matched. So here
 // the map's sky is only bounded (at most 10x the truth, nothing from below the horizon);
 // that it is in the map is asserted on Cycles' sun (64 bounces: within 20 %, cycles_test).
 TEST(LampRecovery, TheSunComesBackAsADirectionalLight) {
