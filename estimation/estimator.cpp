@@ -114,6 +114,8 @@ class Estimator {
   Mesh WithAlbedoOf(const Mesh& full, const std::vector<float>& irradiance) const;
   /// The estimate in image units, its scores and what the user should know about it.
   void Conclude();
+  /// The sky beside a directional light, after the rounds (docs/method.md).
+  void FitSky();
   /// Relit renders of the fitted views under the estimate (EstimateOptions::render_spp).
   void RenderFittedViews();
   EstimateResult TakeResult() {
@@ -163,23 +165,15 @@ class Estimator {
   void FoldLights(std::vector<PointLight>* lights, int round);
   bool FitRadii(std::vector<PointLight>* lights);
   void SelectModel(std::vector<PointLight>* lights);
-  /// A directional light (unit direction towards it, irradiance on a surface facing it).
-  struct DirectionalStandIn {
-    Eigen::Vector3d direction, irradiance;
-    double angular_radius = 0;
-    /// Its held-out rows traced at tracer.spp (HeldOutSunColumn: against the map alone,
-    /// whose columns have those paths); else from the shading vertices, as a lamp's are
-    /// (against a lamp: the same noise).
-    bool traced = false;
-  };
-  double HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalStandIn* directional = nullptr);
-  std::vector<float> HeldOutSunColumn(const DirectionalStandIn& light);
+  /// `traced`: the directional light's held-out rows traced at tracer.spp (HeldOutSunColumn:
+  /// against the map alone, whose columns have those paths); else from the shading vertices,
+  /// as a lamp's are (against a lamp: the same noise).
+  double HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalLight* directional = nullptr,
+                     bool traced = false);
+  std::vector<float> HeldOutSunColumn(const DirectionalLight& light);
   std::vector<float> TracedSunColumn(DirectionalLight light, const std::vector<std::uint8_t>* rows, int spp,
                                      std::uint64_t seed);
   std::vector<int> SkyCells() const;
- public:
-  void FitSky();
- private:
   double RenderedShare(const PointLight& light);
   std::vector<float> Column(const Eigen::Vector3d& position, double radius);
   std::vector<float> SunColumn(const DirectionalLight& light);
@@ -1035,11 +1029,10 @@ void Estimator::SelectModel(std::vector<PointLight>* lights) {
     // renders the point light's image best, by least squares): does its distance matter,
     // or is it a far light (the map's, or a sun's)?
     const Eigen::Vector3d q = (*lights)[k].position, to = q - centre_;
-    DirectionalStandIn far{to.normalized(), Eigen::Vector3d::Zero()};
+    DirectionalLight far;
+    far.direction = to.normalized();
     {
-      std::vector<float> point, directional;
-      point = Column(q, 0);
-      DirectionalLightColumn(*scene_, vertices_, far.direction, &directional);
+      const std::vector<float> point = Column(q, 0), directional = SunColumn(far);
       Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
       for (std::size_t e = 0; e < point.size(); ++e) {
         num[e % 3] += double(directional[e]) * point[e] * (*lights)[k].intensity[e % 3];
@@ -1214,8 +1207,7 @@ bool Estimator::FitDirectionalLight(RoundInfo* info) {
   // Model selection: the held-out loss of the map solved with the light, against the map
   // as it was.
   if (!suns_.empty()) sun = suns_[0];
-  DirectionalStandIn stand_in{sun.direction, sun.irradiance, sun.angular_radius, true};
-  const double with_loss = suns_.empty() ? without_loss : HoldoutLoss(points_, &stand_in);
+  const double with_loss = suns_.empty() ? without_loss : HoldoutLoss(points_, &sun, true);
   const bool keep = with_loss < (1 - opt_.point_lights.min_gain) * without_loss;
   char line[400];
   std::snprintf(line, sizeof line,
@@ -1285,11 +1277,8 @@ double Estimator::RenderedShare(const PointLight& light) {
 /// (the map's columns importance-sampled at 96 paths), its 16-path column lost to the map's
 /// cells, held-out loss 47.5 against 30.7, with its direction 0.02 degrees off (8 paths:
 /// 83.3; docs/benchmarks.md, session 22).
-std::vector<float> Estimator::HeldOutSunColumn(const DirectionalStandIn& light) {
-  DirectionalLight unit;
-  unit.direction = light.direction;
-  unit.angular_radius = light.angular_radius;
-  return TracedSunColumn(unit, &holdout_, opt_.tracer.spp, 900);
+std::vector<float> Estimator::HeldOutSunColumn(const DirectionalLight& light) {
+  return TracedSunColumn(light, &holdout_, opt_.tracer.spp, 900);
 }
 
 /// A directional light's unit column traced (`spp` paths a pixel, independent of the
@@ -1368,16 +1357,12 @@ void Estimator::FitSky() {
 
 /// The Cauchy loss on the held-out rows of the map and `lights` (and a directional light)
 /// fitted on the other rows.
-double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalStandIn* directional) {
+double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalLight* directional,
+                              bool traced) {
   std::vector<std::vector<float>> columns(lights.size());
   for (std::size_t k = 0; k < lights.size(); ++k)
     columns[k] = Column(lights[k].position, lights[k].radius);
-  if (directional) {
-    DirectionalLight light;
-    light.direction = directional->direction;
-    light.angular_radius = directional->angular_radius;
-    columns.push_back(SunColumn(light));
-  }
+  if (directional) columns.push_back(SunColumn(*directional));
   std::vector<double> y_fit, y_held;
   for (std::size_t r = 0; r < holdout_.size(); ++r)
     for (int c = 0; c < 3; ++c) (holdout_[r] ? y_held : y_fit).push_back(y_[3 * r + c]);
@@ -1392,7 +1377,7 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
     for (std::size_t r = 0; r < holdout_.size(); ++r)
       (holdout_[r] ? held_columns : fit_columns)[k].insert((holdout_[r] ? held_columns : fit_columns)[k].end(),
                                                            &columns[k][3 * r], &columns[k][3 * r] + 3);
-  if (directional && directional->traced) held_columns.back() = HeldOutSunColumn(*directional);
+  if (directional && traced) held_columns.back() = HeldOutSunColumn(*directional);
   const LinearProblem problem = WithColumns(*holdout_fit_, cells_, fit_columns);
   ObjectiveParams params = res_.objective_params;
   params.alpha *= static_cast<double>(holdout_fit_->rows()) / std::max<std::size_t>(1, holdout_.size());
