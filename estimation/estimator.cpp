@@ -12,7 +12,10 @@
 #include "scene/albedo.h"
 #include "scene/ray_tracer.h"
 #include "scene/simplify.h"
-#include "estimation/point_lights.h"
+#include "estimation/light_fit.h"
+#include "estimation/light_render.h"
+#include "estimation/lights/light.h"
+#include "estimation/robust_loss.h"
 #include "estimation/sampling.h"
 #include "estimation/vertex_radiance.h"
 
@@ -212,13 +215,13 @@ class Estimator {
   bool FitDirectionalLight(RoundInfo* info);
   std::vector<double> LightsRender(const std::vector<PointLight>& points, const std::vector<DirectionalLight>& suns);
   /// The lights' robust objective on vertices_, `base` the rest of the image held.
-  PointFitProblem FitProblem(const std::vector<double>* base) const {
-    PointFitProblem fit;
+  LightFitProblem FitProblem(const std::vector<double>* base) const {
+    LightFitProblem fit;
     fit.scene = scene_.get();
     fit.vertices = &vertices_;
     fit.y = &y_;
     fit.base = base;
-    fit.sigma = res_.objective_params.sigma;
+    fit.loss = CauchyLoss{res_.objective_params.sigma};
     fit.alpha = res_.objective_params.alpha * opt_.point_lights.weight;
     fit.beta = res_.objective_params.beta;
     return fit;
@@ -598,8 +601,8 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
   }
   Progress(Fmt("search: %.0f candidate positions' columns at %.0f path(s) per pixel in %.2f s",
                static_cast<double>(positions.size()), topt.spp, cs.Seconds()));
-  const double s2 = res_.objective_params.sigma * res_.objective_params.sigma;
-  const auto loss = [&](const std::vector<double>& r) { return CauchyLoss(r, res_.objective_params.sigma); };
+  const CauchyLoss cauchy{res_.objective_params.sigma};
+  const auto loss = [&](const std::vector<double>& r) { return cauchy.Sum(r); };
   std::fill(lambda_.begin(), lambda_.end(), 1e-3);
   std::vector<PointLight> lights;
   std::vector<double> residual = y_;
@@ -611,16 +614,13 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
     // The intensity by least squares weighted as the Cauchy loss weighs what is left: a
     // hot spot or a highlight (an outlier of the residual) does not set it.
     std::vector<double> weight(residual.size());
-    for (std::size_t e = 0; e < residual.size(); ++e) weight[e] = 1 / (1 + residual[e] * residual[e] / s2);
+    for (std::size_t e = 0; e < residual.size(); ++e) weight[e] = cauchy.Weight(residual[e]);
     for (std::size_t i = 0; i < positions.size(); ++i) {
       const std::vector<float>& col = columns[i];
       Eigen::Vector3d I;
       if (!WeightedIntensity(col, residual, weight, &I)) continue;
       double e = 0;
-      for (std::size_t k = 0; k < col.size(); ++k) {
-        const double v = residual[k] - I[k % 3] * col[k];
-        e += 0.5 * s2 * std::log1p(v * v / s2);
-      }
+      for (std::size_t k = 0; k < col.size(); ++k) e += cauchy.Value(residual[k] - I[k % 3] * col[k]);
       if (e < best_score) best_score = e, best = static_cast<int>(i), best_I = I;
     }
     if (best < 0) break;
@@ -858,7 +858,7 @@ bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>
 bool Estimator::FitRadii(std::vector<PointLight>* lights) {
   CheckCancel();
   bool changed = false;
-  const double sigma = res_.objective_params.sigma;
+  const CauchyLoss cauchy{res_.objective_params.sigma};
   const std::vector<double> map = Plus(A_.Multiply(lambda_), LightsRender({}, suns_));
   for (std::size_t k = 0; k < lights->size(); ++k) {
     std::vector<double> base = map;
@@ -880,12 +880,12 @@ bool Estimator::FitRadii(std::vector<PointLight>* lights) {
       for (int it = 0; it < 4; ++it) {  // reweighted least squares for the Cauchy loss
         for (std::size_t i = 0; i < r.size(); ++i) {
           r[i] = left[i] - intensity[i % 3] * col[i];
-          w[i] = 1 / (1 + r[i] * r[i] / (sigma * sigma));
+          w[i] = cauchy.Weight(r[i]);
         }
         WeightedIntensity(col, left, w, &intensity);
       }
       for (std::size_t i = 0; i < r.size(); ++i) r[i] = y_[i] - base[i] - intensity[i % 3] * col[i];
-      const double loss = CauchyLoss(r, sigma);
+      const double loss = cauchy.Sum(r);
       if (g == 0) point_loss = best_loss = loss;
       if (loss < best_loss) best_loss = loss, best_radius = radius, best_intensity = intensity;
       CheckCancel();
@@ -921,13 +921,7 @@ void Estimator::FoldLights(std::vector<PointLight>* lights, int round) {
       continue;
     }
     bool merged = false;
-    for (PointLight& k : kept)
-      if (!merged && (k.position - l.position).norm() < 0.1 * d) {
-        const double wk = k.intensity.sum(), wl = l.intensity.sum();
-        k.position = (wk * k.position + wl * l.position) / (wk + wl);
-        k.intensity += l.intensity;
-        merged = true;
-      }
+    for (PointLight& k : kept) merged = merged || FoldInto(&k, l, d);
     if (!merged) kept.push_back(l);
   }
   lights->swap(kept);
@@ -961,19 +955,21 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
                      std::log1p(res_.objective_params.beta *
                                 std::max(0.0, lambda_[3 * j] + lambda_[3 * j + 1] + lambda_[3 * j + 2]));
   std::vector<double> base = Plus(A_.Multiply(lambda_), LightsRender({}, suns_));
-  const PointFitProblem fit = FitProblem(&base);
+  const LightFitProblem fit = FitProblem(&base);
   // One convergence row; on a share of the rows (every stride-th) E and the squared
   // residuals times the stride estimate the whole problem's.
   const auto logger = [&](int stride) {
-    return [&, stride](int, double E, double sse, const std::vector<PointLight>& now) {
-      ConvergenceRow row = LightRow(*info, fit.sigma, E * stride + map_penalty, sse * stride);
+    return [&, stride](int, double E, double sse, const std::vector<Light>& now) {
+      ConvergenceRow row = LightRow(*info, fit.loss.sigma, E * stride + map_penalty, sse * stride);
       row.step = step;
-      Score(&row, lambda_, now);
+      Score(&row, lambda_, OfKind<PointLight>(now));
       Push(row);
     };
   };
+  std::vector<Light> moving = AsLights(*lights);
   if (!shadows) {  // round 1: the lights found by the sparse solve, on all rows
-    info->light_iterations = RefinePointLights(fit, lights, 12, logger(1));
+    info->light_iterations = RefineLights(fit, &moving, 12, logger(1));
+    *lights = OfKind<PointLight>(moving);
     return;
   }
   // Rounds 2 on, the lights near their places: Levenberg-Marquardt (4 iterations: past them
@@ -988,16 +984,21 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
   const auto value = [&](const std::vector<PointLight>& now, double* sse = nullptr) {
     std::vector<std::vector<float>> columns;  // from the cache: the round's solve made the start's
     for (const PointLight& l : now) columns.push_back(Column(l.position, l.radius));
-    return fit.Value(now, columns, sse);
+    return fit.Value(AsLights(now), columns, sse);
   };
   const std::vector<PointLight> start = *lights;
   const double start_value = value(start);
-  const PointFitSubset share(fit, kShadowRows);
+  const LightFitSubset share(fit, kShadowRows);
   const auto log = logger(share.stride);
-  const int iterations = RefinePointLights(share.problem, lights, 4, log);
-  const std::vector<PointLight> refined = *lights;
-  const auto cancel = [&](int, double, double, const std::vector<PointLight>&) { CheckCancel(); };
-  const int moves = SearchPointLights(share.problem, lights, centre_, 0.01, 0.004, 12, cancel);
+  const int iterations = RefineLights(share.problem, &moving, 4, log);
+  const std::vector<PointLight> refined = OfKind<PointLight>(moving);
+  const auto cancel = [&](int, double, double, const std::vector<Light>&) { CheckCancel(); };
+  CompassOptions compass;
+  compass.start = 0.01;
+  compass.stop = 0.004;
+  compass.max_evaluations = 12;
+  const int moves = SearchLights(share.problem, &moving, centre_, compass, cancel);
+  *lights = OfKind<PointLight>(moving);
   double sse = 0, ended = value(*lights, &sse);
   if (!(ended < start_value) && moves > 0) {  // the search's places fail on all rows: LM's?
     *lights = refined;
@@ -1009,7 +1010,7 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
     return;
   }
   info->light_iterations = iterations + (moves > 0 ? 1 : 0);
-  logger(1)(0, ended, sse, *lights);  // one row: the whole objective where they ended
+  logger(1)(0, ended, sse, AsLights(*lights));  // one row: the whole objective where they ended
 }
 
 /// Model selection on the held-out pixels: each light (weakest first) stays only if the
@@ -1139,18 +1140,18 @@ bool Estimator::FitDirectionalLight(RoundInfo* info) {
     if (env_.direction(j).dot(sun.direction) > std::cos(kSunClear * kPi / 180))
       std::fill(&cleared[3 * j], &cleared[3 * j] + 3, 0.0);
   std::vector<double> base = Plus(A_.Multiply(cleared), LightsRender(points_, {}));
-  const PointFitProblem fit = FitProblem(&base);
+  const LightFitProblem fit = FitProblem(&base);
   // On kShadowRows of the rows, as the lamps' refinement from round 2 on: a column on all
   // rows, with its angular radius' shadow rays, cost the sun's fit ~3.6 s of sun-and-sky's
   // 7.3 (docs/benchmarks.md, session 22). The model selection below looks at every row.
-  auto share = std::make_unique<PointFitSubset>(fit, kShadowRows);
-  const auto log = [&](int, double E, double sse, const DirectionalLight& now) {
+  auto share = std::make_unique<LightFitSubset>(fit, kShadowRows);
+  const auto log = [&](int, double E, double sse, const std::vector<Light>& now) {
     // (the map's penalty left out: held fixed here; E and the squared residuals times the
     // stride estimate the whole problem's)
-    ConvergenceRow row = LightRow(*info, fit.sigma, E * share->stride, sse * share->stride);
+    ConvergenceRow row = LightRow(*info, fit.loss.sigma, E * share->stride, sse * share->stride);
     row.step = "sun";
     const std::vector<DirectionalLight> kept = suns_;
-    suns_ = {now};
+    suns_ = OfKind<DirectionalLight>(now);
     Score(&row, without, points_);
     suns_ = kept;
     Push(row);
@@ -1161,10 +1162,26 @@ bool Estimator::FitDirectionalLight(RoundInfo* info) {
   const auto Finest = [](const DirectionalLight& l) { return std::max(0.05, l.angular_radius * 180 / kPi / 4); };
   // The angular radius (soft shadows: a wide far light) before the search too, or a wide
   // light's direction is sought by shadow edges it does not have.
-  RefineDirectionalLight(share->problem, &sun, 12, log);
+  // The search: steps of start degrees across the sphere, down to Finest(sun); the light's
+  // irradiance refitted where it stands even if it does not move.
+  const auto search = [&](double start) {
+    CompassOptions compass;
+    compass.start = start * (kPi / 180);
+    compass.stop = Finest(sun) * (kPi / 180);
+    compass.refit_unmoved = true;
+    std::vector<Light> moving{sun};
+    const int moves = SearchLights(share->problem, &moving, centre_, compass, log);
+    sun = std::get<DirectionalLight>(moving[0]);
+    return moves;
+  };
+  {
+    std::vector<Light> moving{sun};
+    RefineLights(share->problem, &moving, 12, log);
+    sun = std::get<DirectionalLight>(moving[0]);
+  }
   const auto wide = [&] { return sun.angular_radius >= kMaxAngularRadiusDeg * kPi / 180 * 0.999; };
   if (FitAngularRadius(share->problem, &sun), !wide()) {  // (a wide light is left at once: see below)
-    SearchDirectionalLight(share->problem, &sun, 2, Finest(sun), log);
+    search(2);
     FitAngularRadius(share->problem, &sun);
   }
   // A light at least as wide as the widest radius tried is the map's: the cells render a
@@ -1199,8 +1216,8 @@ bool Estimator::FitDirectionalLight(RoundInfo* info) {
   for (int pass = 0; pass < kSunPasses && !suns_.empty(); ++pass) {
     sun = suns_[0];
     base = Plus(A_.Multiply(lambda_), LightsRender(points_, {}));
-    share = std::make_unique<PointFitSubset>(fit, kShadowRows);
-    if (SearchDirectionalLight(share->problem, &sun, 1, Finest(sun), log) == 0) break;
+    share = std::make_unique<LightFitSubset>(fit, kShadowRows);
+    if (search(1) == 0) break;
     suns_ = {sun};
     SolveWithLights(&points_, info, false);
   }
@@ -1327,14 +1344,14 @@ void Estimator::FitSky() {
   const std::vector<double> s = A_.Multiply(unit);
   // What the light and the sky render: the observations less the map's cells and the lamps.
   const std::vector<double> rest = Plus(A_.Multiply(lambda_), LightsRender(points_, {}));
-  const double sigma = res_.objective_params.sigma;
+  const CauchyLoss cauchy{res_.objective_params.sigma};
   Eigen::Vector3d irradiance = sun.irradiance, sky = Eigen::Vector3d::Zero();
   for (int c = 0; c < 3; ++c) {
     Eigen::Matrix2d m = Eigen::Matrix2d::Zero();
     Eigen::Vector2d v = Eigen::Vector2d::Zero();
     for (std::size_t e = c; e < y_.size(); e += 3) {
       const double t = y_[e] - rest[e], r = t - sun.irradiance[c] * x[e];
-      const double w = 1 / (1 + r * r / (sigma * sigma));  // Cauchy's weight at the fit
+      const double w = cauchy.Weight(r);  // at the fit
       m(0, 0) += w * z[e] * x[e], m(0, 1) += w * z[e] * s[e];
       m(1, 0) += w * s[e] * x[e], m(1, 1) += w * s[e] * s[e];
       v(0) += w * z[e] * t, v(1) += w * s[e] * t;
@@ -1401,7 +1418,7 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
     for (std::size_t k = 0; k < columns.size(); ++k) residual[i] += held_columns[k][i] * x[3 * (cells_ + k) + i % 3];
     residual[i] = y_held[i] - residual[i];
   }
-  return CauchyLoss(residual, params.sigma);
+  return CauchyLoss{params.sigma}.Sum(residual);
 }
 
 // Albedo refinement: the reconstruction's albedo is the colour seen, flattened per

@@ -7,10 +7,10 @@
 #include <string>
 #include <vector>
 
-#include "estimation/directional_light.h"
+#include "estimation/lights/directional_light.h"
 #include "estimation/objective.h"
 #include "estimation/path_tracer.h"
-#include "estimation/point_light.h"
+#include "estimation/lights/point_light.h"
 #include "scene/scene_bundle.h"
 #include "estimation/solver.h"
 #include "estimation/truth.h"

@@ -7,8 +7,8 @@
 #include <vector>
 
 #include "common/image.h"
-#include "estimation/directional_light.h"
-#include "estimation/point_light.h"
+#include "estimation/lights/directional_light.h"
+#include "estimation/lights/point_light.h"
 
 namespace lp {
 

@@ -7,9 +7,12 @@
 #include <cstdint>
 #include <vector>
 
+#include "common/error.h"
 #include "common/parallel.h"
 #include "common/rng.h"
 #include "estimation/path_tracer.h"
+#include "estimation/sampling.h"
+#include "scene/ray_tracer.h"
 
 namespace lp::detail {
 
@@ -73,6 +76,43 @@ void ForEachPixel(const std::vector<PixelRef>& pixels, const TracerOptions& opt,
     stats->stopped_roulette += roulette;
     stats->stopped_negligible += negligible;
     stats->stopped_max_bounces += max_bounces;
+  }
+}
+
+/// Throws InputError unless a tracer's options trace at least a path of one bounce.
+inline void CheckPathOptions(const TracerOptions& o) {
+  if (o.spp < 1) throw InputError("spp must be at least 1");
+  if (o.bounces < 1) throw InputError("bounces must be at least 1");
+}
+
+/// One camera path of pixel (x, y): calls vertex(hit, offset origin, weight) at every
+/// surface interaction, weight = throughput x albedo / pi (per sample).
+template <class Sink>
+void WalkPath(const RayTracer& scene, const Camera& cam, int x, int y, Rng& rng, const TracerOptions& opt,
+              Counters& cnt, Sink&& vertex) {
+  ++cnt.paths;
+  const Eigen::Vector3d origin = cam.center();
+  const Eigen::Vector3d dir = cam.RayDirection(x + rng.Uniform() - 0.5, y + rng.Uniform() - 0.5);
+  Eigen::Vector3d T(1, 1, 1);
+  SurfacePoint hit;
+  ++cnt.rays;
+  if (!scene.Intersect(origin, dir, &hit)) return;
+  const double eps = scene.epsilon();
+  for (int bounce = 0;; ++bounce) {
+    const Eigen::Vector3d off = hit.position + hit.geometric * (4 * eps);
+    vertex(hit, off, Eigen::Vector3d(T.cwiseProduct(hit.albedo) * kInvPi));
+    const Eigen::Vector3d w = SampleCosine(hit.shading, rng.Uniform(), rng.Uniform());
+    T = T.cwiseProduct(hit.albedo);
+    if (hit.geometric.dot(w) <= 0) return;
+    if (bounce + 1 >= opt.bounces) {
+      ++cnt.max_bounces;
+      return;
+    }
+    ++cnt.rays;
+    SurfacePoint next;
+    if (!scene.Intersect(off, w, &next)) return;
+    if (!PathContinues(bounce, opt, &T, rng, cnt)) return;
+    hit = next;
   }
 }
 

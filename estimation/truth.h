@@ -7,9 +7,9 @@
 
 #include <Eigen/Core>
 
-#include "estimation/directional_light.h"
+#include "estimation/lights/directional_light.h"
 #include "estimation/envmap.h"
-#include "estimation/point_light.h"
+#include "estimation/lights/point_light.h"
 
 namespace lp {
 

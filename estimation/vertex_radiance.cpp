@@ -7,7 +7,7 @@
 #include "common/rng.h"
 #include "estimation/error_display.h"
 #include "estimation/path_tracer.h"
-#include "estimation/point_lights.h"
+#include "estimation/lights/light.h"
 #include "estimation/sampling.h"
 
 namespace lp {
@@ -25,34 +25,6 @@ VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, std::v
 }
 
 VertexRadiance::~VertexRadiance() = default;
-
-namespace {
-
-/// The point lights' irradiance / pi at `origin` (already off the surface) with shading
-/// normal `n`: a shadow ray each, light below the geometric horizon absorbed.
-Eigen::Vector3d PointLightsIncident(const RayTracer& scene, const std::vector<PointLight>& points,
-                                    const std::vector<DirectionalLight>& suns, const Eigen::Vector3d& origin,
-                                    const Eigen::Vector3d& n, const Eigen::Vector3d& geometric, std::uint64_t key) {
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (const DirectionalLight& l : suns) {
-    const double c = n.dot(l.direction);
-    if (c <= 0 || geometric.dot(l.direction) <= 0) continue;
-    sum += l.irradiance * (ConeVisibility(scene, origin, l.direction, l.angular_radius, key, 1) * c / kPi);
-  }
-  for (const PointLight& l : points) {
-    const Eigen::Vector3d r = l.position - origin;
-    const double d = r.norm();
-    if (!(d > 0)) continue;
-    const Eigen::Vector3d dir = r / d;
-    const double c = n.dot(dir);
-    if (c <= 0 || geometric.dot(dir) <= 0) continue;
-    const double seen = SphereVisibility(scene, origin, l.position, l.radius, dir, d, key, 1);
-    sum += l.intensity * (seen * c / (d * d * kPi));
-  }
-  return sum;
-}
-
-}  // namespace
 
 void VertexRadiance::Refine(int samples) {
   const Mesh& mesh = scene_.mesh();
@@ -75,10 +47,13 @@ void VertexRadiance::Refine(int samples) {
         for (int bounce = 0; bounce < bounces_; ++bounce) {
           const NextEvent ne = SampleNextEvent(scene_, env_, *sampler_, n, geometric, origin, rng);
           if (ne.visible) sum_[v] += throughput.cwiseProduct(cell(ne.cell)) * ne.weight;
-          if (!points_.empty() || !suns_.empty())
-            sum_[v] += throughput.cwiseProduct(PointLightsIncident(
-                scene_, points_, suns_, origin, n, geometric, (static_cast<std::uint64_t>(v) << 24) ^ (static_cast<std::uint64_t>(s) << 4) ^
-                                                  static_cast<std::uint64_t>(bounce)));
+          if (!points_.empty() || !suns_.empty()) {  // the lights' irradiance / pi
+            const std::uint64_t key = (static_cast<std::uint64_t>(v) << 24) ^ (static_cast<std::uint64_t>(s) << 4) ^
+                                      static_cast<std::uint64_t>(bounce);
+            std::int64_t rays = 0;
+            sum_[v] += throughput.cwiseProduct(lp::Irradiance(scene_, points_, suns_, origin, n, geometric, key, &rays)) *
+                       kInvPi;
+          }
           const double u1 = rng.Uniform(), u2 = rng.Uniform();
           const Eigen::Vector3d dir = SampleCosine(n, u1, u2);
           if (geometric.dot(dir) <= 0) break;

@@ -12,8 +12,8 @@
 #include <Eigen/Core>
 
 #include "estimation/envmap.h"
-#include "estimation/directional_light.h"
-#include "estimation/point_light.h"
+#include "estimation/lights/directional_light.h"
+#include "estimation/lights/point_light.h"
 #include "scene/ray_tracer.h"
 #include "scene/scene_bundle.h"
 

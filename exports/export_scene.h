@@ -9,8 +9,8 @@
 #include <Eigen/Core>
 
 #include "common/image.h"
-#include "estimation/directional_light.h"
-#include "estimation/point_light.h"
+#include "estimation/lights/directional_light.h"
+#include "estimation/lights/point_light.h"
 #include "scene/camera.h"
 #include "scene/mesh.h"
 

@@ -10,7 +10,7 @@
 #include <Eigen/Core>
 
 #include "common/image.h"
-#include "estimation/directional_light.h"
+#include "estimation/lights/directional_light.h"
 #include "exports/export_scene.h"
 
 namespace lp {

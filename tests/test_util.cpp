@@ -41,4 +41,13 @@ View BlankView(const Camera& cam) {
   return v;
 }
 
+Mesh Merge(Mesh a, const Mesh& b) {
+  const int n = static_cast<int>(a.positions.size());
+  a.positions.insert(a.positions.end(), b.positions.begin(), b.positions.end());
+  a.normals.insert(a.normals.end(), b.normals.begin(), b.normals.end());
+  a.albedo.insert(a.albedo.end(), b.albedo.begin(), b.albedo.end());
+  for (auto t : b.triangles) a.triangles.push_back({t[0] + n, t[1] + n, t[2] + n});
+  return a;
+}
+
 }  // namespace lp::test

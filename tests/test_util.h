@@ -13,6 +13,9 @@ Mesh Square(double cx, double cy, double z, double half, double rho);
 /// UV sphere, outward normals.
 Mesh Ball(double radius, double rho, int rings = 32, int segments = 64);
 
+/// The two meshes as one (b's triangles after a's).
+Mesh Merge(Mesh a, const Mesh& b);
+
 /// A camera at `eye` looking at `target`, world up +z.
 Camera LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, int w, int h, double hfov_deg);
 

@@ -15,7 +15,9 @@
 #include "common/image_io.h"
 #include "estimation/estimator.h"
 #include "estimation/path_tracer.h"
-#include "estimation/point_lights.h"
+#include "estimation/light_fit.h"
+#include "estimation/light_render.h"
+#include "estimation/lights/light.h"
 #include "estimation/truth.h"
 #include "scene/scene_bundle.h"
 

@@ -18,7 +18,9 @@
 
 #include "estimation/estimator.h"
 #include "estimation/path_tracer.h"
-#include "estimation/point_lights.h"
+#include "estimation/light_fit.h"
+#include "estimation/light_render.h"
+#include "estimation/lights/light.h"
 #include "estimation/sampling.h"
 #include "estimation/synth.h"
 #include "estimation/truth.h"
@@ -175,13 +177,18 @@ TEST(LampRecovery, TheCompassSearchPlacesTheLampByItsShadows) {
   t.spp = 8;
   t.seed = 11;
   const ShadingVertices v = GatherShadingVertices(tracer, {view}, t);
-  const PointFitProblem fit{&tracer, &v, &y, &base, 0.5, 0};
-  std::vector<PointLight> lights{{truth.position + Eigen::Vector3d(0.03, -0.03, 0.06),
-                                  truth.rgb_power / (4 * kPi) * (0.8 / mean), truth.radius}};
-  RefinePointLights(fit, &lights, 40);
-  const double lm = (lights[0].position - truth.position).norm(), before = fit.Value(lights);
-  const int moves = SearchPointLights(fit, &lights, s.lighting.center);
-  const double searched = (lights[0].position - truth.position).norm();
+  const LightFitProblem fit{&tracer, &v, &y, &base, CauchyLoss{0.5}, 0};
+  std::vector<Light> lights{PointLight{truth.position + Eigen::Vector3d(0.03, -0.03, 0.06),
+                                       truth.rgb_power / (4 * kPi) * (0.8 / mean), truth.radius}};
+  const auto at = [&] { return std::get<PointLight>(lights[0]).position; };
+  RefineLights(fit, &lights, 40);
+  const double lm = (at() - truth.position).norm(), before = fit.Value(lights);
+  CompassOptions compass;  // steps of 2 % of its distance down to 0.2 %, 60 columns at most
+  compass.start = 0.02;
+  compass.stop = 0.002;
+  compass.max_evaluations = 60;
+  const int moves = SearchLights(fit, &lights, s.lighting.center, compass);
+  const double searched = (at() - truth.position).norm();
   std::printf("Levenberg-Marquardt alone %.2f cm off, then %d compass moves: %.2f cm off\n", 100 * lm, moves,
               100 * searched);
   EXPECT_GT(lm, 0.02) << "the derivative alone reaches the lamp: this test no longer shows the search's use";

@@ -9,7 +9,9 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "estimation/lights_file.h"
-#include "estimation/point_lights.h"
+#include "estimation/light_fit.h"
+#include "estimation/light_render.h"
+#include "estimation/lights/light.h"
 #include "estimation/sampling.h"
 #include "estimation/truth.h"
 #include "scene/scene_bundle.h"
@@ -18,15 +20,6 @@
 namespace lp {
 namespace {
 namespace fs = std::filesystem;
-
-Mesh Merge(Mesh a, const Mesh& b) {
-  const int n = static_cast<int>(a.positions.size());
-  a.positions.insert(a.positions.end(), b.positions.begin(), b.positions.end());
-  a.normals.insert(a.normals.end(), b.normals.begin(), b.normals.end());
-  a.albedo.insert(a.albedo.end(), b.albedo.begin(), b.albedo.end());
-  for (auto t : b.triangles) a.triangles.push_back({t[0] + n, t[1] + n, t[2] + n});
-  return a;
-}
 
 /// Outgoing radiance of a Lambertian point (albedo rho) under a point light of intensity I:
 /// rho / pi x I cos(theta) / d^2.
@@ -67,7 +60,7 @@ TEST(PointLights, ABoxLidCastsItsShadowOntoTheFloor) {
   // point p is in shadow exactly when the line to the light crosses the lid, at
   // 0.8 p + 0.2 light (z = 0.4).
   const Eigen::Vector3d light(1, 0, 2);
-  RayTracer scene(Merge(test::Plane(6, 0.5), test::Square(0, 0, 0.4, 0.3, 0.5)));
+  RayTracer scene(test::Merge(test::Plane(6, 0.5), test::Square(0, 0, 0.4, 0.3, 0.5)));
   const Camera cam = test::LookAt({0.8, -1.0, 1.5}, {-0.3, 0, 0}, 64, 48, 70);
   std::vector<View> views{test::BlankView(cam)};
   TracerOptions o;
@@ -141,7 +134,7 @@ TEST(PointLights, ASphereLightsPenumbraIsTheDiscsVisibleSegment) {
 }
 
 TEST(PointLights, ThePositionDerivativeMatchesCentralDifferences) {
-  RayTracer scene(Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)));
+  RayTracer scene(test::Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)));
   const Camera cam = test::LookAt({1.5, -1.5, 1.5}, {0, 0, 0.1}, 24, 18, 50);
   std::vector<View> views{test::BlankView(cam)};
   TracerOptions o;
@@ -173,7 +166,7 @@ TEST(PointLights, ThePositionDerivativeMatchesCentralDifferences) {
 TEST(PointLights, TheDirectionDerivativeMatchesCentralDifferences) {
   // A directional light's column against its direction moved on the sphere (towards + d,
   // normalized): a plane and a ball, the light high enough that no shadow edge moves within h.
-  RayTracer scene(Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)));
+  RayTracer scene(test::Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)));
   const Camera cam = test::LookAt({1.5, -1.5, 1.5}, {0, 0, 0.1}, 24, 18, 50);
   std::vector<View> views{test::BlankView(cam)};
   TracerOptions o;
@@ -204,7 +197,7 @@ TEST(PointLights, TheDirectionDerivativeMatchesCentralDifferences) {
 TEST(PointLights, RefinementFindsTheLampFromHalfAMetreAway) {
   // The lamp of a plane and a ball rendered by the forward model; the refinement starts
   // 0.5 m off with the wrong intensity and must come back (positions to 1 cm).
-  RayTracer scene(Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)));
+  RayTracer scene(test::Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)));
   const Camera cam = test::LookAt({1.5, -1.5, 1.5}, {0, 0, 0.1}, 40, 30, 60);
   std::vector<View> views{test::BlankView(cam)};
   TracerOptions o;
@@ -216,12 +209,13 @@ TEST(PointLights, RefinementFindsTheLampFromHalfAMetreAway) {
   PointLightColumn(scene, v, lamp.position, &col);
   std::vector<double> y(col.size()), base(col.size(), 0.0);
   for (std::size_t i = 0; i < y.size(); ++i) y[i] = lamp.intensity[i % 3] * col[i];
-  const PointFitProblem fit{&scene, &v, &y, &base, 0.5, 0};  // no activation penalty
-  std::vector<PointLight> lights{{lamp.position + Eigen::Vector3d(0.3, -0.3, 0.25), {1, 1, 1}, 0}};
-  const int steps = RefinePointLights(fit, &lights, 40);
+  const LightFitProblem fit{&scene, &v, &y, &base, CauchyLoss{0.5}, 0};  // no activation penalty
+  std::vector<Light> lights{PointLight{lamp.position + Eigen::Vector3d(0.3, -0.3, 0.25), {1, 1, 1}, 0}};
+  const int steps = RefineLights(fit, &lights, 40);
+  const PointLight& found = std::get<PointLight>(lights[0]);
   EXPECT_GT(steps, 0);
-  EXPECT_LT((lights[0].position - lamp.position).norm(), 0.01) << lights[0].position.transpose();
-  EXPECT_LT((lights[0].intensity - lamp.intensity).norm(), 0.02 * lamp.intensity.norm());
+  EXPECT_LT((found.position - lamp.position).norm(), 0.01) << found.position.transpose();
+  EXPECT_LT((found.intensity - lamp.intensity).norm(), 0.02 * lamp.intensity.norm());
 }
 
 TEST(LightsFile, RoundTripsAndRefusesBadLights) {

@@ -12,7 +12,9 @@
 #include "estimation/estimator.h"
 #include "estimation/path_tracer.h"
 #include "estimation/synth.h"
-#include "estimation/point_lights.h"
+#include "estimation/light_fit.h"
+#include "estimation/light_render.h"
+#include "estimation/lights/light.h"
 #include "estimation/vertex_radiance.h"
 #include "tests/test_util.h"
 
@@ -687,13 +689,14 @@ TEST(Stability, TwoLightsAtOnePositionStayFiniteAndMerge) {
   const ShadingVertices v = GatherShadingVertices(scene, b.views, t);
   const std::vector<double> y = CollectObservations(b.views);
   const std::vector<double> base(y.size(), 0.0);
-  const PointFitProblem fit{&scene, &v, &y, &base, 0.5, 0};  // no activation penalty
+  const LightFitProblem fit{&scene, &v, &y, &base, CauchyLoss{0.5}, 0};  // no activation penalty
   const Eigen::Vector3d start = lamp.position + Eigen::Vector3d(0.1, -0.1, 0.1);
-  std::vector<PointLight> pair{{start, {0.5, 0.5, 0.5}, 0}, {start, {0.5, 0.5, 0.5}, 0}};
-  const double before = fit.Value(pair);
-  RefinePointLights(fit, &pair, 40);
+  std::vector<Light> lights{PointLight{start, {0.5, 0.5, 0.5}, 0}, PointLight{start, {0.5, 0.5, 0.5}, 0}};
+  const double before = fit.Value(lights);
+  RefineLights(fit, &lights, 40);
+  const std::vector<PointLight> pair = OfKind<PointLight>(lights);
   for (const PointLight& l : pair) ASSERT_TRUE(l.position.allFinite() && l.intensity.allFinite());
-  EXPECT_LT(fit.Value(pair), before);
+  EXPECT_LT(fit.Value(lights), before);
   const Eigen::Vector3d sum = pair[0].intensity + pair[1].intensity;
   EXPECT_NEAR(sum.x(), 1.0, 0.1);
   EXPECT_LT((pair[0].position - lamp.position).norm(), 0.1);  // 0.06 measured (4 paths per pixel)

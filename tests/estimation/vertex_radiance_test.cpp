@@ -6,7 +6,9 @@
 
 #include "common/rng.h"
 #include "estimation/path_tracer.h"
-#include "estimation/point_lights.h"
+#include "estimation/light_fit.h"
+#include "estimation/light_render.h"
+#include "estimation/lights/light.h"
 #include "estimation/vertex_radiance.h"
 #include "tests/test_util.h"
 

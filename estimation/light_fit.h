@@ -1,0 +1,93 @@
+#pragma once
+/// One fit for every kind of light (estimation/lights/light.h): "refine these lights'
+/// shapes and intensities on these rows", the rest of the image held. One objective, one
+/// Levenberg-Marquardt, one compass search and one intensity refit, whatever the kinds.
+#include <functional>
+#include <limits>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "estimation/lights/light.h"
+#include "estimation/robust_loss.h"
+#include "estimation/shading_vertices.h"
+#include "scene/ray_tracer.h"
+
+namespace lp {
+
+/// The robust objective of lights on fixed shading vertices, the rest of the image
+/// (`base`: the environment's render, 3 per row) held fixed:
+///   E = sum rho(y - base - sum_k s_k . c_k(shape_k)) + sum_k alpha log(1 + beta sum_c s_kc),
+/// s_k a light's RGB scale (Scale), c_k its unit column (UnitColumn), rho the loss.
+struct LightFitProblem {
+  const RayTracer* scene = nullptr;
+  const ShadingVertices* vertices = nullptr;
+  const std::vector<double>* y = nullptr;     ///< 3 per row
+  const std::vector<double>* base = nullptr;  ///< 3 per row
+  CauchyLoss loss{0.5};
+  double alpha = 3, beta = 1;
+  /// E at these lights; `sse`, when given, receives the sum of squared residuals.
+  double Value(const std::vector<Light>& lights, double* sse = nullptr) const;
+  /// The same with the lights' unit columns given (as UnitColumn makes them on these
+  /// vertices: e.g. from a cache).
+  double Value(const std::vector<Light>& lights, const std::vector<std::vector<float>>& columns,
+               double* sse = nullptr) const;
+};
+
+/// Every stride-th row of a fitting problem (stride = rows / max_rows rounded up; 1, the
+/// problem itself, when it has no more): its vertices, observations and base, the activation
+/// penalty divided by the stride so that it weighs against the data term as on all rows.
+/// Where a share of the rows is enough to move the lights (each column on it costs that
+/// share); its E times the stride estimates the whole problem's.
+struct LightFitSubset {
+  LightFitSubset(const LightFitProblem& full, std::size_t max_rows);
+  LightFitSubset(const LightFitSubset&) = delete;
+  LightFitSubset& operator=(const LightFitSubset&) = delete;
+  int stride = 1;
+  ShadingVertices vertices;
+  std::vector<double> y, base;
+  LightFitProblem problem;
+};
+
+/// Called after each accepted step of a fit: (step, E, sum of squared residuals, lights).
+using LightFitLog = std::function<void(int, double, double, const std::vector<Light>&)>;
+
+/// Levenberg-Marquardt on the lights' shapes (ShapeDims each: a position, a direction's
+/// tangent plane) and scales together, iteratively reweighted for the loss, the analytical
+/// derivative of the columns (visibility held fixed), scales kept >= 0; a step is taken
+/// only if E falls. Returns the iterations taken; `lights` holds the best found.
+int RefineLights(const LightFitProblem& problem, std::vector<Light>* lights, int max_iterations = 12,
+                 const LightFitLog& log = {});
+
+/// A compass search's schedule: steps of `start` CompassUnits (a lamp: its distance from
+/// the centre; a direction: a radian), halved when no move lowers the energy, down to
+/// `stop`; at most `max_evaluations` columns a light (besides one for each other light).
+struct CompassOptions {
+  double start = 0.02, stop = 0.002;
+  int max_evaluations = std::numeric_limits<int>::max();
+  /// Write a light's scale refitted where it stands back even when it does not move (the
+  /// directional light's search; a lamp keeps its intensity unless it moves).
+  bool refit_unmoved = false;
+};
+
+/// A compass search for each light's shape in turn (its CompassMoves at each step), its
+/// scale refitted at each place by reweighted least squares, the other lights held: the
+/// shadows' edges move with the light, which RefineLights' derivative cannot see. A light
+/// is changed only where it moves. Returns the moves taken; `log` is called after each.
+int SearchLights(const LightFitProblem& problem, std::vector<Light>* lights, const Eigen::Vector3d& centre,
+                 const CompassOptions& options, const LightFitLog& log = {});
+
+/// The energy of a light at its shape, what `others` render (3 per row, or empty) held and
+/// its scale refitted there by reweighted least squares (4 passes from its scale);
+/// `sse` receives the sum of squared residuals.
+double RefitScale(const LightFitProblem& problem, const std::vector<float>& others, Light* light, double* sse);
+
+/// The widest angular radius FitAngularRadius tries (degrees).
+constexpr double kMaxAngularRadiusDeg = 8;
+
+/// The angular radius (soft shadows) of a directional light on a grid (0 and 0.25 to
+/// kMaxAngularRadiusDeg, doubling), its irradiance refitted at each, the rest held: the
+/// lowest energy wins when it beats the sharp light's by 0.5 %. Returns the radius (radians).
+double FitAngularRadius(const LightFitProblem& problem, DirectionalLight* light);
+
+}  // namespace lp

@@ -1,0 +1,67 @@
+#include "estimation/lights/directional_light.h"
+
+#include <cmath>
+
+#include "common/parallel.h"
+#include "estimation/sampling.h"
+
+namespace lp {
+
+double ConeVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const Eigen::Vector3d& l, double angular_radius,
+                      std::uint64_t key, int rays) {
+  if (!(angular_radius > 0)) return scene.Occluded(p, l) ? 0.0 : 1.0;
+  const SphereFrame frame(l);
+  const double turn = HashUnit(key), jitter = HashUnit(key ^ 0x5DEECE66Dull), spread = std::tan(angular_radius);
+  int seen = 0;
+  for (int i = 0; i < rays; ++i) {  // the disc at unit distance, as SphereVisibility's
+    const double rho = spread * std::sqrt((i + jitter) / rays);
+    const double a = 2 * kPi * (turn + i * 0.6180339887498949);
+    seen += !scene.Occluded(p, (l + rho * (std::cos(a) * frame.t + std::sin(a) * frame.b)).normalized());
+  }
+  return static_cast<double>(seen) / rays;
+}
+
+void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& towards,
+                            std::vector<float>* out, std::vector<float>* jacobian, double angular_radius) {
+  const Eigen::Vector3d l = towards.normalized();
+  out->assign(3 * v.rows(), 0.0f);
+  if (jacobian) jacobian->assign(9 * v.rows(), 0.0f);
+  ParallelForChunks(0, v.rows(), 64, [&](std::size_t b, std::size_t e) {
+    for (std::size_t r = b; r < e; ++r) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      Eigen::Matrix3d jac = Eigen::Matrix3d::Zero();  // (channel, coordinate)
+      for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
+        const Eigen::Vector3d n = v.normal[k].cast<double>();
+        const double cn = n.dot(l), cg = v.geometric[k].cast<double>().dot(l);
+        if (!(cn > 0 && cg > 0)) continue;
+        const double seen =
+            ConeVisibility(scene, v.position[k].cast<double>(), l, angular_radius, static_cast<std::uint64_t>(k));
+        if (seen == 0) continue;
+        const Eigen::Vector3d w = v.weight[k].cast<double>() * seen;
+        sum += w * cn;
+        if (jacobian) jac += w * (n - cn * l).transpose();  // d cos / d l on the unit sphere
+      }
+      StoreColumnRow(r, sum, jac, out, jacobian);
+    }
+  });
+}
+
+Eigen::Vector3d Irradiance(const RayTracer& scene, const DirectionalLight& light, const Eigen::Vector3d& origin,
+                           const Eigen::Vector3d& n, const Eigen::Vector3d& g, std::uint64_t key,
+                           std::int64_t* rays) {
+  const double cn = n.dot(light.direction), cg = g.dot(light.direction);
+  if (!(cn > 0 && cg > 0)) return Eigen::Vector3d::Zero();
+  ++*rays;
+  const double seen = ConeVisibility(scene, origin, light.direction, light.angular_radius, key, 1);
+  if (!(seen > 0)) return Eigen::Vector3d::Zero();
+  return light.irradiance * (cn * seen);
+}
+
+DirectionalLight CompassMove(DirectionalLight l, int move, double step) {
+  const SphereFrame frame(l.direction);
+  const Eigen::Vector3d off = move < 2 ? frame.t : frame.b;
+  l.direction = (l.direction + std::tan(step) * (move % 2 ? Eigen::Vector3d(-off) : off)).normalized();
+  return l;
+}
+
+}  // namespace lp

@@ -1,0 +1,73 @@
+#pragma once
+/// Every kind of light beside the environment map, behind one interface (in the manner of
+/// pbrt-v4's Light): a closed set of kinds, each in its own file under estimation/lights/
+/// with what only it knows, and these functions that any code handling "a light" calls.
+/// A new kind: its file (its struct, UnitColumn, Irradiance, Scale, ShapeDims /
+/// ShapeGradient / Moved, CompassMoves / CompassUnit / CompassMove), its test, and its
+/// entry in `Light` below (docs/architecture.md, "Light kinds").
+#include <cstdint>
+#include <variant>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "estimation/lights/directional_light.h"
+#include "estimation/lights/point_light.h"
+
+namespace lp {
+
+using Light = std::variant<PointLight, DirectionalLight>;
+
+/// The light's column of unit scale on shading vertices (3 per row), and its derivative
+/// with respect to the shape (9 per row: [9*row + 3*c + k], the kind's 3 raw coordinates;
+/// ShapeGradient maps them to the shape's).
+inline void UnitColumn(const RayTracer& scene, const ShadingVertices& vertices, const Light& light,
+                       std::vector<float>* out, std::vector<float>* jacobian = nullptr) {
+  std::visit([&](const auto& l) { UnitColumn(scene, vertices, l, out, jacobian); }, light);
+}
+inline Eigen::Vector3d& Scale(Light& light) {
+  return std::visit([](auto& l) -> Eigen::Vector3d& { return Scale(l); }, light);
+}
+inline const Eigen::Vector3d& Scale(const Light& light) {
+  return std::visit([](const auto& l) -> const Eigen::Vector3d& { return Scale(l); }, light);
+}
+inline int ShapeDims(const Light& light) {
+  return std::visit([](const auto& l) { return ShapeDims(l); }, light);
+}
+inline void ShapeGradient(const Light& light, const float* d, double* out) {
+  std::visit([&](const auto& l) { ShapeGradient(l, d, out); }, light);
+}
+inline Light Moved(const Light& light, const double* step) {
+  return std::visit([&](const auto& l) -> Light { return Moved(l, step); }, light);
+}
+inline int CompassMoves(const Light& light) {
+  return std::visit([](const auto& l) { return CompassMoves(l); }, light);
+}
+inline double CompassUnit(const Light& light, const Eigen::Vector3d& centre) {
+  return std::visit([&](const auto& l) { return CompassUnit(l, centre); }, light);
+}
+inline Light CompassMove(const Light& light, int move, double step) {
+  return std::visit([&](const auto& l) -> Light { return CompassMove(l, move, step); }, light);
+}
+
+/// The irradiance (image units) `directional` then `points` send to a surface point (as
+/// each kind's Irradiance): what the renderers and the lit shading add at a path vertex.
+Eigen::Vector3d Irradiance(const RayTracer& scene, const std::vector<PointLight>& points,
+                           const std::vector<DirectionalLight>& directional, const Eigen::Vector3d& origin,
+                           const Eigen::Vector3d& n, const Eigen::Vector3d& g, std::uint64_t key,
+                           std::int64_t* rays);
+
+/// The lights of a list of one kind as `Light`s, and back (those of kind T).
+template <class T>
+std::vector<Light> AsLights(const std::vector<T>& lights) {
+  return std::vector<Light>(lights.begin(), lights.end());
+}
+template <class T>
+std::vector<T> OfKind(const std::vector<Light>& lights) {
+  std::vector<T> out;
+  for (const Light& l : lights)
+    if (const T* t = std::get_if<T>(&l)) out.push_back(*t);
+  return out;
+}
+
+}  // namespace lp

@@ -1,0 +1,94 @@
+#pragma once
+/// A lamp in the room: the lighting model's near part beside the environment map.
+/// lights.json's "point_lights" (docs/formats.md). What only this kind knows: its unit
+/// column on shading vertices and the column's derivative with respect to its position, the
+/// light it sends to a point, its shape (a position in R^3) and how a step moves it, where
+/// candidates are first sought, and how two fold into one.
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "estimation/lights/sphere_frame.h"
+#include "estimation/shading_vertices.h"
+#include "scene/ray_tracer.h"
+
+namespace lp {
+
+struct PointLight {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< the bundle's world frame, metres
+  /// Radiant intensity in image units x m^2: a surface facing the light at distance d
+  /// receives intensity / d^2 (W/sr when the images are radiance).
+  Eigen::Vector3d intensity = Eigen::Vector3d::Zero();
+  double radius = 0;  ///< metres; 0: a point. A sphere's radius only softens its shadows
+};
+
+/// The share of a spherical light of `radius` centred at q that `p` sees (l, d: the unit
+/// direction and distance from p to q): one shadow ray to q for a point (radius 0), else
+/// `rays` shadow rays to jittered stratified points of the disc of `radius` facing p, the
+/// pattern drawn from a hash of `key` (deterministic: common random numbers across positions
+/// and radii; the renderers pass a key per sample and 1 ray). The cosine and 1/d^2 stay the
+/// centre's: exact for a uniform sphere wholly seen and above the horizon, so the radius
+/// only softens shadows.
+double SphereVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const Eigen::Vector3d& q, double radius,
+                        const Eigen::Vector3d& l, double d, std::uint64_t key, int rays = kSphereShadowRays);
+
+/// The unit-intensity column of a point light at `q` (of `radius`: soft shadows): out[3*row
+/// + c]. When `jacobian` is given it receives d out[3*row + c] / d q_k at [9*row + 3*c + k]
+/// (visibility held fixed).
+void PointLightColumn(const RayTracer& scene, const ShadingVertices& vertices, const Eigen::Vector3d& q,
+                      std::vector<float>* out, std::vector<float>* jacobian = nullptr, double radius = 0);
+inline void UnitColumn(const RayTracer& scene, const ShadingVertices& vertices, const PointLight& light,
+                       std::vector<float>* out, std::vector<float>* jacobian = nullptr) {
+  PointLightColumn(scene, vertices, light.position, out, jacobian, light.radius);
+}
+
+/// The irradiance (image units) the light sends to a surface point `origin` (already off
+/// the surface) of shading normal `n` and geometric normal `g`: 0 where it is behind
+/// either; one shadow ray to a point of its disc jittered by `key`, counted in `rays`.
+Eigen::Vector3d Irradiance(const RayTracer& scene, const PointLight& light, const Eigen::Vector3d& origin,
+                           const Eigen::Vector3d& n, const Eigen::Vector3d& g, std::uint64_t key,
+                           std::int64_t* rays);
+
+/// Its RGB scale, the unknown of the linear problem: the intensity.
+inline Eigen::Vector3d& Scale(PointLight& l) { return l.intensity; }
+inline const Eigen::Vector3d& Scale(const PointLight& l) { return l.intensity; }
+
+/// Its shape is its position: 3 coordinates. ShapeGradient maps a column's derivative
+/// (the 3 entries PointLightColumn's Jacobian gives a row and channel) to them; Moved takes
+/// a step of them.
+inline int ShapeDims(const PointLight&) { return 3; }
+inline void ShapeGradient(const PointLight&, const float* d, double* out) {
+  for (int a = 0; a < 3; ++a) out[a] = d[a];
+}
+inline PointLight Moved(PointLight l, const double* step) {
+  l.position += Eigen::Vector3d(step[0], step[1], step[2]);
+  return l;
+}
+
+/// A compass search's moves: along each axis both ways (6), by `step` times its distance
+/// from `centre` (CompassUnit) in metres.
+inline int CompassMoves(const PointLight&) { return 6; }
+inline double CompassUnit(const PointLight& l, const Eigen::Vector3d& centre) {
+  return std::max((l.position - centre).norm(), 1e-6);
+}
+inline PointLight CompassMove(PointLight l, int move, double step) {
+  l.position[move / 2] += move % 2 ? -step : step;
+  return l;
+}
+
+/// Where the estimator first looks for lamps: shells of directions (a coarse ring map
+/// around `up`, `rings` rings) at each of `radii` (multiples of the scene's bounding radius)
+/// around the scene's centre. Free space and the space beyond the scan alike: a candidate
+/// inside geometry or behind a wall lights no observed pixel and drops out of the problem.
+std::vector<Eigen::Vector3d> CandidatePositions(const Eigen::Vector3d& centre, double radius,
+                                                const Eigen::Vector3d& up, int rings = 7,
+                                                const std::vector<double>& radii = {0.35, 0.6, 1.0, 1.6});
+
+/// Two lights closer than a tenth of `distance` (`other`'s from the scene's centre) are one:
+/// then `into` takes `other`'s intensity, at the intensity-weighted mean of their places,
+/// and FoldInto returns true.
+bool FoldInto(PointLight* into, const PointLight& other, double distance);
+
+}  // namespace lp

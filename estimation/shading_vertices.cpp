@@ -1,0 +1,83 @@
+#include "estimation/shading_vertices.h"
+
+#include "common/error.h"
+#include "estimation/pixel_loop.h"
+
+namespace lp {
+
+using detail::Counters;
+using detail::ForEachPixel;
+using detail::PixelRef;
+using detail::PixelsToTrace;
+using detail::CheckPathOptions;
+using detail::WalkPath;
+
+ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<View>& views,
+                                      const TracerOptions& opt, bool all_pixels, TraceStats* stats) {
+  CheckPathOptions(opt);
+  struct Vertex {
+    Eigen::Vector3f p, n, g, w;
+  };
+  const std::vector<PixelRef> pixels = PixelsToTrace(views, all_pixels);
+  std::vector<std::vector<Vertex>> rows(pixels.size());
+  const float inv = 1.0f / opt.spp;
+  ForEachPixel(pixels, opt, stats, [&](std::size_t i, const PixelRef& px, Counters& cnt) {
+    const Camera& cam = views[px.view].camera;
+    const int x = px.pixel % cam.width, y = px.pixel / cam.width;
+    for (int s = 0; s < opt.spp; ++s) {
+      Rng rng(opt.seed, px.view, px.pixel, s);
+      WalkPath(scene, cam, x, y, rng, opt, cnt,
+               [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
+                 rows[i].push_back({off.cast<float>(), hit.shading.cast<float>(), hit.geometric.cast<float>(),
+                                    w.cast<float>() * inv});
+               });
+    }
+  });
+  ShadingVertices out;
+  std::size_t n = 0;
+  for (const auto& r : rows) n += r.size();
+  out.row_start.reserve(rows.size() + 1);
+  out.position.reserve(n);
+  out.normal.reserve(n);
+  out.geometric.reserve(n);
+  out.weight.reserve(n);
+  for (auto& r : rows) {
+    for (const Vertex& v : r) {
+      out.position.push_back(v.p);
+      out.normal.push_back(v.n);
+      out.geometric.push_back(v.g);
+      out.weight.push_back(v.w);
+    }
+    out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
+    std::vector<Vertex>().swap(r);
+  }
+  if (stats) stats->pixels_traced += static_cast<std::int64_t>(pixels.size());
+  return out;
+}
+
+ShadingVertices Combine(const ShadingVertices& a, double a_samples, const ShadingVertices& b, double b_samples) {
+  LP_CHECK(a.rows() == b.rows(), "combining gatherings of different rows");
+  const double n = a_samples + b_samples;
+  LP_CHECK(n > 0, "no samples");
+  const float wa = static_cast<float>(a_samples / n), wb = static_cast<float>(b_samples / n);
+  ShadingVertices out;
+  const std::size_t total = a.size() + b.size();
+  out.row_start.reserve(a.rows() + 1);
+  out.position.reserve(total);
+  out.normal.reserve(total);
+  out.geometric.reserve(total);
+  out.weight.reserve(total);
+  for (std::size_t r = 0; r < a.rows(); ++r) {
+    for (const auto& [v, w] : {std::pair<const ShadingVertices*, float>{&a, wa}, {&b, wb}})
+      for (std::int64_t k = v->row_start[r]; k < v->row_start[r + 1]; ++k) {
+        out.position.push_back(v->position[k]);
+        out.normal.push_back(v->normal[k]);
+        out.geometric.push_back(v->geometric[k]);
+        out.weight.push_back(v->weight[k] * w);
+      }
+    out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
+  }
+  return out;
+}
+
+}  // namespace lp

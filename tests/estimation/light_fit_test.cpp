@@ -1,0 +1,142 @@
+// Every kind of light behind one interface (estimation/lights/light.h) and one fit
+// (estimation/light_fit.h): each kind's shape coordinates against central differences of
+// its column, its compass moves and its irradiance against closed forms, and a lamp and a
+// sun refined together by the one Levenberg-Marquardt.
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "estimation/light_fit.h"
+#include "estimation/lights/light.h"
+#include "estimation/sampling.h"
+#include "scene/ray_tracer.h"
+#include "tests/test_util.h"
+
+namespace lp {
+namespace {
+
+Mesh PlaneAndBall() { return test::Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)); }
+
+ShadingVertices Vertices(const RayTracer& scene, int spp) {
+  const Camera cam = test::LookAt({1.5, -1.5, 1.5}, {0, 0, 0.1}, 24, 18, 50);
+  TracerOptions o;
+  o.spp = spp;
+  o.bounces = 2;
+  return GatherShadingVertices(scene, {test::BlankView(cam)}, o);
+}
+
+/// The worst difference, over rows, channels and shape coordinates, between the column's
+/// central differences along Moved and ShapeGradient of its Jacobian, and the largest
+/// difference quotient (the scale it is measured against).
+std::pair<double, double> ShapeDerivativeError(const RayTracer& scene, const ShadingVertices& v, const Light& light,
+                                               double h) {
+  std::vector<float> col, jac, plus, minus;
+  UnitColumn(scene, v, light, &col, &jac);
+  double worst = 0, scale = 0;
+  for (int a = 0; a < ShapeDims(light); ++a) {
+    double step[3] = {0, 0, 0};
+    step[a] = h;
+    UnitColumn(scene, v, Moved(light, step), &plus);
+    step[a] = -h;
+    UnitColumn(scene, v, Moved(light, step), &minus);
+    for (std::size_t r = 0; r < v.rows(); ++r)
+      for (int c = 0; c < 3; ++c) {
+        double shape[3];
+        ShapeGradient(light, &jac[9 * r + 3 * c], shape);
+        const double fd = (double(plus[3 * r + c]) - minus[3 * r + c]) / (2 * h);
+        worst = std::max(worst, std::abs(fd - shape[a]));
+        scale = std::max(scale, std::abs(fd));
+      }
+  }
+  return {worst, scale};
+}
+
+TEST(LightKinds, ShapeGradientIsTheColumnsDerivativeAlongMoved) {
+  // The shape's coordinates as the fit steps them: a lamp's position, a sun's tangent plane
+  // (a mirrored or wrongly scaled frame in ShapeGradient or Moved fails here).
+  const RayTracer scene(PlaneAndBall());
+  const ShadingVertices v = Vertices(scene, 2);
+  const auto [lamp_worst, lamp_scale] = ShapeDerivativeError(scene, v, PointLight{{0.4, 0.9, 1.3}, {1, 1, 1}, 0}, 1e-3);
+  EXPECT_GT(lamp_scale, 0);
+  EXPECT_LT(lamp_worst, 2e-3 * lamp_scale) << lamp_worst << " of " << lamp_scale;
+  for (const Eigen::Vector3d d : {Eigen::Vector3d(0.3, 0.4, 1.0), Eigen::Vector3d(0.95, 0.1, 0.3)}) {  // both frames' axes
+    const DirectionalLight sun{d.normalized(), {1, 1, 1}, 0};
+    const auto [worst, scale] = ShapeDerivativeError(scene, v, sun, 1e-4);
+    EXPECT_GT(scale, 0);
+    EXPECT_LT(worst, 2e-2 * scale) << worst << " of " << scale << " at " << d.transpose();
+  }
+}
+
+TEST(LightKinds, CompassMovesStepByTheirUnit) {
+  const Eigen::Vector3d centre(0.1, 0.2, 0.3);
+  const PointLight lamp{{1.1, 0.2, 0.3}, {1, 1, 1}, 0};
+  EXPECT_DOUBLE_EQ(CompassUnit(Light{lamp}, centre), 1.0);
+  ASSERT_EQ(CompassMoves(Light{lamp}), 6);
+  for (int m = 0; m < 6; ++m) {
+    const Eigen::Vector3d moved = std::get<PointLight>(CompassMove(Light{lamp}, m, 0.25)).position;
+    Eigen::Vector3d expect = lamp.position;
+    expect[m / 2] += m % 2 ? -0.25 : 0.25;
+    EXPECT_TRUE(moved.isApprox(expect, 1e-15)) << m;
+  }
+  const DirectionalLight sun{Eigen::Vector3d(0.2, -0.3, 0.9).normalized(), {1, 1, 1}, 0};
+  ASSERT_EQ(CompassMoves(Light{sun}), 4);
+  std::vector<Eigen::Vector3d> dirs;
+  for (int m = 0; m < 4; ++m) {
+    dirs.push_back(std::get<DirectionalLight>(CompassMove(Light{sun}, m, 0.01)).direction);
+    EXPECT_NEAR(dirs.back().norm(), 1, 1e-15);
+    EXPECT_NEAR(std::acos(std::min(1.0, dirs.back().dot(sun.direction))), 0.01, 1e-9) << m;  // the step is the angle
+  }
+  // A move is cos(step) l + sin(step) t: opposite moves are opposite along t, and the two
+  // axes a right angle apart (their differences from l share only the (cos - 1) l part).
+  const double along = std::sin(0.01), back = 1 - std::cos(0.01);
+  EXPECT_NEAR((dirs[0] - sun.direction).dot(dirs[1] - sun.direction), back * back - along * along, 1e-12);
+  EXPECT_NEAR((dirs[0] - sun.direction).dot(dirs[2] - sun.direction), back * back, 1e-12);
+  EXPECT_NEAR((dirs[2] - sun.direction).dot(dirs[3] - sun.direction), back * back - along * along, 1e-12);
+}
+
+TEST(LightKinds, IrradianceIsTheClosedForm) {
+  const RayTracer scene(test::Plane(4, 0.7));
+  const Eigen::Vector3d at(0.2, -0.1, 1e-3), up = Eigen::Vector3d::UnitZ();
+  std::int64_t rays = 0;
+  const PointLight lamp{{0.5, 0.3, 1.2}, {2, 1, 0.5}, 0};
+  const Eigen::Vector3d r = lamp.position - at;
+  const Eigen::Vector3d lamp_expect = lamp.intensity * (r.z() / r.norm()) / r.squaredNorm();
+  EXPECT_TRUE(Irradiance(scene, lamp, at, up, up, 1, &rays).isApprox(lamp_expect, 1e-12));
+  const DirectionalLight sun{Eigen::Vector3d(0.6, 0, 0.8), {3, 2, 1}, 0};
+  EXPECT_TRUE(Irradiance(scene, sun, at, up, up, 1, &rays).isApprox(sun.irradiance * 0.8, 1e-12));
+  EXPECT_EQ(rays, 2);
+  // Both together, as the renders and the lit shading take them; none from below.
+  EXPECT_TRUE(Irradiance(scene, {lamp}, {sun}, at, up, up, 1, &rays).isApprox(lamp_expect + sun.irradiance * 0.8, 1e-12));
+  EXPECT_EQ(Irradiance(scene, {lamp}, {sun}, at, -up, -up, 1, &rays), Eigen::Vector3d::Zero());
+}
+
+TEST(LightFit, ALampAndASunAreRefinedTogether) {
+  // The one Levenberg-Marquardt over a list of two kinds: the image of a lamp and a sun
+  // (their columns), both started off (the lamp 25 cm, the sun 4 degrees, wrong scales),
+  // must both come back.
+  const RayTracer scene(PlaneAndBall());
+  const ShadingVertices v = Vertices(scene, 8);
+  const PointLight lamp{{0.5, 0.4, 1.2}, {3, 2.5, 2}, 0};
+  const DirectionalLight sun{Eigen::Vector3d(-0.3, 0.2, 1).normalized(), {1.5, 1.5, 1.2}, 0};
+  std::vector<float> a, b;
+  UnitColumn(scene, v, Light{lamp}, &a);
+  UnitColumn(scene, v, Light{sun}, &b);
+  std::vector<double> y(a.size()), base(a.size(), 0.0);
+  for (std::size_t i = 0; i < y.size(); ++i) y[i] = lamp.intensity[i % 3] * a[i] + sun.irradiance[i % 3] * b[i];
+  const LightFitProblem fit{&scene, &v, &y, &base, CauchyLoss{0.5}, 0};
+  const Eigen::Vector3d tilted = (sun.direction + 0.07 * Eigen::Vector3d::UnitX()).normalized();
+  std::vector<Light> lights{PointLight{lamp.position + Eigen::Vector3d(0.15, -0.15, 0.15), {1, 1, 1}, 0},
+                            DirectionalLight{tilted, {1, 1, 1}, 0}};
+  const double before = fit.Value(lights);
+  EXPECT_GT(RefineLights(fit, &lights, 60), 0);
+  const PointLight& l = std::get<PointLight>(lights[0]);
+  const DirectionalLight& s = std::get<DirectionalLight>(lights[1]);
+  EXPECT_LT(fit.Value(lights), 1e-3 * before);
+  EXPECT_LT((l.position - lamp.position).norm(), 0.01) << l.position.transpose();
+  EXPECT_LT(std::acos(std::min(1.0, s.direction.dot(sun.direction))) * 180 / kPi, 0.2) << s.direction.transpose();
+  EXPECT_LT((l.intensity - lamp.intensity).norm(), 0.03 * lamp.intensity.norm());
+  EXPECT_LT((s.irradiance - sun.irradiance).norm(), 0.03 * sun.irradiance.norm());
+}
+
+}  // namespace
+}  // namespace lp
