@@ -53,6 +53,10 @@ std::string Fmt(const char* fmt, double a, double b = 0, double c = 0, double d 
   return buf;
 }
 
+/// The rows (every n-th) the lights' shadow-seeing refinements look at: a quarter of a
+/// 160 x 120 view's (what a column costs on all rows: docs/benchmarks.md).
+constexpr std::size_t kShadowRows = 4800;
+
 /// A round's linear problem over the cells some sampled path reached (and the point
 /// lights' columns after them), and the way back from its compact unknowns to the whole map.
 struct RoundProblem {
@@ -182,7 +186,8 @@ class Estimator {
   std::vector<float> SunColumn(const DirectionalLight& light);
   std::vector<float> Cached(const Eigen::Vector3d& where, double radius, bool directional);
   ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params) const;
-  void Score(ConvergenceRow* row, const std::vector<double>& env_lambda, const std::vector<PointLight>& points) const;
+  void Score(ConvergenceRow* row, const std::vector<double>& env_lambda, const std::vector<PointLight>& points,
+             const std::vector<DirectionalLight>& suns) const;
   /// A convergence row of a light's refinement (the objective and the sum of squared
   /// residuals over y_ as given), scored and step left to the caller.
   ConvergenceRow LightRow(const RoundInfo& info, double sigma, double objective, double sse) const {
@@ -211,8 +216,47 @@ class Estimator {
     for (DirectionalLight& l : lights) l.irradiance *= res_.image_mean;
     return lights;
   }
-  // The directional light (docs/method.md, "Directional lights").
+  // The directional light (docs/method.md, "Directional lights"): proposed, shaped,
+  // settled beside the map, selected.
+  struct DirectionalProposal {
+    DirectionalLight light;
+    std::vector<int> cells;  ///< the map's cells it takes the place of
+    double map_share = 0;    ///< their share of the map's power
+    std::vector<double> without;  ///< the map without them
+  };
+  /// The light's fit on kShadowRows of the rows, the rest of the image (`base`) held; every
+  /// accepted step is a convergence row ("sun", scored with the map `without` its cells).
+  struct SunFit {
+    SunFit(Estimator& e, RoundInfo* info)
+        : fit(e.FitProblem(&base)),
+          log([&e, info, this](int, double E, double sse, const std::vector<Light>& now) {
+            // (the map's penalty left out: held fixed here; E and the squared residuals
+            // times the stride estimate the whole problem's)
+            ConvergenceRow row = e.LightRow(*info, fit.loss.sigma, E * share->stride, sse * share->stride);
+            row.step = "sun";
+            e.Score(&row, *without, e.points_, OfKind<DirectionalLight>(now));
+            e.Push(row);
+          }) {}
+    SunFit(const SunFit&) = delete;
+    SunFit& operator=(const SunFit&) = delete;
+    /// Holds `rest` (3 per row) fixed, logging rows against the map `map_without`.
+    void Hold(std::vector<double> rest, const std::vector<double>& map_without) {
+      base = std::move(rest);
+      without = &map_without;
+      share = std::make_unique<LightFitSubset>(fit, kShadowRows);
+    }
+    int Search(DirectionalLight* sun, double start_deg) const;
+    std::vector<double> base;
+    const std::vector<double>* without = nullptr;
+    LightFitProblem fit;
+    std::unique_ptr<LightFitSubset> share;
+    LightFitLog log;
+  };
   bool FitDirectionalLight(RoundInfo* info);
+  bool ProposeDirectionalLight(DirectionalProposal* out);
+  bool ShapeDirectionalLight(DirectionalProposal* proposal, SunFit* fit);
+  void SettleDirectionalLight(DirectionalProposal* proposal, SunFit* fit, RoundInfo* info);
+  bool SelectDirectionalLight(const DirectionalProposal& proposal, double without_loss);
   std::vector<double> LightsRender(const std::vector<PointLight>& points, const std::vector<DirectionalLight>& suns);
   /// The lights' robust objective on vertices_, `base` the rest of the image held.
   LightFitProblem FitProblem(const std::vector<double>* base) const {
@@ -355,9 +399,6 @@ void Estimator::Observe() {
   UseViews(1);
 }
 
-/// The rows (every n-th) the lights' shadow-seeing refinements look at: each column on all
-/// of a 160 x 120 view's 19,200 rows costs ~0.25 s with a lamp's 4 shadow rays a vertex.
-constexpr std::size_t kShadowRows = 4800;
 
 /// Whether pixel `p` of an image `width` wide is on the grid of every `stride`-th pixel of
 /// every `stride`-th row.
@@ -679,10 +720,10 @@ ObjectiveParams Estimator::CellWeights(const LinearProblem& problem, ObjectivePa
 
 /// A convergence row's scores against truth.json (and how many point lights it has).
 void Estimator::Score(ConvergenceRow* row, const std::vector<double>& env_lambda,
-                      const std::vector<PointLight>& points) const {
+                      const std::vector<PointLight>& points, const std::vector<DirectionalLight>& suns) const {
   row->point_lights = static_cast<int>(points.size());
   if (truth_.empty()) return;
-  row->angular_error_deg = DominantAngularErrorDeg(env_, env_lambda, points, centre_, truth_, suns_);
+  row->angular_error_deg = DominantAngularErrorDeg(env_, env_lambda, points, centre_, truth_, suns);
   row->position_error_m = WorstPositionError(points, truth_, centre_, opt_.point_lights.far * radius_);
 }
 
@@ -711,7 +752,7 @@ SolveResult Estimator::Solve(const RoundProblem& rp, int round, RoundInfo* info,
     row.relative_rmse = it.Rmse();
     row.photometric_rmse = row.relative_rmse * res_.image_mean;
     const std::vector<double> full = rp.Scatter(*it.lambda, cells_);
-    Score(&row, full, rp.Lights(full, cells_));  // (the map's part is the first 3 * cells_)
+    Score(&row, full, rp.Lights(full, cells_), suns_);  // (the map's part is the first 3 * cells_)
     res_.convergence.push_back(row);
     if (opt_.on_convergence) opt_.on_convergence(row);
     if (opt_.solver_options.on_iteration) opt_.solver_options.on_iteration(it);
@@ -962,7 +1003,7 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
     return [&, stride](int, double E, double sse, const std::vector<Light>& now) {
       ConvergenceRow row = LightRow(*info, fit.loss.sigma, E * stride + map_penalty, sse * stride);
       row.step = step;
-      Score(&row, lambda_, OfKind<PointLight>(now));
+      Score(&row, lambda_, OfKind<PointLight>(now), suns_);
       Push(row);
     };
   };
@@ -1095,14 +1136,32 @@ std::pair<std::vector<int>, double> Estimator::BrightestNeighbourhood() const {
 }
 
 /// A directional light where the map concentrates its power (docs/method.md, "Directional
-/// lights"): the brightest cell's neighbourhood (cells within 2.5 ring spacings) holding
-/// most of the map's power is taken out of the map as one light from its power-weighted
-/// direction with its irradiance, refined continuously (direction on the sphere and
-/// irradiance, the rest held), and kept only if the held-out pixels want it, as a lamp
-/// is; then the map, the lamps and it are solved together. True when one was added.
+/// lights"): proposed from the brightest cell's neighbourhood, its shape fitted with the rest
+/// held, settled against the map solved beside it, and kept only if the held-out pixels
+/// want it, as a lamp is. True when one was added.
 bool Estimator::FitDirectionalLight(RoundInfo* info) {
   CheckCancel();
   if (vertices_.size() == 0) return false;  // no near-light model: no vertices to light
+  DirectionalProposal proposal;
+  if (!ProposeDirectionalLight(&proposal)) return false;
+  SunFit fit(*this, info);
+  if (!ShapeDirectionalLight(&proposal, &fit)) return false;
+  const std::vector<double> map = lambda_;
+  const std::vector<PointLight> lamps = points_;
+  const double without_loss = HoldoutLoss(points_);
+  SettleDirectionalLight(&proposal, &fit, info);
+  if (SelectDirectionalLight(proposal, without_loss)) return true;
+  lambda_ = map;
+  points_ = lamps;
+  suns_.clear();
+  return false;
+}
+
+/// The brightest cell's neighbourhood (cells within 2.5 ring spacings) holding at least
+/// directional_min_share of the map's power and rendering at least min_share of the light
+/// seen, as one light from its direction (the map's spread's centre) with its irradiance;
+/// false when there is none.
+bool Estimator::ProposeDirectionalLight(DirectionalProposal* out) {
   const auto [cells, map_share] = BrightestNeighbourhood();
   if (cells.empty() || map_share < opt_.directional_min_share) return false;
   DirectionalLight sun;
@@ -1129,116 +1188,101 @@ bool Estimator::FitDirectionalLight(RoundInfo* info) {
     for (std::size_t e = 0; e < render.size(); ++e) rendered += render[e], seen += y_[e];
     if (!(rendered >= opt_.point_lights.min_share * seen)) return false;
   }
-  // First against the map without the cells within kSunClear of the light (and the
-  // lamps): the cells next to the light's own still hold much of the light the map spread
-  // (those within 2.5 spacings hold 30-40 % of a sun's), and held fixed that smear pulls the
-  // direction towards itself (13 degrees on sun-and-sky); a map left dark instead makes the
-  // light explain every other light too (14 degrees on two-light).
+  *out = {sun, cells, map_share, std::move(without)};
+  return true;
+}
+
+/// The search across the sphere (steps of `start_deg` down to the light's finest step), the
+/// light's irradiance refitted where it stands even if it does not move. Returns the moves.
+int Estimator::SunFit::Search(DirectionalLight* sun, double start_deg) const {
+  // The finest step (degrees): 0.05 for a sharp light; a quarter of a soft one's angular
+  // radius, whose penumbrae are that much wider (and each of whose columns casts
+  // kSphereShadowRays rays).
+  const double finest = std::max(0.05, sun->angular_radius * 180 / kPi / 4);
+  CompassOptions compass;
+  compass.start = start_deg * (kPi / 180);
+  compass.stop = finest * (kPi / 180);
+  compass.refit_unmoved = true;
+  std::vector<Light> moving{*sun};
+  const int moves = SearchLights(share->problem, &moving, Eigen::Vector3d::Zero(), compass, log);
+  *sun = std::get<DirectionalLight>(moving[0]);
+  return moves;
+}
+
+/// The light's direction, irradiance and angular radius, the lamps and the map held without
+/// the cells within kSunClear of it, on kShadowRows of the rows (the model selection looks at
+/// every row): Levenberg-Marquardt, the angular radius (before the search too, or a wide
+/// light's direction is sought by shadow edges it does not have), the compass search, the
+/// angular radius again. False when the light is at least as wide as the widest radius
+/// tried: the map's (the cells render a light that wide as well as a disc does, and its
+/// direction is poorly held by its soft shadows).
+bool Estimator::ShapeDirectionalLight(DirectionalProposal* proposal, SunFit* fit) {
+  DirectionalLight& sun = proposal->light;
+  // The cells next to the light's own still hold much of the light the map spread, and
+  // held fixed that smear pulls the direction towards itself; a map left dark instead
+  // makes the light explain every other light too (docs/method.md).
   constexpr double kSunClear = 35;  // degrees
   std::vector<double> cleared = lambda_;
   for (int j = 0; j < cells_; ++j)
     if (env_.direction(j).dot(sun.direction) > std::cos(kSunClear * kPi / 180))
       std::fill(&cleared[3 * j], &cleared[3 * j] + 3, 0.0);
-  std::vector<double> base = Plus(A_.Multiply(cleared), LightsRender(points_, {}));
-  const LightFitProblem fit = FitProblem(&base);
-  // On kShadowRows of the rows, as the lamps' refinement from round 2 on: a column on all
-  // rows, with its angular radius' shadow rays, cost the sun's fit ~3.6 s of sun-and-sky's
-  // 7.3 (docs/benchmarks.md, session 22). The model selection below looks at every row.
-  auto share = std::make_unique<LightFitSubset>(fit, kShadowRows);
-  const auto log = [&](int, double E, double sse, const std::vector<Light>& now) {
-    // (the map's penalty left out: held fixed here; E and the squared residuals times the
-    // stride estimate the whole problem's)
-    ConvergenceRow row = LightRow(*info, fit.loss.sigma, E * share->stride, sse * share->stride);
-    row.step = "sun";
-    const std::vector<DirectionalLight> kept = suns_;
-    suns_ = OfKind<DirectionalLight>(now);
-    Score(&row, without, points_);
-    suns_ = kept;
-    Push(row);
-  };
-  // The search's finest step (degrees): 0.05 for a sharp light; a quarter of a soft one's
-  // angular radius, whose penumbrae are that much wider (and each of whose columns casts
-  // kSphereShadowRays rays: on env-studio's 4-degree light the steps down to 0.05 cost 1 s).
-  const auto Finest = [](const DirectionalLight& l) { return std::max(0.05, l.angular_radius * 180 / kPi / 4); };
-  // The angular radius (soft shadows: a wide far light) before the search too, or a wide
-  // light's direction is sought by shadow edges it does not have.
-  // The search: steps of start degrees across the sphere, down to Finest(sun); the light's
-  // irradiance refitted where it stands even if it does not move.
-  const auto search = [&](double start) {
-    CompassOptions compass;
-    compass.start = start * (kPi / 180);
-    compass.stop = Finest(sun) * (kPi / 180);
-    compass.refit_unmoved = true;
-    std::vector<Light> moving{sun};
-    const int moves = SearchLights(share->problem, &moving, centre_, compass, log);
-    sun = std::get<DirectionalLight>(moving[0]);
-    return moves;
-  };
+  fit->Hold(Plus(A_.Multiply(cleared), LightsRender(points_, {})), proposal->without);
   {
     std::vector<Light> moving{sun};
-    RefineLights(share->problem, &moving, 12, log);
+    RefineLights(fit->share->problem, &moving, 12, fit->log);
     sun = std::get<DirectionalLight>(moving[0]);
   }
   const auto wide = [&] { return sun.angular_radius >= kMaxAngularRadiusDeg * kPi / 180 * 0.999; };
-  if (FitAngularRadius(share->problem, &sun), !wide()) {  // (a wide light is left at once: see below)
-    search(2);
-    FitAngularRadius(share->problem, &sun);
+  if (FitAngularRadius(fit->share->problem, &sun), !wide()) {  // (a wide light is left at once)
+    fit->Search(&sun, 2);
+    FitAngularRadius(fit->share->problem, &sun);
   }
-  // A light at least as wide as the widest radius tried is the map's: the cells render a
-  // light that wide as well as a disc does, and its direction is poorly held by its soft
-  // shadows (one-light's and two-light's 5.7-degree lights come back 2-7 degrees off this
-  // way, against 0.8-5 in the map; the albedo refinement de-lit worse under them).
-  if (wide()) {
-    char line[300];
-    std::snprintf(line, sizeof line,
-                  "directional light from (%.4f, %.4f, %.4f): at least %.3g deg wide: a wide far light, left to "
-                  "the map",
-                  sun.direction.x(), sun.direction.y(), sun.direction.z(), kMaxAngularRadiusDeg);
-    res_.point_light_choices.push_back(line);
-    Progress(line);
-    return false;
-  }
-  // The light in place of its cells, the map and the lamps solved with it; then the
-  // direction searched against that map and the map solved again, while the light moves:
-  // each solve gives the light more of the light the map still held near its direction,
-  // and held fixed that light pulls the direction towards itself. On Cycles' sun (8
-  // bounces) the passes took it 2.7 -> 1.6 -> 0.54 -> 0.29 degrees off; one pass left it at
-  // 2.7 (docs/benchmarks.md, session 21). They come before the model selection: from round
-  // 2 on (after round 1's grid) the map fits the held-out pixels better than round 1's did,
-  // and Cycles' sun 1.9 degrees off lost to it (docs/benchmarks.md, session 22).
-  const std::vector<double> map = lambda_;
-  const std::vector<PointLight> lamps = points_;
-  const double without_loss = HoldoutLoss(points_);
-  lambda_ = without;
+  if (!wide()) return true;
+  char line[300];
+  std::snprintf(line, sizeof line,
+                "directional light from (%.4f, %.4f, %.4f): at least %.3g deg wide: a wide far light, left to "
+                "the map",
+                sun.direction.x(), sun.direction.y(), sun.direction.z(), kMaxAngularRadiusDeg);
+  res_.point_light_choices.push_back(line);
+  Progress(line);
+  return false;
+}
+
+/// The light in place of its cells, the map and the lamps solved with it; then the
+/// direction searched against that map and the map solved again, while the light moves:
+/// each solve gives the light more of the light the map still held near its direction, and
+/// held fixed that light pulls the direction towards itself (docs/method.md). Before the
+/// model selection: from round 2 on the map fits the held-out pixels better than round 1's.
+void Estimator::SettleDirectionalLight(DirectionalProposal* proposal, SunFit* fit, RoundInfo* info) {
+  DirectionalLight& sun = proposal->light;
+  lambda_ = proposal->without;
   suns_ = {sun};
   SolveWithLights(&points_, info, false);
   constexpr int kSunPasses = 6;
   for (int pass = 0; pass < kSunPasses && !suns_.empty(); ++pass) {
     sun = suns_[0];
-    base = Plus(A_.Multiply(lambda_), LightsRender(points_, {}));
-    share = std::make_unique<LightFitSubset>(fit, kShadowRows);
-    if (search(1) == 0) break;
+    fit->Hold(Plus(A_.Multiply(lambda_), LightsRender(points_, {})), proposal->without);
+    if (fit->Search(&sun, 1) == 0) break;
     suns_ = {sun};
     SolveWithLights(&points_, info, false);
   }
-  // Model selection: the held-out loss of the map solved with the light, against the map
-  // as it was.
   if (!suns_.empty()) sun = suns_[0];
+}
+
+/// Model selection: the held-out loss of the map solved with the light against the map as
+/// it was (`without_loss`), one line of why.
+bool Estimator::SelectDirectionalLight(const DirectionalProposal& proposal, double without_loss) {
+  const DirectionalLight& sun = proposal.light;
   const double with_loss = suns_.empty() ? without_loss : HoldoutLoss(points_, &sun, true);
   const bool keep = with_loss < (1 - opt_.point_lights.min_gain) * without_loss;
   char line[400];
   std::snprintf(line, sizeof line,
                 "directional light from (%.4f, %.4f, %.4f), angular radius %.3g deg, in place of %zu cells holding "
                 "%.3g of the map's power: held-out loss %.6g with it, %.6g with the cells: %s",
-                sun.direction.x(), sun.direction.y(), sun.direction.z(), sun.angular_radius * 180 / kPi, cells.size(),
-                map_share, with_loss, without_loss, keep ? "kept" : "dropped");
+                sun.direction.x(), sun.direction.y(), sun.direction.z(), sun.angular_radius * 180 / kPi,
+                proposal.cells.size(), proposal.map_share, with_loss, without_loss, keep ? "kept" : "dropped");
   res_.point_light_choices.push_back(line);
   Progress(line);
-  if (!keep) {
-    lambda_ = map;
-    points_ = lamps;
-    suns_.clear();
-  }
   return keep;
 }
 
