@@ -57,44 +57,42 @@ std::string Fmt(const char* fmt, double a, double b = 0, double c = 0, double d 
 /// 160 x 120 view's (what a column costs on all rows: docs/benchmarks.md).
 constexpr std::size_t kShadowRows = 4800;
 
-/// A round's linear problem over the cells some sampled path reached (and the point
-/// lights' columns after them), and the way back from its compact unknowns to the whole map.
+/// A round's linear problem over the cells some sampled path reached and the lights'
+/// columns after them (each light's Scale its 3 unknowns), and the way back from its
+/// compact unknowns to the whole map and the lights.
 struct RoundProblem {
   std::shared_ptr<const LinearProblem> problem;
   std::vector<double> init;  ///< the estimate so far, compact (3 per unknown cell)
-  /// The point-light columns' positions (the lights so far, or candidates).
-  std::vector<Eigen::Vector3d> positions;
-  std::vector<double> radii;  ///< theirs (0: a point), one per position
-  /// The directional lights' columns' directions (and angular radii), after the point lights'.
-  std::vector<Eigen::Vector3d> directions;
-  std::vector<double> angular_radii;
+  /// The lights whose columns follow the map's (their shapes; the lamps so far or the
+  /// candidates, then the directional lights).
+  std::vector<Light> lights;
 
-  /// The unknowns over every column (3 per column): the map's cells, then `positions`,
-  /// then `directions`.
+  /// The unknowns over every column (3 per column): the map's cells, then `lights`.
   std::vector<double> Scatter(const std::vector<double>& compact, int cells) const {
-    std::vector<double> full(3 * (cells + positions.size() + directions.size()), 0.0);
+    std::vector<double> full(3 * (cells + lights.size()), 0.0);
     for (int k = 0; k < problem->unknown_cells; ++k)
       for (int c = 0; c < 3; ++c) full[3 * problem->cell_of[k] + c] = compact[3 * k + c];
     return full;
   }
-  /// The point lights of a full vector (those with any intensity).
-  std::vector<PointLight> Lights(const std::vector<double>& full, int cells) const {
-    std::vector<PointLight> out;
-    for (std::size_t i = 0; i < positions.size(); ++i) {
+  /// The lights of kind T of a full vector (those with any scale), their scales from it.
+  template <class T>
+  std::vector<T> Lit(const std::vector<double>& full, int cells) const {
+    std::vector<T> out;
+    for (std::size_t i = 0; i < lights.size(); ++i) {
       const double* v = &full[3 * (cells + i)];
-      if (v[0] > 0 || v[1] > 0 || v[2] > 0)
-        out.push_back({positions[i], Eigen::Vector3d(v[0], v[1], v[2]), i < radii.size() ? radii[i] : 0.0});
+      const T* light = std::get_if<T>(&lights[i]);
+      if (!light || !(v[0] > 0 || v[1] > 0 || v[2] > 0)) continue;
+      out.push_back(*light);
+      Scale(out.back()) = Eigen::Vector3d(v[0], v[1], v[2]);
     }
     return out;
   }
-  /// The directional lights of a full vector (those with any irradiance).
-  std::vector<DirectionalLight> Suns(const std::vector<double>& full, int cells) const {
-    std::vector<DirectionalLight> out;
-    for (std::size_t i = 0; i < directions.size(); ++i) {
-      const double* v = &full[3 * (cells + positions.size() + i)];
-      if (v[0] > 0 || v[1] > 0 || v[2] > 0) out.push_back({directions[i], Eigen::Vector3d(v[0], v[1], v[2]), angular_radii[i]});
-    }
-    return out;
+  /// Whether a light of kind T has a column.
+  template <class T>
+  bool Has() const {
+    for (const Light& l : lights)
+      if (std::holds_alternative<T>(l)) return true;
+    return false;
   }
 };
 
@@ -182,9 +180,7 @@ class Estimator {
                                      std::uint64_t seed);
   std::vector<int> SkyCells() const;
   double RenderedShare(const PointLight& light);
-  std::vector<float> Column(const Eigen::Vector3d& position, double radius);
-  std::vector<float> SunColumn(const DirectionalLight& light);
-  std::vector<float> Cached(const Eigen::Vector3d& where, double radius, bool directional);
+  std::vector<float> Column(const Light& light);
   ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params) const;
   void Score(ConvergenceRow* row, const std::vector<double>& env_lambda, const std::vector<PointLight>& points,
              const std::vector<DirectionalLight>& suns) const;
@@ -305,9 +301,7 @@ class Estimator {
   ShadingVertices vertices_;        ///< the rounds', for the lights' columns and positions
   /// The last few columns on vertices_ (Column), cleared when vertices_ change.
   struct CachedColumn {
-    Eigen::Vector3d position;  ///< a directional light's: its direction
-    double radius;             ///< a directional light's: its angular radius
-    bool directional;
+    Light light;  ///< its shape (its scale aside)
     std::vector<float> column;
   };
   std::vector<CachedColumn> columns_;
@@ -579,28 +573,17 @@ void Estimator::GatherVertices(int round, int first) {
 /// map's (the map's problem itself when there are none), warm-started from the estimate so far.
 RoundProblem Estimator::WithLights(const std::vector<PointLight>& lights) {
   RoundProblem rp;
+  rp.lights = AsLights(lights);
+  for (const DirectionalLight& d : suns_) rp.lights.push_back(d);
   std::vector<std::vector<float>> columns;
-  for (const PointLight& l : lights) {
-    rp.positions.push_back(l.position);
-    rp.radii.push_back(l.radius);
-    columns.push_back(Column(l.position, l.radius));
-  }
-  for (const DirectionalLight& d : suns_) {
-    rp.directions.push_back(d.direction);
-    rp.angular_radii.push_back(d.angular_radius);
-    columns.push_back(SunColumn(d));
-  }
+  for (const Light& l : rp.lights) columns.push_back(Column(l));
   rp.problem = columns.empty() ? map_problem_
                                : std::make_shared<LinearProblem>(WithColumns(*map_problem_, cells_, columns));
   const LinearProblem& problem = *rp.problem;
   rp.init.resize(3 * problem.unknown_cells);
   for (int k = 0; k < problem.unknown_cells; ++k) {
     const int j = problem.cell_of[k];
-    const std::size_t i = j - cells_;
-    for (int c = 0; c < 3; ++c)
-      rp.init[3 * k + c] = j < cells_ ? lambda_[3 * j + c]
-                           : i < lights.size() ? lights[i].intensity[c]
-                                               : suns_[i - lights.size()].irradiance[c];
+    for (int c = 0; c < 3; ++c) rp.init[3 * k + c] = j < cells_ ? lambda_[3 * j + c] : Scale(rp.lights[j - cells_])[c];
   }
   return rp;
 }
@@ -672,7 +655,7 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
     std::vector<double> r = y_;
     std::vector<float> col;
     for (const PointLight& l : trial) {
-      col = Column(l.position, l.radius);
+      col = Column(l);
       for (std::size_t e = 0; e < r.size(); ++e) r[e] -= l.intensity[e % 3] * col[e];
     }
     const double trial_loss = loss(r);
@@ -752,7 +735,7 @@ SolveResult Estimator::Solve(const RoundProblem& rp, int round, RoundInfo* info,
     row.relative_rmse = it.Rmse();
     row.photometric_rmse = row.relative_rmse * res_.image_mean;
     const std::vector<double> full = rp.Scatter(*it.lambda, cells_);
-    Score(&row, full, rp.Lights(full, cells_), suns_);  // (the map's part is the first 3 * cells_)
+    Score(&row, full, rp.Lit<PointLight>(full, cells_), suns_);  // (the map's part is the first 3 * cells_)
     res_.convergence.push_back(row);
     if (opt_.on_convergence) opt_.on_convergence(row);
     if (opt_.solver_options.on_iteration) opt_.solver_options.on_iteration(it);
@@ -808,7 +791,7 @@ void Estimator::Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo*
   res_.rendered_fraction = a_new.empty() ? 0.0 : rendered / a_new.size();
 
   lambda_.swap(next);
-  if (!rp.directions.empty()) suns_ = rp.Suns(full, cells_);
+  if (rp.Has<DirectionalLight>()) suns_ = rp.Lit<DirectionalLight>(full, cells_);
   if (NearLights() && (info->round == 1 || !points_.empty())) info->lights_moved = FitPointLights(rp, full, info);
   if (SunRound(info->round) && FitDirectionalLight(info)) info->lights_moved = true;
   map_share_ = MapShare();
@@ -833,7 +816,7 @@ void Estimator::Update(const RoundProblem& rp, const SolveResult& sr, RoundInfo*
 bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info) {
   const bool candidates = info->round == 1;
   const std::vector<double> map = lambda_;
-  std::vector<PointLight> kept = candidates ? Candidates(info) : rp.Lights(full, cells_);
+  std::vector<PointLight> kept = candidates ? Candidates(info) : rp.Lit<PointLight>(full, cells_);
   if (candidates && kept.empty()) lambda_ = map;  // no lamp: the round's map stands
   // Block coordinate descent: the positions (the map held), then the intensities and the
   // map together on the moved lights' columns, until the lights stay.
@@ -906,7 +889,7 @@ bool Estimator::FitRadii(std::vector<PointLight>* lights) {
     std::vector<float> col;
     for (std::size_t j = 0; j < lights->size(); ++j) {
       if (j == k) continue;
-      col = Column((*lights)[j].position, (*lights)[j].radius);
+      col = Column((*lights)[j]);
       for (std::size_t i = 0; i < base.size(); ++i) base[i] += (*lights)[j].intensity[i % 3] * col[i];
     }
     PointLight& light = (*lights)[k];
@@ -914,7 +897,9 @@ bool Estimator::FitRadii(std::vector<PointLight>* lights) {
     Eigen::Vector3d best_intensity = light.intensity;
     for (int g = 0; g < 6; ++g) {
       const double radius = g == 0 ? 0.0 : 0.004 * radius_ * std::pow(2.0, g);
-      col = Column(light.position, radius);
+      PointLight sized = light;
+      sized.radius = radius;
+      col = Column(sized);
       Eigen::Vector3d intensity = light.intensity;
       std::vector<double> r(base.size()), left(base.size()), w(base.size());
       for (std::size_t i = 0; i < r.size(); ++i) left[i] = y_[i] - base[i];
@@ -975,8 +960,8 @@ void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info
   const RoundProblem rp = WithLights(*lights);  // the directional lights held in the solve with the rest
   const SolveResult sr = Solve(rp, info->round, info, graduated);
   std::vector<double> full = rp.Scatter(sr.lambda, cells_);
-  *lights = rp.Lights(full, cells_);
-  suns_ = rp.Suns(full, cells_);
+  *lights = rp.Lit<PointLight>(full, cells_);
+  suns_ = rp.Lit<DirectionalLight>(full, cells_);
   full.resize(3 * cells_);
   for (int j = 0; j < cells_; ++j)  // cells this problem did not reach keep their value
     if (reachable_[j]) std::copy(&full[3 * j], &full[3 * j] + 3, &lambda_[3 * j]);
@@ -1024,7 +1009,7 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
   // only if the whole objective, over all rows, falls too.
   const auto value = [&](const std::vector<PointLight>& now, double* sse = nullptr) {
     std::vector<std::vector<float>> columns;  // from the cache: the round's solve made the start's
-    for (const PointLight& l : now) columns.push_back(Column(l.position, l.radius));
+    for (const PointLight& l : now) columns.push_back(Column(l));
     return fit.Value(AsLights(now), columns, sse);
   };
   const std::vector<PointLight> start = *lights;
@@ -1074,7 +1059,7 @@ void Estimator::SelectModel(std::vector<PointLight>* lights) {
     DirectionalLight far;
     far.direction = to.normalized();
     {
-      const std::vector<float> point = Column(q, 0), directional = SunColumn(far);
+      const std::vector<float> point = Column(PointLight{q, {}, 0}), directional = Column(far);
       Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
       for (std::size_t e = 0; e < point.size(); ++e) {
         num[e % 3] += double(directional[e]) * point[e] * (*lights)[k].intensity[e % 3];
@@ -1107,11 +1092,11 @@ std::vector<double> Estimator::LightsRender(const std::vector<PointLight>& point
   std::vector<double> out(y_.size(), 0.0);
   std::vector<float> col;
   for (const PointLight& l : points) {
-    col = Column(l.position, l.radius);
+    col = Column(l);
     for (std::size_t e = 0; e < out.size(); ++e) out[e] += l.intensity[e % 3] * col[e];
   }
   for (const DirectionalLight& d : suns) {
-    col = SunColumn(d);
+    col = Column(d);
     for (std::size_t e = 0; e < out.size(); ++e) out[e] += d.irradiance[e % 3] * col[e];
   }
   return out;
@@ -1294,34 +1279,21 @@ std::vector<int> Estimator::SkyCells() const {
   return out;
 }
 
-/// A point light's unit column on vertices_ (PointLightColumn), from the cache when the
-/// same position and radius were asked for since vertices_ last changed: the selection,
-/// the solves and the shares ask for the same lights' columns many times.
-std::vector<float> Estimator::Column(const Eigen::Vector3d& position, double radius) {
-  return Cached(position, radius, false);
-}
-
-/// The same for a directional light's unit column (DirectionalLightColumn).
-std::vector<float> Estimator::SunColumn(const DirectionalLight& light) {
-  return Cached(light.direction, light.angular_radius, true);
-}
-
-std::vector<float> Estimator::Cached(const Eigen::Vector3d& where, double radius, bool directional) {
+/// A light's unit column on vertices_ (UnitColumn), from the cache when the round's
+/// vertices already gave it one for that shape (the last 8 shapes are kept).
+std::vector<float> Estimator::Column(const Light& light) {
   for (const CachedColumn& c : columns_)
-    if (c.position == where && c.radius == radius && c.directional == directional) return c.column;
+    if (SameShape(c.light, light)) return c.column;
   constexpr std::size_t kKept = 8;
   if (columns_.size() == kKept) columns_.erase(columns_.begin());
-  columns_.push_back({where, radius, directional, {}});
-  if (directional)
-    DirectionalLightColumn(*scene_, vertices_, where, &columns_.back().column, nullptr, radius);
-  else
-    PointLightColumn(*scene_, vertices_, where, &columns_.back().column, nullptr, radius);
+  columns_.push_back({light, {}});
+  UnitColumn(*scene_, vertices_, light, &columns_.back().column);
   return columns_.back().column;
 }
 
 /// The share of the observed light a point light renders.
 double Estimator::RenderedShare(const PointLight& light) {
-  const std::vector<float> col = Column(light.position, light.radius);
+  const std::vector<float> col = Column(light);
   double rendered = 0, seen = 0;
   for (std::size_t e = 0; e < col.size(); ++e) {
     rendered += light.intensity[e % 3] * col[e];
@@ -1381,7 +1353,7 @@ void Estimator::FitSky() {
   const std::vector<int> cells = SkyCells();
   if (cells.empty()) return;
   DirectionalLight& sun = suns_[0];
-  const std::vector<float> x = SunColumn(sun);
+  const std::vector<float> x = Column(sun);
   const std::vector<float> z = TracedSunColumn(sun, nullptr, 2 * opt_.point_lights.spp, 950);
   std::vector<double> unit(3 * cells_, 0.0);
   for (int j : cells) std::fill(&unit[3 * j], &unit[3 * j] + 3, 1.0);
@@ -1420,10 +1392,10 @@ void Estimator::FitSky() {
 /// fitted on the other rows.
 double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalLight* directional,
                               bool traced) {
-  std::vector<std::vector<float>> columns(lights.size());
-  for (std::size_t k = 0; k < lights.size(); ++k)
-    columns[k] = Column(lights[k].position, lights[k].radius);
-  if (directional) columns.push_back(SunColumn(*directional));
+  std::vector<Light> all = AsLights(lights);
+  if (directional) all.push_back(*directional);
+  std::vector<std::vector<float>> columns;
+  for (const Light& l : all) columns.push_back(Column(l));
   std::vector<double> y_fit, y_held;
   for (std::size_t r = 0; r < holdout_.size(); ++r)
     for (int c = 0; c < 3; ++c) (holdout_[r] ? y_held : y_fit).push_back(y_[3 * r + c]);
@@ -1446,10 +1418,7 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
   std::vector<double> init(3 * problem.unknown_cells);
   for (int k = 0; k < problem.unknown_cells; ++k) {
     const int j = problem.cell_of[k];
-    for (int c = 0; c < 3; ++c)
-      init[3 * k + c] = j < cells_                                            ? lambda_[3 * j + c]
-                        : j - cells_ < static_cast<int>(lights.size()) ? lights[j - cells_].intensity[c]
-                                                                        : directional->irradiance[c];
+    for (int c = 0; c < 3; ++c) init[3 * k + c] = j < cells_ ? lambda_[3 * j + c] : Scale(all[j - cells_])[c];
   }
   SolverOptions so;
   so.max_iterations = 50;

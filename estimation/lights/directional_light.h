@@ -50,6 +50,11 @@ Eigen::Vector3d Irradiance(const RayTracer& scene, const DirectionalLight& light
                            const Eigen::Vector3d& n, const Eigen::Vector3d& g, std::uint64_t key,
                            std::int64_t* rays);
 
+/// Whether two directional lights have one shape (their columns are the same).
+inline bool SameShape(const DirectionalLight& a, const DirectionalLight& b) {
+  return a.direction == b.direction && a.angular_radius == b.angular_radius;
+}
+
 /// Its RGB scale, the unknown of the linear problem: the irradiance.
 inline Eigen::Vector3d& Scale(DirectionalLight& l) { return l.irradiance; }
 inline const Eigen::Vector3d& Scale(const DirectionalLight& l) { return l.irradiance; }

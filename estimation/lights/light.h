@@ -2,10 +2,11 @@
 /// Every kind of light beside the environment map, behind one interface (in the manner of
 /// pbrt-v4's Light): a closed set of kinds, each in its own file under estimation/lights/
 /// with what only it knows, and these functions that any code handling "a light" calls.
-/// A new kind: its file (its struct, UnitColumn, Irradiance, Scale, ShapeDims /
+/// A new kind: its file (its struct, UnitColumn, Irradiance, SameShape, Scale, ShapeDims /
 /// ShapeGradient / Moved, CompassMoves / CompassUnit / CompassMove), its test, and its
 /// entry in `Light` below (docs/architecture.md, "Light kinds").
 #include <cstdint>
+#include <type_traits>
 #include <variant>
 #include <vector>
 
@@ -24,6 +25,11 @@ using Light = std::variant<PointLight, DirectionalLight>;
 inline void UnitColumn(const RayTracer& scene, const ShadingVertices& vertices, const Light& light,
                        std::vector<float>* out, std::vector<float>* jacobian = nullptr) {
   std::visit([&](const auto& l) { UnitColumn(scene, vertices, l, out, jacobian); }, light);
+}
+/// Whether two lights are of one kind and one shape (the same column), their scales aside.
+inline bool SameShape(const Light& a, const Light& b) {
+  return a.index() == b.index() &&
+         std::visit([&](const auto& l) { return SameShape(l, std::get<std::decay_t<decltype(l)>>(b)); }, a);
 }
 inline Eigen::Vector3d& Scale(Light& light) {
   return std::visit([](auto& l) -> Eigen::Vector3d& { return Scale(l); }, light);

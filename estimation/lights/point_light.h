@@ -51,6 +51,11 @@ Eigen::Vector3d Irradiance(const RayTracer& scene, const PointLight& light, cons
                            const Eigen::Vector3d& n, const Eigen::Vector3d& g, std::uint64_t key,
                            std::int64_t* rays);
 
+/// Whether two lamps have one shape (their columns are the same), whatever their intensities.
+inline bool SameShape(const PointLight& a, const PointLight& b) {
+  return a.position == b.position && a.radius == b.radius;
+}
+
 /// Its RGB scale, the unknown of the linear problem: the intensity.
 inline Eigen::Vector3d& Scale(PointLight& l) { return l.intensity; }
 inline const Eigen::Vector3d& Scale(const PointLight& l) { return l.intensity; }
