@@ -1,0 +1,117 @@
+#include "estimation/estimator_impl.h"
+
+namespace lp::detail {
+
+// Albedo refinement: the reconstruction's albedo is the colour seen, flattened per
+// segment of one chromaticity, so each segment's mean still holds its mean shading (and
+// two surfaces of one chromaticity share one albedo). Divided by the estimate's
+// irradiance, the colour seen is the albedo the estimate implies; segmented again (now
+// a brightness step is a material's) it is the albedo the next rounds are solved under.
+bool Estimator::AlbedoRefinable() {
+  if (opt_.albedo_passes <= 0) res_.albedo_left_out = AlbedoLeftOut::kNoPasses;
+  else if (bundle_.mesh.shaded.size() != bundle_.mesh.positions.size())
+    res_.albedo_left_out = AlbedoLeftOut::kKnownAlbedo;
+  if (res_.albedo_left_out != AlbedoLeftOut::kRefined) return false;
+  mesh_ = bundle_.mesh;
+  return true;
+}
+
+/// Per vertex of the bundle's mesh, the mean of `values` over the vertices of its cluster
+/// whose normals are within 37 degrees of its own (a box's edge keeps its faces apart); a
+/// vertex with none keeps its own value.
+std::vector<float> Estimator::OverClusters(const std::vector<float>& values) const {
+  if (cluster_.empty()) return values;
+  const Mesh& full = bundle_.mesh;
+  std::vector<int> start(scene_->mesh().positions.size() + 1, 0), members(cluster_.size());
+  for (int c : cluster_)
+    if (c >= 0) ++start[c + 1];
+  for (std::size_t c = 1; c < start.size(); ++c) start[c] += start[c - 1];
+  std::vector<int> fill(start.begin(), start.end() - 1);
+  for (std::size_t v = 0; v < cluster_.size(); ++v)
+    if (cluster_[v] >= 0) members[fill[cluster_[v]]++] = static_cast<int>(v);
+  std::vector<float> out(values);
+  ParallelForChunks(0, cluster_.size(), 1024, [&](std::size_t b, std::size_t e) {
+    for (std::size_t v = b; v < e; ++v) {
+      if (cluster_[v] < 0) continue;
+      double sum = 0;
+      int n = 0;
+      // At most 64 members each (a mesh far finer than the pixels would make this quadratic).
+      const int first = start[cluster_[v]], size = start[cluster_[v] + 1] - first, step = std::max(1, size / 64);
+      for (int k = first; k < first + size; k += step)
+        if (full.normals[members[k]].dot(full.normals[v]) > 0.8f) {
+          sum += values[members[k]];
+          ++n;
+        }
+      if (n > 0) out[v] = static_cast<float>(sum / n);
+    }
+  });
+  return out;
+}
+
+/// The traced mesh under the albedo of `full` (the bundle's mesh): each cluster its
+/// vertices' mean weighted by `irradiance` (what each adds to the light the cluster sends:
+/// a vertex in the dark, whose de-lit albedo is least sure, adds least).
+Mesh Estimator::WithAlbedoOf(const Mesh& full, const std::vector<float>& irradiance) const {
+  if (cluster_.empty()) return full;
+  Mesh traced = scene_->mesh();
+  std::vector<Eigen::Vector3d> sum(traced.positions.size(), Eigen::Vector3d::Zero());
+  std::vector<double> weight(traced.positions.size(), 0);
+  for (std::size_t v = 0; v < cluster_.size(); ++v)
+    if (cluster_[v] >= 0 && irradiance[v] > 0) {
+      sum[cluster_[v]] += irradiance[v] * full.albedo[v].cast<double>();
+      weight[cluster_[v]] += irradiance[v];
+    }
+  for (std::size_t i = 0; i < sum.size(); ++i)
+    if (weight[i] > 0) traced.albedo[i] = (sum[i] / weight[i]).cast<float>();
+  return traced;
+}
+
+/// Paths per vertex of the bundle's mesh for the albedo pass's irradiance: albedo_samples,
+/// or on a clustered mesh about that many per cluster (at least 2 per vertex; OverClusters
+/// averages them).
+int Estimator::AlbedoPaths() const {
+  if (cluster_.empty()) return opt_.albedo_samples;
+  const double share = static_cast<double>(scene_->mesh().positions.size()) / bundle_.mesh.positions.size();
+  return std::min(opt_.albedo_samples, std::max(2, static_cast<int>(std::lround(opt_.albedo_samples * share))));
+}
+
+bool Estimator::RefineAlbedo(int pass) {
+  CheckCancel();
+  Stopwatch as;
+  int segments = -1;  // an estimate that lights nothing (warned in Conclude) has no irradiance
+  std::vector<float> irradiance;
+  if (res_.rendered_fraction >= 0.01) {
+    const int paths = AlbedoPaths();
+    Progress(Fmt("albedo pass %.0f: de-lighting %.0f vertices (%.0f paths each)", pass,
+                 static_cast<double>(mesh_.positions.size()), paths));
+    {
+      // The bundle's mesh itself (a clustered mesh folds where a flat surface crosses a
+      // cell's boundary, and a vertex there can sit behind its neighbours' triangles).
+      std::unique_ptr<RayTracer> full;
+      if (!cluster_.empty()) full = std::make_unique<RayTracer>(mesh_);
+      VertexRadiance radiance(full ? *full : *scene_, env_, lambda_, opt_.tracer.bounces,
+                              opt_.tracer.seed * 7919 + pass, points_, suns_);
+      for (int done = 0; done < paths; done += 2) {  // Cancel is polled between steps
+        radiance.Refine(std::min(2, paths - done));
+        CheckCancel();
+      }
+      irradiance = OverClusters(radiance.Irradiance());
+    }  // before the scene it refers to is replaced
+    segments = DelightAlbedo(&mesh_, irradiance);
+  }
+  res_.albedo_seconds += as.Seconds();
+  if (segments < 0) {
+    if (res_.albedo_passes == 0) res_.albedo_left_out = AlbedoLeftOut::kNothingLit;
+    Progress("albedo pass " + std::to_string(pass) + ": " + ToString(AlbedoLeftOut::kNothingLit) + "; albedo kept");
+    return false;
+  }
+  res_.albedo_segments = segments;
+  scene_ = std::make_unique<RayTracer>(WithAlbedoOf(mesh_, irradiance));
+  columns_.clear();  // they saw the old albedo
+  res_.albedo_passes = pass;
+  Progress(Fmt("albedo pass %.0f: de-lit %.0f vertices into %.0f segments in %.2f s", pass,
+               static_cast<double>(mesh_.positions.size()), segments, as.Seconds()));
+  return true;
+}
+
+}  // namespace lp::detail

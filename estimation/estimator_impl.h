@@ -1,0 +1,301 @@
+#pragma once
+/// The estimator's shared state and its stages (private to estimation/): the class behind
+/// Estimate (estimator.h), its methods in one file per stage: estimator.cpp (the rounds:
+/// trace, solve, take the solution; the conclusion and the render), estimator_lights.cpp
+/// (the lamps: search, refine, fold, select; the lights' columns and the held-out loss),
+/// estimator_sun.cpp (the directional light and the sky), estimator_albedo.cpp (the
+/// albedo refinement).
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <sstream>
+
+#include "common/color.h"
+#include "common/error.h"
+#include "common/parallel.h"
+#include "common/timer.h"
+#include "scene/albedo.h"
+#include "scene/ray_tracer.h"
+#include "scene/simplify.h"
+#include "estimation/light_fit.h"
+#include "estimation/light_render.h"
+#include "estimation/lights/light.h"
+#include "estimation/robust_loss.h"
+#include "estimation/sampling.h"
+#include "estimation/vertex_radiance.h"
+#include "estimation/estimator.h"
+
+namespace lp::detail {
+
+inline std::vector<double> Plus(std::vector<double> a, const std::vector<double>& b) {
+  for (std::size_t i = 0; i < a.size(); ++i) a[i] += b[i];
+  return a;
+}
+
+inline std::string Fmt(const char* fmt, double a, double b = 0, double c = 0, double d = 0) {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, fmt, a, b, c, d);
+  return buf;
+}
+
+/// The rows (every n-th) the lights' shadow-seeing refinements look at: a quarter of a
+/// 160 x 120 view's (what a column costs on all rows: docs/benchmarks.md).
+constexpr std::size_t kShadowRows = 4800;
+
+/// A round's linear problem over the cells some sampled path reached and the lights'
+/// columns after them (each light's Scale its 3 unknowns), and the way back from its
+/// compact unknowns to the whole map and the lights.
+struct RoundProblem {
+  std::shared_ptr<const LinearProblem> problem;
+  std::vector<double> init;  ///< the estimate so far, compact (3 per unknown cell)
+  /// The lights whose columns follow the map's (their shapes; the lamps so far or the
+  /// candidates, then the directional lights).
+  std::vector<Light> lights;
+
+  /// The unknowns over every column (3 per column): the map's cells, then `lights`.
+  std::vector<double> Scatter(const std::vector<double>& compact, int cells) const {
+    std::vector<double> full(3 * (cells + lights.size()), 0.0);
+    for (int k = 0; k < problem->unknown_cells; ++k)
+      for (int c = 0; c < 3; ++c) full[3 * problem->cell_of[k] + c] = compact[3 * k + c];
+    return full;
+  }
+  /// The lights of kind T of a full vector (those with any scale), their scales from it.
+  template <class T>
+  std::vector<T> Lit(const std::vector<double>& full, int cells) const {
+    std::vector<T> out;
+    for (std::size_t i = 0; i < lights.size(); ++i) {
+      const double* v = &full[3 * (cells + i)];
+      const T* light = std::get_if<T>(&lights[i]);
+      if (!light || !(v[0] > 0 || v[1] > 0 || v[2] > 0)) continue;
+      out.push_back(*light);
+      Scale(out.back()) = Eigen::Vector3d(v[0], v[1], v[2]);
+    }
+    return out;
+  }
+  /// Whether a light of kind T has a column.
+  template <class T>
+  bool Has() const {
+    for (const Light& l : lights)
+      if (std::holds_alternative<T>(l)) return true;
+    return false;
+  }
+};
+
+/// One estimate (the method, docs/method.md): sequential Monte Carlo rounds of tracing the
+/// transport matrix with importance from the estimate so far and solving the robust
+/// non-negative problem warm-started; then, on a reconstructed mesh, passes of albedo
+/// refinement each followed by more rounds; then the fitted views rendered under the
+/// result. Each step is a method; the state they share is the members.
+class Estimator {
+ public:
+  Estimator(const SceneBundle& bundle, const EstimateOptions& options);
+
+  /// Up to max_rounds rounds under the current albedo (round 1 is the cold start; after an
+  /// albedo pass they are warm-started from the estimate so far, with an A of their own);
+  /// stops early when the rendered estimate settles.
+  void RunRounds();
+  /// Whether the albedo is refined at all (sets res_.albedo_left_out when not).
+  bool AlbedoRefinable();
+  /// De-lights the colours seen by the estimate's irradiance and segments them again into
+  /// the albedo the next rounds run under; false when there is nothing to divide by.
+  bool RefineAlbedo(int pass);
+  std::vector<float> OverClusters(const std::vector<float>& values) const;
+  int AlbedoPaths() const;
+  Mesh WithAlbedoOf(const Mesh& full, const std::vector<float>& irradiance) const;
+  /// The estimate in image units, its scores and what the user should know about it.
+  void Conclude();
+  /// The sky beside a directional light, after the rounds (docs/method.md).
+  void FitSky();
+  /// Relit renders of the fitted views under the estimate (EstimateOptions::render_spp).
+  void RenderFittedViews();
+  EstimateResult TakeResult() {
+    res_.total_seconds = clock_.Seconds();
+    return std::move(res_);
+  }
+
+ private:
+  double Now() const { return opt_.time_offset + clock_.Seconds(); }
+  void Progress(const std::string& s) const {
+    if (opt_.progress) opt_.progress(s);
+  }
+  void CheckCancel() const {
+    if (opt_.cancelled && opt_.cancelled()) throw Cancelled();
+  }
+  std::string SceneFile() const { return (bundle_.dir / "scene.json").string(); }
+  static std::vector<View> UnusedPixels(std::vector<View> views);
+  void PutFit(std::vector<ImageRGB>* renders);
+  void Observe();
+  void UseViews(int stride);
+  int FirstRoundStride() const;
+  int MapSamples(int round) const;
+  double MapShare();
+  Mesh TracedMesh();
+  RoundProblem TraceRound(int round, int first, RoundInfo* info);
+  SolveResult Solve(const RoundProblem& rp, int round, RoundInfo* info, bool graduated);
+  std::vector<double> TakeSolution(const RoundProblem& rp, const SolveResult& sr, RoundInfo* info);
+  void FitLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info);
+  void EndRound(const SolveResult& sr, RoundInfo* info);
+  void MakeMapProblem();
+  // The near-light steps (docs/method.md, "Point lights").
+  bool NearLights() const { return opt_.point_lights.max_lights > 0; }
+  /// Whether `round` looks for a directional light: the first round on every pixel (round 2
+  /// after round 1's grid; a sun's shadow edges are a few pixels wide), while none was kept.
+  bool SunRound(int round) const {
+    return NearLights() && opt_.directional_lights && suns_.empty() &&
+           (round == 1 ? stride_ == 1 : round == after_grid_);
+  }
+  /// The brightest cell's neighbourhood in the map (cells within 2.5 ring spacings of it)
+  /// and its share of the map's power (0: a dark map).
+  std::pair<std::vector<int>, double> BrightestNeighbourhood() const;
+  void GatherVertices(int round, int first);
+  RoundProblem WithLights(const std::vector<PointLight>& lights);
+  bool FitPointLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info);
+  std::vector<PointLight> Candidates(RoundInfo* info);
+  void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const char* step = "lights",
+                       bool shadows = true);
+  void SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info, bool graduated);
+  void FoldLights(std::vector<PointLight>* lights, int round);
+  bool FitRadii(std::vector<PointLight>* lights);
+  void SelectModel(std::vector<PointLight>* lights);
+  /// `traced`: the directional light's held-out rows traced at tracer.spp (HeldOutSunColumn:
+  /// against the map alone, whose columns have those paths); else from the shading vertices,
+  /// as a lamp's are (against a lamp: the same noise).
+  double HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalLight* directional = nullptr,
+                     bool traced = false);
+  std::vector<float> HeldOutSunColumn(const DirectionalLight& light);
+  std::vector<float> TracedSunColumn(DirectionalLight light, const std::vector<std::uint8_t>* rows, int spp,
+                                     std::uint64_t seed);
+  std::vector<int> SkyCells() const;
+  double RenderedShare(const PointLight& light);
+  std::vector<float> Column(const Light& light);
+  ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params) const;
+  void Score(ConvergenceRow* row, const std::vector<double>& env_lambda, const std::vector<PointLight>& points,
+             const std::vector<DirectionalLight>& suns) const;
+  /// A convergence row of a light's refinement (the objective and the sum of squared
+  /// residuals over y_ as given), scored and step left to the caller.
+  ConvergenceRow LightRow(const RoundInfo& info, double sigma, double objective, double sse) const {
+    ConvergenceRow row;
+    row.wall_seconds = Now();
+    row.round = info.round;
+    row.iteration = res_.convergence.empty() ? 0 : res_.convergence.back().iteration + 1;
+    row.sigma = sigma;
+    row.albedo_pass = res_.albedo_passes;
+    row.objective = objective;
+    row.relative_rmse = std::sqrt(sse / static_cast<double>(y_.size()));
+    row.photometric_rmse = row.relative_rmse * res_.image_mean;
+    return row;
+  }
+  /// Appends a convergence row, tells the caller's callback, and stops here when cancelled.
+  void Push(const ConvergenceRow& row) {
+    res_.convergence.push_back(row);
+    if (opt_.on_convergence) opt_.on_convergence(row);
+    CheckCancel();
+  }
+  std::vector<PointLight> InImageUnits(std::vector<PointLight> lights) const {
+    for (PointLight& l : lights) l.intensity *= res_.image_mean;
+    return lights;
+  }
+  std::vector<DirectionalLight> InImageUnits(std::vector<DirectionalLight> lights) const {
+    for (DirectionalLight& l : lights) l.irradiance *= res_.image_mean;
+    return lights;
+  }
+  // The directional light (docs/method.md, "Directional lights"): proposed, shaped,
+  // settled beside the map, selected.
+  struct DirectionalProposal {
+    DirectionalLight light;
+    std::vector<int> cells;  ///< the map's cells it takes the place of
+    double map_share = 0;    ///< their share of the map's power
+    std::vector<double> without;  ///< the map without them
+  };
+  /// The light's fit on kShadowRows of the rows, the rest of the image (`base`) held; every
+  /// accepted step is a convergence row ("sun", scored with the map `without` its cells).
+  struct SunFit {
+    SunFit(Estimator& e, RoundInfo* info)
+        : fit(e.FitProblem(&base)),
+          log([&e, info, this](int, double E, double sse, const std::vector<Light>& now) {
+            // (the map's penalty left out: held fixed here; E and the squared residuals
+            // times the stride estimate the whole problem's)
+            ConvergenceRow row = e.LightRow(*info, fit.loss.sigma, E * share->stride, sse * share->stride);
+            row.step = "sun";
+            e.Score(&row, *without, e.points_, OfKind<DirectionalLight>(now));
+            e.Push(row);
+          }) {}
+    SunFit(const SunFit&) = delete;
+    SunFit& operator=(const SunFit&) = delete;
+    /// Holds `rest` (3 per row) fixed, logging rows against the map `map_without`.
+    void Hold(std::vector<double> rest, const std::vector<double>& map_without) {
+      base = std::move(rest);
+      without = &map_without;
+      share = std::make_unique<LightFitSubset>(fit, kShadowRows);
+    }
+    int Search(DirectionalLight* sun, double start_deg) const;
+    std::vector<double> base;
+    const std::vector<double>* without = nullptr;
+    LightFitProblem fit;
+    std::unique_ptr<LightFitSubset> share;
+    LightFitLog log;
+  };
+  bool FitDirectionalLight(RoundInfo* info);
+  bool ProposeDirectionalLight(DirectionalProposal* out);
+  bool ShapeDirectionalLight(DirectionalProposal* proposal, SunFit* fit);
+  void SettleDirectionalLight(DirectionalProposal* proposal, SunFit* fit, RoundInfo* info);
+  bool SelectDirectionalLight(const DirectionalProposal& proposal, double without_loss);
+  std::vector<double> LightsRender(const std::vector<PointLight>& points, const std::vector<DirectionalLight>& suns);
+  /// The lights' robust objective on vertices_, `base` the rest of the image held.
+  LightFitProblem FitProblem(const std::vector<double>* base) const {
+    LightFitProblem fit;
+    fit.scene = scene_.get();
+    fit.vertices = &vertices_;
+    fit.y = &y_;
+    fit.base = base;
+    fit.loss = CauchyLoss{res_.objective_params.sigma};
+    fit.alpha = res_.objective_params.alpha * opt_.point_lights.weight;
+    fit.beta = res_.objective_params.beta;
+    return fit;
+  }
+
+  const SceneBundle& bundle_;
+  const EstimateOptions& opt_;
+  Stopwatch clock_;
+  EstimateResult res_;
+  const EnvMap& env_;  ///< res_.env
+  int cells_ = 0;
+  /// The views the rounds fit (the bundle's, or round 1's grid of their pixels: UseViews)
+  /// and their grid's stride.
+  std::vector<View> views_;
+  int stride_ = 0;
+  int after_grid_ = 0;  ///< the first round on every pixel after round 1's grid (0: none)
+  /// The share of the rendered light that is the map's (the rest the lights'), after the last round.
+  double map_share_ = 1;
+  std::vector<double> y_;  ///< their observations over the mean of all the valid pixels'
+  std::vector<TruthLight> truth_;
+  std::unique_ptr<RayTracer> scene_;
+  /// Per vertex of the bundle's mesh: its vertex in the traced mesh (empty: the same mesh).
+  std::vector<int> cluster_;
+  Mesh mesh_;  ///< the bundle's mesh, whose albedo is refined (empty until then)
+  std::vector<double> lambda_;  ///< the estimate, normalized units, 3 per cell
+  std::vector<std::uint8_t> reachable_;  ///< per cell: some sampled path reached it
+  TransportMatrix A_;  ///< the map's columns, averaged over the rounds under one albedo
+  /// A_'s problem, with its normal matrices (every problem of the round appends to it).
+  std::shared_ptr<LinearProblem> map_problem_;
+  /// The same over the rows the model selection fits (left out: holdout_), and A_'s
+  /// held-out rows; made on first use after A_ changes.
+  std::shared_ptr<LinearProblem> holdout_fit_;
+  TransportMatrix holdout_held_;
+  // Near lights.
+  std::vector<PointLight> points_;  ///< the point lights so far, normalized units
+  std::vector<DirectionalLight> suns_;  ///< the directional lights so far, normalized units
+  ShadingVertices vertices_;        ///< the rounds', for the lights' columns and positions
+  /// The last few columns on vertices_ (Column), cleared when vertices_ change.
+  struct CachedColumn {
+    Light light;  ///< its shape (its scale aside)
+    std::vector<float> column;
+  };
+  std::vector<CachedColumn> columns_;
+  double vertex_samples_ = 0;       ///< paths per pixel they hold
+  std::vector<std::uint8_t> holdout_;  ///< per row: left out of the model selection's fit
+  Eigen::Vector3d centre_;
+  double radius_ = 1;
+};
+
+}  // namespace lp::detail
