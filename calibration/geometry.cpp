@@ -75,6 +75,33 @@ std::optional<std::vector<cv::Point2f>> FindBoard(const ImageRgb8& im, const Che
   return found;
 }
 
+/// Depth points inside the board's outline: its corners taken to depth pixels through
+/// normalized coordinates (undistorted; the small baseline is ignored), their hull shrunk by
+/// a fifth towards the centre since the depth camera sees the board a little shifted.
+std::vector<Eigen::Vector3d> DepthPointsOnBoard(const DepthColorView& v, const std::vector<cv::Point2f>& corners,
+                                                const cv::Mat& K, const cv::Mat& dist) {
+  std::vector<cv::Point2f> normalized, in_depth, hull;
+  cv::undistortPoints(corners, normalized, K, dist);
+  for (const cv::Point2f& p : normalized)
+    in_depth.emplace_back(static_cast<float>(v.dfx * p.x + v.dcx), static_cast<float>(v.dfy * p.y + v.dcy));
+  cv::convexHull(in_depth, hull);
+  cv::Point2f centre(0, 0);
+  for (const cv::Point2f& p : hull) centre += p * (1.f / hull.size());
+  for (cv::Point2f& p : hull) p = centre + 0.8f * (p - centre);
+  std::vector<Eigen::Vector3d> pts;
+  for (int y = 0; y < v.depth_height; ++y)
+    for (int x = 0; x < v.depth_width; ++x) {
+      const float z = v.depth[static_cast<std::size_t>(y) * v.depth_width + x];
+      if (z <= 0 || cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(x), static_cast<float>(y)), false) < 0)
+        continue;
+      pts.emplace_back((x - v.dcx) / v.dfx * z, (y - v.dcy) / v.dfy * z, z);
+    }
+  return pts;
+}
+
+void FitRigid(const std::vector<Eigen::Vector3d>& nc, const std::vector<double>& dc,
+              const std::vector<Eigen::Vector3d>& nd, const std::vector<double>& dd,
+              const std::vector<std::vector<Eigen::Vector3d>>& depth_points, ExtrinsicsFit* fit);
 
 ExtrinsicsFit CalibrateDepthToColorImpl(const std::vector<DepthColorView>& views, const CameraModel& color,
                                         const CheckerboardOptions& o) {
@@ -104,25 +131,7 @@ ExtrinsicsFit CalibrateDepthToColorImpl(const std::vector<DepthColorView>& views
     cv::Rodrigues(rvec, R);
     const Eigen::Vector3d n(R.at<double>(0, 2), R.at<double>(1, 2), R.at<double>(2, 2));
     const Eigen::Vector3d t(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
-    // Depth points inside the board's outline: its corners taken to depth pixels through
-    // normalized coordinates (undistorted; the small baseline is ignored), their hull shrunk
-    // by a fifth towards the centre since the depth camera sees the board a little shifted.
-    std::vector<cv::Point2f> normalized, in_depth, hull;
-    cv::undistortPoints(*corners, normalized, K, dist);
-    for (const cv::Point2f& p : normalized)
-      in_depth.emplace_back(static_cast<float>(v.dfx * p.x + v.dcx), static_cast<float>(v.dfy * p.y + v.dcy));
-    cv::convexHull(in_depth, hull);
-    cv::Point2f centre(0, 0);
-    for (const cv::Point2f& p : hull) centre += p * (1.f / hull.size());
-    for (cv::Point2f& p : hull) p = centre + 0.8f * (p - centre);
-    std::vector<Eigen::Vector3d> pts;
-    for (int y = 0; y < v.depth_height; ++y)
-      for (int x = 0; x < v.depth_width; ++x) {
-        const float z = v.depth[static_cast<std::size_t>(y) * v.depth_width + x];
-        if (z <= 0 || cv::pointPolygonTest(hull, cv::Point2f(static_cast<float>(x), static_cast<float>(y)), false) < 0)
-          continue;
-        pts.emplace_back((x - v.dcx) / v.dfx * z, (y - v.dcy) / v.dfy * z, z);
-      }
+    std::vector<Eigen::Vector3d> pts = DepthPointsOnBoard(v, *corners, K, dist);
     if (pts.size() < 50) continue;
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (const auto& p : pts) mean += p / static_cast<double>(pts.size());
@@ -144,14 +153,23 @@ ExtrinsicsFit CalibrateDepthToColorImpl(const std::vector<DepthColorView>& views
   if (fit.views_used < 3)
     throw InputError("calibrate extrinsics: the board was found with depth in " + std::to_string(fit.views_used) +
                      " of " + std::to_string(views.size()) + " views; at least 3 are needed");
-  // Rotation: n_c = R n_d (Kabsch on the normals).
+  FitRigid(nc, dc, nd, dd, depth_points, &fit);
+  return fit;
+}
+
+/// color_from_depth from the boards' planes seen by both cameras (normals n and offsets d,
+/// n . x + d = 0), and its plane RMS over the depth points: the rotation by Kabsch on the
+/// normals (n_c = R n_d), the translation by least squares (x_c = R x_d + t, so on the plane
+/// n_c . t = d_d - d_c).
+void FitRigid(const std::vector<Eigen::Vector3d>& nc, const std::vector<double>& dc,
+              const std::vector<Eigen::Vector3d>& nd, const std::vector<double>& dd,
+              const std::vector<std::vector<Eigen::Vector3d>>& depth_points, ExtrinsicsFit* fit) {
   Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
   for (std::size_t k = 0; k < nc.size(); ++k) H += nd[k] * nc[k].transpose();
   const Eigen::JacobiSVD<Eigen::Matrix3d> svd(H, Eigen::ComputeFullU | Eigen::ComputeFullV);
   Eigen::Matrix3d D = Eigen::Matrix3d::Identity();
   D(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1 : 1;
   const Eigen::Matrix3d R = svd.matrixV() * D * svd.matrixU().transpose();
-  // Translation: x_c = R x_d + t, so on the plane n_c . t = d_d - d_c.
   Eigen::MatrixXd A(nc.size(), 3);
   Eigen::VectorXd b(nc.size());
   for (std::size_t k = 0; k < nc.size(); ++k) {
@@ -162,8 +180,8 @@ ExtrinsicsFit CalibrateDepthToColorImpl(const std::vector<DepthColorView>& views
   if (tsvd.singularValues().minCoeff() < 0.05 * tsvd.singularValues().maxCoeff())
     throw InputError("calibrate extrinsics: the boards are tilted too alike (tilt them differently: left, right, up)");
   const Eigen::Vector3d t = tsvd.solve(b);
-  fit.color_from_depth.block<3, 3>(0, 0) = R;
-  fit.color_from_depth.block<3, 1>(0, 3) = t;
+  fit->color_from_depth.block<3, 3>(0, 0) = R;
+  fit->color_from_depth.block<3, 1>(0, 3) = t;
   double sum2 = 0;
   std::size_t n = 0;
   for (std::size_t k = 0; k < nc.size(); ++k)
@@ -172,8 +190,7 @@ ExtrinsicsFit CalibrateDepthToColorImpl(const std::vector<DepthColorView>& views
       sum2 += e * e;
       ++n;
     }
-  fit.plane_rms = std::sqrt(sum2 / std::max<std::size_t>(1, n));
-  return fit;
+  fit->plane_rms = std::sqrt(sum2 / std::max<std::size_t>(1, n));
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 #include <Eigen/Dense>
 
@@ -94,8 +95,51 @@ bool Monotone(const std::vector<double>& c, double from) {
 
 }  // namespace
 
-ResponseFit FitResponse(const std::vector<ImageRgb8>& images, const std::vector<double>& exposures,
-                        const ResponseFitOptions& o) {
+namespace {
+
+/// One Mitsunaga-Nayar update of the exposure ratios `Rn` (sorted order) under the response
+/// g of coefficients `c`: R_q = mean over pixels of g(M_pq) / g(M_p,q+1), then scaled as
+/// R^k so that the overall exposure range stays the given one (`R`: g -> g^k with R -> R^k
+/// fits the images equally well). Returns the largest relative change of a ratio, or
+/// nothing (Rn kept) when the ratios g gives are not a response's.
+std::optional<double> UpdateRatios(const std::vector<Pair>& pairs, const std::vector<double>& c,
+                                   const std::vector<double>& R, std::vector<double>* Rn) {
+  const std::size_t Q = R.size() + 1;
+  std::vector<double> sum(Q - 1, 0.0);
+  std::vector<int> count(Q - 1, 0);
+  for (const Pair& p : pairs) {
+    if (p.q2 != p.q + 1) continue;  // the ratio of neighbours from their pairs
+    const double g1 = Eval(c, p.m1);
+    if (g1 <= 1e-6) continue;
+    sum[static_cast<std::size_t>(p.q)] += Eval(c, p.m0) / g1;
+    ++count[static_cast<std::size_t>(p.q)];
+  }
+  std::vector<double> next = *Rn;
+  bool usable = true;
+  for (std::size_t q = 0; q + 1 < Q; ++q)
+    if (count[q] > 0) {
+      next[q] = sum[q] / count[q];
+      usable = usable && std::isfinite(next[q]) && next[q] > 0 && next[q] < 1;
+    }
+  if (!usable) return std::nullopt;
+  double log_given = 0, log_next = 0;
+  for (std::size_t q = 0; q + 1 < Q; ++q) {
+    log_given += std::log(R[q]);
+    log_next += std::log(next[q]);
+  }
+  const double k = log_next != 0 ? log_given / log_next : 1;
+  double change = 0;
+  for (std::size_t q = 0; q + 1 < Q; ++q) {
+    const double r = std::pow(next[q], k);
+    change = std::max(change, std::abs(r / (*Rn)[q] - 1));
+    (*Rn)[q] = r;
+  }
+  return change;
+}
+
+/// Throws InputError unless there are two or more images of one size and exposures that
+/// are positive and differ by at least 10 %.
+void CheckResponseInput(const std::vector<ImageRgb8>& images, const std::vector<double>& exposures) {
   if (images.size() < 2) throw InputError("response: need at least two images of different exposure");
   if (exposures.size() != images.size())
     throw InputError("response: " + std::to_string(images.size()) + " images but " + std::to_string(exposures.size()) +
@@ -108,6 +152,14 @@ ResponseFit FitResponse(const std::vector<ImageRgb8>& images, const std::vector<
   for (const ImageRgb8& im : images)
     if (im.width != w || im.height != h || im.data.size() != 3 * im.pixels() || im.pixels() == 0)
       throw InputError("response: the images must all have the same size");
+}
+
+}  // namespace
+
+ResponseFit FitResponse(const std::vector<ImageRgb8>& images, const std::vector<double>& exposures,
+                        const ResponseFitOptions& o) {
+  CheckResponseInput(images, exposures);
+  const int w = images[0].width, h = images[0].height;
   // Sort by exposure so that pairs are neighbours in exposure.
   std::vector<std::size_t> order(images.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
@@ -141,39 +193,8 @@ ResponseFit FitResponse(const std::vector<ImageRgb8>& images, const std::vector<
       for (int it = 0; it < (o.refine_ratios ? o.iterations : 1); ++it) {
         c = SolveDegree(pairs, Rn, N, &rms);
         if (!o.refine_ratios) break;
-        // Mitsunaga-Nayar: R_q = mean over pixels of g(M_pq) / g(M_p,q+1).
-        std::vector<double> sum(Q - 1, 0.0);
-        std::vector<int> count(Q - 1, 0);
-        for (const Pair& p : pairs) {
-          if (p.q2 != p.q + 1) continue;  // the ratio of neighbours from their pairs
-          const double g1 = Eval(c, p.m1);
-          if (g1 <= 1e-6) continue;
-          sum[static_cast<std::size_t>(p.q)] += Eval(c, p.m0) / g1;
-          ++count[static_cast<std::size_t>(p.q)];
-        }
-        std::vector<double> next = Rn;
-        bool usable = true;
-        for (std::size_t q = 0; q + 1 < Q; ++q)
-          if (count[q] > 0) {
-            next[q] = sum[q] / count[q];
-            usable = usable && std::isfinite(next[q]) && next[q] > 0 && next[q] < 1;
-          }
-        if (!usable) break;  // this degree's g is not a response: keep the ratios
-        // g -> g^k with R -> R^k fits the images equally well: fix k by keeping the
-        // overall exposure range (the product of the ratios) at the given one.
-        double log_given = 0, log_next = 0;
-        for (std::size_t q = 0; q + 1 < Q; ++q) {
-          log_given += std::log(R[q]);
-          log_next += std::log(next[q]);
-        }
-        const double k = log_next != 0 ? log_given / log_next : 1;
-        double change = 0;
-        for (std::size_t q = 0; q + 1 < Q; ++q) {
-          const double r = std::pow(next[q], k);
-          change = std::max(change, std::abs(r / Rn[q] - 1));
-          Rn[q] = r;
-        }
-        if (change < 1e-7) break;
+        const std::optional<double> change = UpdateRatios(pairs, c, R, &Rn);
+        if (!change || *change < 1e-7) break;  // (none: this degree's g is not a response)
       }
       if (!Monotone(c, o.dark) || !(rms < best_rms * 0.98)) continue;  // a higher degree must earn its place
       best_rms = rms;

@@ -297,6 +297,42 @@ void RoomLights(const std::string& name, const fs::path& data_dir, const Vector3
   }
 }
 
+/// The real reconstructed fragment (frag_115.ply) lit by a far sun-like sphere, seen by one
+/// camera (two with a held-out view).
+void Fragment115(const SynthOptions& o, const fs::path& data_dir, SceneBundle* b, SynthLighting* lighting,
+                 std::vector<Camera>* cams) {
+  const fs::path ply = data_dir / "mesh" / "frag_115.ply";
+  b->mesh = ReadPly(ply);
+  SanitizeMesh(&b->mesh, ply.string());
+  // The fragment is in its first camera's frame (OpenCV: y down), so up is -y.
+  b->up = -Vector3d::UnitY();
+  Eigen::Vector3f lo, hi;
+  MeshBounds(b->mesh, &lo, &hi);
+  Vector3d& center = lighting->center;
+  center = (0.5f * (lo + hi)).cast<double>();
+  const double extent = (hi - lo).cast<double>().norm();
+  cams->push_back(Camera::LookAt(Vector3d(center.x(), center.y() - 0.15 * extent, lo.z() - 0.35 * extent), center,
+                                 b->up, o.width, o.height, 60));
+  if (o.held_out_views > 0)
+    cams->push_back(Camera::LookAt(Vector3d(center.x() + 0.3 * extent, center.y() - 0.2 * extent, lo.z() - 0.3 * extent),
+                                   center, b->up, o.width, o.height, 60));
+  const Vector3d dir = (-Vector3d::UnitY() * 1.2 + Vector3d(0.4, 0, -0.6)).normalized();
+  // 50 extents away (0.7 degrees across): far, so the environment-map model holds.
+  lighting->lights.push_back(LightAt(center, dir, 50 * extent, 0.6 * extent, {1.0, 0.95, 0.85}, 3.0));
+}
+
+/// The view's mask: pixels whose centre ray hits the geometry (as a reconstruction would give).
+void MaskGeometry(const RayTracer& scene, View* view) {
+  const Camera& cam = view->camera;
+  view->valid.assign(view->image.pixels(), 0);
+  for (int y = 0; y < cam.height; ++y)
+    for (int x = 0; x < cam.width; ++x) {
+      SurfacePoint hit;
+      view->valid[static_cast<std::size_t>(y) * cam.width + x] =
+          scene.Intersect(cam.center(), cam.RayDirection(x, y), &hit) ? 1 : 0;
+    }
+}
+
 }  // namespace
 
 SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::path& data_dir) {
@@ -320,24 +356,7 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::p
     cams = RoomCameras(o, b.up);
     RoomLights(name, data_dir, b.up, &lighting, &sky_up);
   } else if (name == "frag115") {
-    const fs::path ply = data_dir / "mesh" / "frag_115.ply";
-    b.mesh = ReadPly(ply);
-    SanitizeMesh(&b.mesh, ply.string());
-    // The fragment is in its first camera's frame (OpenCV: y down), so up is -y.
-    b.up = -Vector3d::UnitY();
-    Eigen::Vector3f lo, hi;
-    MeshBounds(b.mesh, &lo, &hi);
-    center = (0.5f * (lo + hi)).cast<double>();
-    const double extent = (hi - lo).cast<double>().norm();
-    cams.push_back(Camera::LookAt(Vector3d(center.x(), center.y() - 0.15 * extent, lo.z() - 0.35 * extent), center,
-                                  b.up, o.width, o.height, 60));
-    if (o.held_out_views > 0)
-      cams.push_back(Camera::LookAt(
-          Vector3d(center.x() + 0.3 * extent, center.y() - 0.2 * extent, lo.z() - 0.3 * extent), center, b.up,
-          o.width, o.height, 60));
-    const Vector3d dir = (-Vector3d::UnitY() * 1.2 + Vector3d(0.4, 0, -0.6)).normalized();
-    // 50 extents away (0.7 degrees across): far, so the environment-map model holds.
-    lights.push_back(LightAt(center, dir, 50 * extent, 0.6 * extent, {1.0, 0.95, 0.85}, 3.0));
+    Fragment115(o, data_dir, &b, &lighting, &cams);
   } else {
     std::string names;
     for (const auto& [n, d] : SynthSceneList()) names += (names.empty() ? "" : ", ") + n;
@@ -369,18 +388,9 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::p
     }
     t["environment_map"] = name == "env-studio" ? "studio_small_03_1k.hdr" : "venice_sunset_1k.hdr";
   }
-  // Mask: pixels whose centre ray hits the geometry (as a reconstruction would give).
   for (std::size_t v = 0; v < b.views.size(); ++v) {
-    View& vw = b.views[v];
-    const Camera& cam = vw.camera;
-    vw.image = std::move(images[v]);
-    vw.valid.assign(vw.image.pixels(), 0);
-    for (int y = 0; y < cam.height; ++y)
-      for (int x = 0; x < cam.width; ++x) {
-        SurfacePoint hit;
-        vw.valid[static_cast<std::size_t>(y) * cam.width + x] =
-            scene.Intersect(vw.camera.center(), vw.camera.RayDirection(x, y), &hit) ? 1 : 0;
-      }
+    b.views[v].image = std::move(images[v]);
+    MaskGeometry(scene, &b.views[v]);
   }
   for (const SphereLight& l : lights) {
     const Vector3d d = (l.position - center).normalized();

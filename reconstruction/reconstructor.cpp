@@ -242,6 +242,12 @@ struct Reconstructor::Impl {
     pool = std::move(merged);
     window *= 2;
   }
+  std::optional<RgbdFrame> OnColorGrid(const RgbdFrame& input) const;
+  void Start(const RgbdFrame& f, const RgbdFrame& input, bool enough_depth, FrameReport* r);
+  TrackResult Track(const RgbdFrame& f, const RgbdFrame& input, const std::vector<DepthLevel>& levels,
+                    const std::optional<Eigen::Matrix4d>& source_pose, bool enough_depth, FrameReport* r);
+  void Follow(const RgbdFrame& f, const RgbdFrame& input, const std::vector<DepthLevel>& levels,
+              const std::optional<Eigen::Matrix4d>& source_pose, bool enough_depth, FrameReport* r);
 };
 
 Reconstructor::Reconstructor(const ReconstructionOptions& o) : impl_(std::make_unique<Impl>(o)) {
@@ -264,21 +270,11 @@ const std::vector<FrameReport>& Reconstructor::reports() const { return impl_->r
 FrameReport Reconstructor::Process(const RgbdFrame& input) {
   Impl& m = *impl_;
   m.Validate(input);
-  // Depth registered to a calibrated colour camera lies on its pixel grid: it takes the
-  // colour model's intrinsics and, when the calibration undistorts the colour, the same
-  // undistortion (back-projected as delivered, walls bent towards the image corners).
-  // The relocalizer matches colour features to depth on the delivered grid: `input`.
-  std::optional<RgbdFrame> undistorted;
-  const CameraModel* cm = m.o.calibration.color ? &*m.o.calibration.color : nullptr;
-  if (input.registered && cm && cm->width == input.depth.width && cm->height == input.depth.height) {
-    undistorted = input;
-    if (cm->distorted()) undistorted->depth = UndistortRegisteredDepth(input.depth, *cm);
-    undistorted->depth_intrinsics = m.ColorK(input);
-  }
+  const std::optional<RgbdFrame> undistorted = m.OnColorGrid(input);
   const RgbdFrame& f = undistorted ? *undistorted : input;
   FrameReport r;
   r.index = f.index;
-  auto t0 = Clock::now();
+  const auto t0 = Clock::now();
   PreprocessOptions po = m.o.preprocess;
   if (f.depth.width >= m.o.track_half_from_width) po.first_level = std::max(po.first_level, 1);
   const std::vector<DepthLevel> levels = PreprocessDepth(f.depth, f.depth_intrinsics, po);
@@ -287,79 +283,109 @@ FrameReport Reconstructor::Process(const RgbdFrame& input) {
   std::size_t valid = 0;
   for (std::size_t p = 0; p < tracked.depth.size(); ++p) valid += tracked.valid(p);
   const bool enough_depth = valid >= tracked.depth.size() / 20;
-
   std::optional<Eigen::Matrix4d> source_pose;
   if (m.o.use_source_poses) {
     if (!f.world_from_camera)
       throw InputError("frame " + std::to_string(f.index) + ": no pose from the source (use_source_poses)");
     source_pose = *f.world_from_camera;
   }
-
-  if (!m.started) {
-    if (!enough_depth) {
-      r.state = TrackingState::kWaiting;
-      r.reason = "too little valid depth to start";
-    } else {
-      m.started = true;
-      m.first_depth_k = f.depth_intrinsics;
-      m.first_color_k = f.color_intrinsics;
-      // The world is the source's when it gives poses (synthetic frames, trajectory
-      // files: ground truth applies directly), else the first camera's.
-      m.pose = f.world_from_camera.value_or(Eigen::Matrix4d::Identity());
-      m.first_pose = m.pose;
-      m.Fuse(f, m.pose, &r);
-      r.state = TrackingState::kTracking;
-      r.world_from_camera = m.pose;
-      m.Offer(f, m.pose);
-      m.MaybeRemember(input, m.pose, true);
-    }
-  } else {
-    t0 = Clock::now();
-    TrackResult tr;
-    if (source_pose) {
-      tr.ok = true;
-      tr.world_from_camera = *source_pose;
-    } else if (!enough_depth) {
-      tr.reason = "too little valid depth";
-    } else {
-      tr = TrackFrameToModel(levels, m.model, m.pose, m.o.icp);
-      // A failure, or a weak match (at 30 frames/s nearly every point matches): try the
-      // pose from colour features too, and keep the better fit.
-      if (m.o.relocalize &&
-          (!tr.ok || tr.overlap < m.o.suspicious_overlap || tr.inlier_ratio < m.o.suspicious_inlier_ratio)) {
-        if (const std::optional<Eigen::Matrix4d> guess = m.relocalizer.Locate(input)) {
-          const TrackResult again = TrackFrameToModel(levels, m.ModelFrom(f.depth_intrinsics, *guess), *guess, m.o.icp);
-          if (again.ok && (!tr.ok || again.overlap * again.inlier_ratio > tr.overlap * tr.inlier_ratio)) {
-            tr = again;
-            r.relocalized = true;
-          }
-        }
-      }
-    }
-    r.times.track = Since(t0);
-    r.overlap = tr.overlap;
-    r.inlier_ratio = tr.inlier_ratio;
-    r.rmse = tr.rmse;
-    if (tr.ok) {
-      m.pose = tr.world_from_camera;
-      // Fuse every fuse_every-th tracked frame (and after a relocalization); in between the
-      // model maps stay those raycast at the last fused pose.
-      if (++m.since_fused >= std::max(1, m.o.fuse_every) || r.relocalized) {
-        m.Fuse(f, m.pose, &r);
-        m.since_fused = 0;
-      }
-      r.state = TrackingState::kTracking;
-      m.Offer(f, m.pose);
-      if (!source_pose) m.MaybeRemember(input, m.pose, r.relocalized);
-    } else {
-      r.state = TrackingState::kLost;
-      r.reason = tr.reason;
-    }
-    r.world_from_camera = m.pose;
-  }
+  if (!m.started) m.Start(f, input, enough_depth, &r);
+  else m.Follow(f, input, levels, source_pose, enough_depth, &r);
   m.times.Add(r.times);
   m.reports.push_back(r);
   return r;
+}
+
+/// Depth registered to a calibrated colour camera lies on its pixel grid: it takes the
+/// colour model's intrinsics and, when the calibration undistorts the colour, the same
+/// undistortion (back-projected as delivered, walls bent towards the image corners). None
+/// when the frame is used as it is. (The relocalizer matches colour features to depth on
+/// the delivered grid: the input.)
+std::optional<RgbdFrame> Reconstructor::Impl::OnColorGrid(const RgbdFrame& input) const {
+  const CameraModel* cm = o.calibration.color ? &*o.calibration.color : nullptr;
+  if (!(input.registered && cm && cm->width == input.depth.width && cm->height == input.depth.height))
+    return std::nullopt;
+  std::optional<RgbdFrame> out = input;
+  if (cm->distorted()) out->depth = UndistortRegisteredDepth(input.depth, *cm);
+  out->depth_intrinsics = ColorK(input);
+  return out;
+}
+
+/// The first frame with enough depth starts the model: the world is the source's when it
+/// gives poses (synthetic frames, trajectory files: ground truth applies directly), else
+/// the first camera's.
+void Reconstructor::Impl::Start(const RgbdFrame& f, const RgbdFrame& input, bool enough_depth, FrameReport* r) {
+  if (!enough_depth) {
+    r->state = TrackingState::kWaiting;
+    r->reason = "too little valid depth to start";
+    return;
+  }
+  started = true;
+  first_depth_k = f.depth_intrinsics;
+  first_color_k = f.color_intrinsics;
+  pose = f.world_from_camera.value_or(Eigen::Matrix4d::Identity());
+  first_pose = pose;
+  Fuse(f, pose, r);
+  r->state = TrackingState::kTracking;
+  r->world_from_camera = pose;
+  Offer(f, pose);
+  MaybeRemember(input, pose, true);
+}
+
+/// The frame's pose: the source's, or tracked against the model; a failure or a weak match
+/// (at 30 frames/s nearly every point matches) tries the pose from colour features too, and
+/// keeps the better fit.
+TrackResult Reconstructor::Impl::Track(const RgbdFrame& f, const RgbdFrame& input, const std::vector<DepthLevel>& levels,
+                                       const std::optional<Eigen::Matrix4d>& source_pose, bool enough_depth,
+                                       FrameReport* r) {
+  TrackResult tr;
+  if (source_pose) {
+    tr.ok = true;
+    tr.world_from_camera = *source_pose;
+    return tr;
+  }
+  if (!enough_depth) {
+    tr.reason = "too little valid depth";
+    return tr;
+  }
+  tr = TrackFrameToModel(levels, model, pose, o.icp);
+  const bool weak = !tr.ok || tr.overlap < o.suspicious_overlap || tr.inlier_ratio < o.suspicious_inlier_ratio;
+  if (!o.relocalize || !weak) return tr;
+  if (const std::optional<Eigen::Matrix4d> guess = relocalizer.Locate(input)) {
+    const TrackResult again = TrackFrameToModel(levels, ModelFrom(f.depth_intrinsics, *guess), *guess, o.icp);
+    if (again.ok && (!tr.ok || again.overlap * again.inlier_ratio > tr.overlap * tr.inlier_ratio)) {
+      tr = again;
+      r->relocalized = true;
+    }
+  }
+  return tr;
+}
+
+/// A frame after the first: tracked, then fused every fuse_every-th tracked frame (and after
+/// a relocalization; in between the model maps stay those raycast at the last fused pose).
+void Reconstructor::Impl::Follow(const RgbdFrame& f, const RgbdFrame& input, const std::vector<DepthLevel>& levels,
+                                 const std::optional<Eigen::Matrix4d>& source_pose, bool enough_depth,
+                                 FrameReport* r) {
+  const auto t0 = Clock::now();
+  const TrackResult tr = Track(f, input, levels, source_pose, enough_depth, r);
+  r->times.track = Since(t0);
+  r->overlap = tr.overlap;
+  r->inlier_ratio = tr.inlier_ratio;
+  r->rmse = tr.rmse;
+  if (tr.ok) {
+    pose = tr.world_from_camera;
+    if (++since_fused >= std::max(1, o.fuse_every) || r->relocalized) {
+      Fuse(f, pose, r);
+      since_fused = 0;
+    }
+    r->state = TrackingState::kTracking;
+    Offer(f, pose);
+    if (!source_pose) MaybeRemember(input, pose, r->relocalized);
+  } else {
+    r->state = TrackingState::kLost;
+    r->reason = tr.reason;
+  }
+  r->world_from_camera = pose;
 }
 
 namespace {

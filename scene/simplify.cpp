@@ -54,6 +54,26 @@ std::uint64_t CellKey(const Eigen::Vector3i& c) {
   return bits(c.x()) | bits(c.y()) << 21 | bits(c.z()) << 42;
 }
 
+/// The triangles of `triangles` whose vertices fall in three clusters (`cluster`: per
+/// vertex), as triangles of clusters, each once (the first one's winding).
+std::vector<Eigen::Vector3i> ClusteredTriangles(const std::vector<Eigen::Vector3i>& triangles,
+                                                const std::vector<int>& cluster) {
+  std::vector<std::pair<std::array<int, 3>, Eigen::Vector3i>> tris;
+  tris.reserve(triangles.size() / 2);
+  for (const Eigen::Vector3i& t : triangles) {
+    const Eigen::Vector3i c(cluster[t[0]], cluster[t[1]], cluster[t[2]]);
+    if (c[0] == c[1] || c[1] == c[2] || c[0] == c[2]) continue;
+    std::array<int, 3> key{c[0], c[1], c[2]};
+    std::sort(key.begin(), key.end());
+    tris.emplace_back(key, c);
+  }
+  std::stable_sort(tris.begin(), tris.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  std::vector<Eigen::Vector3i> out;
+  for (std::size_t i = 0; i < tris.size(); ++i)
+    if (i == 0 || tris[i].first != tris[i - 1].first) out.push_back(tris[i].second);
+  return out;
+}
+
 }  // namespace
 
 ClusteredMesh ClusterVertices(const Mesh& mesh, float cell) {
@@ -121,19 +141,7 @@ ClusteredMesh ClusterVertices(const Mesh& mesh, float cell) {
     }
   }
 
-  // Triangles that keep three clusters, each once (the first one's winding).
-  std::vector<std::pair<std::array<int, 3>, Eigen::Vector3i>> tris;
-  tris.reserve(mesh.triangles.size() / 2);
-  for (const Eigen::Vector3i& t : mesh.triangles) {
-    const Eigen::Vector3i c(out.cluster[t[0]], out.cluster[t[1]], out.cluster[t[2]]);
-    if (c[0] == c[1] || c[1] == c[2] || c[0] == c[2]) continue;
-    std::array<int, 3> key{c[0], c[1], c[2]};
-    std::sort(key.begin(), key.end());
-    tris.emplace_back(key, c);
-  }
-  std::stable_sort(tris.begin(), tris.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
-  for (std::size_t i = 0; i < tris.size(); ++i)
-    if (i == 0 || tris[i].first != tris[i - 1].first) m.triangles.push_back(tris[i].second);
+  m.triangles = ClusteredTriangles(mesh.triangles, out.cluster);
   if (m.triangles.empty())
     throw InputError("a grid of " + std::to_string(cell) + " m leaves the mesh no triangle");
   return out;

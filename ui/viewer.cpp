@@ -547,6 +547,58 @@ void Viewer::PlotConvergence(float width, float height) {
   dl->AddText(ImVec2(p0.x + 3, p1.y - 14), IM_COL32(200, 200, 200, 255), "0 s");
 }
 
+/// The estimated lamps and suns, one line each (world frame, image units).
+void Viewer::LightsList() {
+  if (!est_.point_lights.empty()) {
+    ImGui::Text("lamps (point lights), world frame:");
+    for (std::size_t k = 0; k < est_.point_lights.size(); ++k) {
+      const PointLight& l = est_.point_lights[k];
+      const double peak = std::max(1e-30, l.intensity.maxCoeff());
+      ImGui::ColorButton(("##lamp" + std::to_string(k)).c_str(),
+                         ImVec4(static_cast<float>(l.intensity.x() / peak), static_cast<float>(l.intensity.y() / peak),
+                                static_cast<float>(l.intensity.z() / peak), 1.f),
+                         ImGuiColorEditFlags_NoTooltip, ImVec2(12, 12));
+      ImGui::SameLine();
+      ImGui::Text("(%.2f, %.2f, %.2f) m  I %.3g %.3g %.3g", l.position.x(), l.position.y(), l.position.z(),
+                  l.intensity.x(), l.intensity.y(), l.intensity.z());
+    }
+  }
+  for (std::size_t k = 0; k < est_.directional_lights.size(); ++k) {
+    const DirectionalLight& l = est_.directional_lights[k];
+    if (k == 0) ImGui::Text("sun (directional light), towards it in the world frame:");
+    ImGui::Text("(%.3f, %.3f, %.3f)  E %.3g %.3g %.3g", l.direction.x(), l.direction.y(), l.direction.z(),
+                l.irradiance.x(), l.irradiance.y(), l.irradiance.z());
+  }
+}
+
+/// The estimate's settings (the options of `lightprobe estimate`) for the next Estimate.
+void Viewer::EstimateSettings() {
+  ImGui::SliderInt("rings", &settings_.rings, 5, 41);
+  ImGui::SliderInt("samples/pixel", &settings_.tracer.spp, 8, 256);
+  ImGui::SliderInt("bounces", &settings_.tracer.bounces, 1, 8);
+  ImGui::SliderInt("rounds", &settings_.max_rounds, 1, 6);
+  ImGui::SliderInt("point lights", &settings_.point_lights.max_lights, 0, 8);
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip("at most this many lamps beside the map; 0 = the map alone");
+  ImGui::Checkbox("directional light (a sun)", &settings_.directional_lights);
+  if (ImGui::IsItemHovered()) ImGui::SetTooltip("look for a sun with sharp shadows where the map has one bright spot");
+  float trace_pixels = static_cast<float>(settings_.trace_pixels);
+  if (ImGui::SliderFloat("traced mesh (pixels)", &trace_pixels, 0.f, 4.f, "%.1f"))
+    settings_.trace_pixels = trace_pixels;
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip("trace the mesh clustered on a grid of this many pixels (faster); 0 = the full mesh");
+  ImGui::SliderInt("albedo passes", &settings_.albedo_passes, 0, kMaxAlbedoPasses);
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip("refine the reconstruction's albedo under the estimate (de-lit colours), then more rounds");
+  float alpha = static_cast<float>(settings_.objective.alpha), beta = static_cast<float>(settings_.objective.beta),
+        sigma = static_cast<float>(settings_.objective.sigma);
+  if (ImGui::InputFloat("alpha", &alpha, 0, 0, "%.4g")) settings_.objective.alpha = std::max(0.f, alpha);
+  if (ImGui::InputFloat("beta", &beta, 0, 0, "%.4g")) settings_.objective.beta = std::max(1e-6f, beta);
+  if (ImGui::InputFloat("sigma", &sigma, 0, 0, "%.4g")) settings_.objective.sigma = std::max(1e-6f, sigma);
+  const char* solvers[] = {"fast (MM-NNQP)", "gradient (paper)"};
+  if (ImGui::Combo("solver", &solver_index_, solvers, 2))
+    settings_.solver = solver_index_ == 0 ? SolverKind::kFast : SolverKind::kGradient;
+}
+
 void Viewer::PanelEstimate() {
   int win_w, win_h;
   glfwGetWindowSize(window_, &win_w, &win_h);
@@ -584,53 +636,9 @@ void Viewer::PanelEstimate() {
     ImGui::Text("first estimate after %.2f s%s", est_.seconds_to_first,
                 std::isnan(est_.seconds_total) ? "" : (", done after " + std::to_string(est_.seconds_total).substr(0, 5) + " s").c_str());
   PlotConvergence(kPanelWidth - 16, 110);
-  if (!est_.point_lights.empty()) {
-    ImGui::Text("lamps (point lights), world frame:");
-    for (std::size_t k = 0; k < est_.point_lights.size(); ++k) {
-      const PointLight& l = est_.point_lights[k];
-      const double peak = std::max(1e-30, l.intensity.maxCoeff());
-      ImGui::ColorButton(("##lamp" + std::to_string(k)).c_str(),
-                         ImVec4(static_cast<float>(l.intensity.x() / peak), static_cast<float>(l.intensity.y() / peak),
-                                static_cast<float>(l.intensity.z() / peak), 1.f),
-                         ImGuiColorEditFlags_NoTooltip, ImVec2(12, 12));
-      ImGui::SameLine();
-      ImGui::Text("(%.2f, %.2f, %.2f) m  I %.3g %.3g %.3g", l.position.x(), l.position.y(), l.position.z(),
-                  l.intensity.x(), l.intensity.y(), l.intensity.z());
-    }
-  }
-  for (std::size_t k = 0; k < est_.directional_lights.size(); ++k) {
-    const DirectionalLight& l = est_.directional_lights[k];
-    if (k == 0) ImGui::Text("sun (directional light), towards it in the world frame:");
-    ImGui::Text("(%.3f, %.3f, %.3f)  E %.3g %.3g %.3g", l.direction.x(), l.direction.y(), l.direction.z(),
-                l.irradiance.x(), l.irradiance.y(), l.irradiance.z());
-  }
+  LightsList();
   if (!est_.export_message.empty()) ImGui::TextWrapped("%s", est_.export_message.c_str());
-  if (ImGui::CollapsingHeader("Settings")) {
-    ImGui::SliderInt("rings", &settings_.rings, 5, 41);
-    ImGui::SliderInt("samples/pixel", &settings_.tracer.spp, 8, 256);
-    ImGui::SliderInt("bounces", &settings_.tracer.bounces, 1, 8);
-    ImGui::SliderInt("rounds", &settings_.max_rounds, 1, 6);
-    ImGui::SliderInt("point lights", &settings_.point_lights.max_lights, 0, 8);
-    if (ImGui::IsItemHovered()) ImGui::SetTooltip("at most this many lamps beside the map; 0 = the map alone");
-    ImGui::Checkbox("directional light (a sun)", &settings_.directional_lights);
-    if (ImGui::IsItemHovered()) ImGui::SetTooltip("look for a sun with sharp shadows where the map has one bright spot");
-    float trace_pixels = static_cast<float>(settings_.trace_pixels);
-    if (ImGui::SliderFloat("traced mesh (pixels)", &trace_pixels, 0.f, 4.f, "%.1f"))
-      settings_.trace_pixels = trace_pixels;
-    if (ImGui::IsItemHovered())
-      ImGui::SetTooltip("trace the mesh clustered on a grid of this many pixels (faster); 0 = the full mesh");
-    ImGui::SliderInt("albedo passes", &settings_.albedo_passes, 0, kMaxAlbedoPasses);
-    if (ImGui::IsItemHovered())
-      ImGui::SetTooltip("refine the reconstruction's albedo under the estimate (de-lit colours), then more rounds");
-    float alpha = static_cast<float>(settings_.objective.alpha), beta = static_cast<float>(settings_.objective.beta),
-          sigma = static_cast<float>(settings_.objective.sigma);
-    if (ImGui::InputFloat("alpha", &alpha, 0, 0, "%.4g")) settings_.objective.alpha = std::max(0.f, alpha);
-    if (ImGui::InputFloat("beta", &beta, 0, 0, "%.4g")) settings_.objective.beta = std::max(1e-6f, beta);
-    if (ImGui::InputFloat("sigma", &sigma, 0, 0, "%.4g")) settings_.objective.sigma = std::max(1e-6f, sigma);
-    const char* solvers[] = {"fast (MM-NNQP)", "gradient (paper)"};
-    if (ImGui::Combo("solver", &solver_index_, solvers, 2))
-      settings_.solver = solver_index_ == 0 ? SolverKind::kFast : SolverKind::kGradient;
-  }
+  if (ImGui::CollapsingHeader("Settings")) EstimateSettings();
   ImGui::End();
 }
 
@@ -744,6 +752,44 @@ void Viewer::PanelKeyframe() {
   if (!open) selected_keyframe_ = -1;
 }
 
+/// The shading mode bar over the 3D view.
+void Viewer::ShadingBar() {
+  ImGui::SetNextWindowPos(ImVec2(view_rect_.x + 8, 8));
+  ImGui::SetNextWindowBgAlpha(0.6f);
+  ImGui::Begin("##shading", nullptr,
+               ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoMove);
+  for (Shading s : {Shading::kAlbedo, Shading::kLit, Shading::kError, Shading::kNormals}) {
+    if (ImGui::RadioButton(ToString(s), shading_ == s)) shading_ = s;
+    ImGui::SameLine();
+  }
+  if (ImGui::Button("reset view")) ResetCamera();
+  if (shading_ == Shading::kLit) {
+    ImGui::SetNextItemWidth(120);
+    ImGui::SliderFloat("exposure", &exposure_, 0.1f, 8.f, "%.2f", ImGuiSliderFlags_Logarithmic);
+    ImGui::SameLine();
+    ImGui::Text("%d samples/vertex", est_.lit_samples);
+  } else if (shading_ == Shading::kAlbedo) {
+    ImGui::Checkbox("headlight", &headlight_);
+  }
+  if ((shading_ == Shading::kLit || shading_ == Shading::kError) && !est_.lit)
+    ImGui::Text("(available once an estimate is done)");
+  ImGui::Text("%zu triangles, %.0f frames/s", mesh_.triangles(), ImGui::GetIO().Framerate);
+  ImGui::End();
+}
+
+/// One step of the command file, if one runs (an error ends the window with exit code 1).
+void Viewer::StepScript() {
+  if (script_ && !quit_) {
+    try {
+      if (!script_->Step()) script_.reset();
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "lightprobe: script: %s\n", e.what());
+      exit_code_ = 1;
+      quit_ = true;
+    }
+  }
+}
+
 bool Viewer::Frame() {
   const double now = glfwGetTime();
   if (last_frame_time_ > 0) {
@@ -777,28 +823,7 @@ bool Viewer::Frame() {
   PanelEstimate();
   PanelEnvironment();
   PanelKeyframe();
-  // Shading mode bar over the 3D view.
-  ImGui::SetNextWindowPos(ImVec2(view_rect_.x + 8, 8));
-  ImGui::SetNextWindowBgAlpha(0.6f);
-  ImGui::Begin("##shading", nullptr,
-               ImGuiWindowFlags_NoDecoration | ImGuiWindowFlags_AlwaysAutoResize | ImGuiWindowFlags_NoMove);
-  for (Shading s : {Shading::kAlbedo, Shading::kLit, Shading::kError, Shading::kNormals}) {
-    if (ImGui::RadioButton(ToString(s), shading_ == s)) shading_ = s;
-    ImGui::SameLine();
-  }
-  if (ImGui::Button("reset view")) ResetCamera();
-  if (shading_ == Shading::kLit) {
-    ImGui::SetNextItemWidth(120);
-    ImGui::SliderFloat("exposure", &exposure_, 0.1f, 8.f, "%.2f", ImGuiSliderFlags_Logarithmic);
-    ImGui::SameLine();
-    ImGui::Text("%d samples/vertex", est_.lit_samples);
-  } else if (shading_ == Shading::kAlbedo) {
-    ImGui::Checkbox("headlight", &headlight_);
-  }
-  if ((shading_ == Shading::kLit || shading_ == Shading::kError) && !est_.lit)
-    ImGui::Text("(available once an estimate is done)");
-  ImGui::Text("%zu triangles, %.0f frames/s", mesh_.triangles(), ImGui::GetIO().Framerate);
-  ImGui::End();
+  ShadingBar();
   HandleMouse(view_rect_);
   if (bench_orbit_ && bench_frames_left_ > 0) camera_.yaw += 0.01f;
   moving_ = dragging_ || ImGui::GetIO().MouseWheel != 0 || (bench_orbit_ && bench_frames_left_ > 0);
@@ -815,15 +840,7 @@ bool Viewer::Frame() {
                                            ImVec2(view_rect_.x + view_rect_.w, view_rect_.y + view_rect_.h),
                                            ImVec2(0, 1), ImVec2(1, 0));
 
-  if (script_ && !quit_) {
-    try {
-      if (!script_->Step()) script_.reset();
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "lightprobe: script: %s\n", e.what());
-      exit_code_ = 1;
-      quit_ = true;
-    }
-  }
+  StepScript();
 
   ImGui::Render();
   int fb_w, fb_h;

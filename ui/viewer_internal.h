@@ -60,6 +60,10 @@ class Viewer {
   void HandleMouse(const Rect& r);
   void PanelSource();
   void PanelEstimate();
+  void LightsList();
+  void EstimateSettings();
+  void ShadingBar();
+  void StepScript();
   void PanelEnvironment();
   void PanelKeyframe();
   void PlotConvergence(float width, float height);
