@@ -128,7 +128,6 @@ struct BenchOptions {
   std::vector<std::string> sizes = {"160x120", "320x240"};
   double cap = 120;  ///< seconds the gradient solver may run per problem
   EstimateOptions estimate;
-  std::string solver = "fast";
   int threads = 0;
   std::vector<std::string> parts = {"estimate", "solvers", "fd"};
 
@@ -376,7 +375,7 @@ Run AddBench(CLI::App& app) {
   cmd->add_option("--out", o->out, "directory for bench.csv and bench.md")->capture_default_str();
   cmd->add_option("--sizes", o->sizes, "image sizes WxH")->capture_default_str();
   cmd->add_option("--gradient-cap", o->cap, "seconds the gradient solver may run per problem")->capture_default_str();
-  AddEstimateOptions(*cmd, &o->estimate, &o->solver, &o->threads);
+  AddEstimateOptions(*cmd, &o->estimate, &o->threads);
   return [o] { RunBench(*o); };
 }
 

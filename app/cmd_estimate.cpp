@@ -29,55 +29,21 @@ std::string DefaultDataDir() {
 #endif
 }
 
-void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, int* threads) {
-  cmd.add_option("--rings", o->rings, "rings of the environment map (21 -> 522 directions)")
-      ->capture_default_str()
-      ->check(CLI::Range(kMinRings, kMaxRings));
-  cmd.add_option("--spp", o->tracer.spp, "the map's path samples per pixel per round (after round 1 fewer, down to a quarter, where the map renders under half the light)")->capture_default_str();
-  cmd.add_option("--bounces", o->tracer.bounces, "surface interactions per path (1 = direct only)")
-      ->capture_default_str();
-  cmd.add_option("--solver", *solver, "fast (majorize-minimize NNQP) or gradient (paper's projected GD)")
-      ->capture_default_str();
-  cmd.add_option("--alpha", o->objective.alpha,
-                 "activation penalty weight, per 19200 observed pixels (scaled with the pixel count)")
-      ->capture_default_str();
-  cmd.add_option("--beta", o->objective.beta, "activation penalty sharpness")->capture_default_str();
-  cmd.add_option("--sigma", o->objective.sigma, "Cauchy scale, relative to the mean pixel value")
-      ->capture_default_str();
-  cmd.add_option("--nee-floor", o->tracer.nee_floor,
-                 "share of next-event samples spread over all reachable cells (the rest follow the estimate)")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0, 1.0));
-  cmd.add_option("--max-rounds", o->max_rounds, "sequential Monte Carlo rounds at most")->capture_default_str();
-  cmd.add_option("--albedo-passes", o->albedo_passes,
-                 "albedo refinements of a reconstructed mesh (de-lit by the estimate, segmented again, rounds "
-                 "go on; 0 = keep the bundle's albedo)")
-      ->capture_default_str()
-      ->check(CLI::Range(0, kMaxAlbedoPasses));
-  cmd.add_option("--albedo-samples", o->albedo_samples, "paths per vertex for the irradiance an albedo pass de-lights by")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 4096));
-  cmd.add_option("--trace-pixels", o->trace_pixels,
-                 "trace the mesh clustered on a grid of this many pixels (what one spans on the nearest tenth of "
-                 "the surfaces seen) where it is finer; 0 = trace the bundle's mesh as it is")
-      ->capture_default_str()
-      ->check(CLI::Range(0.0, kMaxTracePixels));
-  cmd.add_option("--render-spp", o->render_spp, "samples per pixel of the final relit render, every pixel traced again; 0 = the fit itself (A lambda) where it used the pixels, the rest traced at 64")
-      ->capture_default_str();
-  cmd.add_option("--point-lights", o->point_lights.max_lights,
-                 "point lights (lamps in the room) at most, beside the environment map; 0 = the map alone")
-      ->capture_default_str()
-      ->check(CLI::Range(0, 16));
-  cmd.add_option("--point-spp", o->point_lights.spp, "paths per pixel the point lights' columns and positions use")
-      ->capture_default_str()
-      ->check(CLI::Range(1, 1024));
-  cmd.add_option("--directional-lights", o->directional_lights,
-                 "try a directional light (a sun: sharp shadows) where the map concentrates its power; 0 = never "
-                 "(needs --point-lights > 0)")
-      ->capture_default_str();
+void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, int* threads) {
+  // Every option of the table (estimation/estimate_options.h): read as text and set (and
+  // its range checked) by SetEstimateOption, so the command line, the viewer's command file
+  // and its Settings accept the same values.
+  for (const EstimateOption& option : EstimateOptionTable()) {
+    const std::string key = option.key;
+    cmd.add_option_function<std::string>(
+           "--" + key, [o, key](const std::string& text) { SetEstimateOption(o, key, text); }, option.help)
+        ->default_str(EstimateOptionText(option, *o))
+        ->type_name(option.type == EstimateOption::Type::kChoice ? "NAME"
+                    : option.type == EstimateOption::Type::kReal ? "FLOAT"
+                    : option.type == EstimateOption::Type::kBool ? "0/1"
+                                                                 : "INT");
+  }
   cmd.add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
-  cmd.add_option("--seed", o->tracer.seed, "random seed (same seed => same result for any thread count)")
-      ->capture_default_str();
 }
 
 std::string Num(double v) { return CsvNumber(v); }
@@ -213,18 +179,19 @@ static json WriteView(const fs::path& out, std::size_t k, const View& v, const I
           {"render_relative_rmse", mean_obs > 0 ? render_rmse / mean_obs : 0.0}};
 }
 
-/// report.json's "settings": the options the estimate ran with.
+/// report.json's "settings": the options the estimate ran with (every option of the table,
+/// a choice by its name), and what follows from them.
 static json SettingsJson(const EstimateOptions& o, const EstimateResult& r) {
-  return {{"rings", o.rings}, {"directions", r.env.size()}, {"spp", o.tracer.spp},
-          {"bounces", o.tracer.bounces}, {"solver", ToString(o.solver)},
-          {"alpha", o.objective.alpha}, {"alpha_effective", r.objective_params.alpha},
-          {"beta", o.objective.beta}, {"sigma", o.objective.sigma},
-          {"max_rounds", o.max_rounds}, {"change_threshold", o.change_threshold},
-          {"seed", o.tracer.seed}, {"threads", HardwareThreads()}, {"nee_floor", o.tracer.nee_floor},
-          {"min_throughput", o.tracer.min_throughput}, {"combine_rounds", o.combine_rounds},
-          {"albedo_passes", o.albedo_passes}, {"albedo_samples", o.albedo_samples},
-          {"point_lights", o.point_lights.max_lights}, {"point_spp", o.point_lights.spp},
-          {"trace_pixels", o.trace_pixels}, {"render_spp", o.render_spp}};
+  json settings = {{"directions", r.env.size()}, {"alpha_effective", r.objective_params.alpha},
+                   {"threads", HardwareThreads()}, {"min_throughput", o.tracer.min_throughput},
+                   {"combine_rounds", o.combine_rounds}};
+  for (const EstimateOption& option : EstimateOptionTable()) {
+    if (option.type == EstimateOption::Type::kChoice) settings[option.report] = EstimateOptionText(option, o);
+    else if (option.type == EstimateOption::Type::kReal) settings[option.report] = option.get(o);
+    else if (option.type == EstimateOption::Type::kBool) settings[option.report] = option.get(o) != 0;
+    else settings[option.report] = static_cast<std::int64_t>(option.get(o));
+  }
+  return settings;
 }
 
 /// report.json's "seconds": where the time went.
@@ -354,17 +321,16 @@ Run AddEstimate(CLI::App& app) {
   auto scene = std::make_shared<std::string>();
   auto out = std::make_shared<std::string>();
   auto o = std::make_shared<EstimateOptions>();
-  auto solver = std::make_shared<std::string>("fast");
   auto threads = std::make_shared<int>(0);
   auto quiet = std::make_shared<bool>(false);
   cmd->add_option("SCENE_DIR", *scene, "scene bundle directory (scene.json, mesh.ply, views)")->required();
   cmd->add_option("--out", *out, "output directory")->required();
-  AddEstimateOptions(*cmd, o.get(), solver.get(), threads.get());
+  AddEstimateOptions(*cmd, o.get(), threads.get());
   cmd->add_flag("--quiet", *quiet, "no progress lines");
   return [=] {
     Stopwatch sw;
     ThreadLimit limit(*threads);
-    o->solver = ParseSolverKind(*solver);
+    Validate(*o);
     if (!*quiet) o->progress = [](const std::string& s) { std::fprintf(stderr, "  %s\n", s.c_str()); };
     if (!*quiet) std::fprintf(stderr, "loading %s\n", scene->c_str());
     SceneBundle bundle = LoadSceneBundle(*scene);

@@ -65,7 +65,7 @@ using BenchRow = std::function<void(const std::string&, const std::string&, doub
 void ReconstructionBench(const BenchRow& row);
 
 /// Registers the estimator options shared by estimate and bench.
-void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, std::string* solver, int* threads);
+void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, int* threads);
 
 /// Writes every output of an estimate into out_dir (atomically per file).
 void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle, const EstimateOptions& options,

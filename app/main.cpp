@@ -49,6 +49,9 @@ int main(int argc, char** argv) {
     // Bad usage is bad input: one line and exit 2, like every other.
     std::fprintf(stderr, "lightprobe: error: %s (see --help)\n", e.what());
     return 2;
+  } catch (const lp::InputError& e) {  // an option's value refused as it is read (estimate_options.h)
+    std::fprintf(stderr, "lightprobe: error: %s\n", e.what());
+    return 2;
   }
   try {
     for (CLI::App* sub : app.get_subcommands()) runs.at(sub->get_name())();

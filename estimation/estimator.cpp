@@ -27,21 +27,9 @@ std::vector<double> CollectObservations(const std::vector<View>& views) {
 
 namespace lp::detail {
 
-namespace {
-
-void CheckOptions(const EstimateOptions& opt) {
-  if (opt.rings < kMinRings || opt.rings > kMaxRings)
-    throw InputError("rings must be between " + std::to_string(kMinRings) + " and " + std::to_string(kMaxRings));
-  if (opt.max_rounds < 1) throw InputError("max-rounds must be at least 1");
-  if (!(opt.objective.sigma > 0) || !std::isfinite(opt.objective.sigma))
-    throw InputError("sigma must be positive and finite");
-}
-
-}  // namespace
-
 Estimator::Estimator(const SceneBundle& bundle, const EstimateOptions& options)
     : bundle_(bundle), opt_(options), env_(res_.env) {
-  CheckOptions(opt_);
+  Validate(opt_);
   res_.env = EnvMap(opt_.rings, bundle_.up);
   cells_ = env_.size();
   Observe();

@@ -33,9 +33,11 @@ mkdir -p "$tmp/est" && cp "$tmp/bad_lights.json" "$tmp/est/lights.json"
 expect "lights.json: .*intensity is negative" "$exe" export "$tmp/s" "$tmp/est" --format gltf --out "$tmp/o"
 expect "lights.json: file not found" "$exe" export "$tmp/s" "$tmp/nope" --format sh --out "$tmp/o"
 expect "expected blender, gltf or sh, got 'obj'" "$exe" export "$tmp/s" "$tmp/est" --format obj --out "$tmp/o"
-expect "nee-floor: Value 2 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --nee-floor 2 --quiet
-expect "albedo-passes: Value 9 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --albedo-passes 9 --quiet
-expect "albedo-samples: Value 0 not in range" "$exe" estimate "$tmp/s" --out "$tmp/o" --albedo-samples 0 --quiet
+expect "nee-floor must be between 0 and 1, not 2" "$exe" estimate "$tmp/s" --out "$tmp/o" --nee-floor 2 --quiet
+expect "albedo-passes must be between 0 and 5, not 9" "$exe" estimate "$tmp/s" --out "$tmp/o" --albedo-passes 9 --quiet
+expect "albedo-samples must be between 1 and 4096, not 0" "$exe" estimate "$tmp/s" --out "$tmp/o" --albedo-samples 0 --quiet
+expect "rings must be a whole number, not '21.5'" "$exe" estimate "$tmp/s" --out "$tmp/o" --rings 21.5 --quiet
+expect "spp must be at least 1, not 0" "$exe" estimate "$tmp/s" --out "$tmp/o" --spp 0 --quiet
 expect "smooth: Value -1 not in range" "$exe" reconstruct "$tmp/nope" --out "$tmp/o" --smooth -1
 expect "unknown-flag" "$exe" estimate "$tmp/s" --out "$tmp/o" --unknown-flag
 # A valid scene with bad settings: refused before any work (a negative sigma once looped).

@@ -146,36 +146,16 @@ bool WaitRecord(const Call& c) {
 
 // ---- the estimate ----
 
-/// One `key=value` of an estimate line into `o`.
+/// One `key=value` of an estimate line into `o`: any option of the command line's
+/// `estimate` by its key (estimation/estimate_options.h), its range checked there.
 void ApplySetting(const Call& c, const std::string& w, EstimateOptions* o) {
   const std::size_t eq = w.find('=');
   if (eq == std::string::npos) c.Fail("settings are key=value: " + w);
-  const std::string key = w.substr(0, eq);
-  ScriptLine value{c.line.number, {w.substr(eq + 1)}};
-  const double x = key == "solver" ? 0 : Number(value, 0, 0);
-  if (key == "rings") o->rings = static_cast<int>(x);
-  else if (key == "spp") o->tracer.spp = static_cast<int>(x);
-  else if (key == "bounces") o->tracer.bounces = static_cast<int>(x);
-  else if (key == "rounds") o->max_rounds = static_cast<int>(x);
-  else if (key == "render-spp") o->render_spp = static_cast<int>(x);
-  else if (key == "point-lights") o->point_lights.max_lights = static_cast<int>(x);  // 0: the map alone
-  else if (key == "directional-lights") o->directional_lights = x != 0;  // 1: look for a sun
-  else if (key == "change") o->change_threshold = x;  // stop when the image changes less (0: run every round)
-  else if (key == "trace-pixels") {  // the traced mesh's grid in pixels (0: the bundle's mesh)
-    if (!(x >= 0 && x <= kMaxTracePixels))
-      c.Fail("trace-pixels is 0 .. " + std::to_string(static_cast<int>(kMaxTracePixels)) + ", not " + value.words[0]);
-    o->trace_pixels = x;
+  try {
+    SetEstimateOption(o, w.substr(0, eq), w.substr(eq + 1));
+  } catch (const InputError& e) {
+    c.Fail(e.what());
   }
-  else if (key == "albedo-passes") {
-    if (x < 0 || x > kMaxAlbedoPasses || x != std::floor(x))
-      c.Fail("albedo-passes is 0 .. " + std::to_string(kMaxAlbedoPasses) + ", not " + value.words[0]);
-    o->albedo_passes = static_cast<int>(x);
-  }
-  else if (key == "alpha") o->objective.alpha = x;
-  else if (key == "beta") o->objective.beta = x;
-  else if (key == "sigma") o->objective.sigma = x;
-  else if (key == "solver") o->solver = value.words[0] == "gradient" ? SolverKind::kGradient : SolverKind::kFast;
-  else c.Fail("unknown setting " + key);
 }
 
 bool StartEstimate(const Call& c) {

@@ -134,7 +134,6 @@ Viewer::Viewer(const ViewerOptions& options, GLFWwindow* window)
       settings_(options.estimate),
       mesh_program_(MeshProgram()),
       line_program_(LineProgram()) {
-  solver_index_ = settings_.solver == SolverKind::kFast ? 0 : 1;
   if (!options.script.empty()) script_ = std::make_unique<ScriptRunner>(options.script, this);
   session_.Open(options.input.empty() ? "auto" : options.input);
 }
@@ -573,30 +572,37 @@ void Viewer::LightsList() {
 
 /// The estimate's settings (the options of `lightprobe estimate`) for the next Estimate.
 void Viewer::EstimateSettings() {
-  ImGui::SliderInt("rings", &settings_.rings, 5, 41);
-  ImGui::SliderInt("samples/pixel", &settings_.tracer.spp, 8, 256);
-  ImGui::SliderInt("bounces", &settings_.tracer.bounces, 1, 8);
-  ImGui::SliderInt("rounds", &settings_.max_rounds, 1, 6);
-  ImGui::SliderInt("point lights", &settings_.point_lights.max_lights, 0, 8);
-  if (ImGui::IsItemHovered()) ImGui::SetTooltip("at most this many lamps beside the map; 0 = the map alone");
-  ImGui::Checkbox("directional light (a sun)", &settings_.directional_lights);
-  if (ImGui::IsItemHovered()) ImGui::SetTooltip("look for a sun with sharp shadows where the map has one bright spot");
-  float trace_pixels = static_cast<float>(settings_.trace_pixels);
-  if (ImGui::SliderFloat("traced mesh (pixels)", &trace_pixels, 0.f, 4.f, "%.1f"))
-    settings_.trace_pixels = trace_pixels;
-  if (ImGui::IsItemHovered())
-    ImGui::SetTooltip("trace the mesh clustered on a grid of this many pixels (faster); 0 = the full mesh");
-  ImGui::SliderInt("albedo passes", &settings_.albedo_passes, 0, kMaxAlbedoPasses);
-  if (ImGui::IsItemHovered())
-    ImGui::SetTooltip("refine the reconstruction's albedo under the estimate (de-lit colours), then more rounds");
-  float alpha = static_cast<float>(settings_.objective.alpha), beta = static_cast<float>(settings_.objective.beta),
-        sigma = static_cast<float>(settings_.objective.sigma);
-  if (ImGui::InputFloat("alpha", &alpha, 0, 0, "%.4g")) settings_.objective.alpha = std::max(0.f, alpha);
-  if (ImGui::InputFloat("beta", &beta, 0, 0, "%.4g")) settings_.objective.beta = std::max(1e-6f, beta);
-  if (ImGui::InputFloat("sigma", &sigma, 0, 0, "%.4g")) settings_.objective.sigma = std::max(1e-6f, sigma);
-  const char* solvers[] = {"fast (MM-NNQP)", "gradient (paper)"};
-  if (ImGui::Combo("solver", &solver_index_, solvers, 2))
-    settings_.solver = solver_index_ == 0 ? SolverKind::kFast : SolverKind::kGradient;
+  // The options of the table (estimation/estimate_options.h) that have a label here, each
+  // kept within its range.
+  for (const EstimateOption& option : EstimateOptionTable()) {
+    if (!*option.label) continue;
+    const double value = option.get(settings_);
+    double next = value;
+    if (option.type == EstimateOption::Type::kBool) {
+      bool on = value != 0;
+      if (ImGui::Checkbox(option.label, &on)) next = on;
+    } else if (option.type == EstimateOption::Type::kChoice) {
+      std::vector<const char*> names;
+      for (const std::string& n : option.names) names.push_back(n.c_str());
+      int index = static_cast<int>(value);
+      if (ImGui::Combo(option.label, &index, names.data(), static_cast<int>(names.size()))) next = index;
+    } else if (option.type == EstimateOption::Type::kInt) {
+      int v = static_cast<int>(value);
+      if (ImGui::SliderInt(option.label, &v, static_cast<int>(option.ui_min), static_cast<int>(option.ui_max))) next = v;
+    } else if (option.ui_min < option.ui_max) {
+      float v = static_cast<float>(value);
+      if (ImGui::SliderFloat(option.label, &v, static_cast<float>(option.ui_min), static_cast<float>(option.ui_max),
+                             "%.1f"))
+        next = v;
+    } else {
+      float v = static_cast<float>(value);
+      if (ImGui::InputFloat(option.label, &v, 0, 0, "%.4g")) next = v;
+    }
+    if (ImGui::IsItemHovered()) ImGui::SetTooltip("%s", option.help);
+    const double lowest = option.min_exclusive ? option.min + 1e-6 : option.min;
+    next = std::min(std::max(next, lowest), option.max);
+    if (next != value) option.set(&settings_, next);
+  }
 }
 
 void Viewer::PanelEstimate() {

@@ -77,7 +77,6 @@ class Viewer {
   LiveStatus live_;
   EstimateStatus est_;
   EstimateOptions settings_;
-  int solver_index_ = 0;
 
   Program mesh_program_;
   Program line_program_;

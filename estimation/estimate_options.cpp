@@ -1,0 +1,146 @@
+#include "estimation/estimate_options.h"
+
+#include <cmath>
+#include <cstdlib>
+
+#include "common/error.h"
+
+namespace lp {
+namespace {
+
+using Type = EstimateOption::Type;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+#define LP_GET(expr) [](const EstimateOptions& o) -> double { return static_cast<double>(o.expr); }
+#define LP_SET(expr, T) [](EstimateOptions* o, double v) { o->expr = static_cast<T>(v); }
+
+std::vector<EstimateOption> MakeTable() {
+  return {
+      {"rings", "rings", "rings of the environment map (21 -> 522 directions)", Type::kInt, kMinRings, kMaxRings, false,
+       LP_GET(rings), LP_SET(rings, int), "rings", 5, 41, {}},
+      {"spp", "spp",
+       "the map's path samples per pixel per round (after round 1 fewer, down to a quarter, where the map renders "
+       "under half the light)",
+       Type::kInt, 1, kInf, false, LP_GET(tracer.spp), LP_SET(tracer.spp, int), "samples/pixel", 8, 256, {}},
+      {"bounces", "bounces", "surface interactions per path (1 = direct only)", Type::kInt, 1, kInf, false,
+       LP_GET(tracer.bounces), LP_SET(tracer.bounces, int), "bounces", 1, 8, {}},
+      {"solver", "solver", "fast (majorize-minimize NNQP) or gradient (paper's projected GD)", Type::kChoice, 0, 1,
+       false, LP_GET(solver), LP_SET(solver, SolverKind), "solver", 0, 0, {"fast", "gradient"}},
+      {"alpha", "alpha", "activation penalty weight, per 19200 observed pixels (scaled with the pixel count)",
+       Type::kReal, 0, kInf, false, LP_GET(objective.alpha), LP_SET(objective.alpha, double), "alpha", 0, 0, {}},
+      {"beta", "beta", "activation penalty sharpness", Type::kReal, 0, kInf, true, LP_GET(objective.beta),
+       LP_SET(objective.beta, double), "beta", 0, 0, {}},
+      {"sigma", "sigma", "Cauchy scale, relative to the mean pixel value", Type::kReal, 0, kInf, true,
+       LP_GET(objective.sigma), LP_SET(objective.sigma, double), "sigma", 0, 0, {}},
+      {"nee-floor", "nee_floor",
+       "share of next-event samples spread over all reachable cells (the rest follow the estimate)", Type::kReal, 0, 1,
+       false, LP_GET(tracer.nee_floor), LP_SET(tracer.nee_floor, double), "", 0, 0, {}},
+      {"max-rounds", "max_rounds", "sequential Monte Carlo rounds at most", Type::kInt, 1, kInf, false,
+       LP_GET(max_rounds), LP_SET(max_rounds, int), "rounds", 1, 6, {}, "rounds"},
+      {"change", "change_threshold",
+       "stop when the rendered estimate changes by less than this share between rounds (0: run every round)",
+       Type::kReal, 0, kInf, false, LP_GET(change_threshold), LP_SET(change_threshold, double), "", 0, 0, {}},
+      {"albedo-passes", "albedo_passes",
+       "albedo refinements of a reconstructed mesh (de-lit by the estimate, segmented again, rounds go on; 0 = keep "
+       "the bundle's albedo)",
+       Type::kInt, 0, kMaxAlbedoPasses, false, LP_GET(albedo_passes), LP_SET(albedo_passes, int), "albedo passes", 0,
+       kMaxAlbedoPasses, {}},
+      {"albedo-samples", "albedo_samples", "paths per vertex for the irradiance an albedo pass de-lights by",
+       Type::kInt, 1, 4096, false, LP_GET(albedo_samples), LP_SET(albedo_samples, int), "", 0, 0, {}},
+      {"trace-pixels", "trace_pixels",
+       "trace the mesh clustered on a grid of this many pixels (what one spans on the nearest tenth of the surfaces "
+       "seen) where it is finer; 0 = trace the bundle's mesh as it is",
+       Type::kReal, 0, kMaxTracePixels, false, LP_GET(trace_pixels), LP_SET(trace_pixels, double),
+       "traced mesh (pixels)", 0, 4, {}},
+      {"render-spp", "render_spp",
+       "samples per pixel of the final relit render, every pixel traced again; 0 = the fit itself (A lambda) where "
+       "it used the pixels, the rest traced at 64",
+       Type::kInt, 0, kInf, false, LP_GET(render_spp), LP_SET(render_spp, int), "", 0, 0, {}},
+      {"point-lights", "point_lights",
+       "point lights (lamps in the room) at most, beside the environment map; 0 = the map alone", Type::kInt, 0, 16,
+       false, LP_GET(point_lights.max_lights), LP_SET(point_lights.max_lights, int), "point lights", 0, 8, {}},
+      {"point-spp", "point_spp", "paths per pixel the point lights' columns and positions use", Type::kInt, 1, 1024,
+       false, LP_GET(point_lights.spp), LP_SET(point_lights.spp, int), "", 0, 0, {}},
+      {"directional-lights", "directional_lights",
+       "try a directional light (a sun: sharp shadows) where the map concentrates its power; 0 = never (needs "
+       "--point-lights > 0)",
+       Type::kBool, 0, 1, false, LP_GET(directional_lights), LP_SET(directional_lights, bool),
+       "directional light (a sun)", 0, 1, {}},
+      {"seed", "seed", "random seed (same seed => same result for any thread count)", Type::kInt, 0, 9007199254740992.0,
+       false, LP_GET(tracer.seed), LP_SET(tracer.seed, std::uint64_t), "", 0, 0, {}},
+  };
+}
+
+#undef LP_GET
+#undef LP_SET
+
+/// A number as it would be typed (no trailing zeros).
+std::string Number(double v) {
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+bool PositiveFinite(const EstimateOption& option) {
+  return option.min_exclusive && option.min == 0 && std::isinf(option.max);
+}
+
+bool InRange(const EstimateOption& option, double v) {
+  return v >= option.min && v <= option.max && !(option.min_exclusive && v == option.min) &&
+         !(PositiveFinite(option) && !std::isfinite(v));
+}
+
+/// "between 2 and 181", "at least 1", "positive and finite".
+std::string RangeText(const EstimateOption& option) {
+  if (PositiveFinite(option)) return "positive and finite";
+  if (std::isinf(option.max)) return "at least " + Number(option.min);
+  return "between " + Number(option.min) + " and " + Number(option.max);
+}
+
+}  // namespace
+
+const std::vector<EstimateOption>& EstimateOptionTable() {
+  static const std::vector<EstimateOption> table = MakeTable();
+  return table;
+}
+
+const EstimateOption* FindEstimateOption(const std::string& key) {
+  for (const EstimateOption& o : EstimateOptionTable())
+    if (key == o.key || (*o.alias && key == o.alias)) return &o;
+  return nullptr;
+}
+
+void SetEstimateOption(EstimateOptions* o, const std::string& key, const std::string& text) {
+  const EstimateOption* option = FindEstimateOption(key);
+  if (!option) throw InputError("unknown setting '" + key + "'");
+  if (option->type == Type::kChoice) {
+    for (std::size_t i = 0; i < option->names.size(); ++i)
+      if (text == option->names[i]) return option->set(o, static_cast<double>(i));
+    std::string names;
+    for (const std::string& n : option->names) names += (names.empty() ? "" : " or ") + n;
+    throw InputError("unknown " + key + " '" + text + "' (use " + names + ")");
+  }
+  if (option->type == Type::kBool && (text == "true" || text == "false")) return option->set(o, text == "true");
+  char* end = nullptr;
+  const double v = std::strtod(text.c_str(), &end);
+  if (text.empty() || *end != '\0') throw InputError(key + " must be a number, not '" + text + "'");
+  // Out of range is refused here too: an int cannot hold every double.
+  if (!InRange(*option, v)) throw InputError(key + " must be " + RangeText(*option) + ", not " + text);
+  if (option->type != Type::kReal && v != std::floor(v))
+    throw InputError(key + " must be a whole number, not '" + text + "'");
+  option->set(o, v);
+}
+
+std::string EstimateOptionText(const EstimateOption& option, const EstimateOptions& o) {
+  const double v = option.get(o);
+  if (option.type == Type::kChoice) return option.names.at(static_cast<std::size_t>(v));
+  return Number(v);
+}
+
+void Validate(const EstimateOptions& o) {
+  for (const EstimateOption& option : EstimateOptionTable())
+    if (!InRange(option, option.get(o))) throw InputError(std::string(option.key) + " must be " + RangeText(option));
+}
+
+}  // namespace lp

@@ -1,0 +1,172 @@
+#pragma once
+/// An estimate's options (EstimateOptions), their defaults, and the one table of them
+/// (EstimateOptionTable) from which the command line, the viewer's command file and its
+/// Settings panel, and report.json's "settings" are all made; Validate checks every range
+/// in one place.
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "estimation/objective.h"
+#include "estimation/path_tracer.h"
+#include "estimation/solver.h"
+
+namespace lp {
+
+struct ConvergenceRow;
+struct RoundInfo;
+class EnvMap;
+
+/// EstimateOptions::objective.alpha is per this many observed pixels (one 160x120 view),
+constexpr double kAlphaReferencePixels = 19200;
+/// and per cell of this solid angle (the mean cell of 21 rings, 4 pi / 522): a cell of
+/// solid angle Omega_j is penalized with alpha * Omega_j / kAlphaReferenceSolidAngle.
+constexpr double kAlphaReferenceSolidAngle = 4 * 3.14159265358979323846 / 522;
+/// Round 1 (the cold start) solves at this Cauchy scale first when a smaller one is asked
+/// for, then halves it down to the one asked for, each solve warm-started (graduated
+/// non-convexity; see Estimate).
+constexpr double kGraduatedSigmaStart = 0.5;
+
+/// Round 1 (the first estimate) fits the valid pixels on the widest grid that keeps this
+/// many of them (a quarter of a 160x120 view: every 2nd pixel of every 2nd row of one such
+/// view, every 3rd of every 3rd of the demo's 4); the rounds after fit them all.
+constexpr double kFirstRoundPixels = 4800;
+
+/// The traced mesh is clustered only where its grid is at least this many median edges.
+constexpr double kMinTraceCellEdges = 1.5;
+/// and where the clustered mesh keeps at least this share of the surface's area.
+constexpr double kMinTracedArea = 0.5;
+/// EstimateOptions::trace_pixels is 0 .. this.
+constexpr double kMaxTracePixels = 64;
+
+/// The most albedo passes an estimate takes (EstimateOptions::albedo_passes is 0 .. this):
+/// the command line, the viewer's setting and its script check against it.
+constexpr int kMaxAlbedoPasses = 5;
+/// Samples per pixel of the pixels the fit did not use in the default final render.
+constexpr int kMaskedRenderSpp = 64;
+/// EstimateOptions::rings is kMinRings .. kMaxRings.
+constexpr int kMinRings = 2, kMaxRings = 181;
+
+
+/// The near-light model (docs/method.md, "Point lights"): point lights beside the map.
+struct PointLightOptions {
+  /// At most this many point lights; 0 = the environment map alone (the far-light model).
+  int max_lights = 4;
+  /// Paths per pixel whose shading vertices the lights' columns and positions come from.
+  int spp = 8;
+  /// The same for the first round's candidates (many columns, so fewer paths).
+  int candidate_spp = 1;
+  /// A point light's activation penalty, in cells of the reference solid angle.
+  double weight = 1;
+  /// Share of the pixels the model selection scores lights on (left out of that fit), in
+  /// blocks of 8 x 8 pixels (a light that fits a local patch must predict the next block).
+  double holdout = 0.2;
+  /// A light is kept when it lowers the held-out loss by at least this share,
+  double min_gain = 0.02;
+  /// and renders at least this share of the observed light (a lamp is what lights a good
+  /// part of the scene; fits of noise and of a map's discretization live below this).
+  double min_share = 0.1;
+  /// Lights refined farther than this many scene radii from the centre are far lights:
+  /// dropped, the map takes their light (a sun is not a lamp).
+  double far = 5;
+};
+
+struct EstimateOptions {
+  int rings = 21;
+  /// tracer.spp: the map's samples per pixel in round 1; later rounds trace fewer where the
+  /// map renders less than half the light (down to a quarter of them; docs/method.md).
+  TracerOptions tracer;
+  ObjectiveParams objective;
+  SolverKind solver = SolverKind::kFast;
+  SolverOptions solver_options;
+  int max_rounds = 4;
+  PointLightOptions point_lights;
+  /// A directional light (a sun: sharp shadows) where the map concentrates its power
+  /// (docs/method.md, "Directional lights"): tried in the first round on every pixel
+  /// (round 2 after round 1's grid, else round 1) when the brightest cell's neighbourhood
+  /// holds at least directional_min_share of the map's power and renders at least
+  /// PointLightOptions::min_share of the light seen, kept when the held-out pixels want it
+  /// (PointLightOptions::holdout, min_gain). Needs the near-light model's shading vertices
+  /// (point_lights.max_lights > 0).
+  bool directional_lights = true;
+  double directional_min_share = 0.25;
+  /// The mesh the estimator traces (docs/method.md, "The traced mesh"): the bundle's mesh
+  /// clustered on a grid of this many pixels, a pixel being what one spans on the nearest
+  /// tenth of the surfaces the views see (PixelFootprints), when that grid is at least
+  /// kMinTraceCellEdges of the mesh's median edges (a mesh no finer than the pixels is traced
+  /// as it is); 0 always traces the bundle's mesh. The albedo refinement still de-lights
+  /// every vertex of the bundle's mesh (about albedo_samples paths per cluster, averaged
+  /// over it), and the result's albedo is per vertex of it (each cluster's the mean of its
+  /// vertices' weighted by their irradiance).
+  double trace_pixels = 1;
+  /// Albedo refinement (intrinsic decomposition, scene/albedo.h), when the mesh has
+  /// `shaded` colours (a reconstruction; a bundle with known albedo needs none): after the
+  /// rounds settle, the colours seen are de-lit by the estimate's irradiance at every vertex
+  /// (albedo_samples paths each), segmented again and flattened, and the rounds go on
+  /// warm-started under the new albedo (at most max_rounds more); this many times, 0 ..
+  /// kMaxAlbedoPasses (what it gains and costs: docs/method.md).
+  int albedo_passes = 1;
+  int albedo_samples = 64;
+  /// Stop when the rendered estimate changes by less than this between rounds:
+  /// |A (lambda_k - lambda_{k-1})| / |A lambda_k| < 2 % (over the observed pixels).
+  double change_threshold = 0.02;
+  /// Average A over rounds, weighted by sample counts (all rounds are unbiased).
+  bool combine_rounds = true;
+  /// The final relit render of the fitted views: 0 (the default) renders their valid pixels
+  /// as the fit itself, the last round's A lambda plus the lights' columns (no new paths;
+  /// its error is the fit's, in-sample), and traces only the pixels the fit did not use
+  /// (masked, no depth) at kMaskedRenderSpp; N > 0 traces every pixel again at N samples
+  /// (an independent render, at N / tracer.spp of a round's cost per pixel).
+  int render_spp = 0;
+  bool render = true;
+  /// Wall-clock origin for the convergence log (seconds already spent before Estimate).
+  double time_offset = 0;
+  /// Progress lines ("round 2: traced 19200 pixels in 0.6 s ...").
+  std::function<void(const std::string&)> progress;
+  /// Polled before and during each round's trace (every 64 pixels per worker), after every
+  /// solver iteration, and before and during the final render; when it returns true
+  /// Estimate throws Cancelled (a viewer's Cancel button). Called from worker threads.
+  std::function<bool()> cancelled;
+  /// Called on the estimating thread with every convergence row as it is logged, and
+  /// with every finished round (its estimate so far): a live plot and map.
+  std::function<void(const ConvergenceRow&)> on_convergence;
+  std::function<void(const RoundInfo&, const EnvMap&)> on_round;
+};
+
+/// One option of an estimate as every interface shows it.
+struct EstimateOption {
+  enum class Type { kInt, kReal, kBool, kChoice };
+  const char* key;     ///< the command line's --KEY and the command file's KEY=value
+  const char* report;  ///< its key in report.json's "settings"
+  const char* help;
+  Type type;
+  double min, max;     ///< valid values (inclusive; min exclusive when min_exclusive)
+  bool min_exclusive;
+  double (*get)(const EstimateOptions&);
+  void (*set)(EstimateOptions*, double);
+  /// The viewer's Settings: its label ("" = not shown) and its slider's range (an input
+  /// field when ui_min == ui_max).
+  const char* label;
+  double ui_min, ui_max;
+  /// kChoice: the names of the values 0, 1, ... (the value's name is what every interface shows).
+  std::vector<std::string> names;
+  /// Another key the viewer's command file takes for it ("" = none): its older name there.
+  const char* alias = "";
+};
+
+/// Every option of an estimate, in the order the interfaces list them.
+const std::vector<EstimateOption>& EstimateOptionTable();
+/// The option of that key (or alias), or nullptr.
+const EstimateOption* FindEstimateOption(const std::string& key);
+/// Sets option `key` from its text (a number; a name for a choice; 0/1/true/false for a
+/// flag). Throws InputError naming the key on an unknown key or a value it cannot read;
+/// the range is Validate's.
+void SetEstimateOption(EstimateOptions* o, const std::string& key, const std::string& text);
+/// The option's value as text (a choice's name; a number as it would be typed).
+std::string EstimateOptionText(const EstimateOption& option, const EstimateOptions& o);
+/// Throws InputError naming the first option out of its range ("rings must be between 2
+/// and 181", "sigma must be positive and finite").
+void Validate(const EstimateOptions& o);
+
+}  // namespace lp
