@@ -509,6 +509,7 @@ class ReportRun {
     if (c->near_truth) {  // the far-light model beside the lamps', on the same scene
       EstimateOptions alone = fast;
       alone.point_lights.max_lights = 0;
+      alone.directional_lights = false;  // the map alone (a sun is sought whatever the lamps)
       const EstimateResult ra = RunEstimate(*c, alone);
       c->curves.push_back(MethodCurve(*c, kMapAlone, ra, alone, o_.eval_spp));
       Progress(Fmt("  map alone %.1f s, relit error %.4f", ra.rounds.back().end_seconds,

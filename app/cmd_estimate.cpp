@@ -118,9 +118,10 @@ static void WriteLights(const fs::path& out, const EstimateResult& r) {
 
 /// report.json's "model": which lighting model was chosen and why.
 static json ModelJson(const EstimateOptions& o, const EstimateResult& r) {
-  std::string chosen = r.point_lights.empty() ? "environment map" : "environment map + " +
-                                                                        std::to_string(r.point_lights.size()) +
-                                                                        " point light(s)";
+  std::string chosen = "environment map";
+  if (!r.point_lights.empty()) chosen += " + " + std::to_string(r.point_lights.size()) + " point light(s)";
+  if (!r.directional_lights.empty())
+    chosen += " + " + std::to_string(r.directional_lights.size()) + " directional light(s)";
   return {{"chosen", chosen},
           {"max_point_lights", o.point_lights.max_lights},
           {"choices", r.point_light_choices},

@@ -72,6 +72,18 @@ struct PointLightOptions {
   double far = 5;
 };
 
+/// When a directional light is tried and kept (EstimateOptions::directional_lights).
+struct DirectionalLightOptions {
+  /// Tried where the map's brightest cell's neighbourhood holds at least this share of the
+  /// map's power
+  double min_map_share = 0.25;
+  /// and renders at least this share of the light seen;
+  double min_share = 0.1;
+  /// kept when the held-out pixels' loss (PointLightOptions::holdout's pixels) falls by at
+  /// least this share with it in place of the cells.
+  double min_gain = 0.02;
+};
+
 struct EstimateOptions {
   int rings = 21;
   /// tracer.spp: the map's samples per pixel in round 1; later rounds trace fewer where the
@@ -83,14 +95,11 @@ struct EstimateOptions {
   int max_rounds = 4;
   PointLightOptions point_lights;
   /// A directional light (a sun: sharp shadows) where the map concentrates its power
-  /// (docs/method.md, "Directional lights"): tried in the first round on every pixel
-  /// (round 2 after round 1's grid, else round 1) when the brightest cell's neighbourhood
-  /// holds at least directional_min_share of the map's power and renders at least
-  /// PointLightOptions::min_share of the light seen, kept when the held-out pixels want it
-  /// (PointLightOptions::holdout, min_gain). Needs the near-light model's shading vertices
-  /// (point_lights.max_lights > 0).
+  /// (docs/method.md, "Directional lights"), whatever point_lights.max_lights: tried in the
+  /// first round on every pixel (round 2 after round 1's grid, else round 1) as `directional`
+  /// says, on the shading vertices gathered for it.
   bool directional_lights = true;
-  double directional_min_share = 0.25;
+  DirectionalLightOptions directional;
   /// The mesh the estimator traces (docs/method.md, "The traced mesh"): the bundle's mesh
   /// clustered on a grid of this many pixels, a pixel being what one spans on the nearest
   /// tenth of the surfaces the views see (PixelFootprints), when that grid is at least

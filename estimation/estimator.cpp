@@ -194,11 +194,11 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   const double normal = ts.Seconds();
   // Point lights: round 1 searches for them; later rounds trace their columns (and the
   // directional lights') only if any were found (the far-light scenes pay for the search alone).
-  const bool sun = SunRound(round) && BrightestNeighbourhood().second >= opt_.directional_min_share;
+  const bool sun = SunRound(round) && BrightestNeighbourhood().second >= opt_.directional.min_map_share;
   if ((NearLights() && round == 1) || sun || !points_.empty() || !suns_.empty())
     GatherVertices(round, first);
   RoundProblem rp = WithLights(points_);
-  Progress(Fmt("round %.0f: A traced at %.0f samples per pixel in %.2f s", round, topt.spp, trace_a) +
+  Progress(Fmt("round %d: A traced at %d samples per pixel in %.2f s", round, topt.spp, trace_a) +
            Fmt(", combined and its normal matrices in %.2f s, the lights' vertices and columns in %.2f s",
                normal - trace_a, ts.Seconds() - normal));
   info->trace_seconds = ts.Seconds();
@@ -210,7 +210,7 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   std::fill(reachable_.begin(), reachable_.end(), 0);
   for (int j : problem.cell_of)
     if (j < cells_) reachable_[j] = 1;
-  Progress(Fmt("round %.0f: traced in %.2f s, %.0f unknown cells of ", round, info->trace_seconds,
+  Progress(Fmt("round %d: traced in %.2f s, %d unknown cells of ", round, info->trace_seconds,
                info->unknown_cells) +
            std::to_string(cells_) + ", " + std::to_string(A_.nonzeros()) + " non-zeros");
   if (info->unknown_cells == 0)
@@ -415,7 +415,7 @@ void Estimator::EndRound(const SolveResult& sr, RoundInfo* info) {
   res_.rounds.push_back(*info);
   if (opt_.on_round) opt_.on_round(*info, env_);
   Progress("round " + std::to_string(info->round) + ": " + ToString(opt_.solver) + " solver, " +
-           Fmt("%.0f iterations in %.2f s, objective %.6g, change %.3g", sr.iterations, info->solve_seconds,
+           Fmt("%d iterations in %.2f s, objective %.6g, change %.3g", sr.iterations, info->solve_seconds,
                sr.objective, info->change) +
            Fmt(" (in the image %.3g)", info->image_change) + Fmt(", KKT violation %.2g", sr.kkt_violation));
 }
@@ -465,9 +465,8 @@ void Estimator::RenderFittedViews() {
   if (!traced) PutFit(&res_.renders);
   CheckCancel();
   res_.render_seconds = rs.Seconds();
-  Progress(Fmt(traced ? "relit %.0f view(s) in %.2f s (%.0f samples per pixel)"
-                                   : "relit %.0f view(s) in %.2f s (the fit, and the pixels it did not use at %.0f "
-                                     "samples per pixel)",
+  Progress(Fmt(traced ? "relit %zu view(s) in %.2f s (%d samples per pixel)"
+                      : "relit %zu view(s) in %.2f s (the fit, and the pixels it did not use at %d samples per pixel)",
                bundle_.views.size(), res_.render_seconds, topt.spp));
 }
 

@@ -82,8 +82,7 @@ bool Estimator::RefineAlbedo(int pass) {
   std::vector<float> irradiance;
   if (res_.rendered_fraction >= 0.01) {
     const int paths = AlbedoPaths();
-    Progress(Fmt("albedo pass %.0f: de-lighting %.0f vertices (%.0f paths each)", pass,
-                 static_cast<double>(mesh_.positions.size()), paths));
+    Progress(Fmt("albedo pass %d: de-lighting %zu vertices (%d paths each)", pass, mesh_.positions.size(), paths));
     {
       // The bundle's mesh itself (a clustered mesh folds where a flat surface crosses a
       // cell's boundary, and a vertex there can sit behind its neighbours' triangles).
@@ -109,8 +108,8 @@ bool Estimator::RefineAlbedo(int pass) {
   scene_ = std::make_unique<RayTracer>(WithAlbedoOf(mesh_, irradiance));
   columns_.clear();  // they saw the old albedo
   res_.albedo_passes = pass;
-  Progress(Fmt("albedo pass %.0f: de-lit %.0f vertices into %.0f segments in %.2f s", pass,
-               static_cast<double>(mesh_.positions.size()), segments, as.Seconds()));
+  Progress(Fmt("albedo pass %d: de-lit %zu vertices into %d segments in %.2f s", pass, mesh_.positions.size(),
+               segments, as.Seconds()));
   return true;
 }
 

@@ -6,6 +6,8 @@
 /// estimator_sun.cpp (the directional light and the sky), estimator_albedo.cpp (the
 /// albedo refinement).
 #include <algorithm>
+#include <cstdarg>
+#include <cstdio>
 #include <cmath>
 #include <memory>
 #include <sstream>
@@ -32,9 +34,13 @@ inline std::vector<double> Plus(std::vector<double> a, const std::vector<double>
   return a;
 }
 
-inline std::string Fmt(const char* fmt, double a, double b = 0, double c = 0, double d = 0) {
-  char buf[256];
-  std::snprintf(buf, sizeof buf, fmt, a, b, c, d);
+/// printf into a string, its format checked against its arguments by the compiler.
+[[gnu::format(printf, 1, 2)]] inline std::string Fmt(const char* fmt, ...) {
+  char buf[512];
+  std::va_list args;
+  va_start(args, fmt);
+  std::vsnprintf(buf, sizeof buf, fmt, args);
+  va_end(args);
   return buf;
 }
 
@@ -141,7 +147,7 @@ class Estimator {
   /// Whether `round` looks for a directional light: the first round on every pixel (round 2
   /// after round 1's grid; a sun's shadow edges are a few pixels wide), while none was kept.
   bool SunRound(int round) const {
-    return NearLights() && opt_.directional_lights && suns_.empty() &&
+    return opt_.directional_lights && suns_.empty() &&
            (round == 1 ? stride_ == 1 : round == after_grid_);
   }
   /// The brightest cell's neighbourhood in the map (cells within 2.5 ring spacings of it)

@@ -60,8 +60,8 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
     CheckCancel();
     PointLightColumn(*scene_, coarse, positions[i], &columns[i]);
   }
-  Progress(Fmt("search: %.0f candidate positions' columns at %.0f path(s) per pixel in %.2f s",
-               static_cast<double>(positions.size()), topt.spp, cs.Seconds()));
+  Progress(Fmt("search: %zu candidate positions' columns at %d path(s) per pixel in %.2f s", positions.size(),
+               topt.spp, cs.Seconds()));
   const CauchyLoss cauchy{res_.objective_params.sigma};
   const auto loss = [&](const std::vector<double>& r) { return cauchy.Sum(r); };
   std::fill(lambda_.begin(), lambda_.end(), 1e-3);
@@ -252,7 +252,7 @@ void Estimator::FoldLights(std::vector<PointLight>* lights, int round) {
     const double d = (l.position - centre_).norm();
     if (!(d < opt_.point_lights.far * radius_) || !(l.intensity.maxCoeff() > 0)) {
       if (l.intensity.maxCoeff() > 0)
-        res_.point_light_choices.push_back(Fmt("round %.0f: a light refined to %.3g m from the centre is a far light; "
+        res_.point_light_choices.push_back(Fmt("round %d: a light refined to %.3g m from the centre is a far light; "
                                                "left to the map",
                                                round, d));
       continue;
@@ -370,7 +370,7 @@ void Estimator::SelectModel(std::vector<PointLight>* lights) {
     DirectionalLight far;
     far.direction = to.normalized();
     {
-      const std::vector<float> point = Column(PointLight{q, {}, 0}), directional = Column(far);
+      const std::vector<float> point = Column(PointLight{q, Eigen::Vector3d::Zero(), 0}), directional = Column(far);
       Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
       for (std::size_t e = 0; e < point.size(); ++e) {
         num[e % 3] += double(directional[e]) * point[e] * (*lights)[k].intensity[e % 3];

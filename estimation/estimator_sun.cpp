@@ -43,12 +43,12 @@ bool Estimator::FitDirectionalLight(RoundInfo* info) {
 }
 
 /// The brightest cell's neighbourhood (cells within 2.5 ring spacings) holding at least
-/// directional_min_share of the map's power and rendering at least min_share of the light
+/// directional.min_map_share of the map's power and rendering at least directional.min_share of the light
 /// seen, as one light from its direction (the map's spread's centre) with its irradiance;
 /// false when there is none.
 bool Estimator::ProposeDirectionalLight(DirectionalProposal* out) {
   const auto [cells, map_share] = BrightestNeighbourhood();
-  if (cells.empty() || map_share < opt_.directional_min_share) return false;
+  if (cells.empty() || map_share < opt_.directional.min_map_share) return false;
   DirectionalLight sun;
   Eigen::Vector3d dir = Eigen::Vector3d::Zero();
   for (int j : cells) {
@@ -71,7 +71,7 @@ bool Estimator::ProposeDirectionalLight(DirectionalProposal* out) {
     double rendered = 0, seen = 0;
     const std::vector<double> render = A_.Multiply(only);
     for (std::size_t e = 0; e < render.size(); ++e) rendered += render[e], seen += y_[e];
-    if (!(rendered >= opt_.point_lights.min_share * seen)) return false;
+    if (!(rendered >= opt_.directional.min_share * seen)) return false;
   }
   *out = {sun, cells, map_share, std::move(without)};
   return true;
@@ -159,7 +159,7 @@ void Estimator::SettleDirectionalLight(DirectionalProposal* proposal, SunFit* fi
 bool Estimator::SelectDirectionalLight(const DirectionalProposal& proposal, double without_loss) {
   const DirectionalLight& sun = proposal.light;
   const double with_loss = suns_.empty() ? without_loss : HoldoutLoss(points_, &sun, true);
-  const bool keep = with_loss < (1 - opt_.point_lights.min_gain) * without_loss;
+  const bool keep = with_loss < (1 - opt_.directional.min_gain) * without_loss;
   char line[400];
   std::snprintf(line, sizeof line,
                 "directional light from (%.4f, %.4f, %.4f), angular radius %.3g deg, in place of %zu cells holding "

@@ -26,7 +26,8 @@ repeats=${REPEATS:-2}
 for s in "${dirs[@]}"; do
   for ((i = 0; i < repeats; ++i)); do
     for k in 0 4; do
-      "$exe" estimate "$s" --out "$tmp/out$k" --point-lights $k --quiet >/dev/null
+      alone=(); [ "$k" = 0 ] && alone=(--directional-lights 0)  # the map alone: no lamp, no sun
+      "$exe" estimate "$s" --out "$tmp/out$k" --point-lights $k "${alone[@]}" --quiet >/dev/null
       python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["seconds"]["total"])' "$tmp/out$k/report.json" >> "$tmp/times$k"
     done
   done

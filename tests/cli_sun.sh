@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # A sun from the command line (issue 21): `estimate` on synth's sun-and-sky (96 x 72) with the
 # defaults' directional lights writes one in lights.json within half a degree of truth.json's
-# sun, its irradiance within 10 % (2 bounces here), and report.json's "why" line for it; with
+# sun, its irradiance within 10 % (2 bounces here), and report.json's "why" line for it and its
+# model naming it; with
 # `--directional-lights 0` it writes none and the map takes the sun. (The sky beside the sun,
 # 0.1 % of the light, is checked on Cycles' sun in cycles_test: here it is below the noise.) The estimate's lights.json then relights the bundle by `render --lights`.
 set -eu
@@ -30,6 +31,9 @@ if suns:
     ratio = suns[0]["irradiance"][0] / e
 why = sum("directional light" in c and "kept" in c for c in json.dumps(report).split("\""))
 env_off = int(bool(off.get("environment")) and os.path.exists(t + "/off/" + off["environment"]))
+# report.json's model names what it kept: the sun (and no lamp here).
+chosen = report["model"]["chosen"]
+assert chosen.endswith(" + %d directional light(s)" % len(suns)) or not suns, chosen
 print(len(suns), angle, ratio, why, len(off["directional_lights"]), env_off)
 PY
 )

@@ -102,6 +102,7 @@ TEST(Cycles, TheMapAloneStillPutsTheLampOnItsSide) {
   o.max_rounds = 3;
   o.render = false;
   o.point_lights.max_lights = 0;
+  o.directional_lights = false;  // the map alone (a sun is sought whatever the lamps)
   const EstimateResult r = Estimate(bundle, o);
   EXPECT_TRUE(r.point_lights.empty());
   ASSERT_FALSE(r.dominant.empty());

@@ -156,6 +156,7 @@ TEST(EstimateEndToEnd, TheRelitViewIsTheFitWhereItUsedThePixelsAndARenderElsewhe
     for (int x = 0; x < 12; ++x) v.valid[y * w + x] = 0;  // a corner the fit does not use
   EstimateOptions eo;
   eo.point_lights.max_lights = 0;
+  eo.directional_lights = false;  // the map alone (a sun is sought whatever the lamps)
   eo.max_rounds = 2;
   eo.change_threshold = 0;
   const EstimateResult fit = Estimate(b, eo);

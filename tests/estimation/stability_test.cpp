@@ -137,6 +137,7 @@ TEST(Stability, AMaskThatEmptiesRoundOnesGridLeavesRoundOneOnEveryPixel) {
   eo.tracer.spp = 2;
   eo.max_rounds = 1;
   eo.point_lights.max_lights = 0;
+  eo.directional_lights = false;  // the map alone (a sun is sought whatever the lamps)
   const EstimateResult r = Estimate(b, eo);
   ExpectHealthy(r);
   ASSERT_EQ(r.rounds.size(), 1u);
@@ -377,6 +378,7 @@ TEST_P(SmallSigma, ColdStartStillFindsTheLight) {
   EstimateOptions eo = Small();
   eo.objective.sigma = GetParam();
   eo.point_lights.max_lights = 0;  // the map's cold start (see the case above)
+  eo.directional_lights = false;  // the map alone (a sun is sought whatever the lamps)
   const EstimateResult r = Estimate(b, eo);
   ExpectHealthy(r);
   EXPECT_NEAR(PowerNear(r, env.direction(j), 45) / (2.0 * env.solid_angle(j)), 1.0, 0.15);
@@ -405,6 +407,7 @@ TEST(Stability, ASigmaBelowTheNoiseSaysTheEstimateLightsNothing) {
   // map's dark start, and at this scale finds a lamp by the wall that renders 40 % of the
   // image: the map alone is what this case is about).
   eo.point_lights.max_lights = 0;
+  eo.directional_lights = false;  // the map alone (a sun is sought whatever the lamps)
   const EstimateResult r = Estimate(b, eo);
   ExpectHealthy(r);
   EXPECT_LT(r.rendered_fraction, 0.01);
@@ -602,6 +605,7 @@ TEST(Stability, AlbedoRefinementWithNothingLitOrSeenKeepsTheAlbedo) {
   EstimateOptions eo = Small();
   eo.objective.sigma = 0.02;
   eo.point_lights.max_lights = 0;  // the map lighting nothing (see ASigmaBelowTheNoise...)
+  eo.directional_lights = false;  // the map alone (a sun is sought whatever the lamps)
   const EstimateResult r = Estimate(b, eo);
   ExpectHealthy(r);
   EXPECT_TRUE(r.albedo.empty());

@@ -54,6 +54,7 @@ EstimateOptions Small() {
   // The far-light model: the session's mechanics are under test here, not the lamp search
   // (which triples the estimate's time on the demo; viewer_test estimates the demo's lamp).
   o.point_lights.max_lights = 0;
+  o.directional_lights = false;  // the map alone (a sun is sought whatever the lamps)
   return o;
 }
 
