@@ -21,6 +21,7 @@
 #include "estimation/sampling.h"
 #include "scene/ray_tracer.h"
 #include "estimation/synth.h"
+#include "estimation/truth_scorer.h"
 
 namespace lp::app {
 namespace fs = std::filesystem;
@@ -182,6 +183,7 @@ void BenchEstimates(const BenchOptions& o, const std::string& size, const SceneB
     eo.solver = kind;
     eo.render = false;
     eo.solver_options.max_seconds = o.cap;
+    eo.scorer = TruthScorer::FromBundle(b, eo.point_lights.far);
     Stopwatch sw;
     const EstimateResult r = Estimate(b, eo);
     tables->Row(size, std::string("estimate, ") + ToString(kind) + " solver", sw.Seconds(), r.final_relative_rmse,

@@ -25,6 +25,7 @@
 #include "estimation/lights/light.h"
 #include "scene/ray_tracer.h"
 #include "estimation/synth.h"
+#include "estimation/truth_scorer.h"
 #include "estimation/truth.h"
 
 namespace lp::app {
@@ -131,6 +132,7 @@ Point Evaluate(const Case& c, const EnvMap& env, const std::vector<double>& lamb
 EstimateResult RunEstimate(const Case& c, EstimateOptions eo) {
   eo.render = false;
   eo.progress = nullptr;
+  eo.scorer = TruthScorer::FromBundle(c.fit, eo.point_lights.far);
   return Estimate(c.fit, eo);
 }
 

@@ -15,6 +15,7 @@
 #include "common/timer.h"
 #include "estimation/error_display.h"
 #include "estimation/lights_file.h"
+#include "estimation/truth_scorer.h"
 
 namespace lp::app {
 namespace fs = std::filesystem;
@@ -345,6 +346,7 @@ Run AddEstimate(CLI::App& app) {
                    bundle.mesh.positions.size(), bundle.mesh.triangles.size(), bundle.degenerate_triangles_removed);
     }
     o->time_offset = sw.Seconds();
+    o->scorer = TruthScorer::FromBundle(bundle, o->point_lights.far);  // truth.json's errors, when it has one
     EstimateResult r = Estimate(bundle, *o);
     WriteEstimateOutputs(*out, bundle, *o, r, sw.Seconds());
     std::printf("estimated %d directions (%d rings) in %.2f s; relative RMSE %.4f", r.env.size(), o->rings,

@@ -5,6 +5,7 @@
 /// in one place.
 #include <functional>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,7 @@ namespace lp {
 struct ConvergenceRow;
 struct RoundInfo;
 class EnvMap;
+class TruthScorer;
 
 /// EstimateOptions::objective.alpha is per this many observed pixels (one 160x120 view),
 constexpr double kAlphaReferencePixels = 19200;
@@ -141,6 +143,9 @@ struct EstimateOptions {
   /// with every finished round (its estimate so far): a live plot and map.
   std::function<void(const ConvergenceRow&)> on_convergence;
   std::function<void(const RoundInfo&, const EnvMap&)> on_round;
+  /// Scores every convergence row and the result against a ground truth (their angular and
+  /// position errors; NaN without one): TruthScorer::FromBundle(bundle) where truth.json is.
+  std::shared_ptr<const TruthScorer> scorer;
 };
 
 /// One option of an estimate as every interface shows it.

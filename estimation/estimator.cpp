@@ -36,13 +36,9 @@ Estimator::Estimator(const SceneBundle& bundle, const EstimateOptions& options)
   Stopwatch bvh;
   scene_ = std::make_unique<RayTracer>(TracedMesh());
   res_.bvh_seconds = bvh.Seconds();
-  // The scene's centre and size are the bundle's mesh's (truth.json's measures use them).
+  // The scene's centre and size are the bundle's mesh's (TruthScorer's measures use them too).
   BoundingSphere(bundle_.mesh, &centre_, &radius_);
   res_.scene_centre = centre_;
-  if (bundle_.truth_json) {
-    truth_ = ParseTruthLights(*bundle_.truth_json, (bundle_.dir / "truth.json").string());
-    CentreTruthLights(&truth_, centre_);
-  }
   // Start dark and uniform (paper): every cell equally likely to be sampled.
   lambda_.assign(3 * cells_, 1e-3);
   reachable_.assign(cells_, 1);
@@ -305,9 +301,7 @@ ObjectiveParams Estimator::CellWeights(const LinearProblem& problem, ObjectivePa
 void Estimator::Score(ConvergenceRow* row, const std::vector<double>& env_lambda,
                       const std::vector<PointLight>& points, const std::vector<DirectionalLight>& suns) const {
   row->point_lights = static_cast<int>(points.size());
-  if (truth_.empty()) return;
-  row->angular_error_deg = DominantAngularErrorDeg(env_, env_lambda, points, centre_, truth_, suns);
-  row->position_error_m = WorstPositionError(points, truth_, centre_, opt_.point_lights.far * radius_);
+  if (opt_.scorer) opt_.scorer->Score(row, env_, env_lambda, points, suns);
 }
 
 SolveResult Estimator::Solve(const RoundProblem& rp, int round, RoundInfo* info, bool graduated) {
@@ -430,13 +424,7 @@ void Estimator::Conclude() {
   res_.final_rmse = res_.final_relative_rmse * res_.image_mean;
   res_.point_lights = InImageUnits(points_);
   res_.directional_lights = InImageUnits(suns_);
-  if (!truth_.empty()) {
-    res_.final_angular_error_deg =
-        DominantAngularErrorDeg(env_, res_.lambda, res_.point_lights, centre_, truth_, res_.directional_lights);
-    res_.final_position_error_m =
-        WorstPositionError(res_.point_lights, truth_, centre_, opt_.point_lights.far * radius_,
-                           &res_.final_position_error_share);
-  }
+  if (opt_.scorer) opt_.scorer->Conclude(&res_);
   res_.dominant = DominantDirections(env_, res_.lambda, res_.directional_lights, 2);
   // A fit that renders (almost) nothing is the activation penalty winning over data it no
   // longer hears: a Cauchy scale far below the residuals makes every pixel an outlier.

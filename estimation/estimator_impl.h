@@ -26,6 +26,7 @@
 #include "estimation/sampling.h"
 #include "estimation/vertex_radiance.h"
 #include "estimation/estimator.h"
+#include "estimation/truth_scorer.h"
 
 namespace lp::detail {
 
@@ -274,7 +275,6 @@ class Estimator {
   /// The share of the rendered light that is the map's (the rest the lights'), after the last round.
   double map_share_ = 1;
   std::vector<double> y_;  ///< their observations over the mean of all the valid pixels'
-  std::vector<TruthLight> truth_;
   std::unique_ptr<RayTracer> scene_;
   /// Per vertex of the bundle's mesh: its vertex in the traced mesh (empty: the same mesh).
   std::vector<int> cluster_;

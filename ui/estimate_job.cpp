@@ -6,6 +6,7 @@
 #include "common/error.h"
 #include "common/parallel.h"
 #include "estimation/truth.h"
+#include "estimation/truth_scorer.h"
 #include "estimation/vertex_radiance.h"
 #include "scene/ray_tracer.h"
 
@@ -119,6 +120,7 @@ std::shared_ptr<const EstimateResult> EstimateJob::EstimateScene(SceneSource sou
     });
     EstimateOptions options = Callbacks();
     options.time_offset = SincePressed();
+    options.scorer = TruthScorer::FromBundle(**scene, options.point_lights.far);
     return std::make_shared<const EstimateResult>(lp::Estimate(**scene, options));
   } catch (const Cancelled&) {
     Update([&](EstimateStatus& s) {

@@ -19,6 +19,7 @@
 #include "estimation/light_render.h"
 #include "estimation/lights/light.h"
 #include "estimation/truth.h"
+#include "estimation/truth_scorer.h"
 #include "scene/scene_bundle.h"
 
 namespace lp {
@@ -55,6 +56,7 @@ TEST(Cycles, TheLampComesBackAtItsPlaceWithItsIntensity) {
   o.tracer.spp = 64;
   o.max_rounds = 3;
   o.render = false;
+  o.scorer = TruthScorer::FromBundle(bundle);  // the dominant direction's error below
   const EstimateResult r = Estimate(bundle, o);
   ASSERT_EQ(r.point_lights.size(), 1u) << "one lamp lights this room";
   // Round 1 found it on every 2nd pixel of every 2nd row (kFirstRoundPixels), the rounds

@@ -6,6 +6,7 @@
 #include "common/color.h"
 #include "common/parallel.h"
 #include "estimation/estimator.h"
+#include "estimation/truth_scorer.h"
 #include "estimation/synth.h"
 #include "scene/mesh.h"
 
@@ -32,6 +33,7 @@ TEST(EstimateEndToEnd, OneLightDirectionAndRelighting) {
   const SceneBundle b = LoadSceneBundle(std::string(LIGHTPROBE_SOURCE_DIR) + "/assets/demo");
   EstimateOptions eo;
   eo.render_spp = 512;
+  eo.scorer = TruthScorer::FromBundle(b);
   const EstimateResult r = Estimate(b, eo);
   ASSERT_FALSE(std::isnan(r.final_angular_error_deg));
   // Measured over seeds 1-5 at these settings: 0.85, 0.33, 1.10, 0.66, 0.89 degrees (this

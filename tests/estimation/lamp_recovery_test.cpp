@@ -24,6 +24,7 @@
 #include "estimation/sampling.h"
 #include "estimation/synth.h"
 #include "estimation/truth.h"
+#include "estimation/truth_scorer.h"
 
 namespace lp {
 namespace {
@@ -89,6 +90,7 @@ TEST_P(LampRecovery, OnePointLightAtItsPlace) {
   ASSERT_EQ(s.lighting.lights.size(), 1u);
   EstimateOptions eo;
   eo.render = false;
+  eo.scorer = TruthScorer::FromBundle(fit);
   const EstimateResult r = Estimate(fit, eo);
   ASSERT_EQ(r.point_lights.size(), 1u) << lc.scene;
   const SphereLight& truth = s.lighting.lights[0];
@@ -204,6 +206,7 @@ TEST(LampRecovery, SunAndSkyComesBackWithoutAPointLight) {
   EstimateOptions eo;
   eo.render = false;
   eo.directional_lights = false;  // the lamp search alone: it must leave the map as it was
+  eo.scorer = TruthScorer::FromBundle(s.bundle);
   const EstimateResult r = Estimate(s.bundle, eo);
   EXPECT_TRUE(r.point_lights.empty());
   eo.point_lights.max_lights = 0;

@@ -10,6 +10,7 @@
 #include "common/error.h"
 #include "scene/albedo.h"
 #include "estimation/estimator.h"
+#include "estimation/truth_scorer.h"
 #include "estimation/path_tracer.h"
 #include "estimation/synth.h"
 #include "estimation/light_fit.h"
@@ -172,6 +173,7 @@ TEST(Stability, SunAndA1000TimesDimmerSky) {
   EstimateOptions eo = Small(21);
   eo.max_rounds = 3;
   eo.tracer.spp = 96;
+  eo.scorer = TruthScorer::FromBundle(s.bundle);
   const EstimateResult r = Estimate(s.bundle, eo);
   ExpectHealthy(r);
   EXPECT_LT(r.final_angular_error_deg, 10.0);
