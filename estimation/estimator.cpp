@@ -250,8 +250,8 @@ void Estimator::GatherVertices(int round, int first) {
   topt.cancelled = opt_.cancelled;
   // Round 1 on a grid of the pixels is a first estimate: half the paths. The round after
   // it, the first on every pixel, has no earlier round's vertices to average with: twice
-  // the paths (what rounds 1 and 2 hold on every pixel; with 8, the Cycles bundle's lamp
-  // came back 11 % dimmer: noise in a column biases its intensity low).
+  // the paths (what rounds 1 and 2 hold on every pixel: noise in a column biases its
+  // intensity low; docs/method.md).
   const int spp = opt_.point_lights.spp;
   topt.spp = stride_ > 1 ? std::max(1, spp / 2) : round == after_grid_ ? 2 * spp : spp;
   topt.seed = opt_.tracer.seed * 1000003ull + 500 + round;

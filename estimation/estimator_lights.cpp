@@ -309,15 +309,11 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
     *lights = OfKind<PointLight>(moving);
     return;
   }
-  // Rounds 2 on, the lights near their places: Levenberg-Marquardt (4 iterations: past them
-  // it only tried steps that failed, docs/benchmarks.md, session 20), then the compass search
-  // (steps of 1 % of the light's distance, then 0.5 %, at most 12 columns a light: 24 cost
-  // the Cycles cornerbox ~1.1 s for the same lamp, docs/benchmarks.md, session 21) that sees
-  // the shadows' edges move. Both look at 4,800 of the rows (every n-th): each column on all
-  // of a 160 x 120 view's 19,200 rows, with a lamp's 4 shadow rays a vertex, costs ~0.25 s
-  // (lamp-0.5m's LM and search on all rows made it 1.6x the map alone's time; the search on
-  // all of the demo's rows cost 11 s, docs/method.md, "Refinement"). What they find is kept
-  // only if the whole objective, over all rows, falls too.
+  // Rounds 2 on, the lights near their places: Levenberg-Marquardt (4 iterations), then the
+  // compass search (steps of 1 % of the light's distance, then 0.5 %, at most 12 columns a
+  // light) that sees the shadows' edges move. Both look at kShadowRows of the rows (every
+  // n-th); what they find is kept only if the whole objective, over all rows, falls too.
+  // (Why these numbers, measured: docs/method.md, "Refinement", and docs/benchmarks.md.)
   const auto value = [&](const std::vector<PointLight>& now, double* sse = nullptr) {
     std::vector<std::vector<float>> columns;  // from the cache: the round's solve made the start's
     for (const PointLight& l : now) columns.push_back(Column(l));

@@ -183,10 +183,9 @@ std::vector<int> Estimator::SkyCells() const {
 /// the map's columns (tracer.spp), not taken from the shading vertices (point_lights.spp,
 /// twice that in round 2): the held-out loss then compares the models, not their columns'
 /// noise. A sun's light reaches a pixel mostly through paths that bounce (the walls it lights
-/// light the rest), each vertex's shadow ray all or nothing: on Cycles' sun, in round 2
-/// (the map's columns importance-sampled at 96 paths), its 16-path column lost to the map's
-/// cells, held-out loss 47.5 against 30.7, with its direction 0.02 degrees off (8 paths:
-/// 83.3; docs/benchmarks.md, session 22).
+/// light the rest), each vertex's shadow ray all or nothing: a column of few paths loses to
+/// the map's importance-sampled cells even at the right direction (docs/benchmarks.md,
+/// session 22).
 std::vector<float> Estimator::HeldOutSunColumn(const DirectionalLight& light) {
   return TracedSunColumn(light, &holdout_, opt_.tracer.spp, 900);
 }
@@ -222,9 +221,8 @@ std::vector<float> Estimator::TracedSunColumn(DirectionalLight light, const std:
 /// of those cells) and the light's irradiance fitted together to what the map's cells and
 /// the lamps leave, by instrumental variables: the light's column from the shading vertices
 /// is noisy (16-40 paths), and least squares with it beside a smooth, clean column biases
-/// the light low and moves that light into the sky (sun-and-sky's sky came back 100 times
-/// too bright, its sun 10 % dim); an independently traced column of the light as the
-/// instrument removes that bias. The sky's radiance is added to its cells.
+/// the light low and moves that light into the sky (docs/method.md, "The sky"); an
+/// independently traced column of the light as the instrument removes that bias. The sky's radiance is added to its cells.
 void Estimator::FitSky() {
   if (suns_.size() != 1 || vertices_.size() == 0) return;
   const std::vector<int> cells = SkyCells();

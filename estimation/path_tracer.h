@@ -14,19 +14,17 @@
 
 namespace lp {
 
-/// `lightprobe render`'s bounce cap: a guard, Russian roulette ends the paths (0.03 % of the
-/// light lost on the bright Cycles box against 64).
+/// `lightprobe render`'s bounce cap: a guard, Russian roulette ends the paths (what it loses:
+/// Cycles.TheBounceCapLosesLittleLight, docs/benchmarks.md).
 inline constexpr int kRenderBounces = 8;
 
 struct TracerOptions {
   int spp = 96;                  ///< camera samples per pixel (sub-pixel jitter)
   /// Surface interactions per path at most (1 = direct light only); Russian roulette runs
-  /// from `roulette_after`. The cap cuts light: on a bright interreflecting box (albedo 0.79,
-  /// Cycles' tests/data/cycles/interreflection) 3 loses 1.0 %, 5 0.21 %, 8 0.03 %
-  /// (Cycles.TheBounceCapLosesLittleLight). The estimator's default, 5: its estimate
-  /// relights the Cycles cornerbox at 3.7 % / 4.4 % (fitted / held-out) against 5.3 % / 6.4 %
-  /// with 3, and 4.2 % / 4.9 % with 8, whose longer paths make the 8-path light columns
-  /// noisier (docs/benchmarks.md, session 21); `render` relights with kRenderBounces.
+  /// from `roulette_after`. The cap cuts light (Cycles.TheBounceCapLosesLittleLight bounds
+  /// it on a bright interreflecting box); the estimator's default, 5, relights the Cycles
+  /// cornerbox best of 3, 5 and 8 (longer paths make the lights' columns noisier; figures in
+  /// docs/benchmarks.md, session 21); `render` relights with kRenderBounces.
   int bounces = 5;
   int roulette_after = 2;        ///< Russian roulette from this bounce on
   double nee_floor = 0.05;       ///< epsilon: share of NEE samples spread by solid angle

@@ -59,7 +59,7 @@ TEST(LightKinds, ShapeGradientIsTheColumnsDerivativeAlongMoved) {
   const auto [lamp_worst, lamp_scale] = ShapeDerivativeError(scene, v, PointLight{{0.4, 0.9, 1.3}, {1, 1, 1}, 0}, 1e-3);
   EXPECT_GT(lamp_scale, 0);
   EXPECT_LT(lamp_worst, 2e-3 * lamp_scale) << lamp_worst << " of " << lamp_scale;
-  for (const Eigen::Vector3d d : {Eigen::Vector3d(0.3, 0.4, 1.0), Eigen::Vector3d(0.95, 0.1, 0.3)}) {  // both frames' axes
+  for (const Eigen::Vector3d& d : {Eigen::Vector3d(0.3, 0.4, 1.0), Eigen::Vector3d(0.95, 0.1, 0.3)}) {  // both frames' axes
     const DirectionalLight sun{d.normalized(), {1, 1, 1}, 0};
     const auto [worst, scale] = ShapeDerivativeError(scene, v, sun, 1e-4);
     EXPECT_GT(scale, 0);
