@@ -3,9 +3,11 @@
 #include "estimation/truth.h"
 
 #include <cmath>
+#include <filesystem>
 
 #include <gtest/gtest.h>
 
+#include "common/atomic_file.h"
 #include "common/error.h"
 #include "estimation/synth.h"
 
@@ -170,6 +172,30 @@ TEST(TrueCellRadiance, ASmallLightsPowerLandsInItsCell) {
   }
   lighting.far = false;
   EXPECT_TRUE(TrueCellRadiance(lighting, env).empty());
+}
+
+TEST(Truth, ReadsALampGivenByItsPosition) {
+  namespace fs = std::filesystem;
+  // The Cycles bundle's truth.json: a point light by position and radiant intensity, the
+  // scene centre in scene_bbox, no direction.
+  const fs::path dir = fs::path(LIGHTPROBE_SOURCE_DIR) / "tests" / "data" / "cycles" / "cornerbox_one_light";
+  const std::vector<TruthLight> t = ParseTruthLights(ReadTextFile(dir / "truth.json"), "truth.json");
+  ASSERT_EQ(t.size(), 1u);
+  ASSERT_TRUE(t[0].position.has_value());
+  EXPECT_NEAR((*t[0].position - Eigen::Vector3d(1.0, 0.45, 2.25)).norm(), 0, 1e-6);
+  // Direction from the centre (0, 0, 0.8): (1, 0.45, 1.45) / 1.8180 (truth.json's own
+  // direction_from_bbox_centre, 0.5501 0.2475 0.7976).
+  EXPECT_NEAR(t[0].direction.x(), 0.550065, 1e-5);
+  EXPECT_NEAR(t[0].direction.z(), 0.797595, 1e-5);
+  // Its weight is its irradiance at the centre: 12.7324 / 1.81797^2 = 3.8525.
+  EXPECT_NEAR(t[0].weight, 3.8525, 1e-3);
+  // Position errors: the nearest estimated light, the worst true near light; a far one is
+  // not counted.
+  const Eigen::Vector3d centre(0, 0, 0.8);
+  EXPECT_NEAR(WorstPositionError({{{1, 0.45, 2.0}, {1, 1, 1}, 0}, {{-1, 0, 1}, {1, 1, 1}, 0}}, t, centre, 10), 0.25,
+              1e-9);
+  EXPECT_TRUE(std::isinf(WorstPositionError({}, t, centre, 10)));
+  EXPECT_TRUE(std::isnan(WorstPositionError({}, t, centre, 1.0)));  // the lamp is 1.82 m away: far here
 }
 
 }  // namespace

@@ -1,25 +1,19 @@
-// Point lights (the near-light model): the forward model against closed forms, the
-// column's position derivative against central differences, and the position refinement.
+// A lamp (estimation/lights/point_light.h): its forward model against closed forms, its soft
+// shadow's visible share, its column's position derivative against central differences,
+// and its refinement by the one light fit.
 #include <cmath>
-#include <filesystem>
 
 #include <gtest/gtest.h>
-#include <nlohmann/json.hpp>
 
-#include "common/atomic_file.h"
-#include "common/error.h"
-#include "estimation/lights_file.h"
 #include "estimation/light_fit.h"
 #include "estimation/light_render.h"
 #include "estimation/lights/light.h"
 #include "estimation/sampling.h"
-#include "estimation/truth.h"
 #include "scene/scene_bundle.h"
 #include "tests/test_util.h"
 
 namespace lp {
 namespace {
-namespace fs = std::filesystem;
 
 /// Outgoing radiance of a Lambertian point (albedo rho) under a point light of intensity I:
 /// rho / pi x I cos(theta) / d^2.
@@ -28,7 +22,6 @@ double PlaneRadiance(double rho, double I, const Eigen::Vector3d& x, const Eigen
   const double d = r.norm(), c = r.z() / d;
   return rho / kPi * I * c / (d * d);
 }
-
 TEST(PointLights, LambertianPlaneMatchesTheClosedFormAtTwoDistances) {
   const double rho = 0.6, I = 2.0;
   RayTracer scene(test::Plane(4, rho));
@@ -163,37 +156,6 @@ TEST(PointLights, ThePositionDerivativeMatchesCentralDifferences) {
   EXPECT_LT(worst, 2e-3 * scale) << "worst " << worst << " of " << scale;  // float columns: ~1e-4 measured
 }
 
-TEST(PointLights, TheDirectionDerivativeMatchesCentralDifferences) {
-  // A directional light's column against its direction moved on the sphere (towards + d,
-  // normalized): a plane and a ball, the light high enough that no shadow edge moves within h.
-  RayTracer scene(test::Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)));
-  const Camera cam = test::LookAt({1.5, -1.5, 1.5}, {0, 0, 0.1}, 24, 18, 50);
-  std::vector<View> views{test::BlankView(cam)};
-  TracerOptions o;
-  o.spp = 2;
-  o.bounces = 2;
-  const ShadingVertices v = GatherShadingVertices(scene, views, o);
-  const Eigen::Vector3d l = Eigen::Vector3d(0.3, 0.4, 1.0).normalized();
-  std::vector<float> col, jac, plus, minus;
-  DirectionalLightColumn(scene, v, l, &col, &jac);
-  const double h = 1e-4;
-  double worst = 0, scale = 0;
-  for (int a = 0; a < 3; ++a) {
-    Eigen::Vector3d d = Eigen::Vector3d::Zero();
-    d[a] = h;
-    DirectionalLightColumn(scene, v, (l + d).normalized(), &plus);
-    DirectionalLightColumn(scene, v, (l - d).normalized(), &minus);
-    for (std::size_t r = 0; r < v.rows(); ++r)
-      for (int c = 0; c < 3; ++c) {
-        const double fd = (double(plus[3 * r + c]) - minus[3 * r + c]) / (2 * h);
-        worst = std::max(worst, std::abs(fd - jac[9 * r + 3 * c + a]));
-        scale = std::max(scale, std::abs(fd));
-      }
-  }
-  EXPECT_GT(scale, 0);
-  EXPECT_LT(worst, 2e-2 * scale) << "worst " << worst << " of " << scale;
-}
-
 TEST(PointLights, RefinementFindsTheLampFromHalfAMetreAway) {
   // The lamp of a plane and a ball rendered by the forward model; the refinement starts
   // 0.5 m off with the wrong intensity and must come back (positions to 1 cm).
@@ -216,67 +178,6 @@ TEST(PointLights, RefinementFindsTheLampFromHalfAMetreAway) {
   EXPECT_GT(steps, 0);
   EXPECT_LT((found.position - lamp.position).norm(), 0.01) << found.position.transpose();
   EXPECT_LT((found.intensity - lamp.intensity).norm(), 0.02 * lamp.intensity.norm());
-}
-
-TEST(LightsFile, RoundTripsAndRefusesBadLights) {
-  const LightsFile in{"envmap.exr", {{{1, 2, 3}, {0.5, 0.25, 0}, 0.05}}, {}};
-  const LightsFile out = ParseLightsJson(LightsJson(in), "lights.json");
-  EXPECT_EQ(out.environment, "envmap.exr");
-  ASSERT_EQ(out.point_lights.size(), 1u);
-  EXPECT_EQ(out.point_lights[0].position, in.point_lights[0].position);
-  EXPECT_EQ(out.point_lights[0].intensity, in.point_lights[0].intensity);
-  EXPECT_EQ(out.point_lights[0].radius, 0.05);
-  EXPECT_TRUE(out.directional_lights.empty());
-  EXPECT_NE(LightsJson(in).find("\"directional_lights\": []"), std::string::npos);  // always present
-  // Directional lights: the direction is normalized, the rest kept.
-  LightsFile sun;
-  sun.directional_lights.push_back({{0, 3, 4}, {2, 1.5, 1}, 0.0046});
-  const LightsFile back = ParseLightsJson(LightsJson(sun), "lights.json");
-  ASSERT_EQ(back.directional_lights.size(), 1u);
-  EXPECT_TRUE(back.directional_lights[0].direction.isApprox(Eigen::Vector3d(0, 0.6, 0.8), 1e-15));
-  EXPECT_EQ(back.directional_lights[0].irradiance, Eigen::Vector3d(2, 1.5, 1));
-  EXPECT_EQ(back.directional_lights[0].angular_radius, 0.0046);
-  EXPECT_TRUE(back.point_lights.empty());
-  // Unknown keys are ignored; no environment and no lights is an empty lighting, and a file
-  // from before directional lights has none.
-  const LightsFile empty = ParseLightsJson(R"({"point_lights": [], "directional_lights": [], "x": 1})", "x");
-  EXPECT_TRUE(empty.environment.empty());
-  EXPECT_TRUE(empty.point_lights.empty());
-  EXPECT_TRUE(ParseLightsJson(R"({"point_lights": []})", "x").directional_lights.empty());
-  for (const char* bad : {R"({"directional_lights": [{"direction": [0, 0, 0], "irradiance": [1, 1, 1]}]})",
-                          R"({"directional_lights": [{"direction": [0, 0, 1], "irradiance": [1, -1, 1]}]})",
-                          R"({"directional_lights": [{"direction": [0, 0, 1]}]})", R"({"directional_lights": 3})",
-                          R"({"directional_lights": [{"direction": [0, 0, 1], "irradiance": [1, 1, 1], "angular_radius": 2}]})",
-                          R"({"directional_lights": [{"direction": [0, 1e308, 1e308], "irradiance": [1, 1, 1]}]})"})
-    EXPECT_THROW(ParseLightsJson(bad, "x"), InputError) << bad;
-  for (const char* bad : {R"({"point_lights": [{"position": [0, 0], "intensity": [1, 1, 1]}]})",
-                          R"({"point_lights": [{"position": [0, 0, 0], "intensity": [1, -1, 1]}]})",
-                          R"({"point_lights": [{"intensity": [1, 1, 1]}]})", R"({"point_lights": {}})",
-                          R"([1, 2])", R"({"point_lights": [{"position": [0, 0, 0], "intensity": [1, 1, 1], "radius": -1}]})"})
-    EXPECT_THROW(ParseLightsJson(bad, "x"), InputError) << bad;
-}
-
-TEST(Truth, ReadsALampGivenByItsPosition) {
-  // The Cycles bundle's truth.json: a point light by position and radiant intensity, the
-  // scene centre in scene_bbox, no direction.
-  const fs::path dir = fs::path(LIGHTPROBE_SOURCE_DIR) / "tests" / "data" / "cycles" / "cornerbox_one_light";
-  const std::vector<TruthLight> t = ParseTruthLights(ReadTextFile(dir / "truth.json"), "truth.json");
-  ASSERT_EQ(t.size(), 1u);
-  ASSERT_TRUE(t[0].position.has_value());
-  EXPECT_NEAR((*t[0].position - Eigen::Vector3d(1.0, 0.45, 2.25)).norm(), 0, 1e-6);
-  // Direction from the centre (0, 0, 0.8): (1, 0.45, 1.45) / 1.8180 (truth.json's own
-  // direction_from_bbox_centre, 0.5501 0.2475 0.7976).
-  EXPECT_NEAR(t[0].direction.x(), 0.550065, 1e-5);
-  EXPECT_NEAR(t[0].direction.z(), 0.797595, 1e-5);
-  // Its weight is its irradiance at the centre: 12.7324 / 1.81797^2 = 3.8525.
-  EXPECT_NEAR(t[0].weight, 3.8525, 1e-3);
-  // Position errors: the nearest estimated light, the worst true near light; a far one is
-  // not counted.
-  const Eigen::Vector3d centre(0, 0, 0.8);
-  EXPECT_NEAR(WorstPositionError({{{1, 0.45, 2.0}, {1, 1, 1}, 0}, {{-1, 0, 1}, {1, 1, 1}, 0}}, t, centre, 10), 0.25,
-              1e-9);
-  EXPECT_TRUE(std::isinf(WorstPositionError({}, t, centre, 10)));
-  EXPECT_TRUE(std::isnan(WorstPositionError({}, t, centre, 1.0)));  // the lamp is 1.82 m away: far here
 }
 
 }  // namespace

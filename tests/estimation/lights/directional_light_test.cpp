@@ -1,0 +1,47 @@
+// A directional light (estimation/lights/directional_light.h): its column's derivative on
+// the sphere against central differences. (Its shape coordinates, compass moves and
+// irradiance against closed forms: light_fit_test, beside the lamp's.)
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include "estimation/lights/light.h"
+#include "scene/scene_bundle.h"
+#include "tests/test_util.h"
+
+namespace lp {
+namespace {
+
+TEST(PointLights, TheDirectionDerivativeMatchesCentralDifferences) {
+  // A directional light's column against its direction moved on the sphere (towards + d,
+  // normalized): a plane and a ball, the light high enough that no shadow edge moves within h.
+  RayTracer scene(test::Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)));
+  const Camera cam = test::LookAt({1.5, -1.5, 1.5}, {0, 0, 0.1}, 24, 18, 50);
+  std::vector<View> views{test::BlankView(cam)};
+  TracerOptions o;
+  o.spp = 2;
+  o.bounces = 2;
+  const ShadingVertices v = GatherShadingVertices(scene, views, o);
+  const Eigen::Vector3d l = Eigen::Vector3d(0.3, 0.4, 1.0).normalized();
+  std::vector<float> col, jac, plus, minus;
+  DirectionalLightColumn(scene, v, l, &col, &jac);
+  const double h = 1e-4;
+  double worst = 0, scale = 0;
+  for (int a = 0; a < 3; ++a) {
+    Eigen::Vector3d d = Eigen::Vector3d::Zero();
+    d[a] = h;
+    DirectionalLightColumn(scene, v, (l + d).normalized(), &plus);
+    DirectionalLightColumn(scene, v, (l - d).normalized(), &minus);
+    for (std::size_t r = 0; r < v.rows(); ++r)
+      for (int c = 0; c < 3; ++c) {
+        const double fd = (double(plus[3 * r + c]) - minus[3 * r + c]) / (2 * h);
+        worst = std::max(worst, std::abs(fd - jac[9 * r + 3 * c + a]));
+        scale = std::max(scale, std::abs(fd));
+      }
+  }
+  EXPECT_GT(scale, 0);
+  EXPECT_LT(worst, 2e-2 * scale) << "worst " << worst << " of " << scale;
+}
+
+}  // namespace
+}  // namespace lp
