@@ -193,10 +193,12 @@ bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>
 bool Estimator::FitRadii(std::vector<PointLight>* lights) {
   CheckCancel();
   bool changed = false;
-  const CauchyLoss cauchy{res_.objective_params.sigma};
   const std::vector<double> map = Plus(A_.Multiply(lambda_), LightsRender({}, suns_));
+  std::vector<double> base;
+  LightFitProblem fit = FitProblem(&base);
+  fit.alpha = 0;  // the radius is chosen by the loss alone
   for (std::size_t k = 0; k < lights->size(); ++k) {
-    std::vector<double> base = map;
+    base = map;
     std::vector<float> col;
     for (std::size_t j = 0; j < lights->size(); ++j) {
       if (j == k) continue;
@@ -212,17 +214,8 @@ bool Estimator::FitRadii(std::vector<PointLight>* lights) {
       sized.radius = radius;
       col = Column(sized);
       Eigen::Vector3d intensity = light.intensity;
-      std::vector<double> r(base.size()), left(base.size()), w(base.size());
-      for (std::size_t i = 0; i < r.size(); ++i) left[i] = y_[i] - base[i];
-      for (int it = 0; it < 4; ++it) {  // reweighted least squares for the Cauchy loss
-        for (std::size_t i = 0; i < r.size(); ++i) {
-          r[i] = left[i] - intensity[i % 3] * col[i];
-          w[i] = cauchy.Weight(r[i]);
-        }
-        WeightedIntensity(col, left, w, &intensity);
-      }
-      for (std::size_t i = 0; i < r.size(); ++i) r[i] = y_[i] - base[i] - intensity[i % 3] * col[i];
-      const double loss = cauchy.Sum(r);
+      double sse = 0;
+      const double loss = RefitScale(fit, col, {}, &intensity, &sse);  // its intensity refitted there
       if (g == 0) point_loss = best_loss = loss;
       if (loss < best_loss) best_loss = loss, best_radius = radius, best_intensity = intensity;
       CheckCancel();

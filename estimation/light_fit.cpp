@@ -177,11 +177,16 @@ int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_i
 double RefitScale(const LightFitProblem& p, const std::vector<float>& others, Light* light, double* sse) {
   std::vector<float> col;
   UnitColumn(*p.scene, *p.vertices, *light, &col);
+  return RefitScale(p, col, others, &Scale(*light), sse);
+}
+
+double RefitScale(const LightFitProblem& p, const std::vector<float>& col, const std::vector<float>& others,
+                  Eigen::Vector3d* scale_out, double* sse) {
   std::vector<double> left(col.size());
   for (std::size_t i = 0; i < col.size(); ++i) left[i] = (*p.y)[i] - (*p.base)[i];
   if (!others.empty())
     for (std::size_t i = 0; i < col.size(); ++i) left[i] -= others[i];
-  Eigen::Vector3d& scale = Scale(*light);
+  Eigen::Vector3d& scale = *scale_out;
   for (int it = 0; it < 4; ++it) {
     Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
     for (std::size_t i = 0; i < col.size(); ++i) {

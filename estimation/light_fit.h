@@ -81,6 +81,9 @@ int SearchLights(const LightFitProblem& problem, std::vector<Light>* lights, con
 /// its scale refitted there by reweighted least squares (4 passes from its scale);
 /// `sse` receives the sum of squared residuals.
 double RefitScale(const LightFitProblem& problem, const std::vector<float>& others, Light* light, double* sse);
+/// The same with the light's unit column given (e.g. from a cache), its scale `scale`.
+double RefitScale(const LightFitProblem& problem, const std::vector<float>& column, const std::vector<float>& others,
+                  Eigen::Vector3d* scale, double* sse);
 
 /// The widest angular radius FitAngularRadius tries (degrees).
 constexpr double kMaxAngularRadiusDeg = 8;
