@@ -134,16 +134,11 @@ void TracePath(const RayTracer& scene, const EnvMap& env, const CellSampler& sam
 
 constexpr auto NoVertex = [](const SurfacePoint&, const Eigen::Vector3d&, const Eigen::Vector3d&) {};
 
-void CheckOptions(const TracerOptions& o) {
-  if (o.spp < 1) throw InputError("spp must be at least 1");
-  if (o.bounces < 1) throw InputError("bounces must be at least 1");
-}
-
 }  // namespace
 
 TransportMatrix TraceTransport(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
                                const CellSampler& sampler, const TracerOptions& opt, TraceStats* stats) {
-  CheckOptions(opt);
+  detail::CheckPathOptions(opt);
   Stopwatch sw;
   const std::vector<PixelRef> pixels = PixelsToTrace(views, false);
   std::vector<std::vector<std::pair<int, std::array<float, 3>>>> rows(pixels.size());
@@ -209,7 +204,7 @@ std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& en
                                         const std::vector<double>& lambda, const CellSampler& sampler,
                                         const TracerOptions& opt, bool all_pixels, const VertexLight& lights,
                                         TraceStats* stats) {
-  CheckOptions(opt);
+  detail::CheckPathOptions(opt);
   LP_CHECK(lambda.size() == 3 * static_cast<std::size_t>(env.size()), "lambda size");
   Stopwatch sw;
   std::vector<ImageRGB> out;
