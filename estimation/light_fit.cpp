@@ -58,6 +58,8 @@ void NormalEquations(const LightFitProblem& p, const std::vector<Light>& lights,
   *g = Eigen::VectorXd::Zero(n);
   Eigen::VectorXd J(n);
   double shape[3];
+  std::vector<Eigen::Matrix3d> bases;  // each light's, once (not per row)
+  for (const Light& l : lights) bases.push_back(ShapeBasis(l));
   for (std::size_t i = 0; i < r.size(); ++i) {
     const std::size_t row = i / 3;
     const int c = static_cast<int>(i % 3);
@@ -65,7 +67,7 @@ void NormalEquations(const LightFitProblem& p, const std::vector<Light>& lights,
     bool any = false;
     for (int k = 0; k < K; ++k) {
       const int dims = offset[k + 1] - offset[k] - 3;
-      ShapeGradient(lights[k], &jacs[k][9 * row + 3 * c], shape);
+      ShapeGradient(bases[k], dims, &jacs[k][9 * row + 3 * c], shape);
       for (int a = 0; a < dims; ++a) J[offset[k] + a] = Scale(lights[k])[c] * shape[a];
       J[offset[k] + dims + c] = cols[k][i];
       any = any || cols[k][i] != 0;

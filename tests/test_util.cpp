@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "common/error.h"
+
 namespace lp::test {
 
 Mesh Plane(double size, double rho) {
@@ -48,6 +50,15 @@ Mesh Merge(Mesh a, const Mesh& b) {
   a.albedo.insert(a.albedo.end(), b.albedo.begin(), b.albedo.end());
   for (auto t : b.triangles) a.triangles.push_back({t[0] + n, t[1] + n, t[2] + n});
   return a;
+}
+
+std::string ErrorOf(const std::function<void()>& f) {
+  try {
+    f();
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  return "";
 }
 
 }  // namespace lp::test

@@ -1,5 +1,7 @@
 #pragma once
 // Small scenes built in code for closed-form tests.
+#include <functional>
+#include <string>
 #include <vector>
 
 #include "scene/scene_bundle.h"
@@ -18,6 +20,9 @@ Mesh Merge(Mesh a, const Mesh& b);
 
 /// A camera at `eye` looking at `target`, world up +z.
 Camera LookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target, int w, int h, double hfov_deg);
+
+/// What `f` throws as InputError ("" when it throws nothing).
+std::string ErrorOf(const std::function<void()>& f);
 
 /// A view with every pixel valid and a zero image.
 View BlankView(const Camera& cam);

@@ -60,14 +60,15 @@ inline Eigen::Vector3d& Scale(DirectionalLight& l) { return l.irradiance; }
 inline const Eigen::Vector3d& Scale(const DirectionalLight& l) { return l.irradiance; }
 
 /// Its shape is its direction: 2 coordinates, steps along the tangent frame (SphereFrame)
-/// at the direction. ShapeGradient maps a column's derivative (DirectionalLightColumn's 3
-/// Jacobian entries of a row and channel) to them; Moved takes a step and normalizes.
+/// at the direction (ShapeBasis: t and b as its first two columns; a column's derivative
+/// along them is its Jacobian's entries dotted with each). Moved takes a step and normalizes.
 inline int ShapeDims(const DirectionalLight&) { return 2; }
-inline void ShapeGradient(const DirectionalLight& l, const float* d, double* out) {
+inline Eigen::Matrix3d ShapeBasis(const DirectionalLight& l) {
   const SphereFrame frame(l.direction);
-  const Eigen::Vector3d v(d[0], d[1], d[2]);
-  out[0] = v.dot(frame.t);
-  out[1] = v.dot(frame.b);
+  Eigen::Matrix3d basis = Eigen::Matrix3d::Zero();
+  basis.col(0) = frame.t;
+  basis.col(1) = frame.b;
+  return basis;
 }
 inline DirectionalLight Moved(DirectionalLight l, const double* step) {
   const SphereFrame frame(l.direction);

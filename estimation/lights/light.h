@@ -3,7 +3,7 @@
 /// pbrt-v4's Light): a closed set of kinds, each in its own file under estimation/lights/
 /// with what only it knows, and these functions that any code handling "a light" calls.
 /// A new kind: its file (its struct, UnitColumn, Irradiance, SameShape, Scale, ShapeDims /
-/// ShapeGradient / Moved, CompassMoves / CompassUnit / CompassMove), its test, and its
+/// ShapeBasis / Moved, CompassMoves / CompassUnit / CompassMove), its test, and its
 /// entry in `Light` below (docs/architecture.md, "Light kinds").
 #include <cstdint>
 #include <type_traits>
@@ -40,8 +40,16 @@ inline const Eigen::Vector3d& Scale(const Light& light) {
 inline int ShapeDims(const Light& light) {
   return std::visit([](const auto& l) { return ShapeDims(l); }, light);
 }
-inline void ShapeGradient(const Light& light, const float* d, double* out) {
-  std::visit([&](const auto& l) { ShapeGradient(l, d, out); }, light);
+/// The directions (the first ShapeDims columns) a step of each shape coordinate moves the
+/// kind's 3 raw coordinates at this shape.
+inline Eigen::Matrix3d ShapeBasis(const Light& light) {
+  return std::visit([](const auto& l) { return ShapeBasis(l); }, light);
+}
+/// A column's derivative in the shape's coordinates: its 3 raw entries `d` (a row and
+/// channel of UnitColumn's Jacobian) along each of `basis`'s first `dims` columns.
+inline void ShapeGradient(const Eigen::Matrix3d& basis, int dims, const float* d, double* out) {
+  const Eigen::Vector3d v(d[0], d[1], d[2]);
+  for (int a = 0; a < dims; ++a) out[a] = v.dot(basis.col(a));
 }
 inline Light Moved(const Light& light, const double* step) {
   return std::visit([&](const auto& l) -> Light { return Moved(l, step); }, light);

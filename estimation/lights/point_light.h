@@ -60,13 +60,11 @@ inline bool SameShape(const PointLight& a, const PointLight& b) {
 inline Eigen::Vector3d& Scale(PointLight& l) { return l.intensity; }
 inline const Eigen::Vector3d& Scale(const PointLight& l) { return l.intensity; }
 
-/// Its shape is its position: 3 coordinates. ShapeGradient maps a column's derivative
-/// (the 3 entries PointLightColumn's Jacobian gives a row and channel) to them; Moved takes
-/// a step of them.
+/// Its shape is its position: 3 coordinates, along the axes (ShapeBasis: the directions, as
+/// columns, a step of each coordinate moves the position; a column's derivative along them
+/// is its Jacobian's entries). Moved takes a step of them.
 inline int ShapeDims(const PointLight&) { return 3; }
-inline void ShapeGradient(const PointLight&, const float* d, double* out) {
-  for (int a = 0; a < 3; ++a) out[a] = d[a];
-}
+inline Eigen::Matrix3d ShapeBasis(const PointLight&) { return Eigen::Matrix3d::Identity(); }
 inline PointLight Moved(PointLight l, const double* step) {
   l.position += Eigen::Vector3d(step[0], step[1], step[2]);
   return l;

@@ -10,18 +10,12 @@
 
 #include "common/error.h"
 #include "estimation/estimate_options.h"
+#include "tests/test_util.h"
 
 namespace lp {
 namespace {
 
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
-}
+using test::ErrorOf;
 
 TEST(EstimateOptions, TheDefaultsAreValidAndEveryOptionRoundTripsAsText) {
   const EstimateOptions defaults;

@@ -26,7 +26,7 @@ ShadingVertices Vertices(const RayTracer& scene, int spp) {
 }
 
 /// The worst difference, over rows, channels and shape coordinates, between the column's
-/// central differences along Moved and ShapeGradient of its Jacobian, and the largest
+/// central differences along Moved and ShapeGradient (on ShapeBasis) of its Jacobian, and the largest
 /// difference quotient (the scale it is measured against).
 std::pair<double, double> ShapeDerivativeError(const RayTracer& scene, const ShadingVertices& v, const Light& light,
                                                double h) {
@@ -42,7 +42,7 @@ std::pair<double, double> ShapeDerivativeError(const RayTracer& scene, const Sha
     for (std::size_t r = 0; r < v.rows(); ++r)
       for (int c = 0; c < 3; ++c) {
         double shape[3];
-        ShapeGradient(light, &jac[9 * r + 3 * c], shape);
+        ShapeGradient(ShapeBasis(light), ShapeDims(light), &jac[9 * r + 3 * c], shape);
         const double fd = (double(plus[3 * r + c]) - minus[3 * r + c]) / (2 * h);
         worst = std::max(worst, std::abs(fd - shape[a]));
         scale = std::max(scale, std::abs(fd));
@@ -53,7 +53,7 @@ std::pair<double, double> ShapeDerivativeError(const RayTracer& scene, const Sha
 
 TEST(LightKinds, ShapeGradientIsTheColumnsDerivativeAlongMoved) {
   // The shape's coordinates as the fit steps them: a lamp's position, a sun's tangent plane
-  // (a mirrored or wrongly scaled frame in ShapeGradient or Moved fails here).
+  // (a mirrored or wrongly scaled frame in ShapeBasis or Moved fails here).
   const RayTracer scene(PlaneAndBall());
   const ShadingVertices v = Vertices(scene, 2);
   const auto [lamp_worst, lamp_scale] = ShapeDerivativeError(scene, v, PointLight{{0.4, 0.9, 1.3}, {1, 1, 1}, 0}, 1e-3);

@@ -16,6 +16,8 @@
 
 namespace lp {
 namespace {
+
+using test::ErrorOf;
 namespace fs = std::filesystem;
 
 fs::path TempDir(const std::string& name) {
@@ -32,15 +34,6 @@ SceneBundle SmallBundle() {
   for (std::size_t i = 0; i < v.image.data.size(); ++i) v.image.data[i] = 0.25f;
   b.views.push_back(v);
   return b;
-}
-
-std::string ErrorOf(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "";
 }
 
 TEST(Bundle, RoundTrip) {
