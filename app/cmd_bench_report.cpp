@@ -95,16 +95,15 @@ std::string Fmt(const char* f, double a, double b = 0, double c = 0) {
   return buf;
 }
 
-/// Relit error on the held-out view under `lambda` (image units) and the point lights,
-/// rendered with the run's own tracer settings at eval_spp, the map importance-sampled by
-/// the estimate itself.
-double RelitError(const Case& c, const EnvMap& env, const std::vector<double>& lambda,
-                  const std::vector<PointLight>& points, const TracerOptions& run, int eval_spp) {
+/// Relit error on the held-out view under `lighting` (image units), rendered with the run's
+/// own tracer settings at eval_spp, the map importance-sampled by the estimate itself.
+double RelitError(const Case& c, const EnvMap& env, const Lighting& lighting, const TracerOptions& run,
+                  int eval_spp) {
   TracerOptions t = run;
   t.spp = eval_spp;
   t.seed = 4242;
-  const CellSampler sampler(env, lambda, {}, run.nee_floor);
-  const auto img = RenderLighting(*c.tracer, env, lambda, sampler, points, {}, {c.held_out}, t, false);
+  const CellSampler sampler(env, lighting.map, {}, run.nee_floor);
+  const auto img = RenderLighting(*c.tracer, env, lighting, sampler, {c.held_out}, t, false);
   return RelativeImageRmse(img[0], c.held_out.image, c.held_out.valid);
 }
 
@@ -115,11 +114,12 @@ double PositionError(const Case& c, const std::vector<PointLight>& points) {
   return WorstPositionError(points, c.truth, c.tracer->center(), PointLightOptions{}.far * c.tracer->radius());
 }
 
-Point Evaluate(const Case& c, const EnvMap& env, const std::vector<double>& lambda,
-               const std::vector<PointLight>& points, const std::vector<std::uint8_t>& left_out,
+Point Evaluate(const Case& c, const EnvMap& env, const Lighting& lighting, const std::vector<std::uint8_t>& left_out,
                const TracerOptions& run, int eval_spp) {
   Point p;
-  p.relit = RelitError(c, env, lambda, points, run, eval_spp);
+  const std::vector<double>& lambda = lighting.map;
+  const std::vector<PointLight> points = lighting.Of<PointLight>();
+  p.relit = RelitError(c, env, lighting, run, eval_spp);
   if (!c.truth.empty()) p.angle = DominantAngularErrorDeg(env, lambda, points, c.tracer->center(), c.truth);
   p.position = PositionError(c, points);
   const bool has_map = c.synth.lighting.equirect.pixels() > 0 || static_cast<bool>(c.synth.lighting.sky);
@@ -145,7 +145,7 @@ Curve MethodCurve(const Case& c, const std::string& name, const EstimateResult& 
     cv.iterations.push_back(
         {row.round, row.iteration, row.wall_seconds, row.relative_rmse, row.angular_error_deg, row.position_error_m});
   for (const RoundInfo& ri : r.rounds) {
-    Point p = Evaluate(c, r.env, ri.lambda, ri.point_lights, r.left_out, eo.tracer, eval_spp);
+    Point p = Evaluate(c, r.env, ri.lighting, r.left_out, eo.tracer, eval_spp);
     p.round = ri.round;
     p.seconds = ri.end_seconds;
     p.setting = "round " + std::to_string(ri.round);
@@ -485,7 +485,7 @@ class ReportRun {
     const EnvMap env(defaults_.rings, c->fit.up);
     c->true_cells[defaults_.rings] = TrueCellRadiance(c->synth.lighting, env);
     const std::vector<double>& true_cells = c->true_cells[defaults_.rings];
-    if (!true_cells.empty()) c->relit_floor = RelitError(*c, env, true_cells, {}, defaults_.tracer, o_.eval_spp);
+    if (!true_cells.empty()) c->relit_floor = RelitError(*c, env, {true_cells, {}}, defaults_.tracer, o_.eval_spp);
     // FD's unit of work: one render of the fitted view (same settings as a trace).
     c->render_seconds = SecondsPerCellRender(*c->tracer, env, c->fit.views, defaults_.tracer, 2);
     return c;
@@ -539,7 +539,7 @@ class ReportRun {
       EstimateOptions eo = defaults_;
       set(&eo, v);
       const EstimateResult r = RunEstimate(*c, eo);
-      Point p = Evaluate(*c, r.env, r.lambda, r.point_lights, r.left_out, eo.tracer, o_.eval_spp);
+      Point p = Evaluate(*c, r.env, r.lighting, r.left_out, eo.tracer, o_.eval_spp);
       p.seconds = r.rounds.back().end_seconds;
       p.fitted = r.final_relative_rmse;
       p.round = static_cast<int>(r.rounds.size());

@@ -88,16 +88,17 @@ static void WriteConvergencePlot(const fs::path& path, const std::vector<Converg
 /// envmap.exr, envmap.png (scaled to the brightest cell) and envmap_directions.csv.
 static void WriteEnvMap(const fs::path& out, const EstimateResult& r) {
   const EnvMap& env = r.env;
-  WriteExr(out / "envmap.exr", env.ToEquirect(r.lambda, 128));
+  const std::vector<double>& lambda = r.lighting.map;
+  WriteExr(out / "envmap.exr", env.ToEquirect(lambda, 128));
   double peak = 0;
-  for (double v : r.lambda) peak = std::max(peak, v);
-  WritePngSrgb(out / "envmap.png", env.ToEquirect(r.lambda, 128), peak > 0 ? static_cast<float>(1 / peak) : 1.f);
+  for (double v : lambda) peak = std::max(peak, v);
+  WritePngSrgb(out / "envmap.png", env.ToEquirect(lambda, 128), peak > 0 ? static_cast<float>(1 / peak) : 1.f);
   std::ostringstream dirs;
   dirs << "x,y,z,solid_angle,r,g,b,left_out\n";
   for (int j = 0; j < env.size(); ++j) {
     const auto& d = env.direction(j);
     dirs << Num(d.x()) << ',' << Num(d.y()) << ',' << Num(d.z()) << ',' << Num(env.solid_angle(j)) << ','
-         << Num(r.lambda[3 * j]) << ',' << Num(r.lambda[3 * j + 1]) << ',' << Num(r.lambda[3 * j + 2]) << ','
+         << Num(lambda[3 * j]) << ',' << Num(lambda[3 * j + 1]) << ',' << Num(lambda[3 * j + 2]) << ','
          << int(r.left_out[j]) << '\n';
   }
   WriteTextAtomically(out / "envmap_directions.csv", dirs.str());
@@ -111,8 +112,8 @@ static std::string Fmt(const char* fmt, double a, double b, double c, double d, 
 
 /// lights.json: the map (when it lights anything), the point lights and the directional ones.
 static void WriteLights(const fs::path& out, const EstimateResult& r) {
-  LightsFile lights{"", r.point_lights, r.directional_lights};
-  for (double v : r.lambda)
+  LightsFile lights{"", r.lighting.lights};
+  for (double v : r.lighting.map)
     if (v > 0) lights.environment = "envmap.exr";
   WriteTextAtomically(out / "lights.json", LightsJson(lights));
 }
@@ -120,9 +121,9 @@ static void WriteLights(const fs::path& out, const EstimateResult& r) {
 /// report.json's "model": which lighting model was chosen and why.
 static json ModelJson(const EstimateOptions& o, const EstimateResult& r) {
   std::string chosen = "environment map";
-  if (!r.point_lights.empty()) chosen += " + " + std::to_string(r.point_lights.size()) + " point light(s)";
-  if (!r.directional_lights.empty())
-    chosen += " + " + std::to_string(r.directional_lights.size()) + " directional light(s)";
+  if (const std::size_t n = r.lighting.Count<PointLight>()) chosen += " + " + std::to_string(n) + " point light(s)";
+  if (const std::size_t n = r.lighting.Count<DirectionalLight>())
+    chosen += " + " + std::to_string(n) + " directional light(s)";
   return {{"chosen", chosen},
           {"max_point_lights", o.point_lights.max_lights},
           {"choices", r.point_light_choices},
@@ -238,12 +239,10 @@ static json LeftOutJson(const SceneBundle& bundle, const EstimateResult& r) {
           {"degenerate_triangles_removed", bundle.degenerate_triangles_removed}};
 }
 
-static json PointLightsJson(const std::vector<PointLight>& lights) {
-  return json::parse(LightsJson({"", lights, {}}))["point_lights"];
-}
-
-static json DirectionalLightsJson(const std::vector<DirectionalLight>& lights) {
-  return json::parse(LightsJson({"", {}, lights}))["directional_lights"];
+/// The lights of `lighting` of kind T as lights.json holds them.
+template <class T>
+static json LightsOfKind(const Lighting& lighting) {
+  return json::parse(LightsJson({"", AsLights(lighting.Of<T>())}))[LightsKey(T{})];
 }
 
 static json RoundsJson(const EstimateResult& r) {
@@ -253,7 +252,7 @@ static json RoundsJson(const EstimateResult& r) {
                       {"solver_iterations", ri.solver_iterations}, {"objective", ri.objective},
                       {"change", ri.change}, {"image_change", ri.image_change}, {"kkt_violation", ri.kkt_violation},
                       {"nonzeros", ri.nonzeros}, {"unknown_cells", ri.unknown_cells},
-                      {"point_lights", PointLightsJson(ri.point_lights)},
+                      {"point_lights", LightsOfKind<PointLight>(ri.lighting)},
                       {"light_iterations", ri.light_iterations}});
   return rounds;
 }
@@ -270,8 +269,9 @@ static json FinalJson(const EstimateResult& r) {
     result["position_error_m"] = std::isfinite(r.final_position_error_m) ? json(r.final_position_error_m) : json("inf");
   if (std::isfinite(r.final_position_error_share)) result["position_error_share"] = r.final_position_error_share;
   result["rendered_fraction"] = r.rendered_fraction;
-  result["point_lights"] = PointLightsJson(r.point_lights);
-  result["directional_lights"] = DirectionalLightsJson(r.directional_lights);
+  ForEachKind([&](auto kind) {
+    result[LightsKey(kind)] = LightsOfKind<decltype(kind)>(r.lighting);
+  });
   result["scene_centre"] = {r.scene_centre.x(), r.scene_centre.y(), r.scene_centre.z()};
   return result;
 }
@@ -352,7 +352,7 @@ Run AddEstimate(CLI::App& app) {
     std::printf("estimated %d directions (%d rings) in %.2f s; relative RMSE %.4f", r.env.size(), o->rings,
                 sw.Seconds(), r.final_relative_rmse);
     if (!std::isnan(r.final_angular_error_deg)) std::printf("; dominant light error %.2f deg", r.final_angular_error_deg);
-    std::printf("; %zu point light(s)", r.point_lights.size());
+    std::printf("; %zu point light(s)", r.lighting.Count<PointLight>());
     if (std::isfinite(r.final_position_error_m))
       std::printf("; the lamp is %.1f cm from the true one (%.1f %% of its distance from the scene)",
                   100 * r.final_position_error_m, 100 * r.final_position_error_share);

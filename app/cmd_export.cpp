@@ -28,7 +28,8 @@ Run AddExport(CLI::App& app) {
     std::printf("export %s: mesh from %s (%zu triangles), %zu keyframe camera(s), %s map, %zu point light(s), "
                 "%zu directional light(s)\n",
                 ToString(f), s.mesh_source.c_str(), s.mesh.triangles.size(), s.cameras.size(),
-                s.environment.height ? "a" : "no", s.point_lights.size(), s.directional_lights.size());
+                s.environment.height ? "a" : "no", OfKind<PointLight>(s.lights).size(),
+                OfKind<DirectionalLight>(s.lights).size());
     const fs::path dir = fs::absolute(*out).lexically_normal();
     std::printf("wrote %s in %.2f s:", dir.c_str(), sw.Seconds());
     for (const std::string& name : files) std::printf(" %s", name.c_str());

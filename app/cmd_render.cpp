@@ -97,7 +97,7 @@ Run AddRender(CLI::App& app) {
     if (lambda.empty()) lambda.assign(3 * env.size(), 0.0);
     const CellSampler sampler(env, lambda, {}, 0.2);
     const std::vector<ImageRGB> imgs =
-        RenderLighting(tracer, env, lambda, sampler, file.point_lights, file.directional_lights, b.views, *o, true);
+        RenderLighting(tracer, env, {lambda, file.lights}, sampler, b.views, *o, true);
     for (std::size_t k = 0; k < imgs.size(); ++k) {
       const std::string name = "render_view" + std::to_string(k);
       WriteExr(fs::path(*out) / (name + ".exr"), imgs[k]);

@@ -298,10 +298,9 @@ ObjectiveParams Estimator::CellWeights(const LinearProblem& problem, ObjectivePa
 }
 
 /// A convergence row's scores against truth.json (and how many point lights it has).
-void Estimator::Score(ConvergenceRow* row, const std::vector<double>& env_lambda,
-                      const std::vector<PointLight>& points, const std::vector<DirectionalLight>& suns) const {
-  row->point_lights = static_cast<int>(points.size());
-  if (opt_.scorer) opt_.scorer->Score(row, env_, env_lambda, points, suns);
+void Estimator::Score(ConvergenceRow* row, const Lighting& lighting) const {
+  row->point_lights = static_cast<int>(lighting.Count<PointLight>());
+  if (opt_.scorer) opt_.scorer->Score(row, env_, lighting);
 }
 
 SolveResult Estimator::Solve(const RoundProblem& rp, int round, RoundInfo* info, bool graduated) {
@@ -329,7 +328,8 @@ SolveResult Estimator::Solve(const RoundProblem& rp, int round, RoundInfo* info,
     row.relative_rmse = it.Rmse();
     row.photometric_rmse = row.relative_rmse * res_.image_mean;
     const std::vector<double> full = rp.Scatter(*it.lambda, cells_);
-    Score(&row, full, rp.Lit<PointLight>(full, cells_), suns_);  // (the map's part is the first 3 * cells_)
+    Score(&row, {std::vector<double>(full.begin(), full.begin() + 3 * cells_),
+                 Joined(suns_, rp.Lit<PointLight>(full, cells_))});
     res_.convergence.push_back(row);
     if (opt_.on_convergence) opt_.on_convergence(row);
     if (opt_.solver_options.on_iteration) opt_.solver_options.on_iteration(it);
@@ -400,10 +400,7 @@ void Estimator::FitLights(const RoundProblem& rp, const std::vector<double>& ful
 /// The round's record (in image units), its callback and its progress line.
 void Estimator::EndRound(const SolveResult& sr, RoundInfo* info) {
   map_share_ = MapShare();
-  info->lambda = lambda_;
-  for (double& v : info->lambda) v *= res_.image_mean;
-  info->point_lights = InImageUnits(points_);
-  info->directional_lights = InImageUnits(suns_);
+  info->lighting = InImageUnits();
   info->end_seconds = Now();
   res_.kkt_violation = sr.kkt_violation;
   res_.rounds.push_back(*info);
@@ -418,14 +415,11 @@ void Estimator::Conclude() {
   if (res_.albedo_passes > 0) res_.albedo = mesh_.albedo;
   res_.left_out.assign(cells_, 0);
   for (int j = 0; j < cells_; ++j) res_.left_out[j] = !reachable_[j];
-  res_.lambda = lambda_;
-  for (double& v : res_.lambda) v *= res_.image_mean;
+  res_.lighting = InImageUnits();
   res_.final_relative_rmse = res_.convergence.empty() ? 0 : res_.convergence.back().relative_rmse;
   res_.final_rmse = res_.final_relative_rmse * res_.image_mean;
-  res_.point_lights = InImageUnits(points_);
-  res_.directional_lights = InImageUnits(suns_);
   if (opt_.scorer) opt_.scorer->Conclude(&res_);
-  res_.dominant = DominantDirections(env_, res_.lambda, res_.directional_lights, 2);
+  res_.dominant = DominantDirections(env_, res_.lighting.map, res_.lighting.Of<DirectionalLight>(), 2);
   // A fit that renders (almost) nothing is the activation penalty winning over data it no
   // longer hears: a Cauchy scale far below the residuals makes every pixel an outlier.
   if (res_.rendered_fraction < 0.01) {
@@ -446,10 +440,9 @@ void Estimator::RenderFittedViews() {
   topt.seed = opt_.tracer.seed * 1000003ull + 999;
   topt.spp = opt_.render_spp > 0 ? opt_.render_spp : kMaskedRenderSpp;
   topt.cancelled = opt_.cancelled;
-  CellSampler sampler(env_, res_.lambda, reachable_, opt_.tracer.nee_floor);
+  CellSampler sampler(env_, res_.lighting.map, reachable_, opt_.tracer.nee_floor);
   const bool traced = opt_.render_spp > 0;  // every pixel; else the fit and the pixels it did not use
-  res_.renders = RenderLighting(*scene_, env_, res_.lambda, sampler, res_.point_lights, res_.directional_lights,
-                                traced ? bundle_.views : UnusedPixels(views_), topt, traced);
+  res_.renders = RenderLighting(*scene_, env_, res_.lighting, sampler, traced ? bundle_.views : UnusedPixels(views_), topt, traced);
   if (!traced) PutFit(&res_.renders);
   CheckCancel();
   res_.render_seconds = rs.Seconds();

@@ -8,10 +8,9 @@
 #include <vector>
 
 #include "estimation/estimate_options.h"
-#include "estimation/lights/directional_light.h"
+#include "estimation/lighting.h"
 #include "estimation/objective.h"
 #include "estimation/path_tracer.h"
-#include "estimation/lights/point_light.h"
 #include "scene/scene_bundle.h"
 #include "estimation/solver.h"
 #include "estimation/truth.h"
@@ -63,9 +62,7 @@ struct RoundInfo {
   std::int64_t nonzeros = 0;
   int unknown_cells = 0;
   double end_seconds = 0;      ///< wall clock at the end of the round (with time_offset)
-  std::vector<double> lambda;  ///< the estimate after this round (3 * cells, image units)
-  std::vector<PointLight> point_lights;  ///< after this round (image units)
-  std::vector<DirectionalLight> directional_lights;  ///< after this round (image units)
+  Lighting lighting;           ///< the estimate after this round (its map 3 * cells; image units)
   int light_iterations = 0;    ///< steps of the positions' refinement
   bool lights_moved = false;   ///< the point lights changed or moved more than 2 % of their distance
 };
@@ -82,7 +79,10 @@ const char* ToString(AlbedoLeftOut why);
 
 struct EstimateResult {
   EnvMap env{2, Eigen::Vector3d::UnitZ()};
-  std::vector<double> lambda;  ///< 3 * env.size(), linear radiance in image units; 0 for left-out cells
+  /// The estimate (image units): the map, 3 * env.size() linear radiances (0 for left-out
+  /// cells); the lights, the directional ones (a sun: its cells of the map are empty) then
+  /// the point lights (the near part), each kind strongest first.
+  Lighting lighting;
   std::vector<std::uint8_t> left_out;  ///< per cell: 1 = no sampled path reached it
   std::vector<ImageRGB> renders;       ///< relit views (every pixel), when options.render
   std::vector<ConvergenceRow> convergence;
@@ -101,10 +101,6 @@ struct EstimateResult {
   double kkt_violation = 0;
   bool objective_increased = false;
   std::vector<Eigen::Vector3d> dominant;  ///< the strongest light directions (map and directional lights)
-  /// The near part of the lighting (image units), strongest first.
-  std::vector<PointLight> point_lights;
-  /// The sharp far part (a sun), strongest first; its cells of the map are empty.
-  std::vector<DirectionalLight> directional_lights;
   /// Why each light was kept or dropped (model selection), one line each.
   std::vector<std::string> point_light_choices;
   Eigen::Vector3d scene_centre = Eigen::Vector3d::Zero();  ///< the mesh's bounding box's centre

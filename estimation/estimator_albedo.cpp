@@ -88,8 +88,8 @@ bool Estimator::RefineAlbedo(int pass) {
       // cell's boundary, and a vertex there can sit behind its neighbours' triangles).
       std::unique_ptr<RayTracer> full;
       if (!cluster_.empty()) full = std::make_unique<RayTracer>(mesh_);
-      VertexRadiance radiance(full ? *full : *scene_, env_, lambda_, opt_.tracer.bounces,
-                              opt_.tracer.seed * 7919 + pass, points_, suns_);
+      VertexRadiance radiance(full ? *full : *scene_, env_, {lambda_, Joined(suns_, points_)}, opt_.tracer.bounces,
+                              opt_.tracer.seed * 7919 + pass);
       for (int done = 0; done < paths; done += 2) {  // Cancel is polled between steps
         radiance.Refine(std::min(2, paths - done));
         CheckCancel();

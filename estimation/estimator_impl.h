@@ -176,8 +176,7 @@ class Estimator {
   double RenderedShare(const PointLight& light);
   std::vector<float> Column(const Light& light);
   ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params) const;
-  void Score(ConvergenceRow* row, const std::vector<double>& env_lambda, const std::vector<PointLight>& points,
-             const std::vector<DirectionalLight>& suns) const;
+  void Score(ConvergenceRow* row, const Lighting& lighting) const;
   /// A convergence row of a light's refinement (the objective and the sum of squared
   /// residuals over y_ as given), scored and step left to the caller.
   ConvergenceRow LightRow(const RoundInfo& info, double sigma, double objective, double sse) const {
@@ -198,13 +197,12 @@ class Estimator {
     if (opt_.on_convergence) opt_.on_convergence(row);
     CheckCancel();
   }
-  std::vector<PointLight> InImageUnits(std::vector<PointLight> lights) const {
-    for (PointLight& l : lights) l.intensity *= res_.image_mean;
-    return lights;
-  }
-  std::vector<DirectionalLight> InImageUnits(std::vector<DirectionalLight> lights) const {
-    for (DirectionalLight& l : lights) l.irradiance *= res_.image_mean;
-    return lights;
+  /// The estimate so far in image units: the map `lambda_` and the lights.
+  Lighting InImageUnits() const {
+    Lighting out{lambda_, Joined(suns_, points_)};
+    for (double& v : out.map) v *= res_.image_mean;
+    for (Light& l : out.lights) Scale(l) *= res_.image_mean;
+    return out;
   }
   // The directional light (docs/method.md, "Directional lights"): proposed, shaped,
   // settled beside the map, selected.
@@ -224,7 +222,7 @@ class Estimator {
             // times the stride estimate the whole problem's)
             ConvergenceRow row = e.LightRow(*info, fit.loss.sigma, E * share->stride, sse * share->stride);
             row.step = "sun";
-            e.Score(&row, *without, e.points_, OfKind<DirectionalLight>(now));
+            e.Score(&row, {*without, Joined(OfKind<DirectionalLight>(now), e.points_)});
             e.Push(row);
           }) {}
     SunFit(const SunFit&) = delete;

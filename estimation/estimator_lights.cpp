@@ -292,7 +292,7 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
     return [&, stride](int, double E, double sse, const std::vector<Light>& now) {
       ConvergenceRow row = LightRow(*info, fit.loss.sigma, E * stride + map_penalty, sse * stride);
       row.step = step;
-      Score(&row, lambda_, OfKind<PointLight>(now), suns_);
+      Score(&row, {lambda_, Joined(suns_, OfKind<PointLight>(now))});
       Push(row);
     };
   };

@@ -204,7 +204,7 @@ std::vector<float> Estimator::TracedSunColumn(DirectionalLight light, const std:
   topt.spp = spp;
   topt.seed = opt_.tracer.seed * 1000003ull + seed;
   light.irradiance = Eigen::Vector3d::Ones();
-  const std::vector<ImageRGB> images = RenderPointLights(*scene_, traced, {}, topt, false, nullptr, {light});
+  const std::vector<ImageRGB> images = RenderLights(*scene_, traced, {light}, topt, false);
   CheckCancel();
   std::vector<float> out;
   for (std::size_t r = 0; r < A_.rows(); ++r) {

@@ -13,22 +13,20 @@ using detail::PixelsToTrace;
 using detail::CheckPathOptions;
 using detail::WalkPath;
 
-std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, const std::vector<double>& lambda,
-                                     const CellSampler& sampler, const std::vector<PointLight>& lights,
-                                     const std::vector<DirectionalLight>& directional, const std::vector<View>& views,
+std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, const Lighting& lighting,
+                                     const CellSampler& sampler, const std::vector<View>& views,
                                      const TracerOptions& options, bool all_pixels, TraceStats* stats) {
   VertexLight lamps;
-  if (!lights.empty() || !directional.empty())
+  if (!lighting.lights.empty())
     lamps = [&](const SurfacePoint& hit, const Eigen::Vector3d& off, std::uint64_t key, std::int64_t& rays) {
-      return Irradiance(scene, lights, directional, off, hit.shading, hit.geometric, key, &rays);
+      return Irradiance(scene, lighting.lights, off, hit.shading, hit.geometric, key, &rays);
     };
-  return RenderEnvironment(scene, env, views, lambda, sampler, options, all_pixels, lamps, stats);
+  return RenderEnvironment(scene, env, views, lighting.map, sampler, options, all_pixels, lamps, stats);
 }
 
-std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vector<View>& views,
-                                        const std::vector<PointLight>& lights, const TracerOptions& opt,
-                                        bool all_pixels, TraceStats* stats,
-                                        const std::vector<DirectionalLight>& directional) {
+std::vector<ImageRGB> RenderLights(const RayTracer& scene, const std::vector<View>& views,
+                                   const std::vector<Light>& lights, const TracerOptions& opt, bool all_pixels,
+                                   TraceStats* stats) {
   CheckPathOptions(opt);
   std::vector<ImageRGB> out;
   for (const View& v : views) out.emplace_back(v.camera.width, v.camera.height);
@@ -43,7 +41,7 @@ std::vector<ImageRGB> RenderPointLights(const RayTracer& scene, const std::vecto
       WalkPath(scene, cam, x, y, rng, opt, cnt,
                [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
                  sum += w.cwiseProduct(
-                     Irradiance(scene, lights, directional, off, hit.shading, hit.geometric, ++key, &cnt.rays));
+                     Irradiance(scene, lights, off, hit.shading, hit.geometric, ++key, &cnt.rays));
                });
     }
     float* p = out[px.view].at(x, y);

@@ -10,19 +10,68 @@
 namespace lp {
 using nlohmann::json;
 
+const char* LightsKey(const PointLight&) { return "point_lights"; }
+const char* LightsKey(const DirectionalLight&) { return "directional_lights"; }
+
+namespace {
+
+json Vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+
+json ToJson(const PointLight& l) {
+  return {{"position", Vec(l.position)}, {"intensity", Vec(l.intensity)}, {"radius", l.radius}};
+}
+json ToJson(const DirectionalLight& l) {
+  return {{"direction", Vec(l.direction)}, {"irradiance", Vec(l.irradiance)}, {"angular_radius", l.angular_radius}};
+}
+
+/// Reads one light's fields, each error a one-line InputError naming the file.
+struct FieldReader {
+  const std::string& name;
+  Eigen::Vector3d Vec3(const json& l, const char* what, const char* key) const {
+    if (!l.contains(key)) throw InputError(name, std::string("a ") + what + " has no \"" + key + "\"");
+    const json& v = l[key];
+    if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
+      throw InputError(name, std::string(what) + " \"" + key + "\" must be 3 numbers");
+    const Eigen::Vector3d x(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
+    if (!x.allFinite()) throw InputError(name, std::string(what) + " \"" + key + "\" is not finite");
+    return x;
+  }
+  double Number(const json& l, const char* what, const char* key, double below) const {
+    const json& v = l[key];
+    if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < 0 || !(v.get<double>() < below))
+      throw InputError(name, std::string("a ") + what + "'s \"" + key + "\" must be a number >= 0" +
+                                 (std::isfinite(below) ? " and below " + std::to_string(below) : std::string()));
+    return v.get<double>();
+  }
+};
+
+void Read(const json& l, const FieldReader& r, PointLight* p) {
+  if (!l.is_object()) throw InputError(r.name, "a point light must be an object");
+  p->position = r.Vec3(l, "point light", "position");
+  p->intensity = r.Vec3(l, "point light", "intensity");
+  if (p->intensity.minCoeff() < 0) throw InputError(r.name, "a point light's intensity is negative");
+  if (l.contains("radius")) p->radius = r.Number(l, "point light", "radius", HUGE_VAL);
+}
+
+void Read(const json& l, const FieldReader& r, DirectionalLight* d) {
+  if (!l.is_object()) throw InputError(r.name, "a directional light must be an object");
+  d->direction = r.Vec3(l, "directional light", "direction");
+  if (!(d->direction.norm() > 0) || !std::isfinite(d->direction.norm()))
+    throw InputError(r.name, "a directional light's \"direction\" must not be zero");
+  d->direction.normalize();
+  d->irradiance = r.Vec3(l, "directional light", "irradiance");
+  if (d->irradiance.minCoeff() < 0) throw InputError(r.name, "a directional light's irradiance is negative");
+  if (l.contains("angular_radius")) d->angular_radius = r.Number(l, "directional light", "angular_radius", M_PI / 2);
+}
+
+}  // namespace
+
 std::string LightsJson(const LightsFile& lights) {
   json j = json::object();
   if (!lights.environment.empty()) j["environment"] = lights.environment;
-  j["point_lights"] = json::array();
-  for (const PointLight& l : lights.point_lights)
-    j["point_lights"].push_back({{"position", {l.position.x(), l.position.y(), l.position.z()}},
-                                 {"intensity", {l.intensity.x(), l.intensity.y(), l.intensity.z()}},
-                                 {"radius", l.radius}});
-  j["directional_lights"] = json::array();
-  for (const DirectionalLight& l : lights.directional_lights)
-    j["directional_lights"].push_back({{"direction", {l.direction.x(), l.direction.y(), l.direction.z()}},
-                                       {"irradiance", {l.irradiance.x(), l.irradiance.y(), l.irradiance.z()}},
-                                       {"angular_radius", l.angular_radius}});
+  ForEachKind([&](const auto& kind) { j[LightsKey(kind)] = json::array(); });
+  for (const Light& light : lights.lights)
+    std::visit([&](const auto& l) { j[LightsKey(l)].push_back(ToJson(l)); }, light);
   return j.dump(2) + "\n";
 }
 
@@ -40,49 +89,17 @@ LightsFile ParseLightsJson(const std::string& text, const std::string& name) {
       throw InputError(name, "\"environment\" must be a file name");
     out.environment = j["environment"].get<std::string>();
   }
-  const auto vec3 = [&](const json& l, const char* what, const char* key) {
-    if (!l.contains(key)) throw InputError(name, std::string("a ") + what + " has no \"" + key + "\"");
-    const json& v = l[key];
-    if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
-      throw InputError(name, std::string(what) + " \"" + key + "\" must be 3 numbers");
-    const Eigen::Vector3d x(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
-    if (!x.allFinite()) throw InputError(name, std::string(what) + " \"" + key + "\" is not finite");
-    return x;
-  };
-  const auto number = [&](const json& l, const char* what, const char* key, double below) {
-    const json& v = l[key];
-    if (!v.is_number() || !std::isfinite(v.get<double>()) || v.get<double>() < 0 || !(v.get<double>() < below))
-      throw InputError(name, std::string("a ") + what + "'s \"" + key + "\" must be a number >= 0" +
-                                 (std::isfinite(below) ? " and below " + std::to_string(below) : std::string()));
-    return v.get<double>();
-  };
-  const auto array = [&](const char* key) -> const json& {
-    static const json kNone = json::array();
-    if (!j.contains(key)) return kNone;
+  const FieldReader reader{name};
+  ForEachKind([&](auto kind) {
+    const char* key = LightsKey(kind);
+    if (!j.contains(key)) return;  // (a file written before the kind existed has none)
     if (!j[key].is_array()) throw InputError(name, std::string("\"") + key + "\" must be an array");
-    return j[key];
-  };
-  for (const json& l : array("point_lights")) {
-    if (!l.is_object()) throw InputError(name, "a point light must be an object");
-    PointLight p;
-    p.position = vec3(l, "point light", "position");
-    p.intensity = vec3(l, "point light", "intensity");
-    if (p.intensity.minCoeff() < 0) throw InputError(name, "a point light's intensity is negative");
-    if (l.contains("radius")) p.radius = number(l, "point light", "radius", HUGE_VAL);
-    out.point_lights.push_back(p);
-  }
-  for (const json& l : array("directional_lights")) {
-    if (!l.is_object()) throw InputError(name, "a directional light must be an object");
-    DirectionalLight d;
-    d.direction = vec3(l, "directional light", "direction");
-    if (!(d.direction.norm() > 0) || !std::isfinite(d.direction.norm()))
-      throw InputError(name, "a directional light's \"direction\" must not be zero");
-    d.direction.normalize();
-    d.irradiance = vec3(l, "directional light", "irradiance");
-    if (d.irradiance.minCoeff() < 0) throw InputError(name, "a directional light's irradiance is negative");
-    if (l.contains("angular_radius")) d.angular_radius = number(l, "directional light", "angular_radius", M_PI / 2);
-    out.directional_lights.push_back(d);
-  }
+    for (const json& l : j[key]) {
+      decltype(kind) light;
+      Read(l, reader, &light);
+      out.lights.push_back(light);
+    }
+  });
   return out;
 }
 

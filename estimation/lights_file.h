@@ -7,8 +7,7 @@
 #include <vector>
 
 #include "common/image.h"
-#include "estimation/lights/directional_light.h"
-#include "estimation/lights/point_light.h"
+#include "estimation/lighting.h"
 
 namespace lp {
 
@@ -16,11 +15,16 @@ struct LightsFile {
   /// The map's equirectangular EXR (EnvMap convention), relative to lights.json's folder;
   /// empty when the map is empty.
   std::string environment;
-  std::vector<PointLight> point_lights;
-  std::vector<DirectionalLight> directional_lights;
+  /// Every light, kind by kind in the file's order of kinds (each kind has its key).
+  std::vector<Light> lights;
 };
 
-/// The file's text (JSON, 2-space indent, a final newline).
+/// The file's key for the lights of each kind ("point_lights", "directional_lights").
+const char* LightsKey(const PointLight&);
+const char* LightsKey(const DirectionalLight&);
+
+/// The file's text (JSON, 2-space indent, a final newline; every kind's key, an empty
+/// array for a kind without lights).
 std::string LightsJson(const LightsFile& lights);
 /// Parses lights.json text (`name` for errors); keys it does not know are ignored. Throws
 /// InputError when malformed (a position or intensity not 3 finite numbers, a negative

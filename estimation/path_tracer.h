@@ -100,7 +100,7 @@ using VertexLight = std::function<Eigen::Vector3d(const SurfacePoint& hit, const
                                                   std::uint64_t key, std::int64_t& rays)>;
 
 /// The same render with `lights` added at every vertex of the same paths (one pass for the
-/// map and the lights; see RenderLighting in point_lights.h).
+/// map and the lights; see RenderLighting in light_render.h).
 std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
                                         const std::vector<double>& lambda, const CellSampler& sampler,
                                         const TracerOptions& options, bool all_pixels, const VertexLight& lights,

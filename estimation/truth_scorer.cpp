@@ -17,19 +17,21 @@ std::shared_ptr<const TruthScorer> TruthScorer::FromBundle(const SceneBundle& bu
 TruthScorer::TruthScorer(std::vector<TruthLight> truth, const Eigen::Vector3d& centre, double far_m)
     : truth_(std::move(truth)), centre_(centre), far_m_(far_m) {}
 
-void TruthScorer::Score(ConvergenceRow* row, const EnvMap& env, const std::vector<double>& env_lambda,
-                        const std::vector<PointLight>& points, const std::vector<DirectionalLight>& suns) const {
+void TruthScorer::Score(ConvergenceRow* row, const EnvMap& env, const Lighting& lighting) const {
   if (truth_.empty()) return;
-  row->angular_error_deg = DominantAngularErrorDeg(env, env_lambda, points, centre_, truth_, suns);
+  const std::vector<PointLight> points = lighting.Of<PointLight>();
+  row->angular_error_deg =
+      DominantAngularErrorDeg(env, lighting.map, points, centre_, truth_, lighting.Of<DirectionalLight>());
   row->position_error_m = WorstPositionError(points, truth_, centre_, far_m_);
 }
 
 void TruthScorer::Conclude(EstimateResult* r) const {
   if (truth_.empty()) return;
+  const Lighting& l = r->lighting;
+  const std::vector<PointLight> points = l.Of<PointLight>();
   r->final_angular_error_deg =
-      DominantAngularErrorDeg(r->env, r->lambda, r->point_lights, centre_, truth_, r->directional_lights);
-  r->final_position_error_m =
-      WorstPositionError(r->point_lights, truth_, centre_, far_m_, &r->final_position_error_share);
+      DominantAngularErrorDeg(r->env, l.map, points, centre_, truth_, l.Of<DirectionalLight>());
+  r->final_position_error_m = WorstPositionError(points, truth_, centre_, far_m_, &r->final_position_error_share);
 }
 
 }  // namespace lp

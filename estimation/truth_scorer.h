@@ -22,10 +22,9 @@ class TruthScorer {
   static std::shared_ptr<const TruthScorer> FromBundle(const SceneBundle& bundle, double far = 5);
   TruthScorer(std::vector<TruthLight> truth, const Eigen::Vector3d& centre, double far_m);
 
-  /// The row's dominant direction error (the map `env_lambda` over `env`, the point lights
-  /// and the directional ones) and its worst near light's position error.
-  void Score(ConvergenceRow* row, const EnvMap& env, const std::vector<double>& env_lambda,
-             const std::vector<PointLight>& points, const std::vector<DirectionalLight>& suns) const;
+  /// The row's dominant direction error (`lighting`, its map over `env`) and its worst near
+  /// light's position error.
+  void Score(ConvergenceRow* row, const EnvMap& env, const Lighting& lighting) const;
   /// The same for the result (its final_* errors).
   void Conclude(EstimateResult* result) const;
 

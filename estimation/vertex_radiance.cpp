@@ -12,14 +12,13 @@
 
 namespace lp {
 
-VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, std::vector<double> lambda, int bounces,
-                               std::uint64_t seed, std::vector<PointLight> points, std::vector<DirectionalLight> suns)
-    : scene_(scene), env_(env), lambda_(std::move(lambda)), points_(std::move(points)), suns_(std::move(suns)),
-      bounces_(bounces),
-      seed_(seed) {
-  LP_CHECK(static_cast<int>(lambda_.size()) == 3 * env.size(), "lambda has " << lambda_.size() << " values for "
-                                                                               << env.size() << " cells");
-  sampler_ = std::make_unique<CellSampler>(env, lambda_, std::vector<std::uint8_t>{}, 0.05);
+VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, Lighting lighting, int bounces,
+                               std::uint64_t seed)
+    : scene_(scene), env_(env), lighting_(std::move(lighting)), bounces_(bounces), seed_(seed) {
+  const std::vector<double>& map = lighting_.map;
+  LP_CHECK(static_cast<int>(map.size()) == 3 * env.size(),
+           "the map has " << map.size() << " values for " << env.size() << " cells");
+  sampler_ = std::make_unique<CellSampler>(env, map, std::vector<std::uint8_t>{}, 0.05);
   LP_CHECK(bounces >= 1, "bounces " << bounces);
   sum_.assign(scene.mesh().positions.size(), Eigen::Vector3d::Zero());
 }
@@ -43,15 +42,16 @@ void VertexRadiance::Refine(int samples) {
         // shading of a small bright light converges in tens of samples, not thousands).
         Eigen::Vector3d origin = mesh.positions[v].cast<double>() + n0 * (4 * scene_.epsilon());
         Eigen::Vector3d n = n0, geometric = n0, throughput = Eigen::Vector3d::Ones();
-        auto cell = [&](int j) { return Eigen::Vector3d(lambda_[3 * j], lambda_[3 * j + 1], lambda_[3 * j + 2]); };
+        const std::vector<double>& map = lighting_.map;
+        auto cell = [&](int j) { return Eigen::Vector3d(map[3 * j], map[3 * j + 1], map[3 * j + 2]); };
         for (int bounce = 0; bounce < bounces_; ++bounce) {
           const NextEvent ne = SampleNextEvent(scene_, env_, *sampler_, n, geometric, origin, rng);
           if (ne.visible) sum_[v] += throughput.cwiseProduct(cell(ne.cell)) * ne.weight;
-          if (!points_.empty() || !suns_.empty()) {  // the lights' irradiance / pi
+          if (!lighting_.lights.empty()) {  // the lights' irradiance / pi
             const std::uint64_t key = (static_cast<std::uint64_t>(v) << 24) ^ (static_cast<std::uint64_t>(s) << 4) ^
                                       static_cast<std::uint64_t>(bounce);
             std::int64_t rays = 0;
-            sum_[v] += throughput.cwiseProduct(lp::Irradiance(scene_, points_, suns_, origin, n, geometric, key, &rays)) *
+            sum_[v] += throughput.cwiseProduct(lp::Irradiance(scene_, lighting_.lights, origin, n, geometric, key, &rays)) *
                        kInvPi;
           }
           const double u1 = rng.Uniform(), u2 = rng.Uniform();

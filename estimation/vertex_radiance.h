@@ -1,9 +1,9 @@
 #pragma once
-/// Outgoing radiance of every mesh vertex under an environment map and point lights, refined progressively:
+/// Outgoing radiance of every mesh vertex under an estimate's lighting (its map and lights), refined progressively:
 /// what the viewer's "lit" shading shows. Each Refine() adds samples per vertex of a path
 /// (up to `bounces` surface interactions, Lambertian albedo; at each, next-event estimation
 /// towards a cell drawn by the estimate's brightness and cosine sampling, combined by the
-/// power heuristic, as the path tracer; and a shadow ray to each point light) and averages
+/// power heuristic, as the path tracer; and a shadow ray to each light) and averages
 /// them with the earlier ones, so the picture sharpens while the user looks.
 #include <cstdint>
 #include <memory>
@@ -12,8 +12,7 @@
 #include <Eigen/Core>
 
 #include "estimation/envmap.h"
-#include "estimation/lights/directional_light.h"
-#include "estimation/lights/point_light.h"
+#include "estimation/lighting.h"
 #include "scene/ray_tracer.h"
 #include "scene/scene_bundle.h"
 
@@ -23,13 +22,12 @@ class CellSampler;
 
 class VertexRadiance {
  public:
-  /// `lambda`: 3 * env.size() linear radiances (the estimate); `bounces` >= 1 (1 = direct
-  /// light only). `scene` must outlive this object and be built from the mesh whose
-  /// vertices are shaded (its normals orient the hemispheres). `points`: the near lights,
-  /// in the same units as `lambda` (intensity / d^2 is an irradiance); `suns`: the
-  /// directional lights (their irradiance in the same units).
-  VertexRadiance(const RayTracer& scene, const EnvMap& env, std::vector<double> lambda, int bounces = 3,
-                 std::uint64_t seed = 1, std::vector<PointLight> points = {}, std::vector<DirectionalLight> suns = {});
+  /// `lighting`: the estimate (its map 3 * env.size() linear radiances, its lights in the
+  /// same units); `bounces` >= 1 (1 = direct light only). `scene` must outlive this object
+  /// and be built from the mesh whose vertices are shaded (its normals orient the
+  /// hemispheres).
+  VertexRadiance(const RayTracer& scene, const EnvMap& env, Lighting lighting, int bounces = 3,
+                 std::uint64_t seed = 1);
   ~VertexRadiance();
 
   /// Adds `samples` paths per vertex (parallel over vertices; deterministic per seed).
@@ -45,9 +43,7 @@ class VertexRadiance {
  private:
   const RayTracer& scene_;
   const EnvMap& env_;
-  std::vector<double> lambda_;
-  std::vector<PointLight> points_;
-  std::vector<DirectionalLight> suns_;
+  Lighting lighting_;
   int bounces_;
   std::uint64_t seed_;
   int samples_ = 0;

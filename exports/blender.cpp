@@ -48,7 +48,7 @@ std::string DataBlock(const ExportScene& s, bool has_world) {
      << "# Point lights: power P (W) from the radiant intensity I (W/sr): P = 4 pi I (Cycles'\n"
      << "# point light of power P emits P / 4 pi per steradian); colour x power per channel.\n"
      << "POINT_LIGHTS = [\n";
-  for (const PointLight& l : s.point_lights) {
+  for (const PointLight& l : OfKind<PointLight>(s.lights)) {
     Eigen::Vector3d colour;
     const double i = SplitColour(l.intensity, &colour);
     py << "    {\"location\": " << List(R * l.position) << ", \"color\": " << List(colour)
@@ -58,7 +58,7 @@ std::string DataBlock(const ExportScene& s, bool has_world) {
      << "# Suns: strength = irradiance (W/m^2) on a surface facing the sun; angle = twice the\n"
      << "# angular radius; \"direction\" points towards the sun.\n"
      << "SUNS = [\n";
-  for (const DirectionalLight& d : s.directional_lights) {
+  for (const DirectionalLight& d : OfKind<DirectionalLight>(s.lights)) {
     Eigen::Vector3d colour;
     const double e = SplitColour(d.irradiance, &colour);
     py << "    {\"direction\": " << List(R * d.direction) << ", \"color\": " << List(colour)

@@ -19,8 +19,7 @@ ExportScene LoadExportScene(const fs::path& scene_dir, const fs::path& estimate_
   const fs::path lights_path = estimate_dir / "lights.json";
   const LightsFile lights = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
   ExportScene s;
-  s.point_lights = lights.point_lights;
-  s.directional_lights = lights.directional_lights;
+  s.lights = lights.lights;
   if (!lights.environment.empty()) {
     s.environment = ReadEquirectMap(estimate_dir / lights.environment);
   }

@@ -1,7 +1,7 @@
 #pragma once
 /// `lightprobe export`: an estimate as other programs take it (docs/formats.md, "Exports").
-/// Every format carries every kind of light of lights.json: the map, the point lights and
-/// the directional lights.
+/// Every format carries every kind of light of lights.json: the map and each kind of
+/// `Light` (a new kind gets its entry in each format here, in exports/).
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -9,8 +9,7 @@
 #include <Eigen/Core>
 
 #include "common/image.h"
-#include "estimation/lights/directional_light.h"
-#include "estimation/lights/point_light.h"
+#include "estimation/lighting.h"
 #include "scene/camera.h"
 #include "scene/mesh.h"
 
@@ -24,8 +23,7 @@ struct ExportScene {
   std::string mesh_source;      ///< the file it came from (for the log)
   std::vector<Camera> cameras;  ///< the keyframes', in order
   ImageRGB environment;         ///< the map, EnvMap's equirectangular convention; empty when none
-  std::vector<PointLight> point_lights;
-  std::vector<DirectionalLight> directional_lights;
+  std::vector<Light> lights;    ///< every kind (each exporter writes each kind its own way)
 };
 
 /// Reads SCENE_DIR's bundle and ESTIMATE_DIR/lights.json with the map it names, and

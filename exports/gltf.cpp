@@ -118,8 +118,9 @@ void AddLights(const ExportScene& s, const Eigen::Matrix3d& G, json* gltf) {
     node["extensions"] = {{"KHR_lights_punctual", {{"light", static_cast<int>(lights.size()) - 1}}}};
     (*gltf)["nodes"].push_back(node);
   };
-  for (std::size_t k = 0; k < s.point_lights.size(); ++k) {
-    const PointLight& l = s.point_lights[k];
+  const std::vector<PointLight> points = OfKind<PointLight>(s.lights);
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const PointLight& l = points[k];
     Eigen::Vector3d colour;
     const double i = SplitColour(l.intensity, &colour);
     const std::string name = "point_light_" + std::to_string(k);
@@ -127,8 +128,9 @@ void AddLights(const ExportScene& s, const Eigen::Matrix3d& G, json* gltf) {
                       {"extras", {{"radius", l.radius}, {"radiant_intensity", Vec(l.intensity)}}}});
     add_node({{"name", name}, {"translation", Vec(G * l.position)}});
   }
-  for (std::size_t k = 0; k < s.directional_lights.size(); ++k) {
-    const DirectionalLight& d = s.directional_lights[k];
+  const std::vector<DirectionalLight> suns = OfKind<DirectionalLight>(s.lights);
+  for (std::size_t k = 0; k < suns.size(); ++k) {
+    const DirectionalLight& d = suns[k];
     Eigen::Vector3d colour;
     const double e = SplitColour(d.irradiance, &colour);
     const std::string name = "sun_" + std::to_string(k);

@@ -60,12 +60,13 @@ struct MainLight {
 MainLight FindMainLight(const ExportScene& s) {
   MainLight m;
   double best = -1;
-  for (std::size_t k = 0; k < s.directional_lights.size(); ++k) {
-    const double e = Luminance(s.directional_lights[k].irradiance);
+  const std::vector<DirectionalLight> suns = OfKind<DirectionalLight>(s.lights);
+  for (std::size_t k = 0; k < suns.size(); ++k) {
+    const double e = Luminance(suns[k].irradiance);
     if (e > best) {
       best = e;
-      m.direction = s.directional_lights[k].direction.normalized();
-      m.irradiance = s.directional_lights[k].irradiance;
+      m.direction = suns[k].direction.normalized();
+      m.irradiance = suns[k].irradiance;
       m.directional_index = static_cast<int>(k);
     }
   }
@@ -168,8 +169,9 @@ std::vector<std::string> WriteShExport(const ExportScene& s, const fs::path& dir
   // The SH hold the map and every directional light but the main light when it is one (an
   // engine adds that one itself); a main light taken from the map is a summary of what the SH hold.
   std::vector<DirectionalLight> in_sh;
-  for (std::size_t k = 0; k < s.directional_lights.size(); ++k)
-    if (static_cast<int>(k) != main.directional_index) in_sh.push_back(s.directional_lights[k]);
+  const std::vector<DirectionalLight> suns = OfKind<DirectionalLight>(s.lights);
+  for (std::size_t k = 0; k < suns.size(); ++k)
+    if (static_cast<int>(k) != main.directional_index) in_sh.push_back(suns[k]);
   auto radiance_in = [&](const Eigen::Matrix3d& frame) {
     Sh9 sh;
     if (s.environment.height) sh = ProjectMap(s.environment, s.up, frame);
@@ -213,11 +215,11 @@ std::vector<std::string> WriteShExport(const ExportScene& s, const fs::path& dir
                      {"intensity", m},
                      {"what", "direction towards the light; intensity x color = its irradiance on a surface facing it"}};
   j["point_lights"] = json::array();
-  for (const PointLight& l : s.point_lights)
+  for (const PointLight& l : OfKind<PointLight>(s.lights))
     j["point_lights"].push_back({{"position", Vec(l.position)}, {"position_y_up", Vec(G * l.position)},
                                  {"intensity", Vec(l.intensity)}, {"radius", l.radius}});
   j["directional_lights"] = json::array();
-  for (const DirectionalLight& d : s.directional_lights)
+  for (const DirectionalLight& d : OfKind<DirectionalLight>(s.lights))
     j["directional_lights"].push_back({{"direction", Vec(d.direction)}, {"direction_y_up", Vec(G * d.direction)},
                                        {"irradiance", Vec(d.irradiance)}, {"angular_radius", d.angular_radius}});
   WriteTextAtomically(dir / "lighting.json", j.dump(2) + "\n");

@@ -90,14 +90,12 @@ EstimateOptions EstimateJob::Callbacks() {
   };
   const int max_rounds = options.max_rounds * (1 + std::max(0, options.albedo_passes));  // an upper bound
   options.on_round = [self, max_rounds](const RoundInfo& info, const EnvMap& env) {
-    auto dominant = DominantDirections(env, info.lambda, 2);
+    auto dominant = DominantDirections(env, info.lighting.map, 2);
     const double t = self->SincePressed();
     self->Update([&](EstimateStatus& s) {
       if (!s.env) s.env = std::make_shared<const EnvMap>(env);
-      s.lambda = info.lambda;
+      s.lighting = info.lighting;
       s.dominant = dominant;
-      s.point_lights = info.point_lights;
-      s.directional_lights = info.directional_lights;
       ++s.version;
       s.progress = static_cast<double>(info.round) / (max_rounds + 1);
       if (std::isnan(s.seconds_to_first)) s.seconds_to_first = t;
@@ -142,9 +140,7 @@ void EstimateJob::Run(SceneSource source) {
     s.state = EstimateState::kDone;
     s.progress = 1;
     s.result = result;
-    s.lambda = result->lambda;
-    s.point_lights = result->point_lights;
-    s.directional_lights = result->directional_lights;
+    s.lighting = result->lighting;
     s.dominant = result->dominant;
     if (!s.env) s.env = std::make_shared<const EnvMap>(result->env);
     ++s.version;
@@ -161,8 +157,7 @@ void EstimateJob::RefineLit(const SceneBundle& scene, const EstimateResult& resu
     Mesh mesh = scene.mesh;
     if (result.albedo.size() == mesh.positions.size()) mesh.albedo = result.albedo;  // refined
     const RayTracer tracer(std::move(mesh));
-    VertexRadiance radiance(tracer, result.env, result.lambda, std::max(1, settings_.options.tracer.bounces), 1,
-                            result.point_lights, result.directional_lights);
+    VertexRadiance radiance(tracer, result.env, result.lighting, std::max(1, settings_.options.tracer.bounces), 1);
     const int target = settings_.lit_samples;
     int step = 2;
     // The error shading follows the radiance's noise down: recomputed at 2 samples, then

@@ -65,10 +65,8 @@ struct EstimateStatus {
   std::vector<ConvergenceRow> rows;  ///< the convergence log so far
   std::shared_ptr<const SceneBundle> scene;     ///< the snapshot being estimated
   std::shared_ptr<const EnvMap> env;            ///< set with the first round
-  std::vector<double> lambda;                   ///< the latest estimate (3 per cell)
+  Lighting lighting;                            ///< the latest estimate (its map 3 per cell; image units)
   std::vector<Eigen::Vector3d> dominant;        ///< its dominant light directions
-  std::vector<PointLight> point_lights;         ///< the latest estimate's lamps (image units)
-  std::vector<DirectionalLight> directional_lights;  ///< its suns (image units)
   std::uint64_t version = 0;                    ///< bumps with every new lambda
   std::shared_ptr<const EstimateResult> result; ///< when done (relit renders of the keyframes)
   /// Seconds from pressing Estimate to the first finished round (the first usable

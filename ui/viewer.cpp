@@ -328,10 +328,11 @@ void Viewer::DrawScene(const Rect& r) {
 /// Each point light as a small octahedron with its axes, in its colour (brightest channel
 /// at full scale), sized by the square root of its share of the brightest lamp.
 void Viewer::AddLampMarkers(float size) {
+  const std::vector<PointLight> lamps = est_.lighting.Of<PointLight>();
   double top = 0;
-  for (const PointLight& l : est_.point_lights) top = std::max(top, Luminance(l.intensity.x(), l.intensity.y(), l.intensity.z()));
+  for (const PointLight& l : lamps) top = std::max(top, Luminance(l.intensity.x(), l.intensity.y(), l.intensity.z()));
   if (!(top > 0)) return;
-  for (const PointLight& l : est_.point_lights) {
+  for (const PointLight& l : lamps) {
     const Eigen::Vector3f p = l.position.cast<float>();
     const double lum = Luminance(l.intensity.x(), l.intensity.y(), l.intensity.z());
     const float s = size * (0.4f + 0.6f * static_cast<float>(std::sqrt(std::max(0.0, lum / top))));
@@ -362,7 +363,7 @@ Eigen::Vector3f Viewer::SunMarkerCentre(const DirectionalLight& l) const {
 /// eight rays), in its colour, with a dashed line to the scene's centre.
 void Viewer::AddSunMarkers(float size) {
   sun_marker_size_ = size;
-  for (const DirectionalLight& l : est_.directional_lights) {
+  for (const DirectionalLight& l : est_.lighting.Of<DirectionalLight>()) {
     const Eigen::Vector3f d = l.direction.normalized().cast<float>(), centre = SunMarkerCentre(l);
     const double peak = l.irradiance.maxCoeff();
     Eigen::Vector3f color = peak > 0 ? Eigen::Vector3f((l.irradiance / peak).cast<float>()) : Eigen::Vector3f::Ones();
@@ -548,10 +549,11 @@ void Viewer::PlotConvergence(float width, float height) {
 
 /// The estimated lamps and suns, one line each (world frame, image units).
 void Viewer::LightsList() {
-  if (!est_.point_lights.empty()) {
+  const std::vector<PointLight> lamps = est_.lighting.Of<PointLight>();
+  if (!lamps.empty()) {
     ImGui::Text("lamps (point lights), world frame:");
-    for (std::size_t k = 0; k < est_.point_lights.size(); ++k) {
-      const PointLight& l = est_.point_lights[k];
+    for (std::size_t k = 0; k < lamps.size(); ++k) {
+      const PointLight& l = lamps[k];
       const double peak = std::max(1e-30, l.intensity.maxCoeff());
       ImGui::ColorButton(("##lamp" + std::to_string(k)).c_str(),
                          ImVec4(static_cast<float>(l.intensity.x() / peak), static_cast<float>(l.intensity.y() / peak),
@@ -562,8 +564,9 @@ void Viewer::LightsList() {
                   l.intensity.x(), l.intensity.y(), l.intensity.z());
     }
   }
-  for (std::size_t k = 0; k < est_.directional_lights.size(); ++k) {
-    const DirectionalLight& l = est_.directional_lights[k];
+  const std::vector<DirectionalLight> suns = est_.lighting.Of<DirectionalLight>();
+  for (std::size_t k = 0; k < suns.size(); ++k) {
+    const DirectionalLight& l = suns[k];
     if (k == 0) ImGui::Text("sun (directional light), towards it in the world frame:");
     ImGui::Text("(%.3f, %.3f, %.3f)  E %.3g %.3g %.3g", l.direction.x(), l.direction.y(), l.direction.z(),
                 l.irradiance.x(), l.irradiance.y(), l.irradiance.z());
@@ -656,9 +659,9 @@ void Viewer::PanelEnvironment() {
   ImGui::SetNextWindowSize(ImVec2(env_rect_.w, env_rect_.h));
   ImGui::Begin("Environment map", nullptr,
                ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse);
-  if (est_.env && est_.version != env_version_ && !est_.lambda.empty()) {
+  if (est_.env && est_.version != env_version_ && !est_.lighting.map.empty()) {
     env_version_ = est_.version;
-    env_tex_.Upload(EnvDisplay(*est_.env, est_.lambda, 128));
+    env_tex_.Upload(EnvDisplay(*est_.env, est_.lighting.map, 128));
   }
   const float h = env_rect_.h - 50, w = 2 * h;
   ImVec2 at = ImGui::GetCursorScreenPos();
@@ -688,18 +691,18 @@ void Viewer::PanelEnvironment() {
   const ImVec2 c(at.x + h / 2, at.y + h / 2);
   const float radius = h / 2 - 4;
   dl->AddCircle(c, radius, IM_COL32(90, 90, 100, 255), 48);
-  if (est_.env && !est_.lambda.empty()) {
+  if (est_.env && !est_.lighting.map.empty()) {
     const Eigen::Matrix4f v = camera_.View();
     const Eigen::Vector3f right = v.block<1, 3>(0, 0).transpose(), up = v.block<1, 3>(1, 0).transpose(),
                           back = v.block<1, 3>(2, 0).transpose();
     double top = 0;
     for (int j = 0; j < est_.env->size(); ++j)
-      top = std::max(top, Luminance(est_.lambda[3 * j], est_.lambda[3 * j + 1], est_.lambda[3 * j + 2]));
+      top = std::max(top, Luminance(est_.lighting.map[3 * j], est_.lighting.map[3 * j + 1], est_.lighting.map[3 * j + 2]));
     for (int j = 0; j < est_.env->size(); ++j) {
       const Eigen::Vector3f d = est_.env->direction(j).cast<float>();
       const float depth = d.dot(back);  // towards the viewer: front hemisphere
       const ImVec2 p(c.x + radius * d.dot(right), c.y - radius * d.dot(up));
-      const double lum = Luminance(est_.lambda[3 * j], est_.lambda[3 * j + 1], est_.lambda[3 * j + 2]);
+      const double lum = Luminance(est_.lighting.map[3 * j], est_.lighting.map[3 * j + 1], est_.lighting.map[3 * j + 2]);
       const Eigen::Vector3f col = Heat(top > 0 ? static_cast<float>(std::sqrt(lum / top)) : 0.f);
       const int alpha = depth >= 0 ? 255 : 70;
       dl->AddCircleFilled(p, depth >= 0 ? 3.f : 2.f,
@@ -713,9 +716,10 @@ void Viewer::PanelEnvironment() {
   }
   ImGui::Text("directions: %d (%d rings); dominant light(s) circled; drag the 3D view to turn the sphere",
               est_.env ? est_.env->size() : 0, est_.env ? est_.env->rings() : 0);
-  const bool map_dark = std::all_of(est_.lambda.begin(), est_.lambda.end(), [](double v) { return v <= 0; });
-  if (map_dark && !est_.point_lights.empty())
-    ImGui::Text("the map is dark: the light comes from the %zu lamp(s) drawn in the 3D view", est_.point_lights.size());
+  const bool map_dark = std::all_of(est_.lighting.map.begin(), est_.lighting.map.end(), [](double v) { return v <= 0; });
+  const std::size_t lamps = est_.lighting.Count<PointLight>();
+  if (map_dark && lamps > 0)
+    ImGui::Text("the map is dark: the light comes from the %zu lamp(s) drawn in the 3D view", lamps);
   ImGui::End();
 }
 
@@ -902,10 +906,10 @@ void Viewer::WriteState(const std::string& path) const {
   for (const Eigen::Vector3d& d : est_.dominant) j["estimate"]["dominant"].push_back(vec(d));
   // The lamps, and how the 3D view projects the world (column-major, to NDC over view3d).
   j["estimate"]["point_lights"] = json::array();
-  for (const PointLight& l : est_.point_lights)
+  for (const PointLight& l : est_.lighting.Of<PointLight>())
     j["estimate"]["point_lights"].push_back({{"position", vec(l.position)}, {"intensity", vec(l.intensity)}});
   j["estimate"]["directional_lights"] = json::array();  // and where the 3D view draws each
-  for (const DirectionalLight& l : est_.directional_lights)
+  for (const DirectionalLight& l : est_.lighting.Of<DirectionalLight>())
     j["estimate"]["directional_lights"].push_back({{"direction", vec(l.direction)},
                                                    {"irradiance", vec(l.irradiance)},
                                                    {"angular_radius", l.angular_radius},

@@ -2,13 +2,11 @@
 
 namespace lp {
 
-Eigen::Vector3d Irradiance(const RayTracer& scene, const std::vector<PointLight>& points,
-                           const std::vector<DirectionalLight>& directional, const Eigen::Vector3d& origin,
+Eigen::Vector3d Irradiance(const RayTracer& scene, const std::vector<Light>& lights, const Eigen::Vector3d& origin,
                            const Eigen::Vector3d& n, const Eigen::Vector3d& g, std::uint64_t key,
                            std::int64_t* rays) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  for (const DirectionalLight& light : directional) sum += Irradiance(scene, light, origin, n, g, key, rays);
-  for (const PointLight& light : points) sum += Irradiance(scene, light, origin, n, g, key, rays);
+  for (const Light& light : lights) sum += Irradiance(scene, light, origin, n, g, key, rays);
   return sum;
 }
 

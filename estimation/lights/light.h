@@ -64,10 +64,15 @@ inline Light CompassMove(const Light& light, int move, double step) {
   return std::visit([&](const auto& l) -> Light { return CompassMove(l, move, step); }, light);
 }
 
-/// The irradiance (image units) `directional` then `points` send to a surface point (as
-/// each kind's Irradiance): what the renderers and the lit shading add at a path vertex.
-Eigen::Vector3d Irradiance(const RayTracer& scene, const std::vector<PointLight>& points,
-                           const std::vector<DirectionalLight>& directional, const Eigen::Vector3d& origin,
+/// The irradiance (image units) a light sends to a surface point (its kind's Irradiance).
+inline Eigen::Vector3d Irradiance(const RayTracer& scene, const Light& light, const Eigen::Vector3d& origin,
+                                  const Eigen::Vector3d& n, const Eigen::Vector3d& g, std::uint64_t key,
+                                  std::int64_t* rays) {
+  return std::visit([&](const auto& l) { return Irradiance(scene, l, origin, n, g, key, rays); }, light);
+}
+/// The irradiance the lights send to a surface point, summed in their order: what the
+/// renderers and the lit shading add at a path vertex.
+Eigen::Vector3d Irradiance(const RayTracer& scene, const std::vector<Light>& lights, const Eigen::Vector3d& origin,
                            const Eigen::Vector3d& n, const Eigen::Vector3d& g, std::uint64_t key,
                            std::int64_t* rays);
 

@@ -22,10 +22,10 @@ constexpr double kPi = 3.14159265358979323846;
 ImageRGB WrittenMap(const Eigen::Vector3d& up, const Eigen::Vector3d& towards, int rings, int* cell) {
   EstimateResult r;
   r.env = EnvMap(rings, up);
-  r.lambda.assign(3 * r.env.size(), 0.0);
+  r.lighting.map.assign(3 * r.env.size(), 0.0);
   r.left_out.assign(r.env.size(), 0);
   *cell = r.env.Lookup(towards);
-  for (int c = 0; c < 3; ++c) r.lambda[3 * *cell + c] = 1.0;
+  for (int c = 0; c < 3; ++c) r.lighting.map[3 * *cell + c] = 1.0;
   ConvergenceRow row;
   row.wall_seconds = 1;
   row.round = 1;

@@ -36,9 +36,9 @@ std::vector<ImageRGB> Relight(const SceneBundle& bundle, const EstimateResult& r
   TracerOptions o;
   o.spp = spp;
   o.seed = 3;
-  CellSampler sampler(r.env, r.lambda, {}, 0.2);
-  std::vector<ImageRGB> out = RenderEnvironment(scene, r.env, bundle.views, r.lambda, sampler, o, true);
-  const std::vector<ImageRGB> near = RenderPointLights(scene, bundle.views, r.point_lights, o, true);
+  CellSampler sampler(r.env, r.lighting.map, {}, 0.2);
+  std::vector<ImageRGB> out = RenderEnvironment(scene, r.env, bundle.views, r.lighting.map, sampler, o, true);
+  const std::vector<ImageRGB> near = RenderLights(scene, bundle.views, AsLights(r.lighting.Of<PointLight>()), o, true);
   for (std::size_t v = 0; v < out.size(); ++v)
     for (std::size_t i = 0; i < out[v].data.size(); ++i) out[v].data[i] += near[v].data[i];
   return out;
@@ -58,7 +58,7 @@ TEST(Cycles, TheLampComesBackAtItsPlaceWithItsIntensity) {
   o.render = false;
   o.scorer = TruthScorer::FromBundle(bundle);  // the dominant direction's error below
   const EstimateResult r = Estimate(bundle, o);
-  ASSERT_EQ(r.point_lights.size(), 1u) << "one lamp lights this room";
+  ASSERT_EQ(r.lighting.Count<PointLight>(), 1u) << "one lamp lights this room";
   // Round 1 found it on every 2nd pixel of every 2nd row (kFirstRoundPixels), the rounds
   // after fit them all, and trace the map at a quarter of the samples: the lamp renders
   // nearly all the light.
@@ -67,7 +67,7 @@ TEST(Cycles, TheLampComesBackAtItsPlaceWithItsIntensity) {
   EXPECT_EQ(r.rounds[1].pixels, r.observations);
   EXPECT_EQ(r.rounds[0].spp, 64);
   EXPECT_EQ(r.rounds[1].spp, 16);
-  const PointLight& l = r.point_lights[0];
+  const PointLight l = r.lighting.Of<PointLight>()[0];
   const double error = (l.position - lamp).norm();
   std::printf("lamp at (%.3f, %.3f, %.3f), %.3f m (%.1f %% of its distance) from the truth; intensity %.3f %.3f %.3f "
               "W/sr (truth %.3f)\n",
@@ -106,7 +106,7 @@ TEST(Cycles, TheMapAloneStillPutsTheLampOnItsSide) {
   o.point_lights.max_lights = 0;
   o.directional_lights = false;  // the map alone (a sun is sought whatever the lamps)
   const EstimateResult r = Estimate(bundle, o);
-  EXPECT_TRUE(r.point_lights.empty());
+  EXPECT_TRUE(r.lighting.Count<PointLight>() == 0);
   ASSERT_FALSE(r.dominant.empty());
   const double angle = AngleDeg(r.dominant[0], to_lamp);
   // Measured: 79 degrees from the lamp (77 at the estimate's defaults); a flipped up or a map
@@ -129,9 +129,9 @@ TEST(Cycles, TheSunComesBackAsADirectionalLight) {
   o.render = false;
   o.directional_lights = true;
   const EstimateResult r = Estimate(bundle, o);
-  EXPECT_TRUE(r.point_lights.empty()) << "a sun is not a lamp in the room";
-  ASSERT_EQ(r.directional_lights.size(), 1u);
-  const DirectionalLight& d = r.directional_lights[0];
+  EXPECT_TRUE(r.lighting.Count<PointLight>() == 0) << "a sun is not a lamp in the room";
+  ASSERT_EQ(r.lighting.Count<DirectionalLight>(), 1u);
+  const DirectionalLight d = r.lighting.Of<DirectionalLight>()[0];
   const double angle = AngleDeg(d.direction, sun);
   std::printf("sun %.3f degrees from the truth, irradiance %.3f %.3f %.3f W/m^2 (truth %.3f); residual %.4f\n", angle,
               d.irradiance.x(), d.irradiance.y(), d.irradiance.z(), irradiance, r.final_relative_rmse);
@@ -146,8 +146,8 @@ TEST(Cycles, TheSunComesBackAsADirectionalLight) {
     const RayTracer scene(b.mesh);
     TracerOptions t;
     t.spp = 256, t.seed = 3;
-    const ImageRGB im = RenderLighting(scene, r.env, r.lambda, CellSampler(r.env, r.lambda, {}, 0.2), r.point_lights,
-                                       r.directional_lights, b.views, t, true)[0];
+    const ImageRGB im =
+        RenderLighting(scene, r.env, r.lighting, CellSampler(r.env, r.lighting.map, {}, 0.2), b.views, t, true)[0];
     return RelativeImageRmse(im, b.views[0].image, b.views[0].valid);
   };
   // The sky (Blender's world, uniform, 1/1000 of the sun's irradiance facing up) is in the
@@ -156,7 +156,7 @@ TEST(Cycles, TheSunComesBackAsADirectionalLight) {
   double radiance = 0, solid_angle = 0;
   for (int j = 0; j < r.env.size(); ++j)
     if (r.env.direction(j).dot(bundle.up) > 0) {
-      radiance += r.env.solid_angle(j) * Luminance(r.lambda[3 * j], r.lambda[3 * j + 1], r.lambda[3 * j + 2]);
+      radiance += r.env.solid_angle(j) * Luminance(r.lighting.map[3 * j], r.lighting.map[3 * j + 1], r.lighting.map[3 * j + 2]);
       solid_angle += r.env.solid_angle(j);
     }
   const double world = truth["world"]["radiance"][0].get<double>();

@@ -40,13 +40,13 @@ TEST(EstimateEndToEnd, OneLightDirectionAndRelighting) {
   // test runs seed 1); a light one 21-ring cell off is 9 degrees away.
   EXPECT_LT(r.final_angular_error_deg, 2.5);
   // A light 200 m away is the map's, not a lamp's (the search found one and dropped it).
-  EXPECT_TRUE(r.point_lights.empty());
+  EXPECT_TRUE(r.lighting.Count<PointLight>() == 0);
   // Re-render relative RMSE below 5 % (the target). Measured 4.7 %, of which ~3 %
   // is the floor of the comparison itself (Monte Carlo noise of both images, cell
   // discretization: the true light projected onto the cells re-renders at 3.3 %).
   EXPECT_LT(RelativeRmse(r.renders[0], b.views[0]), 0.05);
   EXPECT_FALSE(r.objective_increased);
-  for (double v : r.lambda) ASSERT_TRUE(std::isfinite(v) && v >= 0);
+  for (double v : r.lighting.map) ASSERT_TRUE(std::isfinite(v) && v >= 0);
   // Directions below the floor that no path reaches are left out.
   int left_out = 0;
   for (auto v : r.left_out) left_out += v;
@@ -68,16 +68,16 @@ TEST(EstimateEndToEnd, ALampHalfAMetreAwayComesBackAsAPointLight) {
   EstimateOptions eo;
   eo.render = false;
   const EstimateResult r = Estimate(s.bundle, eo);
-  ASSERT_EQ(r.point_lights.size(), 1u);
+  ASSERT_EQ(r.lighting.Count<PointLight>(), 1u);
   // Its distance from the centre the scene places it around (0.6 m; 0.25 m from the mesh's
   // bounding-box centre, which the room's walls pull off the objects).
   const double distance = (truth.position - s.lighting.center).norm();
-  const double error = (r.point_lights[0].position - truth.position).norm();
+  const double error = (r.lighting.Of<PointLight>()[0].position - truth.position).norm();
   std::printf("lamp %.3f m off (%.1f %% of %.2f m); intensity %.4f vs %.4f\n", error, 100 * error / distance, distance,
-              r.point_lights[0].intensity.x(), intensity.x());
+              r.lighting.Of<PointLight>()[0].intensity.x(), intensity.x());
   // Targets: within 5 % of its distance (measured 2.4 %), intensity within 15 % (1.7 %).
   EXPECT_LT(error, 0.05 * distance);
-  for (int c = 0; c < 3; ++c) EXPECT_NEAR(r.point_lights[0].intensity[c], intensity[c], 0.15 * intensity[c]);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(r.lighting.Of<PointLight>()[0].intensity[c], intensity[c], 0.15 * intensity[c]);
   EXPECT_FALSE(r.objective_increased);
 }
 
@@ -103,9 +103,9 @@ TEST(EstimateEndToEnd, ADenseMeshIsTracedClusteredAndTheLampStaysFound) {
               static_cast<int>(s.bundle.mesh.triangles.size()), 100 * r.trace_cell_m);
   EXPECT_GT(r.trace_cell_m, 0);
   EXPECT_LT(4 * r.traced_triangles, static_cast<int>(s.bundle.mesh.triangles.size()));
-  ASSERT_EQ(r.point_lights.size(), 1u);
+  ASSERT_EQ(r.lighting.Count<PointLight>(), 1u);
   const double distance = (truth.position - s.lighting.center).norm();
-  const double error = (r.point_lights[0].position - truth.position).norm();
+  const double error = (r.lighting.Of<PointLight>()[0].position - truth.position).norm();
   std::printf("lamp %.3f m off (%.1f %% of %.2f m)\n", error, 100 * error / distance, distance);
   EXPECT_LT(error, 0.05 * distance);
 }
@@ -130,16 +130,16 @@ TEST(EstimateEndToEnd, ImageScaledBy1000ScalesTheEstimate) {
   for (float& v : b.views[0].image.data) v *= 1000.f;
   const EstimateResult r2 = Estimate(b, eo);
   double num = 0, den = 0;
-  for (std::size_t i = 0; i < r1.lambda.size(); ++i) {
-    num += std::pow(r2.lambda[i] - 1000 * r1.lambda[i], 2);
-    den += std::pow(1000 * r1.lambda[i], 2);
+  for (std::size_t i = 0; i < r1.lighting.map.size(); ++i) {
+    num += std::pow(r2.lighting.map[i] - 1000 * r1.lighting.map[i], 2);
+    den += std::pow(1000 * r1.lighting.map[i], 2);
   }
   // The lights beside the map scale too (a sun, when one is taken), and nothing else changes.
-  ASSERT_EQ(r1.directional_lights.size(), r2.directional_lights.size());
-  for (std::size_t k = 0; k < r1.directional_lights.size(); ++k) {
-    num += (r2.directional_lights[k].irradiance - 1000 * r1.directional_lights[k].irradiance).squaredNorm();
-    den += (1000 * r1.directional_lights[k].irradiance).squaredNorm();
-    EXPECT_LT(AngleDeg(r1.directional_lights[k].direction, r2.directional_lights[k].direction), 1e-6);
+  ASSERT_EQ(r1.lighting.Count<DirectionalLight>(), r2.lighting.Count<DirectionalLight>());
+  for (std::size_t k = 0; k < r1.lighting.Count<DirectionalLight>(); ++k) {
+    num += (r2.lighting.Of<DirectionalLight>()[k].irradiance - 1000 * r1.lighting.Of<DirectionalLight>()[k].irradiance).squaredNorm();
+    den += (1000 * r1.lighting.Of<DirectionalLight>()[k].irradiance).squaredNorm();
+    EXPECT_LT(AngleDeg(r1.lighting.Of<DirectionalLight>()[k].direction, r2.lighting.Of<DirectionalLight>()[k].direction), 1e-6);
   }
   ASSERT_GT(den, 0);
   EXPECT_LT(std::sqrt(num / den), 1e-6);
@@ -167,7 +167,7 @@ TEST(EstimateEndToEnd, TheRelitViewIsTheFitWhereItUsedThePixelsAndARenderElsewhe
   EXPECT_NEAR(RelativeRmse(a, v), fit.final_relative_rmse, 1e-5 * fit.final_relative_rmse);
   eo.render_spp = 1024;
   const EstimateResult traced = Estimate(b, eo);
-  ASSERT_EQ(traced.lambda, fit.lambda);
+  ASSERT_EQ(traced.lighting.map, fit.lighting.map);
   const ImageRGB& t = traced.renders[0];
   double corner_fit = 0, corner_traced = 0, d2 = 0, t2 = 0, shifted2 = 0;
   for (int y = 0; y < v.camera.height; ++y)
@@ -207,8 +207,8 @@ TEST(EstimateEndToEnd, SameSeedBitIdenticalForAnyThreadCount) {
     ThreadLimit limit(2);
     two = Estimate(b, eo);
   }
-  ASSERT_EQ(one.lambda.size(), two.lambda.size());
-  for (std::size_t i = 0; i < one.lambda.size(); ++i) ASSERT_EQ(one.lambda[i], two.lambda[i]) << i;
+  ASSERT_EQ(one.lighting.map.size(), two.lighting.map.size());
+  for (std::size_t i = 0; i < one.lighting.map.size(); ++i) ASSERT_EQ(one.lighting.map[i], two.lighting.map[i]) << i;
   ASSERT_EQ(one.convergence.size(), two.convergence.size());
   for (std::size_t i = 0; i < one.convergence.size(); ++i)
     ASSERT_EQ(one.convergence[i].objective, two.convergence[i].objective) << i;
@@ -217,7 +217,7 @@ TEST(EstimateEndToEnd, SameSeedBitIdenticalForAnyThreadCount) {
   // A different seed gives a different answer (the comparison above can fail).
   eo.tracer.seed = 2;
   const EstimateResult other = Estimate(b, eo);
-  EXPECT_NE(other.lambda, one.lambda);
+  EXPECT_NE(other.lighting.map, one.lighting.map);
 }
 
 }  // namespace

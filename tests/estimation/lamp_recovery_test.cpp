@@ -43,9 +43,9 @@ ImageRGB RenderEstimate(const SceneBundle& bundle, const View& view, const Estim
   TracerOptions t;
   t.spp = 64;
   t.seed = seed;
-  const CellSampler sampler(r.env, r.lambda, {}, t.nee_floor);
-  std::vector<ImageRGB> img = RenderEnvironment(tracer, r.env, {view}, r.lambda, sampler, t, false);
-  const std::vector<ImageRGB> lamps = RenderPointLights(tracer, {view}, r.point_lights, t, false);
+  const CellSampler sampler(r.env, r.lighting.map, {}, t.nee_floor);
+  std::vector<ImageRGB> img = RenderEnvironment(tracer, r.env, {view}, r.lighting.map, sampler, t, false);
+  const std::vector<ImageRGB> lamps = RenderLights(tracer, {view}, AsLights(r.lighting.Of<PointLight>()), t, false);
   for (std::size_t i = 0; i < img[0].data.size(); ++i) img[0].data[i] += lamps[0].data[i];
   return img[0];
 }
@@ -92,19 +92,19 @@ TEST_P(LampRecovery, OnePointLightAtItsPlace) {
   eo.render = false;
   eo.scorer = TruthScorer::FromBundle(fit);
   const EstimateResult r = Estimate(fit, eo);
-  ASSERT_EQ(r.point_lights.size(), 1u) << lc.scene;
+  ASSERT_EQ(r.lighting.Count<PointLight>(), 1u) << lc.scene;
   const SphereLight& truth = s.lighting.lights[0];
   const Eigen::Vector3d intensity = truth.rgb_power / (4 * kPi);  // a uniform sphere's I = P / 4 pi
   const double distance = (truth.position - s.lighting.center).norm();
-  const double error = (r.point_lights[0].position - truth.position).norm();
+  const double error = (r.lighting.Of<PointLight>()[0].position - truth.position).norm();
   double fitted = 0, held = 0, fitted_plain = 0, held_plain = 0;
   h.Errors(r, &fitted, &held, &fitted_plain, &held_plain);
   std::printf("%s: lamp %.1f cm off (%.1f %% of %.2f m), intensity %.4f vs %.4f, beyond the noise fitted %.3f, "
               "held-out %.3f (plain, 64 spp: %.3f, %.3f)\n",
-              lc.scene, 100 * error, 100 * error / distance, distance, r.point_lights[0].intensity.x(), intensity.x(),
+              lc.scene, 100 * error, 100 * error / distance, distance, r.lighting.Of<PointLight>()[0].intensity.x(), intensity.x(),
               fitted, held, fitted_plain, held_plain);
   EXPECT_LT(error, 0.05 * distance);
-  for (int c = 0; c < 3; ++c) EXPECT_NEAR(r.point_lights[0].intensity[c], intensity[c], 0.15 * intensity[c]);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(r.lighting.Of<PointLight>()[0].intensity[c], intensity[c], 0.15 * intensity[c]);
   EXPECT_LT(fitted, lc.fitted_limit);
   EXPECT_LT(held, lc.held_limit);
   EXPECT_NEAR(r.final_position_error_m, error, 1e-9) << "the report's number is this one";
@@ -121,10 +121,11 @@ TEST(LampRecovery, TwoLampsEachAtItsPlaceWithItsIntensity) {
   EstimateOptions eo;
   eo.render = false;
   const EstimateResult r = Estimate(h.fit, eo);
-  ASSERT_EQ(r.point_lights.size(), 2u);
+  const std::vector<PointLight> lamps = r.lighting.Of<PointLight>();
+  ASSERT_EQ(lamps.size(), 2u);
   for (const SphereLight& truth : s.lighting.lights) {
-    const PointLight* nearest = &r.point_lights[0];
-    for (const PointLight& l : r.point_lights)
+    const PointLight* nearest = &lamps[0];
+    for (const PointLight& l : lamps)
       if ((l.position - truth.position).norm() < (nearest->position - truth.position).norm()) nearest = &l;
     const Eigen::Vector3d intensity = truth.rgb_power / (4 * kPi);
     const double distance = (truth.position - s.lighting.center).norm(),
@@ -208,10 +209,10 @@ TEST(LampRecovery, SunAndSkyComesBackWithoutAPointLight) {
   eo.directional_lights = false;  // the lamp search alone: it must leave the map as it was
   eo.scorer = TruthScorer::FromBundle(s.bundle);
   const EstimateResult r = Estimate(s.bundle, eo);
-  EXPECT_TRUE(r.point_lights.empty());
+  EXPECT_TRUE(r.lighting.Count<PointLight>() == 0);
   eo.point_lights.max_lights = 0;
   const EstimateResult alone = Estimate(s.bundle, eo);
-  EXPECT_EQ(r.lambda, alone.lambda) << "with no lamp kept, the map is the map alone's";
+  EXPECT_EQ(r.lighting.map, alone.lighting.map) << "with no lamp kept, the map is the map alone's";
   std::printf("sun-and-sky: dominant light %.2f deg off, fitted %.4f\n", r.final_angular_error_deg,
               r.final_relative_rmse);
 }
@@ -222,8 +223,8 @@ ImageRGB Relight(const SceneBundle& bundle, const View& view, const EstimateResu
   TracerOptions t;
   t.spp = 64;
   t.seed = 4242;
-  const CellSampler sampler(r.env, r.lambda, {}, t.nee_floor);
-  return RenderLighting(tracer, r.env, r.lambda, sampler, r.point_lights, r.directional_lights, {view}, t, false)[0];
+  const CellSampler sampler(r.env, r.lighting.map, {}, t.nee_floor);
+  return RenderLighting(tracer, r.env, r.lighting, sampler, {view}, t, false)[0];
 }
 
 /// The relative RMSE of `render` against `image` over the image's edges (the 5 % of its
@@ -276,11 +277,11 @@ TEST(LampRecovery, TheSunComesBackAsADirectionalLight) {
   eo.render = false;
   eo.directional_lights = true;
   const EstimateResult r = Estimate(fit, eo);
-  ASSERT_EQ(r.directional_lights.size(), 1u);
-  EXPECT_TRUE(r.point_lights.empty());
+  ASSERT_EQ(r.lighting.Count<DirectionalLight>(), 1u);
+  EXPECT_TRUE(r.lighting.Count<PointLight>() == 0);
   const SphereLight& sun = s.lighting.lights.at(0);
   const Eigen::Vector3d towards = (sun.position - s.lighting.center).normalized();
-  const double angle = std::acos(std::min(1.0, r.directional_lights[0].direction.dot(towards))) * 180 / kPi;
+  const double angle = std::acos(std::min(1.0, r.lighting.Of<DirectionalLight>()[0].direction.dot(towards))) * 180 / kPi;
   const double d2 = (sun.position - s.lighting.center).squaredNorm();
   const Eigen::Vector3d irradiance = sun.rgb_power / (4 * kPi * d2);
   const double fitted = RelativeImageRmse(Relight(fit, fit.views[0], r), fit.views[0].image, fit.views[0].valid);
@@ -288,7 +289,7 @@ TEST(LampRecovery, TheSunComesBackAsADirectionalLight) {
   const double sky_up = irradiance.x() / 1000;  // the scene's sky, facing up
   double sky = 0, below = 0;  // the map's irradiance on a surface facing up (red), and from below
   for (int j = 0; j < r.env.size(); ++j) {
-    const double c = r.env.direction(j).dot(fit.up) * r.env.solid_angle(j) * r.lambda[3 * j];
+    const double c = r.env.direction(j).dot(fit.up) * r.env.solid_angle(j) * r.lighting.map[3 * j];
     (c > 0 ? sky : below) += std::abs(c);
   }
   eo.directional_lights = false;
@@ -297,10 +298,10 @@ TEST(LampRecovery, TheSunComesBackAsADirectionalLight) {
                soft = EdgeError(Relight(fit, fit.views[0], alone), fit.views[0].image);
   std::printf("sun-and-sky: sun %.3f deg off, irradiance %.4f vs %.4f, fitted %.4f, held-out %.4f; error on the "
               "edges %.4f (the map alone %.4f); the map's irradiance facing up %.3g (truth %.3g), from below %.3g\n",
-              angle, r.directional_lights[0].irradiance.x(), irradiance.x(), fitted, held, edges, soft, sky,
+              angle, r.lighting.Of<DirectionalLight>()[0].irradiance.x(), irradiance.x(), fitted, held, edges, soft, sky,
               sky_up, below);
   EXPECT_LT(angle, 0.5);
-  EXPECT_NEAR(r.directional_lights[0].irradiance.x() / irradiance.x(), 1.0, 0.05);
+  EXPECT_NEAR(r.lighting.Of<DirectionalLight>()[0].irradiance.x() / irradiance.x(), 1.0, 0.05);
   EXPECT_LT(fitted, 0.05);
   EXPECT_LT(held, 0.08);
   EXPECT_LT(edges, 0.5 * soft);

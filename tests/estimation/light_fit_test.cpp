@@ -106,8 +106,8 @@ TEST(LightKinds, IrradianceIsTheClosedForm) {
   EXPECT_TRUE(Irradiance(scene, sun, at, up, up, 1, &rays).isApprox(sun.irradiance * 0.8, 1e-12));
   EXPECT_EQ(rays, 2);
   // Both together, as the renders and the lit shading take them; none from below.
-  EXPECT_TRUE(Irradiance(scene, {lamp}, {sun}, at, up, up, 1, &rays).isApprox(lamp_expect + sun.irradiance * 0.8, 1e-12));
-  EXPECT_EQ(Irradiance(scene, {lamp}, {sun}, at, -up, -up, 1, &rays), Eigen::Vector3d::Zero());
+  EXPECT_TRUE(Irradiance(scene, std::vector<Light>{lamp, sun}, at, up, up, 1, &rays).isApprox(lamp_expect + sun.irradiance * 0.8, 1e-12));
+  EXPECT_EQ(Irradiance(scene, std::vector<Light>{lamp, sun}, at, -up, -up, 1, &rays), Eigen::Vector3d::Zero());
 }
 
 TEST(LightFit, ALampAndASunAreRefinedTogether) {

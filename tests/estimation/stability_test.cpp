@@ -25,7 +25,7 @@ namespace {
 constexpr double kKktTolerance = 1e-4;  // relative natural residual (Objective::KktViolation)
 
 void ExpectHealthy(const EstimateResult& r) {
-  for (double v : r.lambda) {
+  for (double v : r.lighting.map) {
     ASSERT_TRUE(std::isfinite(v));
     ASSERT_GE(v, 0.0);
   }
@@ -109,8 +109,8 @@ double PowerNear(const EnvMap& env, const std::vector<double>& lambda, const Eig
 /// directional light's irradiance on a surface facing it is the power of the cells it
 /// stands for).
 double PowerNear(const EstimateResult& r, const Eigen::Vector3d& d, double deg) {
-  double p = PowerNear(r.env, r.lambda, d, deg);
-  for (const DirectionalLight& sun : r.directional_lights)
+  double p = PowerNear(r.env, r.lighting.map, d, deg);
+  for (const DirectionalLight& sun : r.lighting.Of<DirectionalLight>())
     if (AngleDeg(sun.direction, d) <= deg) p += Luminance(sun.irradiance.x(), sun.irradiance.y(), sun.irradiance.z());
   return p;
 }
@@ -218,7 +218,7 @@ TEST(Stability, LightsNoObservedPointCanSeeAreLeftOutOrZero) {
   LightByCells(&b, env, Cells(env, {{above, 2.0}, {below, 1e4}}));
   const EstimateResult r = Estimate(b, Small());
   ExpectHealthy(r);
-  EXPECT_TRUE(r.left_out[below] || r.lambda[3 * below] == 0.0);
+  EXPECT_TRUE(r.left_out[below] || r.lighting.map[3 * below] == 0.0);
   int left_out = 0;
   for (auto v : r.left_out) left_out += v;
   EXPECT_GT(left_out, 0);
@@ -226,7 +226,7 @@ TEST(Stability, LightsNoObservedPointCanSeeAreLeftOutOrZero) {
   EXPECT_EQ(r.rounds.back().unknown_cells, env.size() - left_out);
   for (int k = 0; k < env.size(); ++k)
     if (r.left_out[k]) {
-      EXPECT_EQ(r.lambda[3 * k] + r.lambda[3 * k + 1] + r.lambda[3 * k + 2], 0.0);
+      EXPECT_EQ(r.lighting.map[3 * k] + r.lighting.map[3 * k + 1] + r.lighting.map[3 * k + 2], 0.0);
     }
   EXPECT_NEAR(PowerNear(r, env.direction(above), 45) / (2.0 * env.solid_angle(above)), 1.0, 0.2);
   // The lit cell's neighbours share its light at 32 spp: 7.6 degrees measured, and 4.5-10.5
@@ -313,7 +313,7 @@ TEST(Stability, BadPixelsAreMaskedCountedAndChangeNothingElse) {
   }
   const EstimateResult bad = Estimate(b, Small()), hand = Estimate(expected, Small());
   ExpectHealthy(bad);
-  EXPECT_EQ(bad.lambda, hand.lambda);
+  EXPECT_EQ(bad.lighting.map, hand.lighting.map);
   EXPECT_EQ(bad.observations, clean.observations - 5);
 }
 
@@ -446,7 +446,7 @@ TEST(Stability, DegenerateAndDuplicateTrianglesAndFlippedNormals) {
   for (auto& n : flipped.mesh.normals) n = -n;
   const EstimateResult f = Estimate(flipped, Small());
   ExpectHealthy(f);
-  EXPECT_EQ(f.lambda, base.lambda);
+  EXPECT_EQ(f.lighting.map, base.lighting.map);
 
   // Every triangle twice, plus zero-area ones (repeated index, collinear): the degenerate
   // ones are removed and counted, the duplicates are harmless.
@@ -502,7 +502,7 @@ std::vector<Eigen::Vector3f> AsReconstructed(SceneBundle* b, const EnvMap& env, 
   b->mesh = RefineMesh(b->mesh, 30000);  // as dense as a reconstruction: segments of many vertices
   const std::vector<Eigen::Vector3f> albedo = b->mesh.albedo;
   RayTracer scene(b->mesh);
-  VertexRadiance seen(scene, env, truth, 4, 5);
+  VertexRadiance seen(scene, env, {truth, {}}, 4, 5);
   seen.Refine(256);
   b->mesh.shaded = seen.Radiance();
   // Exposed as a camera would be: the colours seen (and the images, the same camera) scaled
@@ -553,7 +553,7 @@ TEST(Stability, AlbedoRefinementComesCloserToTheTrueAlbedo) {
     // De-lit by the true light's irradiance (bounces off the flattened albedo, as the
     // estimator has it), the albedo is nearly the truth: what the de-lighting can do.
     RayTracer scene(b.mesh);
-    VertexRadiance radiance(scene, env, truth, 3, 9);
+    VertexRadiance radiance(scene, env, {truth, {}}, 3, 9);
     radiance.Refine(64);
     Mesh oracle = b.mesh;
     ASSERT_GT(DelightAlbedo(&oracle, radiance.Irradiance()), 0);
@@ -632,7 +632,7 @@ void LightByLamps(SceneBundle* b, const std::vector<PointLight>& lamps, int spp 
   t.bounces = 4;
   t.min_throughput = 0;
   t.seed = 98;
-  const auto images = RenderPointLights(scene, b->views, lamps, t, true);
+  const auto images = RenderLights(scene, b->views, AsLights(lamps), t, true);
   for (std::size_t v = 0; v < images.size(); ++v) b->views[v].image = images[v];
 }
 
@@ -648,7 +648,7 @@ TEST(Stability, LampOneCentimetreFromAWall) {
   eo.max_rounds = 3;
   const EstimateResult r = Estimate(b, eo);
   ExpectHealthy(r);
-  for (const PointLight& l : r.point_lights) ASSERT_TRUE(l.position.allFinite() && l.intensity.allFinite());
+  for (const PointLight& l : r.lighting.Of<PointLight>()) ASSERT_TRUE(l.position.allFinite() && l.intensity.allFinite());
   for (const std::string& c : r.point_light_choices) std::printf("%s\n", c.c_str());
 }
 
@@ -677,7 +677,7 @@ TEST(Stability, LampInsideClosedGeometryLightsNothing) {
   }
   const EstimateResult r = Estimate(b, Small());
   ExpectHealthy(r);
-  for (const PointLight& l : r.point_lights) {
+  for (const PointLight& l : r.lighting.Of<PointLight>()) {
     ASSERT_TRUE(l.position.allFinite() && l.intensity.allFinite());
     EXPECT_GT((l.position - c.cast<double>()).norm(), 0.3) << "a light inside the ball";
   }
@@ -717,7 +717,7 @@ TEST(Stability, ALampTenThousandMetresAwayIsAFarLight) {
   LightByLamps(&b, {lamp});
   const EstimateResult r = Estimate(b, Small());
   ExpectHealthy(r);
-  EXPECT_TRUE(r.point_lights.empty());
+  EXPECT_TRUE(r.lighting.Count<PointLight>() == 0);
   ASSERT_FALSE(r.dominant.empty());
   // Within a 9-ring spacing (the direction lies between cells; 13 degrees measured).
   EXPECT_LT(AngleDeg(r.dominant[0], d), 22.5);
@@ -731,8 +731,8 @@ TEST(Stability, ALampOnTheCameraIsFound) {
   LightByLamps(&b, {{eye, {2, 2, 2}, 0}});
   const EstimateResult r = Estimate(b, Small());
   ExpectHealthy(r);
-  ASSERT_FALSE(r.point_lights.empty());
-  const double error = (r.point_lights[0].position - eye).norm();
+  ASSERT_FALSE(r.lighting.Count<PointLight>() == 0);
+  const double error = (r.lighting.Of<PointLight>()[0].position - eye).norm();
   std::printf("headlight: %.3f m off (%.2f m from the scene centre)\n", error, (eye - r.scene_centre).norm());
   EXPECT_LT(error, 0.1 * (eye - r.scene_centre).norm());
 }

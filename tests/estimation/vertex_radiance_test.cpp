@@ -51,7 +51,7 @@ TEST(VertexRadiance, UniformSkyOverAPlaneGivesAlbedoTimesRadiance) {
   for (int j = 0; j < env.size(); ++j) lambda.insert(lambda.end(), {1.0, 2.0, 0.5});
   // Next-event estimation (half its cells lie below the horizon) mixed with cosine sampling
   // by the power heuristic: unbiased, a few per cent of noise per vertex at 64 samples.
-  VertexRadiance vr(scene, env, lambda, 3);
+  VertexRadiance vr(scene, env, {lambda, {}}, 3);
   vr.Refine(64);
   ASSERT_EQ(vr.samples(), 64);
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
@@ -83,7 +83,7 @@ TEST(VertexRadiance, OneLitCellMatchesTheIrradianceOfASmallSource) {
   ASSERT_GT(env.direction(j).z(), 0.3);
   std::vector<double> lambda(3 * env.size(), 0.0);
   for (int c = 0; c < 3; ++c) lambda[3 * j + c] = 10.0;
-  VertexRadiance vr(scene, env, lambda, 1, 7);
+  VertexRadiance vr(scene, env, {lambda, {}}, 1, 7);
   vr.Refine(400);
   // The cell's cosine varies across it: integrate it finely for the reference.
   double cos_integral = 0;
@@ -108,7 +108,7 @@ TEST(VertexRadiance, InterreflectionsAgreeWithThePathTracer) {
   const RayTracer scene(FloorUnderASquare());
   const EnvMap env(9, Eigen::Vector3d::UnitZ());
   const std::vector<double> lambda(3 * env.size(), 1.0);
-  VertexRadiance vr(scene, env, lambda, 4, 3);
+  VertexRadiance vr(scene, env, {lambda, {}}, 4, 3);
   vr.Refine(20000);
   const double vertex = vr.Radiance()[0].x();
 
@@ -116,7 +116,7 @@ TEST(VertexRadiance, InterreflectionsAgreeWithThePathTracer) {
                                                  OriginTracer(), true)[0]);
   std::printf("origin under the square: vertex radiance %.4f, path tracer %.4f\n", vertex, pixel);
   EXPECT_NEAR(vertex, pixel, 0.04 * pixel) << "vertex " << vertex << ", path tracer " << pixel;
-  VertexRadiance direct(scene, env, lambda, 1, 3);
+  VertexRadiance direct(scene, env, {lambda, {}}, 1, 3);
   direct.Refine(20000);
   std::printf("direct light only: %.4f\n", direct.Radiance()[0].x());
   EXPECT_LT(direct.Radiance()[0].x(), 0.85 * vertex) << "the bounces carry a visible share";
@@ -131,7 +131,7 @@ TEST(VertexRadiance, PointLightOverAPlaneIsTheInverseSquareLaw) {
   PointLight lamp;
   lamp.position = {0.3, -0.2, 0.8};
   lamp.intensity = {2.0, 1.0, 0.5};
-  VertexRadiance vr(scene, env, std::vector<double>(3 * env.size(), 0.0), 1, 1, {lamp});
+  VertexRadiance vr(scene, env, {std::vector<double>(3 * env.size(), 0.0), {lamp}}, 1, 1);
   vr.Refine(2);
   const std::vector<Eigen::Vector3f> radiance = vr.Radiance();
   const Mesh& mesh = scene.mesh();
@@ -155,11 +155,11 @@ TEST(VertexRadiance, PointLightInterreflectionsAgreeWithThePathTracer) {
   PointLight lamp;
   lamp.position = {0.9, 0.1, 0.3};
   lamp.intensity = {1.0, 1.0, 1.0};
-  VertexRadiance vr(scene, env, std::vector<double>(3 * env.size(), 0.0), 4, 3, {lamp});
+  VertexRadiance vr(scene, env, {std::vector<double>(3 * env.size(), 0.0), {lamp}}, 4, 3);
   vr.Refine(20000);
   const double vertex = vr.Radiance()[0].x();
 
-  const double pixel = MeanRed(RenderPointLights(scene, {OriginView()}, {lamp}, OriginTracer(), true)[0]);
+  const double pixel = MeanRed(RenderLights(scene, {OriginView()}, {lamp}, OriginTracer(), true)[0]);
   const Eigen::Vector3d r = lamp.position;
   const double direct = 0.8 / M_PI * r.z() / r.norm() / r.squaredNorm();
   std::printf("origin under the square, lamp beside: vertex %.4f, path tracer %.4f, direct alone %.4f\n", vertex,
@@ -172,7 +172,7 @@ TEST(VertexRadiance, RefiningAddsSamplesAndStaysConsistent) {
   const RayTracer scene(test::Ball(1.0, 0.5, 8, 16));
   const EnvMap env(7, Eigen::Vector3d::UnitZ());
   std::vector<double> lambda(3 * env.size(), 1.0);
-  VertexRadiance vr(scene, env, lambda, 2), once(scene, env, lambda, 2);
+  VertexRadiance vr(scene, env, {lambda, {}}, 2), once(scene, env, {lambda, {}}, 2);
   vr.Refine(48);
   vr.Refine(16);
   once.Refine(64);

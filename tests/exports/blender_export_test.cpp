@@ -81,11 +81,11 @@ struct Fixture {
     lights.environment = "envmap.exr";
     PointLight lamp;
     lamp.position = turn * Eigen::Vector3d(1.77, 1.67, 1.75), lamp.intensity = {2.4, 2.2, 1.9}, lamp.radius = 0.05;
-    lights.point_lights.push_back(lamp);
+    lights.lights.push_back(lamp);
     DirectionalLight sun;
     sun.direction = turn * Eigen::Vector3d(-0.5, 0.3, 0.8).normalized(), sun.irradiance = {0.5, 0.45, 0.35};
     sun.angular_radius = 0.01;
-    if (with_sun) lights.directional_lights.push_back(sun);
+    if (with_sun) lights.lights.push_back(sun);
     WriteTextAtomically(estimate / "lights.json", LightsJson(lights));
   }
   ~Fixture() { fs::remove_all(root); }
@@ -99,8 +99,7 @@ struct Fixture {
     const CellSampler sampler(env, lambda, {}, 0.2);
     TracerOptions t;
     t.spp = 512, t.bounces = 12, t.seed = seed;
-    return RenderLighting(tracer, env, lambda, sampler, lights.point_lights, lights.directional_lights, {b.views[0]}, t,
-                          true)[0];
+    return RenderLighting(tracer, env, {lambda, lights.lights}, sampler, {b.views[0]}, t, true)[0];
   }
 };
 

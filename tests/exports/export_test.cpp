@@ -273,7 +273,7 @@ TEST(ShExport, TheMainLightIsTheSunAndTheCoefficientsLeaveItOut) {
   s.environment = SmoothSky(32);
   DirectionalLight sun;
   sun.direction = Eigen::Vector3d(0.3, 0.4, 0.866).normalized(), sun.irradiance = {3, 2.7, 2.4};
-  s.directional_lights.push_back(sun);
+  s.lights.push_back(sun);
   const fs::path dir = Scratch("sh_sun");
   WriteExport(s, ExportFormat::kSh, dir);
   const json j = ReadJson(dir / "lighting.json");
@@ -345,10 +345,10 @@ TEST(GltfExport, LightsCamerasAndBuffersByHand) {
   ExportScene s = SmallScene();
   PointLight lamp;
   lamp.position = {1, 2, 3}, lamp.intensity = {2, 1, 0.5}, lamp.radius = 0.1;
-  s.point_lights.push_back(lamp);
+  s.lights.push_back(lamp);
   DirectionalLight sun;
   sun.direction = Eigen::Vector3d(0, 0.6, 0.8), sun.irradiance = {1, 1, 4};
-  s.directional_lights.push_back(sun);
+  s.lights.push_back(sun);
   const fs::path dir = Scratch("gltf");
   WriteExport(s, ExportFormat::kGltf, dir);
   const json j = ReadJson(dir / "scene.gltf");

@@ -32,7 +32,7 @@ TEST(PointLights, LambertianPlaneMatchesTheClosedFormAtTwoDistances) {
   o.bounces = 1;
   for (double h : {0.5, 1.0}) {  // inverse square: 4x brighter below the light at half the height
     const Eigen::Vector3d light(0.1, 0.2, h);
-    const std::vector<ImageRGB> img = RenderPointLights(scene, views, {{light, Eigen::Vector3d::Constant(I), 0}}, o, true);
+    const std::vector<ImageRGB> img = RenderLights(scene, views, {PointLight{light, Eigen::Vector3d::Constant(I), 0}}, o, true);
     for (int y = 2; y < cam.height; y += 7)
       for (int x = 3; x < cam.width; x += 9) {
         // The closed form averaged over the pixel's square (8 x 8 points), as the jitter does.
@@ -59,7 +59,7 @@ TEST(PointLights, ABoxLidCastsItsShadowOntoTheFloor) {
   TracerOptions o;
   o.spp = 1;
   o.bounces = 1;
-  const ImageRGB img = RenderPointLights(scene, views, {{light, Eigen::Vector3d::Ones(), 0}}, o, true)[0];
+  const ImageRGB img = RenderLights(scene, views, {PointLight{light, Eigen::Vector3d::Ones(), 0}}, o, true)[0];
   int lit = 0, shadowed = 0;
   for (int y = 0; y < cam.height; ++y)
     for (int x = 0; x < cam.width; ++x) {
