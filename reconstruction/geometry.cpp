@@ -26,8 +26,7 @@ pcl::PointCloud<pcl::PointXYZ>::Ptr ToCloud(const std::vector<Eigen::Vector3f>& 
 }  // namespace
 
 std::optional<Plane> DominantPlane(const std::vector<Eigen::Vector3f>& points, const Eigen::Vector3d& rough_up,
-                                   const Eigen::Vector3d& viewpoint, double max_angle_deg, double distance,
-                                   double min_fraction) {
+                                   double max_angle_deg, double distance, double min_fraction) {
   const auto cloud = ToCloud(points, 50000);
   if (cloud->size() < 10) return std::nullopt;
   pcl::SACSegmentation<pcl::PointXYZ> seg;
@@ -50,7 +49,7 @@ std::optional<Plane> DominantPlane(const std::vector<Eigen::Vector3f>& points, c
   if (!(len > 0)) return std::nullopt;
   plane.normal /= len;
   plane.d = coefficients.values[3] / len;
-  if (plane.normal.dot(viewpoint) + plane.d < 0) {
+  if (plane.normal.dot(rough_up) < 0) {
     plane.normal = -plane.normal;
     plane.d = -plane.d;
   }

@@ -390,10 +390,11 @@ void Reconstructor::Impl::Follow(const RgbdFrame& f, const RgbdFrame& input, con
 
 namespace {
 
-/// Up from the dominant horizontal plane of `mesh`, else the first camera's -y.
+/// Up from the dominant horizontal plane of `mesh` (a floor or a ceiling, its normal on the
+/// side of the first camera's -y), else the first camera's -y.
 Eigen::Vector3d UpOf(const Mesh& mesh, const Eigen::Matrix4d& first, double voxel, bool* from_plane) {
   const Eigen::Vector3d rough = -first.block<3, 1>(0, 1);
-  const std::optional<Plane> plane = DominantPlane(mesh.positions, rough, first.block<3, 1>(0, 3), 30, 2 * voxel + 0.01);
+  const std::optional<Plane> plane = DominantPlane(mesh.positions, rough, 30, 2 * voxel + 0.01);
   if (from_plane) *from_plane = plane.has_value();
   return plane ? plane->normal : rough;
 }

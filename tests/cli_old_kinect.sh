@@ -16,6 +16,11 @@ for f in scene/scene.json scene/mesh.ply scene/view0.exr estimate/lights.json es
 done
 tracked=$(sed -n 's/.*12 frames in .*: \([0-9]*\) tracked.*/\1/p' "$out/log")
 check_between "frames tracked of 12" "$tracked" 11 12 || { cat "$out/log"; exit 1; }
+# Up points up (issue 41): the recording sees a ceiling and no floor, and the bundle's world
+# is the first camera's frame, whose y points down: up has a clearly negative y. (With the
+# ceiling's normal turned towards the camera it came out (0.03, 0.96, -0.28).)
+up_y=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['up'][1])" "$out/h/scene/scene.json")
+check_between "the bundle's up, its y in the first camera's frame" "$up_y" -1 -0.7 || exit 1
 # The keyframes' cameras carry the file's focal length: 575.8 px at 640 px, 143.95 in the
 # bundle's 160 px views (575.8 / 4).
 fx=$(grep -o '"fx": [0-9.e+-]*' "$out/h/scene/scene.json" | head -1 | awk '{print $2}')
@@ -45,4 +50,4 @@ JSON
   --out "$out/c" >"$out/clog" 2>&1 || { cat "$out/clog"; exit 1; }
 cfx=$(grep -o '"fx": [0-9.e+-]*' "$out/c/scene.json" | head -1 | awk '{print $2}')
 check_between "keyframe fx with --calibration and --intrinsics" "$cfx" 149.99 150.01 || exit 1
-echo "old Kinect recording: headless ok, fx $fx, $tracked of 12 frames tracked; --intrinsics $kfx, --calibration wins $cfx"
+echo "old Kinect recording: headless ok, up y $up_y, fx $fx, $tracked of 12 frames tracked; --intrinsics $kfx, --calibration wins $cfx"

@@ -574,6 +574,47 @@ TEST(Reconstruction, BadInputIsAClearError) {
 
 // Vignetting from keyframes: a synthetic scene's two views (different viewpoints) with a
 // known vignetting applied; the same surface points seen at different radii give it back.
+/// Points of a 4 x 4 m room's horizontal plane at height `z` (none when NaN) and of its
+/// four walls up to 2.5 m (every `step` metres), with 2 mm of noise.
+std::vector<Eigen::Vector3f> RoomPoints(double z, bool with_walls, double step = 0.04) {
+  std::vector<Eigen::Vector3f> p;
+  Rng rng(7, 1, 2, 3);
+  const auto noise = [&] { return static_cast<float>(0.004 * (rng.Uniform() - 0.5)); };
+  if (!std::isnan(z))
+    for (double a = -2; a <= 2; a += step)
+      for (double b = -2; b <= 2; b += step) p.emplace_back(a + noise(), b + noise(), z + noise());
+  if (with_walls)
+    for (double a = -2; a <= 2; a += step)
+      for (double h = 0; h <= 2.5; h += step) {
+        p.emplace_back(a, -2 + noise(), h);
+        p.emplace_back(a, 2 + noise(), h);
+        p.emplace_back(-2 + noise(), a, h);
+        p.emplace_back(2 + noise(), a, h);
+      }
+  return p;
+}
+
+TEST(DominantPlane, UpFromAFloorOrACeilingPointsUpTheCamerasWay) {
+  // The camera's own -y, tilted 20 degrees from the true up (a hand-held camera looking
+  // down or up): the plane's normal is turned to its side, not towards the camera, so a
+  // ceiling above the camera gives up too (turned towards the camera it pointed down).
+  const double t = 20 * 3.14159265358979 / 180;
+  for (const Eigen::Vector3d& rough : {Eigen::Vector3d(std::sin(t), 0, std::cos(t)), Eigen::Vector3d(0, -std::sin(t), std::cos(t))}) {
+    for (const double z : {0.0, 2.5}) {  // a floor below the camera (at 1.4 m), a ceiling above it
+      const std::optional<Plane> plane = DominantPlane(RoomPoints(z, true), rough, 30, 0.02);
+      ASSERT_TRUE(plane.has_value()) << "z " << z;
+      EXPECT_GT(plane->normal.z(), std::cos(1 * 3.14159265358979 / 180)) << "z " << z << ": " << plane->normal.transpose();
+      EXPECT_NEAR(plane->normal.dot(Eigen::Vector3d(0, 0, z)) + plane->d, 0, 0.01) << "the plane holds z = " << z;
+    }
+    // Held upside down (its -y pointing down), the camera's side wins: down.
+    const std::optional<Plane> flipped = DominantPlane(RoomPoints(2.5, true), -rough, 30, 0.02);
+    ASSERT_TRUE(flipped.has_value());
+    EXPECT_LT(flipped->normal.z(), -0.99);
+  }
+  // Only walls: no horizontal plane within 30 degrees.
+  EXPECT_FALSE(DominantPlane(RoomPoints(NAN, true), Eigen::Vector3d::UnitZ(), 30, 0.02).has_value());
+}
+
 TEST(KeyframeVignetting, SurfacePointsSeenTwiceRecoverTheVignetting) {
   SynthOptions so;
   so.width = 160;
