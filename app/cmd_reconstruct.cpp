@@ -113,10 +113,10 @@ void PrintSummary(const ReconstructionRun& run, const SceneBundle& bundle, doubl
                   const std::string& out) {
   const std::int64_t n = run.frames();
   const StageTimes& t = run.reconstructor().times();
-  std::printf("%lld frames in %.1f s (%.1f frames/s): %lld tracked, %lld lost; per frame %.1f ms preprocess, "
-              "%.1f ms track, %.1f ms fuse, %.1f ms raycast\n",
+  std::printf("%lld frames in %.1f s (%.1f frames/s): %lld tracked (%lld of them doubtful: not fused), %lld lost; "
+              "per frame %.1f ms preprocess, %.1f ms track, %.1f ms fuse, %.1f ms raycast\n",
               static_cast<long long>(n), seconds, n / seconds, static_cast<long long>(run.tracked()),
-              static_cast<long long>(run.lost()), 1e3 * t.preprocess / n, 1e3 * t.track / n, 1e3 * t.fuse / n,
+              static_cast<long long>(run.doubtful()), static_cast<long long>(run.lost()), 1e3 * t.preprocess / n, 1e3 * t.track / n, 1e3 * t.fuse / n,
               1e3 * t.raycast / n);
   const TsdfVolume& volume = run.reconstructor().volume();
   std::printf("volume: %zu blocks, %.1f MiB; mesh %zu vertices, %zu triangles, up (%.3f, %.3f, %.3f); "

@@ -29,6 +29,7 @@ Run AddReconstruct(CLI::App& app);
 Run AddCalibrate(CLI::App& app);
 Run AddView(CLI::App& app);
 Run AddExport(CLI::App& app);
+Run AddEvaluate(CLI::App& app);
 
 /// The window's defaults: the bundled demo recording (LIGHTPROBE_DEMO overrides it) and
 /// the estimate writer for Export.

@@ -33,7 +33,7 @@ int main(int argc, char** argv) {
   for (auto add : {&lp::app::AddEstimate, &lp::app::AddRender, &lp::app::AddSynth, &lp::app::AddBench,
                    &lp::app::AddBenchReport, &lp::app::AddDevices,
                    &lp::app::AddRecord, &lp::app::AddReplay, &lp::app::AddReconstruct, &lp::app::AddCalibrate,
-                   &lp::app::AddView, &lp::app::AddExport}) {
+                   &lp::app::AddView, &lp::app::AddExport, &lp::app::AddEvaluate}) {
     const std::size_t before = app.get_subcommands([](CLI::App*) { return true; }).size();
     lp::app::Run r = add(app);
     const auto subs = app.get_subcommands([](CLI::App*) { return true; });

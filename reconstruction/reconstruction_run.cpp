@@ -50,6 +50,7 @@ FrameReport ReconstructionRun::Process(const RgbdFrame& frame) {
   const FrameReport r = reconstructor_->Process(f);
   ++frames_;
   tracked_ += r.state == TrackingState::kTracking;
+  doubtful_ += r.doubtful;
   lost_ += r.state == TrackingState::kLost;
   double err = NAN;
   if (f.world_from_camera && r.state != TrackingState::kWaiting) {

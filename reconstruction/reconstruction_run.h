@@ -67,6 +67,8 @@ class ReconstructionRun {
   std::int64_t frames() const { return frames_; }
   std::int64_t tracked() const { return tracked_; }
   std::int64_t lost() const { return lost_; }
+  /// Tracked frames left unfused because their fit was doubtful (FrameReport::doubtful).
+  std::int64_t doubtful() const { return doubtful_; }
   /// Seconds since its first frame.
   double seconds() const { return clock_.Seconds(); }
   /// RMS distance of the tracked positions from the true ones (metres) over `compared()`
@@ -85,7 +87,7 @@ class ReconstructionRun {
   std::ostringstream log_;
   std::vector<std::string> warnings_;
   std::vector<Eigen::Matrix4d> estimated_, truth_;
-  std::int64_t frames_ = 0, tracked_ = 0, lost_ = 0;
+  std::int64_t frames_ = 0, tracked_ = 0, lost_ = 0, doubtful_ = 0;
 };
 
 /// A number for CSV files: %.9g, empty for NaN.

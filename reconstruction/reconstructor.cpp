@@ -1,6 +1,7 @@
 #include "reconstruction/reconstructor.h"
 
 #include <algorithm>
+#include <deque>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -115,6 +116,9 @@ double Sharpness(const ImageRgb8& im) {
   return sum2 / n - mean * mean;
 }
 
+/// How many fused frames' fits a new frame's is judged against (Impl::Doubtful).
+constexpr std::size_t kFitHistory = 8;
+
 struct Reconstructor::Impl {
   ReconstructionOptions o;
   TsdfVolume volume;
@@ -136,6 +140,26 @@ struct Reconstructor::Impl {
 
   Relocalizer relocalizer;
   Eigen::Matrix4d remembered = Eigen::Matrix4d::Identity();  // pose of the last frame the relocalizer kept
+  // The fits (ICP error, inlier ratio) of the last kFitHistory fused tracked frames, newest
+  // last, and how many doubtful frames came in a row since.
+  std::deque<std::pair<double, double>> fits;
+  int doubtful_run = 0;
+  // The last two trusted poses and the frames since the last: where the next frame starts
+  // after a doubtful one (PredictedPose).
+  Eigen::Matrix4d good = Eigen::Matrix4d::Identity(), previous_good = Eigen::Matrix4d::Identity();
+  int since_good = 0, trusted = 0, good_gap = 1;  // good_gap: frames between the two
+
+  /// Where the frame after a doubtful one starts: the last trusted pose moved on at the
+  /// last trusted step for every frame since (constant velocity), or `doubtful` itself
+  /// without two trusted frames in a row.
+  Eigen::Matrix4d PredictedPose(const Eigen::Matrix4d& doubtful) {
+    ++since_good;
+    if (trusted < 2 || good_gap != 1) return doubtful;
+    const Eigen::Matrix4d step = previous_good.inverse() * good;
+    Eigen::Matrix4d predicted = good;
+    for (int k = 0; k < since_good; ++k) predicted = predicted * step;
+    return predicted;
+  }
 
   explicit Impl(const ReconstructionOptions& opt) : o(opt), volume(opt.tsdf), relocalizer(opt.relocalizer) {}
 
@@ -246,6 +270,7 @@ struct Reconstructor::Impl {
   void Start(const RgbdFrame& f, const RgbdFrame& input, bool enough_depth, FrameReport* r);
   TrackResult Track(const RgbdFrame& f, const RgbdFrame& input, const std::vector<DepthLevel>& levels,
                     const std::optional<Eigen::Matrix4d>& source_pose, bool enough_depth, FrameReport* r);
+  bool Doubtful(const TrackResult& tr, FrameReport* r);
   void Follow(const RgbdFrame& f, const RgbdFrame& input, const std::vector<DepthLevel>& levels,
               const std::optional<Eigen::Matrix4d>& source_pose, bool enough_depth, FrameReport* r);
 };
@@ -325,6 +350,8 @@ void Reconstructor::Impl::Start(const RgbdFrame& f, const RgbdFrame& input, bool
   first_color_k = f.color_intrinsics;
   pose = f.world_from_camera.value_or(Eigen::Matrix4d::Identity());
   first_pose = pose;
+  good = previous_good = pose;
+  trusted = 1;
   Fuse(f, pose, r);
   r->state = TrackingState::kTracking;
   r->world_from_camera = pose;
@@ -361,8 +388,37 @@ TrackResult Reconstructor::Impl::Track(const RgbdFrame& f, const RgbdFrame& inpu
   return tr;
 }
 
+/// Whether a tracked frame's fit is doubtful beside the last fused frames' (see
+/// ReconstructionOptions::doubtful_error); says why in `r`. Counts the doubtful run.
+bool Reconstructor::Impl::Doubtful(const TrackResult& tr, FrameReport* r) {
+  if (static_cast<int>(fits.size()) < std::max(1, o.doubtful_history)) return false;
+  std::vector<double> errors, inliers;
+  for (const auto& [e, i] : fits) errors.push_back(e), inliers.push_back(i);
+  std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
+  std::nth_element(inliers.begin(), inliers.begin() + inliers.size() / 2, inliers.end());
+  const double error = errors[errors.size() / 2], inlier = inliers[inliers.size() / 2];
+  const bool doubtful = tr.rmse > o.doubtful_error * error || tr.inlier_ratio < o.doubtful_inliers * inlier;
+  if (!doubtful) {
+    doubtful_run = 0;
+    return false;
+  }
+  if (++doubtful_run > std::max(0, o.max_doubtful)) {  // the scene changed: a new normal
+    fits.clear();
+    doubtful_run = 0;
+    return false;
+  }
+  char why[200];
+  std::snprintf(why, sizeof why,
+                "doubtful fit: ICP error %.1f mm against a median %.1f mm of the last fused; inliers %.2f against %.2f; not fused",
+                1e3 * tr.rmse, 1e3 * error, tr.inlier_ratio, inlier);
+  r->reason = why;
+  r->doubtful = true;
+  return true;
+}
+
 /// A frame after the first: tracked, then fused every fuse_every-th tracked frame (and after
-/// a relocalization; in between the model maps stay those raycast at the last fused pose).
+/// a relocalization; in between the model maps stay those raycast at the last fused pose),
+/// unless its fit is doubtful.
 void Reconstructor::Impl::Follow(const RgbdFrame& f, const RgbdFrame& input, const std::vector<DepthLevel>& levels,
                                  const std::optional<Eigen::Matrix4d>& source_pose, bool enough_depth,
                                  FrameReport* r) {
@@ -373,12 +429,26 @@ void Reconstructor::Impl::Follow(const RgbdFrame& f, const RgbdFrame& input, con
   r->inlier_ratio = tr.inlier_ratio;
   r->rmse = tr.rmse;
   if (tr.ok) {
+    r->state = TrackingState::kTracking;
+    r->world_from_camera = tr.world_from_camera;
+    if (!source_pose && Doubtful(tr, r)) {
+      pose = PredictedPose(tr.world_from_camera);
+      return;
+    }
     pose = tr.world_from_camera;
+    previous_good = good;
+    good = pose;
+    good_gap = since_good + 1;
+    since_good = 0;
+    ++trusted;
     if (++since_fused >= std::max(1, o.fuse_every) || r->relocalized) {
       Fuse(f, pose, r);
       since_fused = 0;
+      if (!source_pose) {
+        fits.emplace_back(tr.rmse, tr.inlier_ratio);
+        if (fits.size() > kFitHistory) fits.pop_front();
+      }
     }
-    r->state = TrackingState::kTracking;
     Offer(f, pose);
     if (!source_pose) MaybeRemember(input, pose, r->relocalized);
   } else {

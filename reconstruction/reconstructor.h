@@ -34,6 +34,17 @@ struct ReconstructionOptions {
   /// the better fit (at 30 frames/s nearly every point overlaps and matches).
   float suspicious_overlap = 0.6f;
   float suspicious_inlier_ratio = 0.7f;
+  /// A tracked frame whose fit is doubtful beside the frames fused before it is neither
+  /// fused nor a keyframe (the next frame starts from its pose, the nearest guess after a
+  /// fast move): its ICP error above doubtful_error times their median, or its
+  /// inlier ratio below doubtful_inliers times theirs. On flat walls a pose centimetres off
+  /// still matches most points (above suspicious_inlier_ratio); fused, it leaves a ghost
+  /// the frames after it lock onto. Judged once doubtful_history frames were fused; after
+  /// max_doubtful doubtful frames in a row the fit is taken as the scene's new normal.
+  float doubtful_error = 1.4f;
+  float doubtful_inliers = 0.85f;
+  int doubtful_history = 3;
+  int max_doubtful = 3;
   int keyframes = 4;         ///< views in the bundle
   /// Keyframe images are averaged down by an integer factor to about this width (the
   /// paper estimates at 160x120; the estimator's cost grows with the pixels); 0 = as captured.
@@ -87,6 +98,7 @@ struct FrameReport {
   Eigen::Matrix4d world_from_camera = Eigen::Matrix4d::Identity();  ///< estimated (or held) pose
   double overlap = 0, inlier_ratio = 0, rmse = 0;
   bool relocalized = false;  ///< tracked from a pose found by colour features
+  bool doubtful = false;     ///< tracked, but the fit is doubtful (ReconstructionOptions): not fused
   std::size_t blocks_updated = 0;
   StageTimes times;
 };

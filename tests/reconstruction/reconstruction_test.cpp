@@ -404,6 +404,51 @@ RgbdFrame Distort(const RgbdFrame& f, double k1) {
 // undistorted with the colour, so the room keeps its shape; back-projected as delivered,
 // the walls bend (the reconstruction's accuracy against the true room, fused at the true
 // poses so only the geometry differs).
+TEST(Reconstruction, AFrameWhoseFitIsDoubtfulIsNotFused) {
+  // The synthetic room along its arc; one frame's depth glitches: its right half 8 cm
+  // farther (no pose fits all of it, and ICP still finds one that fits most). That frame's
+  // fit is doubtful beside those fused before it (its ICP error or its inlier ratio), so it
+  // is not fused; every other frame is, and the track goes on as without it.
+  SynthOptions so;
+  so.width = 320;
+  so.height = 240;
+  so.spp = 1;
+  so.depth_noise = true;
+  std::vector<RgbdFrame> frames = ToRgbdFrames(RenderSynthFrames("one-light", so, "", 16));
+  constexpr int kBad = 8;
+  DepthImage& d = frames[kBad].depth;
+  for (int y = 0; y < d.height; ++y)
+    for (int x = d.width / 2; x < d.width; ++x) {
+      std::uint16_t& z = d.data[static_cast<std::size_t>(y) * d.width + x];
+      if (z > 0) z = static_cast<std::uint16_t>(z + 80);
+    }
+  ReconstructionOptions o;
+  o.fuse_every = 1;
+  Reconstructor rec(o);
+  std::vector<FrameReport> reports;
+  for (const RgbdFrame& f : frames) reports.push_back(rec.Process(f));
+  for (const FrameReport& r : reports) {
+    std::printf("frame %lld: inliers %.3f, ICP error %.2f mm, %s%s\n", static_cast<long long>(r.index),
+                r.inlier_ratio, 1e3 * r.rmse, r.doubtful ? "doubtful: " : "", r.reason.c_str());
+    ASSERT_EQ(r.state, TrackingState::kTracking) << r.index;
+    EXPECT_EQ(r.doubtful, r.index == kBad) << r.index << ": " << r.reason;
+    EXPECT_EQ(r.blocks_updated == 0, r.index == kBad) << r.index;
+  }
+  EXPECT_NE(reports[kBad].reason.find("doubtful fit"), std::string::npos);
+  EXPECT_EQ(reports[kBad].reason.find(','), std::string::npos) << "a reason is one CSV field";
+  // Without the rule (a doubtful frame is one whose ICP error is a million times the
+  // median), the glitch is fused.
+  o.doubtful_error = 1e6f;
+  o.doubtful_inliers = 0;
+  Reconstructor trusting(o);
+  for (const RgbdFrame& f : frames) {
+    const FrameReport r = trusting.Process(f);
+    if (r.index == kBad) {
+      EXPECT_GT(r.blocks_updated, 0u);
+    }
+  }
+}
+
 TEST(Reconstruction, RegisteredDepthIsUndistortedWithTheColour) {
   SynthOptions so;
   so.width = 320;

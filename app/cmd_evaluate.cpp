@@ -1,0 +1,51 @@
+// `lightprobe evaluate`: a headless run scored against a scan's ground truth (app/scan_evaluation.h).
+#include <cstdio>
+#include <filesystem>
+
+#include "app/commands.h"
+#include "app/scan_evaluation.h"
+#include "common/atomic_file.h"
+#include "common/parallel.h"
+
+namespace lp::app {
+namespace fs = std::filesystem;
+
+Run AddEvaluate(CLI::App& app) {
+  auto* cmd = app.add_subcommand(
+      "evaluate", "score a headless run (RUN/scene, RUN/estimate) against a scan's ground truth (truth.json, "
+                  "gt_mesh.ply, holdout/)");
+  auto run = std::make_shared<std::string>();
+  auto truth = std::make_shared<std::string>();
+  auto spp = std::make_shared<int>(64);
+  auto threads = std::make_shared<int>(0);
+  cmd->add_option("RUN_DIR", *run, "what `lightprobe --headless SCAN --out RUN_DIR` wrote")->required();
+  cmd->add_option("--truth", *truth, "the scan's directory (truth.json; gt_mesh.ply and holdout/ when it has them)")
+      ->required();
+  cmd->add_option("--spp", *spp, "samples per pixel of the held-out view's relit render")->capture_default_str();
+  cmd->add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
+  return [=] {
+    if (*spp < 1) throw InputError("evaluate: --spp must be at least 1");
+    ThreadLimit limit(*threads);
+    const ScanScore s = EvaluateScan(*truth, *run, *spp);
+    if (s.mesh)
+      std::printf("mesh: %.1f mm median, %.1f mm at the 90th percentile from the true surface; %.1f %% of what the "
+                  "keyframes see within 2 cm\n",
+                  1e3 * s.mesh->median_m, 1e3 * s.mesh->p90_m, 100 * s.mesh->complete_2cm);
+    for (std::size_t k = 0; k < s.lamps.size(); ++k) {
+      const LampScore& l = s.lamps[k];
+      std::printf("lamp %zu: %.1f cm from the nearest estimate (%.1f %% of its %.2f m from the room's centre); "
+                  "intensity x%.2f, light x albedo x%.2f\n",
+                  k, 100 * l.error_m, 100 * l.share, l.distance_m, l.intensity_ratio, l.light_times_albedo);
+    }
+    std::printf("%d lamp(s) estimated; the largest spurious one gives %.1f %% of their light at the centre\n",
+                s.estimated_lamps, 100 * s.spurious_share);
+    std::printf("albedo's scale (estimated / true) %.3f over %d pixels; held-out view relit: relative RMSE %.3f "
+                "(%.3f over the %.0f %% of its pixels the scan covers)\n",
+                s.albedo_scale, s.albedo_samples, s.held_out_relit, s.held_out_relit_covered, 100 * s.held_out_covered);
+    const fs::path out = fs::path(*run) / "evaluation.json";
+    WriteTextAtomically(out, ScanScoreJson(s));
+    std::printf("wrote %s in %.1f s\n", out.c_str(), s.seconds);
+  };
+}
+
+}  // namespace lp::app

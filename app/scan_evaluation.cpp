@@ -1,0 +1,289 @@
+#include "app/scan_evaluation.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include <nlohmann/json.hpp>
+
+#include "common/atomic_file.h"
+#include "common/color.h"
+#include "common/error.h"
+#include "common/image_io.h"
+#include "common/parallel.h"
+#include "common/timer.h"
+#include "estimation/envmap.h"
+#include "estimation/light_render.h"
+#include "estimation/lights_file.h"
+#include "estimation/path_tracer.h"
+#include "estimation/sampling.h"
+#include "estimation/truth.h"
+#include "reconstruction/geometry.h"
+#include "scene/ray_tracer.h"
+
+namespace lp::app {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+json ReadJsonFile(const fs::path& file) {
+  try {
+    return json::parse(ReadTextFile(file));
+  } catch (const json::exception& e) {
+    throw InputError(file.string(), std::string("malformed JSON: ") + e.what());
+  }
+}
+
+double Number(const json& j, const char* key, const fs::path& file) {
+  if (!j.contains(key) || !j[key].is_number()) throw InputError(file.string(), std::string("no number \"") + key + "\"");
+  return j[key].get<double>();
+}
+
+Eigen::Vector3d Vec3(const json& j, const char* key, const fs::path& file) {
+  if (!j.contains(key) || !j[key].is_array() || j[key].size() != 3)
+    throw InputError(file.string(), std::string("\"") + key + "\" must be 3 numbers");
+  return {j[key][0].get<double>(), j[key][1].get<double>(), j[key][2].get<double>()};
+}
+
+double Percentile(std::vector<float> v, double q) {
+  if (v.empty()) return NAN;
+  const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(q * (v.size() - 1) + 0.5));
+  std::nth_element(v.begin(), v.begin() + k, v.end());
+  return v[k];
+}
+
+/// Points on `mesh`'s triangles about every `spacing` metres (each triangle's barycentric
+/// grid), for distances to a surface rather than to its vertices.
+std::vector<Eigen::Vector3f> SurfacePoints(const Mesh& mesh, double spacing) {
+  std::vector<Eigen::Vector3f> out;
+  for (const auto& t : mesh.triangles) {
+    const Eigen::Vector3f a = mesh.positions[t[0]], b = mesh.positions[t[1]], c = mesh.positions[t[2]];
+    const double edge = std::max({(b - a).norm(), (c - b).norm(), (a - c).norm()});
+    const int n = std::max(1, static_cast<int>(std::ceil(edge / spacing)));
+    for (int i = 0; i <= n; ++i)
+      for (int j = 0; i + j <= n; ++j) {
+        const float u = static_cast<float>(i) / n, v = static_cast<float>(j) / n;
+        out.push_back(a + u * (b - a) + v * (c - a));
+      }
+  }
+  return out;
+}
+
+/// The true lamps (point lights with a position and an intensity in image units) and the
+/// room's centre of truth.json.
+struct TrueLamps {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  std::vector<PointLight> lamps;
+};
+
+TrueLamps ReadTrueLamps(const fs::path& file) {
+  const json j = ReadJsonFile(file);
+  TrueLamps t;
+  if (j.contains("scene_bbox") && j["scene_bbox"].contains("centre")) t.centre = Vec3(j["scene_bbox"], "centre", file);
+  if (!j.contains("lights") || !j["lights"].is_array()) return t;
+  for (const json& l : j["lights"]) {
+    if (!l.contains("position") || !l.contains("intensity_image_units")) continue;
+    PointLight p;
+    p.position = Vec3(l, "position", file);
+    p.intensity = Vec3(l, "intensity_image_units", file);
+    if (l.contains("radius") && l["radius"].is_number()) p.radius = l["radius"].get<double>();
+    t.lamps.push_back(p);
+  }
+  return t;
+}
+
+double Lum(const Eigen::Vector3d& v) { return Luminance(v.x(), v.y(), v.z()); }
+
+/// Each true lamp against its nearest estimate; the estimates no lamp has as its nearest
+/// are spurious (their share of the estimated lamps' irradiance at the centre).
+void ScoreLamps(const TrueLamps& truth, const std::vector<PointLight>& estimate, ScanScore* s) {
+  std::vector<bool> matched(estimate.size(), false);
+  for (const PointLight& t : truth.lamps) {
+    LampScore ls;
+    ls.truth = t.position;
+    ls.distance_m = (t.position - truth.centre).norm();
+    int best = -1;
+    for (std::size_t k = 0; k < estimate.size(); ++k)
+      if (best < 0 || (estimate[k].position - t.position).norm() < (estimate[best].position - t.position).norm())
+        best = static_cast<int>(k);
+    if (best >= 0) {
+      matched[best] = true;
+      ls.estimate = estimate[best].position;
+      ls.error_m = (ls.estimate - t.position).norm();
+      ls.share = ls.error_m / ls.distance_m;
+      ls.intensity_ratio = Lum(estimate[best].intensity) / Lum(t.intensity);
+    }
+    s->lamps.push_back(ls);
+  }
+  double total = 0;
+  std::vector<double> at_centre;
+  for (const PointLight& e : estimate) {
+    at_centre.push_back(Lum(e.intensity) / std::max(1e-6, (e.position - truth.centre).squaredNorm()));
+    total += at_centre.back();
+  }
+  for (std::size_t k = 0; k < estimate.size(); ++k)
+    if (!matched[k] && total > 0) s->spurious_share = std::max(s->spurious_share, at_centre[k] / total);
+  s->estimated_lamps = static_cast<int>(estimate.size());
+}
+
+/// The held-out view relit under the run's estimate (its map, every light) on `mesh`: its
+/// error over the view's pixels, and over those `mesh` covers (`covered`: their share).
+void RelitError(const HeldOutView& held, const Mesh& mesh, const fs::path& estimate_dir, const Eigen::Vector3d& up,
+                int spp, ScanScore* s) {
+  const fs::path lights_path = estimate_dir / "lights.json";
+  const LightsFile file = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
+  const EnvMap env(61, up);
+  Lighting lighting{std::vector<double>(3 * env.size(), 0.0), file.lights};
+  if (!file.environment.empty()) lighting.map = env.FromEquirect(ReadEquirectMap(estimate_dir / file.environment));
+  const RayTracer tracer(mesh);
+  TracerOptions t;
+  t.spp = spp, t.seed = 1, t.bounces = kRenderBounces;
+  const CellSampler sampler(env, lighting.map, {}, 0.2);
+  const ImageRGB image = RenderLighting(tracer, env, lighting, sampler, {held.view}, t, false)[0];
+  WritePngSrgb(estimate_dir.parent_path() / "held_out_relit.png", image);
+  s->held_out_relit = RelativeImageRmse(image, held.view.image, held.view.valid);
+  const Camera& c = held.view.camera;
+  std::vector<std::uint8_t> covered = held.view.valid;
+  long in_view = 0, hit = 0;
+  for (int y = 0; y < c.height; ++y)
+    for (int x = 0; x < c.width; ++x) {
+      std::uint8_t& v = covered[static_cast<std::size_t>(y) * c.width + x];
+      if (!v) continue;
+      ++in_view;
+      SurfacePoint p;
+      v = tracer.Intersect(c.center(), c.RayDirection(x, y), &p);
+      hit += v;
+    }
+  s->held_out_covered = in_view ? static_cast<double>(hit) / in_view : 0;
+  s->held_out_relit_covered = RelativeImageRmse(image, held.view.image, covered);
+}
+
+}  // namespace
+
+HeldOutView ReadHeldOutView(const fs::path& holdout_json) {
+  const json j = ReadJsonFile(holdout_json);
+  const fs::path dir = holdout_json.parent_path();
+  HeldOutView h;
+  Camera& c = h.view.camera;
+  c.width = static_cast<int>(Number(j, "width", holdout_json));
+  c.height = static_cast<int>(Number(j, "height", holdout_json));
+  c.fx = Number(j, "fx", holdout_json), c.fy = Number(j, "fy", holdout_json);
+  c.cx = Number(j, "cx", holdout_json), c.cy = Number(j, "cy", holdout_json);
+  const json& T = j.at("world_from_camera");
+  if (!T.is_array() || T.size() != 4) throw InputError(holdout_json.string(), "\"world_from_camera\" must be 4x4");
+  for (int r = 0; r < 4; ++r)
+    for (int k = 0; k < 4; ++k) c.world_from_camera(r, k) = T[r][k].get<double>();
+  if (!j.contains("image") || !j["image"].is_string()) throw InputError(holdout_json.string(), "no \"image\"");
+  h.view.image = ReadImageLinear(dir / j["image"].get<std::string>());
+  if (h.view.image.width != c.width || h.view.image.height != c.height)
+    throw InputError(holdout_json.string(), "the image's size is not the camera's");
+  h.view.valid.assign(static_cast<std::size_t>(c.width) * c.height, 1);
+  if (j.contains("mask") && j["mask"].is_string()) {
+    const Mask m = ReadMask(dir / j["mask"].get<std::string>());
+    if (m.width != c.width || m.height != c.height) throw InputError(holdout_json.string(), "the mask's size is not the camera's");
+    for (std::size_t p = 0; p < m.data.size(); ++p) h.view.valid[p] = m.data[p] != 0;
+  }
+  if (j.contains("albedo") && j["albedo"].is_string()) h.true_albedo = ReadImageLinear(dir / j["albedo"].get<std::string>());
+  return h;
+}
+
+MeshError CompareMeshes(const Mesh& reconstructed, const Mesh& truth, const std::vector<Camera>& seen_from) {
+  MeshError e;
+  const std::vector<float> accuracy = NearestDistances(reconstructed.positions, SurfacePoints(truth, 0.005));
+  e.median_m = Percentile(accuracy, 0.5);
+  e.p90_m = Percentile(accuracy, 0.9);
+  std::vector<Eigen::Vector3f> seen;
+  if (seen_from.empty()) {
+    seen = SurfacePoints(truth, 0.01);
+  } else {
+    const RayTracer tracer(truth);
+    for (const Camera& c : seen_from)
+      for (int y = 0; y < c.height; y += 4)
+        for (int x = 0; x < c.width; x += 4) {
+          SurfacePoint hit;
+          if (tracer.Intersect(c.center(), c.RayDirection(x, y), &hit)) seen.push_back(hit.position.cast<float>());
+        }
+  }
+  const std::vector<float> completeness = NearestDistances(seen, reconstructed.positions);
+  e.complete_2cm = seen.empty() ? NAN
+                                : std::count_if(completeness.begin(), completeness.end(), [](float d) { return d < 0.02f; }) /
+                                      static_cast<double>(seen.size());
+  return e;
+}
+
+double AlbedoScale(const Mesh& mesh, const HeldOutView& held, int* samples) {
+  if (samples) *samples = 0;
+  const Camera& c = held.view.camera;
+  if (held.true_albedo.width != c.width || held.true_albedo.height != c.height) return NAN;
+  const RayTracer tracer(mesh);
+  std::vector<double> ratios;
+  for (int y = 0; y < c.height; ++y)
+    for (int x = 0; x < c.width; ++x) {
+      const std::size_t p = static_cast<std::size_t>(y) * c.width + x;
+      if (!held.view.valid[p]) continue;
+      SurfacePoint hit;
+      if (!tracer.Intersect(c.center(), c.RayDirection(x, y), &hit)) continue;
+      const float* a = held.true_albedo.at(x, y);
+      const double truth = Luminance(a[0], a[1], a[2]);
+      if (truth > 1e-3) ratios.push_back(Lum(hit.albedo) / truth);
+    }
+  if (samples) *samples = static_cast<int>(ratios.size());
+  if (ratios.empty()) return NAN;
+  std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
+  return ratios[ratios.size() / 2];
+}
+
+ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int spp) {
+  Stopwatch sw;
+  ScanScore s;
+  const fs::path scene_dir = run_dir / "scene", estimate_dir = run_dir / "estimate";
+  const SceneBundle bundle = LoadSceneBundle(scene_dir);
+  Mesh reconstructed = bundle.mesh;
+  if (fs::exists(truth_dir / "gt_mesh.ply")) {
+    Mesh truth = ReadPly(truth_dir / "gt_mesh.ply");
+    SanitizeMesh(&truth, (truth_dir / "gt_mesh.ply").string());
+    std::vector<Camera> cameras;
+    for (const View& v : bundle.views) cameras.push_back(v.camera);
+    s.mesh = CompareMeshes(reconstructed, truth, cameras);
+  }
+  const fs::path lights_path = estimate_dir / "lights.json";
+  const LightsFile lights = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
+  ScoreLamps(ReadTrueLamps(truth_dir / "truth.json"), OfKind<PointLight>(lights.lights), &s);
+  const fs::path albedo_mesh = estimate_dir / "albedo_mesh.ply";
+  Mesh lit = fs::exists(albedo_mesh) ? ReadPly(albedo_mesh) : reconstructed;
+  SanitizeMesh(&lit, albedo_mesh.string());
+  if (lit.normals.size() != lit.positions.size()) ComputeVertexNormals(&lit);
+  if (fs::exists(truth_dir / "holdout" / "holdout.json")) {
+    const HeldOutView held = ReadHeldOutView(truth_dir / "holdout" / "holdout.json");
+    s.albedo_scale = AlbedoScale(lit, held, &s.albedo_samples);
+    RelitError(held, lit, estimate_dir, bundle.up, spp, &s);
+  }
+  for (LampScore& l : s.lamps) l.light_times_albedo = l.intensity_ratio * s.albedo_scale;
+  s.seconds = sw.Seconds();
+  return s;
+}
+
+std::string ScanScoreJson(const ScanScore& s) {
+  const auto num = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
+  const auto vec = [](const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); };
+  json j;
+  if (s.mesh)
+    j["mesh"] = {{"median_m", num(s.mesh->median_m)}, {"p90_m", num(s.mesh->p90_m)},
+                 {"complete_2cm", num(s.mesh->complete_2cm)}};
+  j["lamps"] = json::array();
+  for (const LampScore& l : s.lamps)
+    j["lamps"].push_back({{"truth", vec(l.truth)}, {"estimate", vec(l.estimate)}, {"distance_m", l.distance_m},
+                          {"error_m", num(l.error_m)}, {"error_share", num(l.share)},
+                          {"intensity_ratio", num(l.intensity_ratio)}, {"light_times_albedo", num(l.light_times_albedo)}});
+  j["estimated_lamps"] = s.estimated_lamps;
+  j["spurious_share"] = s.spurious_share;
+  j["albedo_scale"] = num(s.albedo_scale);
+  j["albedo_samples"] = s.albedo_samples;
+  j["held_out_relit"] = num(s.held_out_relit);
+  j["held_out_covered"] = num(s.held_out_covered);
+  j["held_out_relit_covered"] = num(s.held_out_relit_covered);
+  j["seconds"] = s.seconds;
+  return j.dump(2) + "\n";
+}
+
+}  // namespace lp::app

@@ -1,0 +1,76 @@
+#pragma once
+/// `lightprobe evaluate`: a headless run (RUN/scene, RUN/estimate) scored against a scan's
+/// ground truth (a frame directory with truth.json, gt_mesh.ply and holdout/, as the Cycles
+/// scans in docs/benchmarks.md): the mesh against the true geometry, each true lamp against
+/// the nearest estimated one, the albedo's scale and the held-out view relit.
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "common/image.h"
+#include "scene/mesh.h"
+#include "scene/scene_bundle.h"
+
+namespace lp::app {
+
+/// A view the run never saw: its camera, the rendered image (linear, image units), the
+/// pixels it covers, and the renderer's true albedo there (holdout/holdout.json).
+struct HeldOutView {
+  View view;             ///< image, camera, valid = the mask
+  ImageRGB true_albedo;  ///< empty when holdout.json names none
+};
+/// Reads holdout.json and the files it names. Throws InputError naming the file.
+HeldOutView ReadHeldOutView(const std::filesystem::path& holdout_json);
+
+/// Distances (metres) from the reconstructed surface to the true one (its vertices to
+/// points sampled on `truth`'s triangles every ~5 mm), and the share of the true points
+/// that have a reconstructed vertex within 2 cm (where the true surface was seen: only
+/// `seen_from` cameras' first hits are counted; all of them without cameras).
+struct MeshError {
+  double median_m = 0, p90_m = 0;
+  double complete_2cm = 0;
+};
+MeshError CompareMeshes(const Mesh& reconstructed, const Mesh& truth, const std::vector<Camera>& seen_from = {});
+
+/// The albedo's scale: the median, over the held-out view's covered pixels that a vertex of
+/// `mesh` projects into unoccluded (its depth within 3 cm of the first hit on `mesh`), of
+/// luminance(the vertex's albedo) / luminance(the true albedo there). NaN without samples.
+double AlbedoScale(const Mesh& mesh, const HeldOutView& view, int* samples = nullptr);
+
+/// One true lamp against the nearest estimated point light.
+struct LampScore {
+  Eigen::Vector3d truth = Eigen::Vector3d::Zero(), estimate = Eigen::Vector3d::Zero();
+  double distance_m = 0;      ///< the true lamp from the room's centre
+  double error_m = INFINITY;  ///< to the nearest estimate (infinite without one)
+  double share = INFINITY;    ///< error_m / distance_m
+  double intensity_ratio = NAN;      ///< luminance(estimated I) / luminance(true I)
+  double light_times_albedo = NAN;   ///< intensity_ratio * the albedo's scale (1 = right)
+};
+
+struct ScanScore {
+  std::optional<MeshError> mesh;  ///< when the truth has gt_mesh.ply
+  std::vector<LampScore> lamps;
+  int estimated_lamps = 0;
+  /// The estimated lamps that are no true lamp's nearest: their share of the irradiance
+  /// all estimated lamps give the room's centre (luminance / d^2), the largest.
+  double spurious_share = 0;
+  double albedo_scale = NAN;
+  int albedo_samples = 0;
+  double held_out_relit = NAN;  ///< relative RMSE of the held-out view relit under the estimate
+  /// The share of the held-out view's pixels the reconstruction covers, and the relit error
+  /// over those alone (the light's part, the holes of the scan aside).
+  double held_out_covered = NAN, held_out_relit_covered = NAN;
+  double seconds = 0;
+};
+
+/// Scores `run_dir` (RUN/scene, RUN/estimate) against `truth_dir`. The held-out view is
+/// relit with `spp` paths per pixel (seed 1). Throws InputError naming a missing or bad file.
+ScanScore EvaluateScan(const std::filesystem::path& truth_dir, const std::filesystem::path& run_dir, int spp);
+
+/// evaluation.json's text.
+std::string ScanScoreJson(const ScanScore& score);
+
+}  // namespace lp::app

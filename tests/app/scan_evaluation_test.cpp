@@ -1,0 +1,83 @@
+// `lightprobe evaluate`'s measures against closed forms: a surface against itself moved,
+// an albedo at a known scale, a lamp at a known distance, a held-out file's errors.
+#include <cmath>
+#include <filesystem>
+
+#include <unistd.h>
+#include <gtest/gtest.h>
+
+#include "app/scan_evaluation.h"
+#include "common/atomic_file.h"
+#include "common/error.h"
+#include "common/image_io.h"
+#include "tests/test_util.h"
+
+namespace lp {
+namespace {
+namespace fs = std::filesystem;
+using app::AlbedoScale;
+using app::CompareMeshes;
+using app::HeldOutView;
+
+/// A plane split into a grid of n x n quads (vertices every size/n metres).
+Mesh GridPlane(double size, int n, double rho, double z = 0) {
+  Mesh m;
+  for (int j = 0; j <= n; ++j)
+    for (int i = 0; i <= n; ++i)
+      m.positions.emplace_back(static_cast<float>(size * (i / double(n) - 0.5)),
+                               static_cast<float>(size * (j / double(n) - 0.5)), static_cast<float>(z));
+  for (int j = 0; j < n; ++j)
+    for (int i = 0; i < n; ++i) {
+      const int a = j * (n + 1) + i, b = a + 1, c = a + n + 2, d = a + n + 1;
+      m.triangles.push_back({a, b, c});
+      m.triangles.push_back({a, c, d});
+    }
+  m.normals.assign(m.positions.size(), Eigen::Vector3f::UnitZ());
+  m.albedo.assign(m.positions.size(), Eigen::Vector3f::Constant(static_cast<float>(rho)));
+  return m;
+}
+
+TEST(ScanEvaluation, AMeshAgainstItselfMovedIsOffByTheMove) {
+  const Mesh truth = test::Plane(2, 0.5);  // two triangles: the measure samples its surface
+  const Mesh same = GridPlane(1.6, 160, 0.5);  // vertices 1 cm apart
+  const app::MeshError at_zero = CompareMeshes(same, truth);
+  EXPECT_LT(at_zero.p90_m, 0.004) << "vertices on the true surface (the samples are ~5 mm apart)";
+  const app::MeshError moved = CompareMeshes(GridPlane(1.6, 160, 0.5, 0.03), truth);
+  EXPECT_NEAR(moved.median_m, 0.03, 0.002);
+  EXPECT_NEAR(moved.p90_m, 0.03, 0.003);
+  // Completeness: the reconstruction covers the middle 1.6 x 1.6 of the true 2 x 2 (and a
+  // band 2 cm wide around it is within 2 cm); after the 3 cm move, nothing is.
+  EXPECT_NEAR(at_zero.complete_2cm, 1.64 * 1.64 / 4, 0.02);
+  EXPECT_EQ(moved.complete_2cm, 0);
+}
+
+TEST(ScanEvaluation, TheAlbedosScaleIsTheRatioToTheTrueAlbedo) {
+  HeldOutView held;
+  held.view = test::BlankView(test::LookAt({0, 0, 2}, {0, 0, 0}, 40, 30, 60));
+  held.true_albedo = ImageRGB(40, 30);
+  for (float& v : held.true_albedo.data) v = 0.4f;
+  int samples = 0;
+  EXPECT_NEAR(AlbedoScale(GridPlane(4, 8, 0.1), held, &samples), 0.25, 1e-6);
+  EXPECT_EQ(samples, 40 * 30) << "every pixel sees the plane";
+  held.view.valid.assign(held.view.valid.size(), 0);
+  EXPECT_TRUE(std::isnan(AlbedoScale(GridPlane(4, 8, 0.1), held, &samples)));
+  EXPECT_EQ(samples, 0);
+}
+
+TEST(ScanEvaluation, AHeldOutFileWithAWrongSizeIsAClearError) {
+  const fs::path dir = fs::temp_directory_path() / ("lp_scan_eval_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  WriteExr(dir / "held.exr", ImageRGB(8, 6));
+  WriteTextAtomically(dir / "holdout.json",
+                      R"({"image": "held.exr", "width": 16, "height": 6, "fx": 10, "fy": 10, "cx": 8, "cy": 3,
+                          "world_from_camera": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]})");
+  EXPECT_NE(test::ErrorOf([&] { app::ReadHeldOutView(dir / "holdout.json"); }).find("the image's size is not the camera's"),
+            std::string::npos);
+  WriteTextAtomically(dir / "holdout.json", R"({"image": "held.exr"})");
+  EXPECT_NE(test::ErrorOf([&] { app::ReadHeldOutView(dir / "holdout.json"); }).find("no number \"width\""),
+            std::string::npos);
+  fs::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace lp
