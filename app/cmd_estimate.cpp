@@ -212,14 +212,21 @@ static json SecondsJson(const EstimateResult& r, double command_seconds) {
 /// where the albedo is known (no shaded colours) or when turned off. Writes albedo_mesh.ply
 /// when done; returns report.json's "albedo".
 static json WriteAlbedo(const fs::path& out, const SceneBundle& bundle, const EstimateResult& r) {
-  json albedo = {{"refined", !r.albedo.empty()}, {"passes", r.albedo_passes}, {"segments", r.albedo_segments}};
+  json albedo = {{"refined", r.albedo_passes > 0},
+                 {"passes", r.albedo_passes},
+                 {"segments", r.albedo_segments},
+                 {"scale", r.albedo_scale}};
+  if (r.albedo_scale != 1)
+    albedo["scale_rule"] = "the colours seen scaled so their brightest large surfaces (the 90th percentile of the "
+                           "vertices' luminance) have albedo --bright-albedo; the lights are in its terms";
   if (!r.albedo.empty()) {
     Mesh mesh = bundle.mesh;
     mesh.albedo = r.albedo;
     mesh.shaded.clear();
     WritePly(out / "albedo_mesh.ply", mesh);
     albedo["mesh"] = "albedo_mesh.ply";
-  } else {
+  }
+  if (r.albedo_passes == 0) {
     // The reason as the command line says it (the library names no flags).
     albedo["why_not"] = r.albedo_left_out == AlbedoLeftOut::kNoPasses ? "--albedo-passes 0"
                                                                      : ToString(r.albedo_left_out);

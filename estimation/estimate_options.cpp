@@ -4,6 +4,7 @@
 #include <cstdlib>
 
 #include "common/error.h"
+#include "scene/albedo.h"
 
 namespace lp {
 namespace {
@@ -46,6 +47,10 @@ std::vector<EstimateOption> MakeTable() {
        "the bundle's albedo)",
        Type::kInt, 0, kMaxAlbedoPasses, false, LP_GET(albedo_passes), LP_SET(albedo_passes, int), "albedo passes", 0,
        kMaxAlbedoPasses, {}},
+      {"bright-albedo", "bright_albedo",
+       "a reconstructed mesh's albedo is scaled so its brightest large surfaces (the 90th percentile of the "
+       "vertices' luminance) have this albedo; 0 = the colours' scale",
+       Type::kReal, 0, kMaxAlbedo, false, LP_GET(bright_albedo), LP_SET(bright_albedo, double), "", 0, 0, {}},
       {"albedo-samples", "albedo_samples", "paths per vertex for the irradiance an albedo pass de-lights by",
        Type::kInt, 1, 4096, false, LP_GET(albedo_samples), LP_SET(albedo_samples, int), "", 0, 0, {}},
       {"trace-pixels", "trace_pixels",

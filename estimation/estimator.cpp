@@ -27,9 +27,10 @@ std::vector<double> CollectObservations(const std::vector<View>& views) {
 
 namespace lp::detail {
 
-Estimator::Estimator(const SceneBundle& bundle, const EstimateOptions& options)
+Estimator::Estimator(const SceneBundle& bundle, const EstimateOptions& options, double albedo_scale)
     : bundle_(bundle), opt_(options), env_(res_.env) {
   Validate(opt_);
+  res_.albedo_scale = albedo_scale;
   res_.env = EnvMap(opt_.rings, bundle_.up);
   cells_ = env_.size();
   Observe();
@@ -413,6 +414,7 @@ void Estimator::EndRound(const SolveResult& sr, RoundInfo* info) {
 
 void Estimator::Conclude() {
   if (res_.albedo_passes > 0) res_.albedo = mesh_.albedo;
+  else if (res_.albedo_scale != 1) res_.albedo = bundle_.mesh.albedo;  // the scaled albedo the lights go with
   res_.left_out.assign(cells_, 0);
   for (int j = 0; j < cells_; ++j) res_.left_out[j] = !reachable_[j];
   res_.lighting = InImageUnits();
@@ -477,7 +479,15 @@ void Estimator::PutFit(std::vector<ImageRGB>* renders) {
 namespace lp {
 
 EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& options) {
-  detail::Estimator estimator(bundle, options);
+  // A reconstructed mesh's albedo (the colours seen) at the scale of real albedos first.
+  const bool reconstructed = bundle.mesh.shaded.size() == bundle.mesh.positions.size() && !bundle.mesh.shaded.empty();
+  const double scale = reconstructed ? AlbedoScaleTo(bundle.mesh, options.bright_albedo) : 1;
+  std::optional<SceneBundle> scaled;
+  if (scale != 1) {
+    scaled = bundle;
+    ScaleAlbedo(&scaled->mesh, scale);
+  }
+  detail::Estimator estimator(scaled ? *scaled : bundle, options, scale);
   estimator.RunRounds();
   if (estimator.AlbedoRefinable())
     for (int pass = 1; pass <= options.albedo_passes && estimator.RefineAlbedo(pass); ++pass) estimator.RunRounds();

@@ -119,6 +119,10 @@ struct EstimateResult {
   int albedo_passes = 0, albedo_segments = 0;
   double albedo_seconds = 0;  ///< de-lighting and segmenting (the extra rounds are in `rounds`)
   AlbedoLeftOut albedo_left_out = AlbedoLeftOut::kRefined;  ///< why the albedo was not refined
+  /// The factor a reconstructed mesh's albedo was scaled by before the rounds
+  /// (EstimateOptions::bright_albedo; 1: not scaled). The lights' intensities are in the
+  /// scaled albedo's terms, and `albedo` holds the scaled (or refined) albedo.
+  double albedo_scale = 1;
 };
 
 /// Runs the estimate on a loaded bundle. Throws InputError when nothing usable is

@@ -96,7 +96,7 @@ bool Estimator::RefineAlbedo(int pass) {
       }
       irradiance = OverClusters(radiance.Irradiance());
     }  // before the scene it refers to is replaced
-    segments = DelightAlbedo(&mesh_, irradiance);
+    segments = DelightAlbedo(&mesh_, irradiance, DelitAlbedoOptions(), res_.albedo_scale);
   }
   res_.albedo_seconds += as.Seconds();
   if (segments < 0) {

@@ -95,7 +95,8 @@ struct RoundProblem {
 /// result. Each step is a method; the state they share is the members.
 class Estimator {
  public:
-  Estimator(const SceneBundle& bundle, const EstimateOptions& options);
+  /// `bundle`'s albedo is already scaled by `albedo_scale` (EstimateResult::albedo_scale).
+  Estimator(const SceneBundle& bundle, const EstimateOptions& options, double albedo_scale = 1);
 
   /// Up to max_rounds rounds under the current albedo (round 1 is the cold start; after an
   /// albedo pass they are warm-started from the estimate so far, with an A of their own);

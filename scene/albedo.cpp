@@ -88,7 +88,7 @@ AlbedoOptions DelitAlbedoOptions() {
   return o;
 }
 
-int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options) {
+int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options, double scale) {
   const std::size_t n = mesh->positions.size();
   LP_CHECK(mesh->shaded.size() == n && irradiance.size() == n && mesh->albedo.size() == n,
            "DelightAlbedo: shaded colours and irradiance per vertex");
@@ -113,9 +113,23 @@ int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const Albedo
   // The de-lit colours have a long tail (demo: 90th percentile 0.37, 99th 2.4 at this
   // scale), which is clipped at 0.95; scaling everything down to fit the tail instead
   // fitted the demo worse (docs/method.md).
-  const float scale = static_cast<float>(before / after);
-  for (Eigen::Vector3f& a : mesh->albedo) a = (a * scale).cwiseMax(0.f).cwiseMin(0.95f);
+  ScaleAlbedo(mesh, scale * before / after);
   return segments;
+}
+
+double AlbedoScaleTo(const Mesh& mesh, double bright) {
+  if (!(bright > 0) || mesh.albedo.empty()) return 1;
+  std::vector<float> lum;
+  lum.reserve(mesh.albedo.size());
+  for (const Eigen::Vector3f& a : mesh.albedo) lum.push_back(0.2126f * a.x() + 0.7152f * a.y() + 0.0722f * a.z());
+  const std::size_t k = (9 * lum.size()) / 10;
+  std::nth_element(lum.begin(), lum.begin() + k, lum.end());
+  return lum[k] > 0 && std::isfinite(lum[k]) ? bright / lum[k] : 1;
+}
+
+void ScaleAlbedo(Mesh* mesh, double scale) {
+  const float s = static_cast<float>(scale);
+  for (Eigen::Vector3f& a : mesh->albedo) a = (a * s).cwiseMax(0.f).cwiseMin(kMaxAlbedo);
 }
 
 }  // namespace lp

@@ -19,6 +19,9 @@ struct AlbedoOptions {
   int min_segment = 200;        ///< vertices: smaller segments keep their per-vertex colour
 };
 
+/// The largest albedo a refined or scaled albedo is given (no real surface reflects all).
+inline constexpr float kMaxAlbedo = 0.95f;
+
 /// Replaces each segment's per-vertex albedo by the segment's mean; returns the number of
 /// segments flattened.
 int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& options = {});
@@ -32,10 +35,18 @@ AlbedoOptions DelitAlbedoOptions();
 /// vertex's `shaded` colour divided by its grey irradiance `irradiance[v]` (any positive
 /// unit; below 5 % of the median it is taken as 5 % of the median: unlit vertices) is its
 /// albedo as the estimate explains it; that is segmented and flattened as FlattenAlbedo
-/// does with `options`, scaled so its mean luminance is that of the colours seen (as the
-/// reconstruction's flattened albedo; the light's scale and the interreflections are tied
-/// to it, and a second pass starts from the same scale), and clipped to [0, 0.95]. Needs mesh->shaded; returns the segments, or
-/// -1 when it keeps the albedo as it was (no vertex lit, or every colour seen black).
-int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options = DelitAlbedoOptions());
+/// does with `options`, scaled so its mean is `scale` times that of the colours seen (as
+/// the reconstruction's flattened albedo times the estimate's absolute scale; the light's
+/// scale and the interreflections are tied to it, and a second pass starts from the same
+/// scale), and clipped to [0, kMaxAlbedo]. Needs mesh->shaded; returns the segments, or -1
+/// when it keeps the albedo as it was (no vertex lit, or every colour seen black).
+int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options = DelitAlbedoOptions(),
+                  double scale = 1);
+
+/// The factor that takes `mesh`'s albedo to one whose 90th percentile of luminance over
+/// the vertices is `bright` (1 when it is black or `bright` is 0).
+double AlbedoScaleTo(const Mesh& mesh, double bright);
+/// Multiplies the albedo by `scale`, clipped to [0, kMaxAlbedo].
+void ScaleAlbedo(Mesh* mesh, double scale);
 
 }  // namespace lp

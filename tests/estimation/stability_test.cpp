@@ -576,7 +576,9 @@ TEST(Stability, AlbedoRefinementComesCloserToTheTrueAlbedo) {
     const EstimateResult on = Estimate(b, eo);
     ExpectHealthy(on);
     EXPECT_EQ(on.trace_cell_m > 0, trace_pixels > 0) << on.traced_triangles << " triangles traced";
-    EXPECT_TRUE(off.albedo.empty());
+    // Unrefined, the result holds the albedo only where it was scaled (--bright-albedo).
+    EXPECT_EQ(off.albedo.empty(), off.albedo_scale == 1) << off.albedo_scale;
+    EXPECT_EQ(on.albedo_scale, off.albedo_scale);
     ASSERT_EQ(on.albedo.size(), b.mesh.positions.size());
     EXPECT_EQ(on.albedo_passes, 1);
     EXPECT_GT(on.rounds.size(), off.rounds.size()) << "the rounds went on under the new albedo";
@@ -610,12 +612,18 @@ TEST(Stability, AlbedoRefinementWithNothingLitOrSeenKeepsTheAlbedo) {
   eo.directional_lights = false;  // the map alone (a sun is sought whatever the lamps)
   const EstimateResult r = Estimate(b, eo);
   ExpectHealthy(r);
-  EXPECT_TRUE(r.albedo.empty());
+  // Kept: at most scaled to real albedos (--bright-albedo), not refined.
+  EXPECT_EQ(r.albedo.empty(), r.albedo_scale == 1);
+  for (std::size_t v = 0; v < r.albedo.size(); v += 97)
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(r.albedo[v][c], std::min(kMaxAlbedo, static_cast<float>(r.albedo_scale) * b.mesh.albedo[v][c]), 1e-5f);
   EXPECT_EQ(r.albedo_passes, 0);
   EXPECT_EQ(r.warnings.size(), 1u);
   // A lit estimate but every colour seen black (a hand-made bundle): nothing to de-light.
   for (auto& c : b.mesh.shaded) c.setZero();
-  const EstimateResult black = Estimate(b, Small());
+  EstimateOptions unscaled = Small();
+  unscaled.bright_albedo = 0;  // (scaled, the result would hold the scaled albedo)
+  const EstimateResult black = Estimate(b, unscaled);
   ExpectHealthy(black);
   EXPECT_TRUE(black.albedo.empty());
   EXPECT_EQ(black.albedo_passes, 0);

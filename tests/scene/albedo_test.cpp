@@ -1,5 +1,7 @@
 // FlattenAlbedo and DelightAlbedo: shading baked into the fused colour is flattened per segment of one
 // chromaticity; different materials stay apart.
+#include <algorithm>
+
 #include <gtest/gtest.h>
 
 #include "scene/albedo.h"
@@ -113,6 +115,34 @@ TEST(DelightAlbedo, TwoSurfacesOfOneChromaticityMergedByTheColourSeenAreSplitByT
   double after = 0;
   for (const auto& a : s.mesh.albedo) after += a.sum();
   EXPECT_NEAR(after, before, 1e-4 * before) << "the mean albedo (the light's scale) is unchanged";
+}
+
+TEST(DelightAlbedo, AnAbsoluteScaleIsKeptAndClippedAtTheLargestAlbedo) {
+  // The same de-lighting at scale 3: every albedo three times the scale-1 result, none
+  // above kMaxAlbedo.
+  FloorAndWall one, three;
+  AlbedoOptions d = DelitAlbedoOptions();
+  d.min_segment = 50;
+  ASSERT_EQ(DelightAlbedo(&one.mesh, one.irradiance, d), 2);
+  ASSERT_EQ(DelightAlbedo(&three.mesh, three.irradiance, d, 3.0), 2);
+  for (int v : {0, 599, 600, 1199})
+    for (int c = 0; c < 3; ++c)
+      EXPECT_NEAR(three.mesh.albedo[v][c], std::min(kMaxAlbedo, 3 * one.mesh.albedo[v][c]), 1e-5f) << v << "," << c;
+}
+
+TEST(AlbedoScale, TheBrightestTenthIsTakenToTheGivenAlbedo) {
+  // 100 vertices of luminance 0.01 .. 1.00 (grey): the 90th percentile is the 91st, 0.91.
+  Mesh m;
+  for (int i = 1; i <= 100; ++i) m.albedo.push_back(Eigen::Vector3f::Constant(0.01f * i));
+  std::reverse(m.albedo.begin(), m.albedo.end());  // (any order)
+  EXPECT_NEAR(AlbedoScaleTo(m, 0.7), 0.7 / 0.91, 1e-5);
+  EXPECT_EQ(AlbedoScaleTo(m, 0), 1) << "0: the colours' scale";
+  ScaleAlbedo(&m, 2);
+  EXPECT_FLOAT_EQ(m.albedo[99].x(), 0.02f);
+  EXPECT_FLOAT_EQ(m.albedo[0].x(), kMaxAlbedo) << "clipped";
+  Mesh black;
+  black.albedo.assign(10, Eigen::Vector3f::Zero());
+  EXPECT_EQ(AlbedoScaleTo(black, 0.7), 1) << "nothing to scale";
 }
 
 TEST(DelightAlbedo, NoisyIrradianceStillSplitsAndUnlitVerticesStayFinite) {
