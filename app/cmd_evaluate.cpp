@@ -1,4 +1,5 @@
 // `lightprobe evaluate`: a headless run scored against a scan's ground truth (app/scan_evaluation.h).
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
@@ -37,11 +38,19 @@ Run AddEvaluate(CLI::App& app) {
                   "intensity x%.2f, light x albedo x%.2f\n",
                   k, 100 * l.error_m, 100 * l.share, l.distance_m, l.intensity_ratio, l.light_times_albedo);
     }
+    for (std::size_t k = 0; k < s.suns.size(); ++k) {
+      if (std::isfinite(s.suns[k].angle_deg))
+        std::printf("sun %zu: %.2f degrees from the nearest directional light, irradiance x%.2f\n", k,
+                    s.suns[k].angle_deg, s.suns[k].irradiance_ratio);
+      else
+        std::printf("sun %zu: no directional light estimated\n", k);
+    }
     std::printf("%d lamp(s) estimated; the largest spurious one gives %.1f %% of their light at the centre\n",
                 s.estimated_lamps, 100 * s.spurious_share);
     std::printf("albedo's scale (estimated / true) %.3f over %d pixels; held-out view relit: relative RMSE %.3f "
-                "(%.3f over the %.0f %% of its pixels the scan covers)\n",
-                s.albedo_scale, s.albedo_samples, s.held_out_relit, s.held_out_relit_covered, 100 * s.held_out_covered);
+                "(%.3f over the %.0f %% of its pixels the scan covers; %.3f there with the true albedo: the light's part)\n",
+                s.albedo_scale, s.albedo_samples, s.held_out_relit, s.held_out_relit_covered, 100 * s.held_out_covered,
+                s.held_out_relit_true_albedo);
     const fs::path out = fs::path(*run) / "evaluation.json";
     WriteTextAtomically(out, ScanScoreJson(s));
     std::printf("wrote %s in %.1f s\n", out.c_str(), s.seconds);

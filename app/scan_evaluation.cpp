@@ -74,6 +74,7 @@ std::vector<Eigen::Vector3f> SurfacePoints(const Mesh& mesh, double spacing) {
 struct TrueLamps {
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   std::vector<PointLight> lamps;
+  std::vector<DirectionalLight> suns;  ///< irradiance from "irradiance_rgb_W_per_m2"
 };
 
 TrueLamps ReadTrueLamps(const fs::path& file) {
@@ -82,6 +83,13 @@ TrueLamps ReadTrueLamps(const fs::path& file) {
   if (j.contains("scene_bbox") && j["scene_bbox"].contains("centre")) t.centre = Vec3(j["scene_bbox"], "centre", file);
   if (!j.contains("lights") || !j["lights"].is_array()) return t;
   for (const json& l : j["lights"]) {
+    if (!l.contains("position") && l.contains("direction") && l.contains("irradiance_rgb_W_per_m2")) {
+      DirectionalLight d;
+      d.direction = Vec3(l, "direction", file).normalized();
+      d.irradiance = Vec3(l, "irradiance_rgb_W_per_m2", file);
+      t.suns.push_back(d);
+      continue;
+    }
     if (!l.contains("position") || !l.contains("intensity_image_units")) continue;
     PointLight p;
     p.position = Vec3(l, "position", file);
@@ -126,6 +134,22 @@ void ScoreLamps(const TrueLamps& truth, const std::vector<PointLight>& estimate,
   s->estimated_lamps = static_cast<int>(estimate.size());
 }
 
+/// Each true sun against the nearest estimated directional light.
+void ScoreSuns(const TrueLamps& truth, const std::vector<DirectionalLight>& estimate, ScanScore* s) {
+  for (const DirectionalLight& t : truth.suns) {
+    SunScore ss;
+    ss.truth = t.direction;
+    for (const DirectionalLight& e : estimate) {
+      const double angle = AngleDeg(e.direction, t.direction);
+      if (angle < ss.angle_deg) {
+        ss.angle_deg = angle;
+        ss.irradiance_ratio = Lum(e.irradiance) / Lum(t.irradiance);
+      }
+    }
+    s->suns.push_back(ss);
+  }
+}
+
 /// The held-out view relit under the run's estimate (its map, every light) on `mesh`: its
 /// error over the view's pixels, and over those `mesh` covers (`covered`: their share).
 void RelitError(const HeldOutView& held, const Mesh& mesh, const fs::path& estimate_dir, const Eigen::Vector3d& up,
@@ -144,6 +168,10 @@ void RelitError(const HeldOutView& held, const Mesh& mesh, const fs::path& estim
   s->held_out_relit = RelativeImageRmse(image, held.view.image, held.view.valid);
   const Camera& c = held.view.camera;
   std::vector<std::uint8_t> covered = held.view.valid;
+  // The light's part: each covered pixel's shading (the render over the albedo it hit)
+  // times the true albedo there, so the colour map's own errors drop out.
+  const bool true_albedo = held.true_albedo.width == c.width && held.true_albedo.height == c.height;
+  ImageRGB shaded_true = image;
   long in_view = 0, hit = 0;
   for (int y = 0; y < c.height; ++y)
     for (int x = 0; x < c.width; ++x) {
@@ -153,9 +181,26 @@ void RelitError(const HeldOutView& held, const Mesh& mesh, const fs::path& estim
       SurfacePoint p;
       v = tracer.Intersect(c.center(), c.RayDirection(x, y), &p);
       hit += v;
+      if (!v || !true_albedo) continue;
+      float* out = shaded_true.at(x, y);
+      const float* a = held.true_albedo.at(x, y);
+      for (int ch = 0; ch < 3; ++ch) out[ch] = p.albedo[ch] > 1e-3 ? static_cast<float>(out[ch] / p.albedo[ch] * a[ch]) : 0.f;
     }
   s->held_out_covered = in_view ? static_cast<double>(hit) / in_view : 0;
   s->held_out_relit_covered = RelativeImageRmse(image, held.view.image, covered);
+  if (!true_albedo) return;
+  // At the one scale that fits best (light x albedo is what the images fix; the scale's
+  // share of the error is in light_times_albedo).
+  double num = 0, den = 0;
+  for (std::size_t p = 0; p < covered.size(); ++p)
+    if (covered[p])
+      for (int ch = 0; ch < 3; ++ch) {
+        num += static_cast<double>(shaded_true.data[3 * p + ch]) * held.view.image.data[3 * p + ch];
+        den += static_cast<double>(shaded_true.data[3 * p + ch]) * shaded_true.data[3 * p + ch];
+      }
+  s->held_out_true_albedo_scale = den > 0 ? num / den : NAN;
+  for (float& v : shaded_true.data) v = static_cast<float>(v * s->held_out_true_albedo_scale);
+  s->held_out_relit_true_albedo = RelativeImageRmse(shaded_true, held.view.image, covered);
 }
 
 }  // namespace
@@ -248,7 +293,9 @@ ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int s
   }
   const fs::path lights_path = estimate_dir / "lights.json";
   const LightsFile lights = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
-  ScoreLamps(ReadTrueLamps(truth_dir / "truth.json"), OfKind<PointLight>(lights.lights), &s);
+  const TrueLamps truth = ReadTrueLamps(truth_dir / "truth.json");
+  ScoreLamps(truth, OfKind<PointLight>(lights.lights), &s);
+  ScoreSuns(truth, OfKind<DirectionalLight>(lights.lights), &s);
   const fs::path albedo_mesh = estimate_dir / "albedo_mesh.ply";
   Mesh lit = fs::exists(albedo_mesh) ? ReadPly(albedo_mesh) : reconstructed;
   SanitizeMesh(&lit, albedo_mesh.string());
@@ -275,6 +322,10 @@ std::string ScanScoreJson(const ScanScore& s) {
     j["lamps"].push_back({{"truth", vec(l.truth)}, {"estimate", vec(l.estimate)}, {"distance_m", l.distance_m},
                           {"error_m", num(l.error_m)}, {"error_share", num(l.share)},
                           {"intensity_ratio", num(l.intensity_ratio)}, {"light_times_albedo", num(l.light_times_albedo)}});
+  j["suns"] = json::array();
+  for (const SunScore& u : s.suns)
+    j["suns"].push_back({{"truth", vec(u.truth)}, {"angle_deg", num(u.angle_deg)},
+                         {"irradiance_ratio", num(u.irradiance_ratio)}});
   j["estimated_lamps"] = s.estimated_lamps;
   j["spurious_share"] = s.spurious_share;
   j["albedo_scale"] = num(s.albedo_scale);
@@ -282,6 +333,8 @@ std::string ScanScoreJson(const ScanScore& s) {
   j["held_out_relit"] = num(s.held_out_relit);
   j["held_out_covered"] = num(s.held_out_covered);
   j["held_out_relit_covered"] = num(s.held_out_relit_covered);
+  j["held_out_relit_true_albedo"] = num(s.held_out_relit_true_albedo);
+  j["held_out_true_albedo_scale"] = num(s.held_out_true_albedo_scale);
   j["seconds"] = s.seconds;
   return j.dump(2) + "\n";
 }

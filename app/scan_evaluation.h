@@ -50,9 +50,18 @@ struct LampScore {
   double light_times_albedo = NAN;   ///< intensity_ratio * the albedo's scale (1 = right)
 };
 
+/// One true sun (a light with a direction and no position) against the nearest estimated
+/// directional light.
+struct SunScore {
+  Eigen::Vector3d truth = Eigen::Vector3d::UnitZ();
+  double angle_deg = INFINITY;  ///< to the nearest directional light (infinite without one)
+  double irradiance_ratio = NAN;  ///< luminance(estimated) / luminance(true)
+};
+
 struct ScanScore {
   std::optional<MeshError> mesh;  ///< when the truth has gt_mesh.ply
   std::vector<LampScore> lamps;
+  std::vector<SunScore> suns;
   int estimated_lamps = 0;
   /// The estimated lamps that are no true lamp's nearest: their share of the irradiance
   /// all estimated lamps give the room's centre (luminance / d^2), the largest.
@@ -63,6 +72,11 @@ struct ScanScore {
   /// The share of the held-out view's pixels the reconstruction covers, and the relit error
   /// over those alone (the light's part, the holes of the scan aside).
   double held_out_covered = NAN, held_out_relit_covered = NAN;
+  /// The same over the covered pixels with the estimate's shading (the render over the
+  /// albedo each pixel's ray hits) times the true albedo there: the light's part of the
+  /// error, the colour map's (sharpness, registration, segmentation) taken out, at the one
+  /// scale that fits best (held_out_true_albedo_scale: light x albedo's own error aside).
+  double held_out_relit_true_albedo = NAN, held_out_true_albedo_scale = NAN;
   double seconds = 0;
 };
 

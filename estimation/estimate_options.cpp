@@ -4,7 +4,6 @@
 #include <cstdlib>
 
 #include "common/error.h"
-#include "scene/albedo.h"
 
 namespace lp {
 namespace {
@@ -47,10 +46,11 @@ std::vector<EstimateOption> MakeTable() {
        "the bundle's albedo)",
        Type::kInt, 0, kMaxAlbedoPasses, false, LP_GET(albedo_passes), LP_SET(albedo_passes, int), "albedo passes", 0,
        kMaxAlbedoPasses, {}},
-      {"bright-albedo", "bright_albedo",
-       "a reconstructed mesh's albedo is scaled so its brightest large surfaces (the 90th percentile of the "
-       "vertices' luminance) have this albedo; 0 = the colours' scale",
-       Type::kReal, 0, kMaxAlbedo, false, LP_GET(bright_albedo), LP_SET(bright_albedo, double), "", 0, 0, {}},
+      {"room-albedo", "room_albedo",
+       "a reconstructed mesh's albedo is scaled so its median over the surface (in a room, a wall) is this; 0 = "
+       "the colours' scale",
+       Type::kReal, 0, 0.95 /* kMaxAlbedo as a decimal */, false, LP_GET(room_albedo), LP_SET(room_albedo, double),
+       "", 0, 0, {}},
       {"albedo-samples", "albedo_samples", "paths per vertex for the irradiance an albedo pass de-lights by",
        Type::kInt, 1, 4096, false, LP_GET(albedo_samples), LP_SET(albedo_samples, int), "", 0, 0, {}},
       {"trace-pixels", "trace_pixels",

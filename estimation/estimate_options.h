@@ -122,11 +122,11 @@ struct EstimateOptions {
   /// The albedo's absolute scale, for a reconstructed mesh (one with `shaded` colours): the
   /// colours seen are albedo times the light, so their scale is the light's, and it sets
   /// the interreflections (which scale with the albedo) and so where the lamps go. The
-  /// mesh's albedo is scaled so that its 90th percentile of luminance over the vertices
-  /// (the brightest large surfaces: a room's walls) is this, the albedo of light paint;
-  /// every albedo pass keeps that scale. 0 keeps the colours' scale (docs/method.md,
-  /// "The albedo's scale").
-  double bright_albedo = 0.7;
+  /// mesh's albedo is scaled so that its median luminance over the vertices (about the
+  /// surface's median: in a room, a wall) is this, the albedo of light paint; every albedo
+  /// pass keeps that scale. 0 keeps the colours' scale (docs/method.md, "The albedo's
+  /// scale").
+  double room_albedo = 0.7;
   /// Stop when the rendered estimate changes by less than this between rounds:
   /// |A (lambda_k - lambda_{k-1})| / |A lambda_k| < 2 % (over the observed pixels).
   double change_threshold = 0.02;

@@ -481,7 +481,7 @@ namespace lp {
 EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& options) {
   // A reconstructed mesh's albedo (the colours seen) at the scale of real albedos first.
   const bool reconstructed = bundle.mesh.shaded.size() == bundle.mesh.positions.size() && !bundle.mesh.shaded.empty();
-  const double scale = reconstructed ? AlbedoScaleTo(bundle.mesh, options.bright_albedo) : 1;
+  const double scale = reconstructed ? AlbedoScaleTo(bundle.mesh, options.room_albedo) : 1;
   std::optional<SceneBundle> scaled;
   if (scale != 1) {
     scaled = bundle;

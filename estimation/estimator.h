@@ -120,7 +120,7 @@ struct EstimateResult {
   double albedo_seconds = 0;  ///< de-lighting and segmenting (the extra rounds are in `rounds`)
   AlbedoLeftOut albedo_left_out = AlbedoLeftOut::kRefined;  ///< why the albedo was not refined
   /// The factor a reconstructed mesh's albedo was scaled by before the rounds
-  /// (EstimateOptions::bright_albedo; 1: not scaled). The lights' intensities are in the
+  /// (EstimateOptions::room_albedo; 1: not scaled). The lights' intensities are in the
   /// scaled albedo's terms, and `albedo` holds the scaled (or refined) albedo.
   double albedo_scale = 1;
 };

@@ -117,14 +117,14 @@ int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const Albedo
   return segments;
 }
 
-double AlbedoScaleTo(const Mesh& mesh, double bright) {
-  if (!(bright > 0) || mesh.albedo.empty()) return 1;
+double AlbedoScaleTo(const Mesh& mesh, double median) {
+  if (!(median > 0) || mesh.albedo.empty()) return 1;
   std::vector<float> lum;
   lum.reserve(mesh.albedo.size());
   for (const Eigen::Vector3f& a : mesh.albedo) lum.push_back(0.2126f * a.x() + 0.7152f * a.y() + 0.0722f * a.z());
-  const std::size_t k = (9 * lum.size()) / 10;
+  const std::size_t k = lum.size() / 2;
   std::nth_element(lum.begin(), lum.begin() + k, lum.end());
-  return lum[k] > 0 && std::isfinite(lum[k]) ? bright / lum[k] : 1;
+  return lum[k] > 0 && std::isfinite(lum[k]) ? median / lum[k] : 1;
 }
 
 void ScaleAlbedo(Mesh* mesh, double scale) {

@@ -43,9 +43,9 @@ AlbedoOptions DelitAlbedoOptions();
 int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options = DelitAlbedoOptions(),
                   double scale = 1);
 
-/// The factor that takes `mesh`'s albedo to one whose 90th percentile of luminance over
-/// the vertices is `bright` (1 when it is black or `bright` is 0).
-double AlbedoScaleTo(const Mesh& mesh, double bright);
+/// The factor that takes `mesh`'s albedo to one whose median luminance over the vertices
+/// is `median` (1 when that is black or `median` is 0).
+double AlbedoScaleTo(const Mesh& mesh, double median);
 /// Multiplies the albedo by `scale`, clipped to [0, kMaxAlbedo].
 void ScaleAlbedo(Mesh* mesh, double scale);
 

@@ -37,7 +37,7 @@ grep -q "albedo pass 1: de-lit" "$out/log" && grep -q '"refined": true' "$out/h/
 # Its rounds are logged as such (error against run time through the refinement).
 head -1 "$out/h/estimate/convergence.csv" | grep -q ",albedo_pass$" && grep -q ",0$" "$out/h/estimate/convergence.csv" &&
   grep -q ",1$" "$out/h/estimate/convergence.csv" || { echo "convergence.csv without the albedo pass"; exit 1; }
-# The albedo's absolute scale (--bright-albedo): without refinement the scaled albedo the
+# The albedo's absolute scale (--room-albedo): without refinement the scaled albedo the
 # lights go with is still written; with the colours' scale too (0), nothing is.
 "$exe" estimate "$out/scene" --out "$out/off" --albedo-passes 0 --max-rounds 1 --spp 8 --render-spp 8 --rings 9 \
   >"$out/olog" 2>&1 || { cat "$out/olog"; exit 1; }
@@ -45,7 +45,7 @@ grep -q '"why_not": "--albedo-passes 0"' "$out/off/report.json" && [ -s "$out/of
   { echo "refinement not left out with --albedo-passes 0, or the scaled albedo not written"; exit 1; }
 scale=$(python3 -c "import json,sys; print(json.load(open(sys.argv[1]))['albedo']['scale'])" "$out/off/report.json")
 check_between "the albedo's scale" "$scale" 1.5 50 || exit 1
-"$exe" estimate "$out/scene" --out "$out/off0" --albedo-passes 0 --bright-albedo 0 --max-rounds 1 --spp 8 \
+"$exe" estimate "$out/scene" --out "$out/off0" --albedo-passes 0 --room-albedo 0 --max-rounds 1 --spp 8 \
   --render-spp 8 --rings 9 >"$out/olog0" 2>&1 || { cat "$out/olog0"; exit 1; }
 [ ! -e "$out/off0/albedo_mesh.ply" ] || { echo "an unscaled, unrefined albedo was written"; exit 1; }
 "$exe" estimate "$demo/../demo" --out "$out/known" --max-rounds 1 --spp 8 --render-spp 8 --rings 9 \

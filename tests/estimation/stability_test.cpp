@@ -570,13 +570,14 @@ TEST(Stability, AlbedoRefinementComesCloserToTheTrueAlbedo) {
     SCOPED_TRACE("trace_pixels " + std::to_string(trace_pixels));
     EstimateOptions eo = Small();
     eo.trace_pixels = trace_pixels;
+    eo.room_albedo = 0;  // the colours seen are exposed to the albedo's scale already (AsReconstructed)
     eo.albedo_passes = 0;
     const EstimateResult off = Estimate(b, eo);
     eo.albedo_passes = 1;
     const EstimateResult on = Estimate(b, eo);
     ExpectHealthy(on);
     EXPECT_EQ(on.trace_cell_m > 0, trace_pixels > 0) << on.traced_triangles << " triangles traced";
-    // Unrefined, the result holds the albedo only where it was scaled (--bright-albedo).
+    // Unrefined, the result holds the albedo only where it was scaled (--room-albedo).
     EXPECT_EQ(off.albedo.empty(), off.albedo_scale == 1) << off.albedo_scale;
     EXPECT_EQ(on.albedo_scale, off.albedo_scale);
     ASSERT_EQ(on.albedo.size(), b.mesh.positions.size());
@@ -612,7 +613,7 @@ TEST(Stability, AlbedoRefinementWithNothingLitOrSeenKeepsTheAlbedo) {
   eo.directional_lights = false;  // the map alone (a sun is sought whatever the lamps)
   const EstimateResult r = Estimate(b, eo);
   ExpectHealthy(r);
-  // Kept: at most scaled to real albedos (--bright-albedo), not refined.
+  // Kept: at most scaled to real albedos (--room-albedo), not refined.
   EXPECT_EQ(r.albedo.empty(), r.albedo_scale == 1);
   for (std::size_t v = 0; v < r.albedo.size(); v += 97)
     for (int c = 0; c < 3; ++c)
@@ -622,7 +623,7 @@ TEST(Stability, AlbedoRefinementWithNothingLitOrSeenKeepsTheAlbedo) {
   // A lit estimate but every colour seen black (a hand-made bundle): nothing to de-light.
   for (auto& c : b.mesh.shaded) c.setZero();
   EstimateOptions unscaled = Small();
-  unscaled.bright_albedo = 0;  // (scaled, the result would hold the scaled albedo)
+  unscaled.room_albedo = 0;  // (scaled, the result would hold the scaled albedo)
   const EstimateResult black = Estimate(b, unscaled);
   ExpectHealthy(black);
   EXPECT_TRUE(black.albedo.empty());

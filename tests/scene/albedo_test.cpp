@@ -130,15 +130,15 @@ TEST(DelightAlbedo, AnAbsoluteScaleIsKeptAndClippedAtTheLargestAlbedo) {
       EXPECT_NEAR(three.mesh.albedo[v][c], std::min(kMaxAlbedo, 3 * one.mesh.albedo[v][c]), 1e-5f) << v << "," << c;
 }
 
-TEST(AlbedoScale, TheBrightestTenthIsTakenToTheGivenAlbedo) {
-  // 100 vertices of luminance 0.01 .. 1.00 (grey): the 90th percentile is the 91st, 0.91.
+TEST(AlbedoScale, TheMedianIsTakenToTheGivenAlbedo) {
+  // 101 vertices of luminance 0.01 .. 1.01 (grey): the median is the 51st, 0.51.
   Mesh m;
-  for (int i = 1; i <= 100; ++i) m.albedo.push_back(Eigen::Vector3f::Constant(0.01f * i));
+  for (int i = 1; i <= 101; ++i) m.albedo.push_back(Eigen::Vector3f::Constant(0.01f * i));
   std::reverse(m.albedo.begin(), m.albedo.end());  // (any order)
-  EXPECT_NEAR(AlbedoScaleTo(m, 0.7), 0.7 / 0.91, 1e-5);
+  EXPECT_NEAR(AlbedoScaleTo(m, 0.7), 0.7 / 0.51, 1e-5);
   EXPECT_EQ(AlbedoScaleTo(m, 0), 1) << "0: the colours' scale";
   ScaleAlbedo(&m, 2);
-  EXPECT_FLOAT_EQ(m.albedo[99].x(), 0.02f);
+  EXPECT_FLOAT_EQ(m.albedo[100].x(), 0.02f);
   EXPECT_FLOAT_EQ(m.albedo[0].x(), kMaxAlbedo) << "clipped";
   Mesh black;
   black.albedo.assign(10, Eigen::Vector3f::Zero());
