@@ -217,8 +217,9 @@ static json WriteAlbedo(const fs::path& out, const SceneBundle& bundle, const Es
                  {"segments", r.albedo_segments},
                  {"scale", r.albedo_scale}};
   if (r.albedo_scale != 1)
-    albedo["scale_rule"] = "the colours seen scaled so their median over the surface (the vertices' luminance) is "
-                           "--room-albedo; the lights are in its terms";
+    albedo["scale_rule"] = "the bundle's albedo (the colours seen, flattened) scaled so its median luminance over "
+                           "the vertices is --room-albedo; every albedo pass keeps that factor; the lights are in "
+                           "its terms";
   if (!r.albedo.empty()) {
     Mesh mesh = bundle.mesh;
     mesh.albedo = r.albedo;

@@ -319,7 +319,9 @@ std::string ScanScoreJson(const ScanScore& s) {
                  {"complete_2cm", num(s.mesh->complete_2cm)}};
   j["lamps"] = json::array();
   for (const LampScore& l : s.lamps)
-    j["lamps"].push_back({{"truth", vec(l.truth)}, {"estimate", vec(l.estimate)}, {"distance_m", l.distance_m},
+    j["lamps"].push_back({{"truth", vec(l.truth)},
+                          {"estimate", std::isfinite(l.error_m) ? vec(l.estimate) : json(nullptr)},
+                          {"distance_m", l.distance_m},
                           {"error_m", num(l.error_m)}, {"error_share", num(l.share)},
                           {"intensity_ratio", num(l.intensity_ratio)}, {"light_times_albedo", num(l.light_times_albedo)}});
   j["suns"] = json::array();

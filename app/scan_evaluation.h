@@ -26,7 +26,8 @@ struct HeldOutView {
 HeldOutView ReadHeldOutView(const std::filesystem::path& holdout_json);
 
 /// Distances (metres) from the reconstructed surface to the true one (its vertices to
-/// points sampled on `truth`'s triangles every ~5 mm), and the share of the true points
+/// points sampled on `truth`'s triangles every ~5 mm: upper bounds, ~1.9 mm for a vertex
+/// on the surface on average), and the share of the true points
 /// that have a reconstructed vertex within 2 cm (where the true surface was seen: only
 /// `seen_from` cameras' first hits are counted; all of them without cameras).
 struct MeshError {
@@ -35,9 +36,9 @@ struct MeshError {
 };
 MeshError CompareMeshes(const Mesh& reconstructed, const Mesh& truth, const std::vector<Camera>& seen_from = {});
 
-/// The albedo's scale: the median, over the held-out view's covered pixels that a vertex of
-/// `mesh` projects into unoccluded (its depth within 3 cm of the first hit on `mesh`), of
-/// luminance(the vertex's albedo) / luminance(the true albedo there). NaN without samples.
+/// The albedo's scale: the median, over the held-out view's masked pixels whose ray hits
+/// `mesh`, of luminance(the albedo at the hit) / luminance(the true albedo there). NaN
+/// without samples.
 double AlbedoScale(const Mesh& mesh, const HeldOutView& view, int* samples = nullptr);
 
 /// One true lamp against the nearest estimated point light.

@@ -48,7 +48,12 @@ bool Estimator::FitDirectionalLight(RoundInfo* info) {
 /// false when there is none.
 bool Estimator::ProposeDirectionalLight(DirectionalProposal* out) {
   const auto [cells, map_share] = BrightestNeighbourhood();
-  if (cells.empty() || map_share < opt_.directional.min_map_share) return false;
+  if (cells.empty() || map_share < opt_.directional.min_map_share) {
+    Progress(Fmt("no directional light tried: the map's brightest neighbourhood holds %.3g of its power (at least "
+                 "%.3g wanted)",
+                 map_share, opt_.directional.min_map_share));
+    return false;
+  }
   DirectionalLight sun;
   Eigen::Vector3d dir = Eigen::Vector3d::Zero();
   for (int j : cells) {
@@ -71,7 +76,12 @@ bool Estimator::ProposeDirectionalLight(DirectionalProposal* out) {
     double rendered = 0, seen = 0;
     const std::vector<double> render = A_.Multiply(only);
     for (std::size_t e = 0; e < render.size(); ++e) rendered += render[e], seen += y_[e];
-    if (!(rendered >= opt_.directional.min_share * seen)) return false;
+    if (!(rendered >= opt_.directional.min_share * seen)) {
+      Progress(Fmt("no directional light tried: the map's brightest neighbourhood renders %.3g of the light seen (at "
+                   "least %.3g wanted)",
+                   seen > 0 ? rendered / seen : 0.0, opt_.directional.min_share));
+      return false;
+    }
   }
   *out = {sun, cells, map_share, std::move(without)};
   return true;

@@ -391,13 +391,15 @@ TrackResult Reconstructor::Impl::Track(const RgbdFrame& f, const RgbdFrame& inpu
 /// Whether a tracked frame's fit is doubtful beside the last fused frames' (see
 /// ReconstructionOptions::doubtful_error); says why in `r`. Counts the doubtful run.
 bool Reconstructor::Impl::Doubtful(const TrackResult& tr, FrameReport* r) {
-  if (static_cast<int>(fits.size()) < std::max(1, o.doubtful_history)) return false;
+  if (static_cast<int>(fits.size()) < std::clamp(o.doubtful_history, 1, static_cast<int>(kFitHistory))) return false;
   std::vector<double> errors, inliers;
   for (const auto& [e, i] : fits) errors.push_back(e), inliers.push_back(i);
   std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
   std::nth_element(inliers.begin(), inliers.begin() + inliers.size() / 2, inliers.end());
   const double error = errors[errors.size() / 2], inlier = inliers[inliers.size() / 2];
-  const bool doubtful = tr.rmse > o.doubtful_error * error || tr.inlier_ratio < o.doubtful_inliers * inlier;
+  // (an ICP error a millimetre above the median is noise however small the median: clean depth)
+  const bool doubtful = tr.rmse > std::max(o.doubtful_error * error, error + 0.001) ||
+                        tr.inlier_ratio < o.doubtful_inliers * inlier;
   if (!doubtful) {
     doubtful_run = 0;
     return false;
@@ -440,7 +442,7 @@ void Reconstructor::Impl::Follow(const RgbdFrame& f, const RgbdFrame& input, con
     good = pose;
     good_gap = since_good + 1;
     since_good = 0;
-    ++trusted;
+    ++trusted;  // (after lost frames good_gap > 1: no constant-velocity step across them)
     if (++since_fused >= std::max(1, o.fuse_every) || r->relocalized) {
       Fuse(f, pose, r);
       since_fused = 0;
@@ -454,6 +456,7 @@ void Reconstructor::Impl::Follow(const RgbdFrame& f, const RgbdFrame& input, con
   } else {
     r->state = TrackingState::kLost;
     r->reason = tr.reason;
+    ++since_good;  // (a constant-velocity prediction after it spans the lost frames too)
   }
   r->world_from_camera = pose;
 }
@@ -510,7 +513,7 @@ FrameCounts CountFrames(const std::vector<FrameReport>& reports) {
   FrameCounts n;
   n.frames = reports.size();
   for (const FrameReport& r : reports) {
-    n.fused += r.state == TrackingState::kTracking;
+    n.fused += r.state == TrackingState::kTracking && !r.doubtful;
     n.lost += r.state == TrackingState::kLost;
   }
   return n;

@@ -35,12 +35,15 @@ struct ReconstructionOptions {
   float suspicious_overlap = 0.6f;
   float suspicious_inlier_ratio = 0.7f;
   /// A tracked frame whose fit is doubtful beside the frames fused before it is neither
-  /// fused nor a keyframe (the next frame starts from its pose, the nearest guess after a
-  /// fast move): its ICP error above doubtful_error times their median, or its
+  /// fused nor a keyframe, and the next frame starts from the last trusted pose moved on at
+  /// the last trusted step (its own pose without two trusted frames in a row): its ICP
+  /// error above doubtful_error times their median (and a millimetre above it), or its
   /// inlier ratio below doubtful_inliers times theirs. On flat walls a pose centimetres off
   /// still matches most points (above suspicious_inlier_ratio); fused, it leaves a ghost
   /// the frames after it lock onto. Judged once doubtful_history frames were fused; after
-  /// max_doubtful doubtful frames in a row the fit is taken as the scene's new normal.
+  /// max_doubtful doubtful frames in a row the fit is taken as the scene's new normal
+  /// (relocalized frames are judged too: at 7.7 cm between frames most are relocalized).
+  /// doubtful_history is at most 8.
   float doubtful_error = 1.4f;
   float doubtful_inliers = 0.85f;
   int doubtful_history = 3;
