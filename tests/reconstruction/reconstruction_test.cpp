@@ -449,6 +449,41 @@ TEST(Reconstruction, AFrameWhoseFitIsDoubtfulIsNotFused) {
   }
 }
 
+TEST(Reconstruction, ALastingChangeIsDoubtfulOnlyForMaxDoubtfulFramesThenFused) {
+  // From frame 8 on, every frame's right half is 8 cm farther (the scene changed for good,
+  // or the depth camera's calibration did): the first max_doubtful such frames are left
+  // out, then the fit is the new normal and fusing goes on (a rule that never gave in
+  // would stop the reconstruction).
+  SynthOptions so;
+  so.width = 320;
+  so.height = 240;
+  so.spp = 1;
+  so.depth_noise = true;
+  std::vector<RgbdFrame> frames = ToRgbdFrames(RenderSynthFrames("one-light", so, "", 16));
+  for (std::size_t k = 8; k < frames.size(); ++k) {
+    DepthImage& d = frames[k].depth;
+    for (int y = 0; y < d.height; ++y)
+      for (int x = d.width / 2; x < d.width; ++x) {
+        std::uint16_t& z = d.data[static_cast<std::size_t>(y) * d.width + x];
+        if (z > 0) z = static_cast<std::uint16_t>(z + 80);
+      }
+  }
+  ReconstructionOptions o;
+  o.fuse_every = 1;
+  Reconstructor rec(o);
+  int doubtful = 0, fused_after = 0;
+  for (const RgbdFrame& f : frames) {
+    const FrameReport r = rec.Process(f);
+    doubtful += r.doubtful;
+    if (r.index >= 8 && !r.doubtful && r.blocks_updated > 0) ++fused_after;
+    if (r.index >= 8 && r.index < 8 + o.max_doubtful) {
+      EXPECT_TRUE(r.doubtful) << r.index << ": " << r.reason;
+    }
+  }
+  EXPECT_LE(doubtful, o.max_doubtful + 1) << "left out past the new normal";
+  EXPECT_GE(fused_after, 3) << "fusing went on after the change";
+}
+
 TEST(Reconstruction, RegisteredDepthIsUndistortedWithTheColour) {
   SynthOptions so;
   so.width = 320;
