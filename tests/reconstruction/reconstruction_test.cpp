@@ -404,24 +404,33 @@ RgbdFrame Distort(const RgbdFrame& f, double k1) {
 // undistorted with the colour, so the room keeps its shape; back-projected as delivered,
 // the walls bend (the reconstruction's accuracy against the true room, fused at the true
 // poses so only the geometry differs).
-TEST(Reconstruction, AFrameWhoseFitIsDoubtfulIsNotFused) {
-  // The synthetic room along its arc; one frame's depth glitches: its right half 8 cm
-  // farther (no pose fits all of it, and ICP still finds one that fits most). That frame's
-  // fit is doubtful beside those fused before it (its ICP error or its inlier ratio), so it
-  // is not fused; every other frame is, and the track goes on as without it.
+/// The synthetic room's 16 frames (320x240, Xtion-like depth noise) along its arc, frames
+/// [from, to) with their depth's right half 8 cm farther (a glitch no pose fits all of).
+std::vector<RgbdFrame> GlitchedRoom(int from, int to) {
   SynthOptions so;
   so.width = 320;
   so.height = 240;
   so.spp = 1;
   so.depth_noise = true;
   std::vector<RgbdFrame> frames = ToRgbdFrames(RenderSynthFrames("one-light", so, "", 16));
+  for (int k = from; k < to; ++k) {
+    DepthImage& d = frames[k].depth;
+    for (int y = 0; y < d.height; ++y)
+      for (int x = d.width / 2; x < d.width; ++x) {
+        std::uint16_t& z = d.data[static_cast<std::size_t>(y) * d.width + x];
+        if (z > 0) z = static_cast<std::uint16_t>(z + 80);
+      }
+  }
+  return frames;
+}
+
+TEST(Reconstruction, AFrameWhoseFitIsDoubtfulIsNotFused) {
+  // The synthetic room along its arc; one frame's depth glitches: its right half 8 cm
+  // farther (no pose fits all of it, and ICP still finds one that fits most). That frame's
+  // fit is doubtful beside those fused before it (its ICP error or its inlier ratio), so it
+  // is not fused; every other frame is, and the track goes on as without it.
   constexpr int kBad = 8;
-  DepthImage& d = frames[kBad].depth;
-  for (int y = 0; y < d.height; ++y)
-    for (int x = d.width / 2; x < d.width; ++x) {
-      std::uint16_t& z = d.data[static_cast<std::size_t>(y) * d.width + x];
-      if (z > 0) z = static_cast<std::uint16_t>(z + 80);
-    }
+  const std::vector<RgbdFrame> frames = GlitchedRoom(kBad, kBad + 1);
   ReconstructionOptions o;
   o.fuse_every = 1;
   Reconstructor rec(o);
@@ -454,20 +463,7 @@ TEST(Reconstruction, ALastingChangeIsDoubtfulOnlyForMaxDoubtfulFramesThenFused) 
   // or the depth camera's calibration did): the first max_doubtful such frames are left
   // out, then the fit is the new normal and fusing goes on (a rule that never gave in
   // would stop the reconstruction).
-  SynthOptions so;
-  so.width = 320;
-  so.height = 240;
-  so.spp = 1;
-  so.depth_noise = true;
-  std::vector<RgbdFrame> frames = ToRgbdFrames(RenderSynthFrames("one-light", so, "", 16));
-  for (std::size_t k = 8; k < frames.size(); ++k) {
-    DepthImage& d = frames[k].depth;
-    for (int y = 0; y < d.height; ++y)
-      for (int x = d.width / 2; x < d.width; ++x) {
-        std::uint16_t& z = d.data[static_cast<std::size_t>(y) * d.width + x];
-        if (z > 0) z = static_cast<std::uint16_t>(z + 80);
-      }
-  }
+  const std::vector<RgbdFrame> frames = GlitchedRoom(8, 16);
   ReconstructionOptions o;
   o.fuse_every = 1;
   Reconstructor rec(o);
