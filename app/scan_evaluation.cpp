@@ -281,6 +281,7 @@ double AlbedoScale(const Mesh& mesh, const HeldOutView& held, int* samples) {
 ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int spp) {
   Stopwatch sw;
   ScanScore s;
+  const TrueLamps truth = ReadTrueLamps(truth_dir / "truth.json");  // the cheap input's errors first
   const fs::path scene_dir = run_dir / "scene", estimate_dir = run_dir / "estimate";
   const SceneBundle bundle = LoadSceneBundle(scene_dir);
   Mesh reconstructed = bundle.mesh;
@@ -293,7 +294,6 @@ ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int s
   }
   const fs::path lights_path = estimate_dir / "lights.json";
   const LightsFile lights = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
-  const TrueLamps truth = ReadTrueLamps(truth_dir / "truth.json");
   ScoreLamps(truth, OfKind<PointLight>(lights.lights), &s);
   ScoreSuns(truth, OfKind<DirectionalLight>(lights.lights), &s);
   const fs::path albedo_mesh = estimate_dir / "albedo_mesh.ply";

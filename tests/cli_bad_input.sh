@@ -38,6 +38,11 @@ expect "albedo-passes must be between 0 and 5, not 9" "$exe" estimate "$tmp/s" -
 expect "albedo-samples must be between 1 and 4096, not 0" "$exe" estimate "$tmp/s" --out "$tmp/o" --albedo-samples 0 --quiet
 expect "rings must be a whole number, not '21.5'" "$exe" estimate "$tmp/s" --out "$tmp/o" --rings 21.5 --quiet
 expect "spp must be at least 1, not 0" "$exe" estimate "$tmp/s" --out "$tmp/o" --spp 0 --quiet
+expect "room-albedo must be between 0 and 0.95, not 2" "$exe" estimate "$tmp/s" --out "$tmp/o" --room-albedo 2 --quiet
+expect "truth.json: file not found" "$exe" evaluate "$tmp/run" --truth "$tmp/s"
+echo '{"lights": []}' >"$tmp/truth.json"
+expect "run/scene: scene directory not found" "$exe" evaluate "$tmp/run" --truth "$tmp"
+expect "evaluate: --spp must be at least 1" "$exe" evaluate "$tmp/run" --truth "$tmp/s" --spp 0
 expect "smooth: Value -1 not in range" "$exe" reconstruct "$tmp/nope" --out "$tmp/o" --smooth -1
 expect "unknown-flag" "$exe" estimate "$tmp/s" --out "$tmp/o" --unknown-flag
 # A valid scene with bad settings: refused before any work (a negative sigma once looped).
