@@ -68,7 +68,9 @@ Run AddRender(CLI::App& app) {
   e->excludes(u);
   l->excludes(e);
   l->excludes(u);
-  cmd->add_option("--mesh", *mesh, "a PLY mesh in place of the bundle's (e.g. an estimate's albedo_mesh.ply)");
+  cmd->add_option("--mesh", *mesh,
+                  "a PLY mesh in place of the bundle's (default with --lights: the estimate's albedo_mesh.ply beside "
+                  "it, when there is one)");
   cmd->add_option("--rings", *rings, "rings used to discretize --envmap")->capture_default_str();
   cmd->add_option("--spp", o->spp, "samples per pixel")->capture_default_str();
   cmd->add_option("--bounces", o->bounces, "surface interactions per path")->capture_default_str();
@@ -82,7 +84,15 @@ Run AddRender(CLI::App& app) {
     LightsFile file;  // read first: the cheap input's errors come before the bundle's work
     if (!lights->empty()) file = ParseLightsJson(ReadTextFile(*lights), *lights);
     SceneBundle b = LoadSceneBundle(*scene);
-    if (!mesh->empty()) b.mesh = ReadPly(*mesh);
+    // An estimate's lights go with the albedo it was made under: its albedo_mesh.ply beside
+    // lights.json, when it wrote one (refined or scaled), unless --mesh names another.
+    std::string mesh_file = *mesh;
+    const fs::path beside = fs::path(*lights).parent_path() / "albedo_mesh.ply";
+    if (mesh_file.empty() && !lights->empty() && fs::exists(beside)) {
+      mesh_file = beside.string();
+      std::printf("mesh: %s (the albedo the estimate was made under; --mesh to use another)\n", mesh_file.c_str());
+    }
+    if (!mesh_file.empty()) b.mesh = ReadPly(mesh_file);
     EnvMap env(*rings, b.up);
     std::vector<double> lambda;
     if (!uniform->empty()) lambda = ParseUniform(*uniform, env);
