@@ -150,16 +150,48 @@ void ScoreSuns(const TrueLamps& truth, const std::vector<DirectionalLight>& esti
   }
 }
 
-/// The held-out view relit under the run's estimate (its map, every light) on `mesh`: its
-/// error over the view's pixels, and over those `mesh` covers (`covered`: their share).
-void RelitError(const HeldOutView& held, const Mesh& mesh, const fs::path& estimate_dir, const Eigen::Vector3d& up,
-                int spp, ScanScore* s) {
-  const fs::path lights_path = estimate_dir / "lights.json";
-  const LightsFile file = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
+/// Per pixel of the held-out view, the albedo where its ray first hits `tracer`'s mesh; NaN
+/// for a pixel outside the mask or hitting nothing (the reconstruction does not cover it).
+std::vector<Eigen::Vector3f> HitAlbedos(const RayTracer& tracer, const HeldOutView& held) {
+  const Camera& c = held.view.camera;
+  std::vector<Eigen::Vector3f> out(static_cast<std::size_t>(c.width) * c.height, Eigen::Vector3f::Constant(NAN));
+  for (int y = 0; y < c.height; ++y)
+    for (int x = 0; x < c.width; ++x) {
+      const std::size_t p = static_cast<std::size_t>(y) * c.width + x;
+      SurfacePoint hit;
+      if (held.view.valid[p] && tracer.Intersect(c.center(), c.RayDirection(x, y), &hit))
+        out[p] = hit.albedo.cast<float>();
+    }
+  return out;
+}
+
+/// AlbedoScale on the hits HitAlbedos found.
+double MedianAlbedoRatio(const std::vector<Eigen::Vector3f>& hits, const HeldOutView& held, int* samples) {
+  if (samples) *samples = 0;
+  const Camera& c = held.view.camera;
+  if (held.true_albedo.width != c.width || held.true_albedo.height != c.height) return NAN;
+  std::vector<double> ratios;
+  for (std::size_t p = 0; p < hits.size(); ++p) {
+    if (!hits[p].allFinite()) continue;
+    const float* a = &held.true_albedo.data[3 * p];
+    const double truth = Luminance(a[0], a[1], a[2]);
+    if (truth > 1e-3) ratios.push_back(Lum(hits[p].cast<double>()) / truth);
+  }
+  if (samples) *samples = static_cast<int>(ratios.size());
+  if (ratios.empty()) return NAN;
+  std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
+  return ratios[ratios.size() / 2];
+}
+
+/// The held-out view relit under the run's estimate (`file`: its map, every light) on
+/// `tracer`'s mesh, whose albedo each pixel hits is `hits`: its error over the view's
+/// pixels, and over those the mesh covers (`covered`: their share).
+void RelitError(const HeldOutView& held, const RayTracer& tracer, const std::vector<Eigen::Vector3f>& hits,
+                const LightsFile& file, const fs::path& estimate_dir, const Eigen::Vector3d& up, int spp,
+                ScanScore* s) {
   const EnvMap env(61, up);
   Lighting lighting{std::vector<double>(3 * env.size(), 0.0), file.lights};
   if (!file.environment.empty()) lighting.map = env.FromEquirect(ReadEquirectMap(estimate_dir / file.environment));
-  const RayTracer tracer(mesh);
   TracerOptions t;
   t.spp = spp, t.seed = 1, t.bounces = kRenderBounces;
   const CellSampler sampler(env, lighting.map, {}, 0.2);
@@ -173,19 +205,16 @@ void RelitError(const HeldOutView& held, const Mesh& mesh, const fs::path& estim
   const bool true_albedo = held.true_albedo.width == c.width && held.true_albedo.height == c.height;
   ImageRGB shaded_true = image;
   long in_view = 0, hit = 0;
-  for (int y = 0; y < c.height; ++y)
-    for (int x = 0; x < c.width; ++x) {
-      std::uint8_t& v = covered[static_cast<std::size_t>(y) * c.width + x];
-      if (!v) continue;
-      ++in_view;
-      SurfacePoint p;
-      v = tracer.Intersect(c.center(), c.RayDirection(x, y), &p);
-      hit += v;
-      if (!v || !true_albedo) continue;
-      float* out = shaded_true.at(x, y);
-      const float* a = held.true_albedo.at(x, y);
-      for (int ch = 0; ch < 3; ++ch) out[ch] = p.albedo[ch] > 1e-3 ? static_cast<float>(out[ch] / p.albedo[ch] * a[ch]) : 0.f;
-    }
+  for (std::size_t p = 0; p < covered.size(); ++p) {
+    if (!covered[p]) continue;
+    ++in_view;
+    covered[p] = hits[p].allFinite();
+    hit += covered[p];
+    if (!covered[p] || !true_albedo) continue;
+    float* out = &shaded_true.data[3 * p];
+    const float* a = &held.true_albedo.data[3 * p];
+    for (int ch = 0; ch < 3; ++ch) out[ch] = hits[p][ch] > 1e-3f ? out[ch] / hits[p][ch] * a[ch] : 0.f;
+  }
   s->held_out_covered = in_view ? static_cast<double>(hit) / in_view : 0;
   s->held_out_relit_covered = RelativeImageRmse(image, held.view.image, covered);
   if (!true_albedo) return;
@@ -257,25 +286,8 @@ MeshError CompareMeshes(const Mesh& reconstructed, const Mesh& truth, const std:
 }
 
 double AlbedoScale(const Mesh& mesh, const HeldOutView& held, int* samples) {
-  if (samples) *samples = 0;
-  const Camera& c = held.view.camera;
-  if (held.true_albedo.width != c.width || held.true_albedo.height != c.height) return NAN;
   const RayTracer tracer(mesh);
-  std::vector<double> ratios;
-  for (int y = 0; y < c.height; ++y)
-    for (int x = 0; x < c.width; ++x) {
-      const std::size_t p = static_cast<std::size_t>(y) * c.width + x;
-      if (!held.view.valid[p]) continue;
-      SurfacePoint hit;
-      if (!tracer.Intersect(c.center(), c.RayDirection(x, y), &hit)) continue;
-      const float* a = held.true_albedo.at(x, y);
-      const double truth = Luminance(a[0], a[1], a[2]);
-      if (truth > 1e-3) ratios.push_back(Lum(hit.albedo) / truth);
-    }
-  if (samples) *samples = static_cast<int>(ratios.size());
-  if (ratios.empty()) return NAN;
-  std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
-  return ratios[ratios.size() / 2];
+  return MedianAlbedoRatio(HitAlbedos(tracer, held), held, samples);
 }
 
 ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int spp) {
@@ -284,26 +296,27 @@ ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int s
   const TrueLamps truth = ReadTrueLamps(truth_dir / "truth.json");  // the cheap input's errors first
   const fs::path scene_dir = run_dir / "scene", estimate_dir = run_dir / "estimate";
   const SceneBundle bundle = LoadSceneBundle(scene_dir);
-  Mesh reconstructed = bundle.mesh;
   if (fs::exists(truth_dir / "gt_mesh.ply")) {
     Mesh truth = ReadPly(truth_dir / "gt_mesh.ply");
     SanitizeMesh(&truth, (truth_dir / "gt_mesh.ply").string());
     std::vector<Camera> cameras;
     for (const View& v : bundle.views) cameras.push_back(v.camera);
-    s.mesh = CompareMeshes(reconstructed, truth, cameras);
+    s.mesh = CompareMeshes(bundle.mesh, truth, cameras);
   }
   const fs::path lights_path = estimate_dir / "lights.json";
   const LightsFile lights = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
   ScoreLamps(truth, OfKind<PointLight>(lights.lights), &s);
   ScoreSuns(truth, OfKind<DirectionalLight>(lights.lights), &s);
   const fs::path albedo_mesh = estimate_dir / "albedo_mesh.ply";
-  Mesh lit = fs::exists(albedo_mesh) ? ReadPly(albedo_mesh) : reconstructed;
+  Mesh lit = fs::exists(albedo_mesh) ? ReadPly(albedo_mesh) : bundle.mesh;
   SanitizeMesh(&lit, albedo_mesh.string());
   if (lit.normals.size() != lit.positions.size()) ComputeVertexNormals(&lit);
   if (fs::exists(truth_dir / "holdout" / "holdout.json")) {
     const HeldOutView held = ReadHeldOutView(truth_dir / "holdout" / "holdout.json");
-    s.albedo_scale = AlbedoScale(lit, held, &s.albedo_samples);
-    RelitError(held, lit, estimate_dir, bundle.up, spp, &s);
+    const RayTracer tracer(std::move(lit));
+    const std::vector<Eigen::Vector3f> hits = HitAlbedos(tracer, held);
+    s.albedo_scale = MedianAlbedoRatio(hits, held, &s.albedo_samples);
+    RelitError(held, tracer, hits, lights, estimate_dir, bundle.up, spp, &s);
   }
   for (LampScore& l : s.lamps) l.light_times_albedo = l.intensity_ratio * s.albedo_scale;
   s.seconds = sw.Seconds();

@@ -7,6 +7,7 @@
 
 #include "estimation/lights/light.h"
 #include "scene/scene_bundle.h"
+#include "tests/estimation/lights/plane_and_ball.h"
 #include "tests/test_util.h"
 
 namespace lp {
@@ -15,13 +16,9 @@ namespace {
 TEST(PointLights, TheDirectionDerivativeMatchesCentralDifferences) {
   // A directional light's column against its direction moved on the sphere (towards + d,
   // normalized): a plane and a ball, the light high enough that no shadow edge moves within h.
-  RayTracer scene(test::Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)));
-  const Camera cam = test::LookAt({1.5, -1.5, 1.5}, {0, 0, 0.1}, 24, 18, 50);
-  std::vector<View> views{test::BlankView(cam)};
-  TracerOptions o;
-  o.spp = 2;
-  o.bounces = 2;
-  const ShadingVertices v = GatherShadingVertices(scene, views, o);
+  const test::PlaneAndBall pb(24, 18, 50, 2);
+  const RayTracer& scene = pb.scene;
+  const ShadingVertices& v = pb.vertices;
   const Eigen::Vector3d l = Eigen::Vector3d(0.3, 0.4, 1.0).normalized();
   std::vector<float> col, jac, plus, minus;
   DirectionalLightColumn(scene, v, l, &col, &jac);

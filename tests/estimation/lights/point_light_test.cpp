@@ -10,6 +10,7 @@
 #include "estimation/lights/light.h"
 #include "estimation/sampling.h"
 #include "scene/scene_bundle.h"
+#include "tests/estimation/lights/plane_and_ball.h"
 #include "tests/test_util.h"
 
 namespace lp {
@@ -127,13 +128,9 @@ TEST(PointLights, ASphereLightsPenumbraIsTheDiscsVisibleSegment) {
 }
 
 TEST(PointLights, ThePositionDerivativeMatchesCentralDifferences) {
-  RayTracer scene(test::Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)));
-  const Camera cam = test::LookAt({1.5, -1.5, 1.5}, {0, 0, 0.1}, 24, 18, 50);
-  std::vector<View> views{test::BlankView(cam)};
-  TracerOptions o;
-  o.spp = 2;
-  o.bounces = 2;
-  const ShadingVertices v = GatherShadingVertices(scene, views, o);
+  const test::PlaneAndBall pb(24, 18, 50, 2);
+  const RayTracer& scene = pb.scene;
+  const ShadingVertices& v = pb.vertices;
   ASSERT_GT(v.size(), 0u);
   const Eigen::Vector3d q(0.4, 0.9, 1.3);  // high enough that no shadow edge moves within h
   std::vector<float> col, jac, plus, minus;
@@ -159,14 +156,10 @@ TEST(PointLights, ThePositionDerivativeMatchesCentralDifferences) {
 TEST(PointLights, RefinementFindsTheLampFromHalfAMetreAway) {
   // The lamp of a plane and a ball rendered by the forward model; the refinement starts
   // 0.5 m off with the wrong intensity and must come back (positions to 1 cm).
-  RayTracer scene(test::Merge(test::Plane(4, 0.7), test::Ball(0.3, 0.5)));
-  const Camera cam = test::LookAt({1.5, -1.5, 1.5}, {0, 0, 0.1}, 40, 30, 60);
-  std::vector<View> views{test::BlankView(cam)};
-  TracerOptions o;
-  o.spp = 8;
-  o.bounces = 2;
+  const test::PlaneAndBall pb(40, 30, 60, 8);
+  const RayTracer& scene = pb.scene;
+  const ShadingVertices& v = pb.vertices;
   const PointLight lamp{{0.5, 0.4, 1.2}, {3, 2.5, 2}, 0};
-  const ShadingVertices v = GatherShadingVertices(scene, views, o);
   std::vector<float> col;
   PointLightColumn(scene, v, lamp.position, &col);
   std::vector<double> y(col.size()), base(col.size(), 0.0);
