@@ -216,9 +216,10 @@ static json WriteAlbedo(const fs::path& out, const SceneBundle& bundle, const Es
                  {"passes", r.albedo_passes},
                  {"segments", r.albedo_segments},
                  {"scale", r.albedo_scale}};
+  if (std::isfinite(r.albedo_last_move)) albedo["last_move"] = r.albedo_last_move;
   if (r.albedo_scale != 1)
     albedo["scale_rule"] = "the bundle's albedo (the colours seen, flattened) scaled so its median luminance over "
-                           "the vertices is --room-albedo; every albedo pass keeps that factor; the lights are in "
+                           "the vertices is --room-albedo; every albedo pass keeps that median; the lights are in "
                            "its terms";
   if (!r.albedo.empty()) {
     Mesh mesh = bundle.mesh;

@@ -47,13 +47,15 @@ Run AddEvaluate(CLI::App& app) {
     }
     std::printf("%d lamp(s) estimated; the largest spurious one gives %.1f %% of their light at the centre\n",
                 s.estimated_lamps, 100 * s.spurious_share);
-    std::printf("albedo's scale (estimated / true) %.3f over %d pixels; held-out view relit: relative RMSE %.3f "
+    std::printf("albedo's scale (estimated / true) %.3f over %d pixels, its error once the scale is undone %.3f; held-out view relit: relative RMSE %.3f "
                 "(%.3f over the %.0f %% of its pixels the scan covers; %.3f there with the true albedo: the light's part)\n",
-                s.albedo_scale, s.albedo_samples, s.held_out_relit, s.held_out_relit_covered, 100 * s.held_out_covered,
+                s.albedo_scale, s.albedo_samples, s.albedo_error, s.held_out_relit, s.held_out_relit_covered, 100 * s.held_out_covered,
                 s.held_out_relit_true_albedo);
     const fs::path out = fs::path(*run) / "evaluation.json";
     WriteTextAtomically(out, ScanScoreJson(s));
-    std::printf("wrote %s in %.1f s\n", out.c_str(), s.seconds);
+    const bool reported = AddToReport(*run, s);
+    std::printf("wrote %s%s in %.1f s\n", out.c_str(), reported ? " and its \"evaluation\" in estimate/report.json" : "",
+                s.seconds);
   };
 }
 

@@ -183,6 +183,22 @@ double MedianAlbedoRatio(const std::vector<Eigen::Vector3f>& hits, const HeldOut
   return ratios[ratios.size() / 2];
 }
 
+/// ScanScore::albedo_error on the hits HitAlbedos found, the albedo divided by `scale`.
+double AlbedoError(const std::vector<Eigen::Vector3f>& hits, const HeldOutView& held, double scale) {
+  const Camera& c = held.view.camera;
+  if (held.true_albedo.width != c.width || held.true_albedo.height != c.height || !(scale > 0)) return NAN;
+  double err = 0, ref = 0;
+  for (std::size_t p = 0; p < hits.size(); ++p) {
+    if (!hits[p].allFinite()) continue;
+    const Eigen::Vector3d truth(held.true_albedo.data[3 * p], held.true_albedo.data[3 * p + 1],
+                                held.true_albedo.data[3 * p + 2]);
+    if (Lum(truth) <= 1e-3) continue;  // as the scale's samples
+    err += (hits[p].cast<double>() / scale - truth).squaredNorm();
+    ref += truth.squaredNorm();
+  }
+  return ref > 0 ? std::sqrt(err / ref) : NAN;
+}
+
 /// The held-out view relit under the run's estimate (`file`: its map, every light) on
 /// `tracer`'s mesh, whose albedo each pixel hits is `hits`: its error over the view's
 /// pixels, and over those the mesh covers (`covered`: their share).
@@ -285,9 +301,12 @@ MeshError CompareMeshes(const Mesh& reconstructed, const Mesh& truth, const std:
   return e;
 }
 
-double AlbedoScale(const Mesh& mesh, const HeldOutView& held, int* samples) {
+double AlbedoScale(const Mesh& mesh, const HeldOutView& held, int* samples, double* error) {
   const RayTracer tracer(mesh);
-  return MedianAlbedoRatio(HitAlbedos(tracer, held), held, samples);
+  const std::vector<Eigen::Vector3f> hits = HitAlbedos(tracer, held);
+  const double scale = MedianAlbedoRatio(hits, held, samples);
+  if (error) *error = AlbedoError(hits, held, scale);
+  return scale;
 }
 
 ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int spp) {
@@ -316,6 +335,7 @@ ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int s
     const RayTracer tracer(std::move(lit));
     const std::vector<Eigen::Vector3f> hits = HitAlbedos(tracer, held);
     s.albedo_scale = MedianAlbedoRatio(hits, held, &s.albedo_samples);
+    s.albedo_error = AlbedoError(hits, held, s.albedo_scale);
     RelitError(held, tracer, hits, lights, estimate_dir, bundle.up, spp, &s);
   }
   for (LampScore& l : s.lamps) l.light_times_albedo = l.intensity_ratio * s.albedo_scale;
@@ -345,6 +365,7 @@ std::string ScanScoreJson(const ScanScore& s) {
   j["spurious_share"] = s.spurious_share;
   j["albedo_scale"] = num(s.albedo_scale);
   j["albedo_samples"] = s.albedo_samples;
+  j["albedo_error"] = num(s.albedo_error);
   j["held_out_relit"] = num(s.held_out_relit);
   j["held_out_covered"] = num(s.held_out_covered);
   j["held_out_relit_covered"] = num(s.held_out_relit_covered);
@@ -352,6 +373,15 @@ std::string ScanScoreJson(const ScanScore& s) {
   j["held_out_true_albedo_scale"] = num(s.held_out_true_albedo_scale);
   j["seconds"] = s.seconds;
   return j.dump(2) + "\n";
+}
+
+bool AddToReport(const fs::path& run_dir, const ScanScore& s) {
+  const fs::path report = run_dir / "estimate" / "report.json";
+  if (!fs::exists(report)) return false;
+  json j = ReadJsonFile(report);
+  j["evaluation"] = json::parse(ScanScoreJson(s));
+  WriteTextAtomically(report, j.dump(2) + "\n");
+  return true;
 }
 
 }  // namespace lp::app

@@ -38,8 +38,8 @@ MeshError CompareMeshes(const Mesh& reconstructed, const Mesh& truth, const std:
 
 /// The albedo's scale: the median, over the held-out view's masked pixels whose ray hits
 /// `mesh`, of luminance(the albedo at the hit) / luminance(the true albedo there). NaN
-/// without samples.
-double AlbedoScale(const Mesh& mesh, const HeldOutView& view, int* samples = nullptr);
+/// without samples. `error`, when given, gets ScanScore::albedo_error at that scale.
+double AlbedoScale(const Mesh& mesh, const HeldOutView& view, int* samples = nullptr, double* error = nullptr);
 
 /// One true lamp against the nearest estimated point light.
 struct LampScore {
@@ -69,6 +69,10 @@ struct ScanScore {
   double spurious_share = 0;
   double albedo_scale = NAN;
   int albedo_samples = 0;
+  /// The albedo's error once its scale is undone: over the same pixels, the relative RMS of
+  /// (the albedo at the hit / albedo_scale - the true albedo), RGB, against the true
+  /// albedo's RMS (0 = the albedo right but for its scale). NaN without samples.
+  double albedo_error = NAN;
   double held_out_relit = NAN;  ///< relative RMSE of the held-out view relit under the estimate
   /// The share of the held-out view's pixels the reconstruction covers, and the relit error
   /// over those alone (the light's part, the holes of the scan aside).
@@ -87,5 +91,8 @@ ScanScore EvaluateScan(const std::filesystem::path& truth_dir, const std::filesy
 
 /// evaluation.json's text.
 std::string ScanScoreJson(const ScanScore& score);
+/// Adds the score to the run's estimate/report.json as its "evaluation" (atomically; the
+/// rest of the report as it was). Returns false when the run has no report.json.
+bool AddToReport(const std::filesystem::path& run_dir, const ScanScore& score);
 
 }  // namespace lp::app

@@ -42,10 +42,14 @@ std::vector<EstimateOption> MakeTable() {
        "stop when the rendered estimate changes by less than this share between rounds (0: run every round)",
        Type::kReal, 0, kInf, false, LP_GET(change_threshold), LP_SET(change_threshold, double), "", 0, 0, {}},
       {"albedo-passes", "albedo_passes",
-       "albedo refinements of a reconstructed mesh (de-lit by the estimate, segmented again, rounds go on; 0 = keep "
-       "the bundle's albedo)",
+       "albedo refinements of a reconstructed mesh at most (de-lit by the estimate, segmented again, rounds go on; a "
+       "pass after the first only while the lights still move: --albedo-settle; 0 = keep the bundle's albedo)",
        Type::kInt, 0, kMaxAlbedoPasses, false, LP_GET(albedo_passes), LP_SET(albedo_passes, int), "albedo passes", 0,
        kMaxAlbedoPasses, {}},
+      {"albedo-settle", "albedo_settle",
+       "a further albedo pass only while the last moved a lamp by more than this share of its distance from the "
+       "scene's centre (a directional light: radians; 0 = every pass)",
+       Type::kReal, 0, 1, false, LP_GET(albedo_settle), LP_SET(albedo_settle, double), "", 0, 0, {}},
       {"room-albedo", "room_albedo",
        "a reconstructed mesh's albedo is scaled so its median over the surface (in a room, a wall) is this; 0 = "
        "the colours' scale",

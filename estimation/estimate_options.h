@@ -115,9 +115,15 @@ struct EstimateOptions {
   /// `shaded` colours (a reconstruction; a bundle with known albedo needs none): after the
   /// rounds settle, the colours seen are de-lit by the estimate's irradiance at every vertex
   /// (albedo_samples paths each), segmented again and flattened, and the rounds go on
-  /// warm-started under the new albedo (at most max_rounds more); this many times, 0 ..
-  /// kMaxAlbedoPasses (what it gains and costs: docs/method.md).
-  int albedo_passes = 1;
+  /// warm-started under the new albedo (at most max_rounds more); at most this many times,
+  /// 0 .. kMaxAlbedoPasses, a pass after the first only while the one before moved a light
+  /// by more than albedo_settle (what it gains and costs: docs/method.md).
+  int albedo_passes = 4;
+  /// A further albedo pass only while the last moved a lamp by more than this share of its
+  /// distance from the scene's centre, or a directional light by more than this many
+  /// radians, or a light came or went (0: every pass). Where texture splits the surfaces
+  /// into many segments, each pass moves a lamp part of the way (docs/method.md).
+  double albedo_settle = 0.1;
   int albedo_samples = 64;
   /// The albedo's absolute scale, for a reconstructed mesh (one with `shaded` colours): the
   /// colours seen are albedo times the light, so their scale is the light's, and it sets
@@ -126,7 +132,7 @@ struct EstimateOptions {
   /// surface's median: in a room, a wall) is this, the albedo of light paint; every albedo
   /// pass keeps that scale. 0 keeps the colours' scale (docs/method.md, "The albedo's
   /// scale").
-  double room_albedo = 0.7;
+  double room_albedo = 0.6;
   /// Stop when the rendered estimate changes by less than this between rounds:
   /// |A (lambda_k - lambda_{k-1})| / |A lambda_k| < 2 % (over the observed pixels).
   double change_threshold = 0.02;

@@ -490,7 +490,12 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& option
   detail::Estimator estimator(scaled ? *scaled : bundle, options, scale);
   estimator.RunRounds();
   if (estimator.AlbedoRefinable())
-    for (int pass = 1; pass <= options.albedo_passes && estimator.RefineAlbedo(pass); ++pass) estimator.RunRounds();
+    for (int pass = 1; pass <= options.albedo_passes; ++pass) {
+      const std::vector<Light> before = estimator.Lights();
+      if (!estimator.RefineAlbedo(pass)) break;
+      estimator.RunRounds();
+      if (estimator.Settled(before)) break;
+    }
   estimator.FitSky();
   estimator.Conclude();
   if (options.render) estimator.RenderFittedViews();

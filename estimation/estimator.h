@@ -118,6 +118,9 @@ struct EstimateResult {
   std::vector<Eigen::Vector3f> albedo;
   int albedo_passes = 0, albedo_segments = 0;
   double albedo_seconds = 0;  ///< de-lighting and segmenting (the extra rounds are in `rounds`)
+  /// How far the last albedo pass moved the lights (EstimateOptions::albedo_settle's
+  /// measure; NaN without a pass).
+  double albedo_last_move = std::nan("");
   AlbedoLeftOut albedo_left_out = AlbedoLeftOut::kRefined;  ///< why the albedo was not refined
   /// The factor a reconstructed mesh's albedo was scaled by before the rounds
   /// (EstimateOptions::room_albedo; 1: not scaled). The lights' intensities are in the

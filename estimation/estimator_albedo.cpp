@@ -96,7 +96,9 @@ bool Estimator::RefineAlbedo(int pass) {
       }
       irradiance = OverClusters(radiance.Irradiance());
     }  // before the scene it refers to is replaced
-    segments = DelightAlbedo(&mesh_, irradiance, DelitAlbedoOptions(), res_.albedo_scale);
+    // The albedo's scale by the rule it was given before the rounds (--room-albedo), or the
+    // colours' own when that is 0.
+    segments = DelightAlbedo(&mesh_, irradiance, DelitAlbedoOptions(), res_.albedo_scale, opt_.room_albedo);
   }
   res_.albedo_seconds += as.Seconds();
   if (segments < 0) {
@@ -111,6 +113,29 @@ bool Estimator::RefineAlbedo(int pass) {
   Progress(Fmt("albedo pass %d: de-lit %zu vertices into %d segments in %.2f s", pass, mesh_.positions.size(),
                segments, as.Seconds()));
   return true;
+}
+
+bool Estimator::Settled(const std::vector<Light>& before) {
+  const std::vector<Light> now = Lights();
+  double moved = now.size() == before.size() ? 0 : INFINITY;
+  for (std::size_t k = 0; k < now.size() && std::isfinite(moved); ++k) {
+    if (now[k].index() != before[k].index()) {
+      moved = INFINITY;
+    } else if (const auto* lamp = std::get_if<PointLight>(&now[k])) {
+      const Eigen::Vector3d was = std::get<PointLight>(before[k]).position;
+      moved = std::max(moved, (lamp->position - was).norm() / std::max(1e-6, (was - centre_).norm()));
+    } else if (const auto* sun = std::get_if<DirectionalLight>(&now[k])) {
+      const double c = sun->direction.dot(std::get<DirectionalLight>(before[k]).direction);
+      moved = std::max(moved, std::acos(std::clamp(c, -1.0, 1.0)));
+    }
+  }
+  res_.albedo_last_move = moved;
+  const bool settled = opt_.albedo_settle > 0 && moved <= opt_.albedo_settle;  // (no lamp nor sun: 0, settled)
+  Progress(Fmt("albedo pass %d moved the lights by %.3g (a lamp: of its distance from the scene's centre; at most %.3g "
+               "settles): %s",
+               res_.albedo_passes, moved, opt_.albedo_settle,
+               settled ? "settled" : res_.albedo_passes < opt_.albedo_passes ? "another pass" : "the last pass"));
+  return settled;
 }
 
 }  // namespace lp::detail

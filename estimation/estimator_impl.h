@@ -107,6 +107,13 @@ class Estimator {
   /// De-lights the colours seen by the estimate's irradiance and segments them again into
   /// the albedo the next rounds run under; false when there is nothing to divide by.
   bool RefineAlbedo(int pass);
+  /// The lights as they stand (directional lights first, then lamps).
+  std::vector<Light> Lights() const { return Joined(suns_, points_); }
+  /// Whether the lights moved no more than albedo_settle since `before` (Lights() then): the
+  /// largest of a lamp's move over its distance from the scene's centre and a directional
+  /// light's turn (radians), infinite when a light came or went. Recorded as the last
+  /// albedo pass's move, and said.
+  bool Settled(const std::vector<Light>& before);
   std::vector<float> OverClusters(const std::vector<float>& values) const;
   int AlbedoPaths() const;
   Mesh WithAlbedoOf(const Mesh& full, const std::vector<float>& irradiance) const;

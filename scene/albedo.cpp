@@ -27,6 +27,50 @@ Eigen::Vector3d Chroma(const Eigen::Vector3d& c) {
   return s > 1e-6 ? Eigen::Vector3d(c / s) : Eigen::Vector3d::Constant(1.0 / 3);
 }
 
+bool Alike(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const AlbedoOptions& o) {
+  return (Chroma(a) - Chroma(b)).norm() <= o.max_chroma_spread &&
+         std::abs(std::log(std::max(1e-4, a.sum())) - std::log(std::max(1e-4, b.sum()))) <= o.max_log_spread;
+}
+
+/// Joins segments of at least min_segment vertices whose means are alike (within the
+/// chromaticity spread and max_apart_log_spread) and that do not touch (a step across an
+/// edge the joins kept apart is a material's): the largest first, each into the first
+/// larger group it is alike to and touches nowhere. `edges`: the mesh's, each once.
+void JoinApart(Segments* s, const std::vector<std::pair<int, int>>& edges, const AlbedoOptions& o) {
+  std::vector<int> roots;
+  for (int v = 0; v < static_cast<int>(s->parent.size()); ++v)
+    if (s->Find(v) == v && s->count[v] >= o.min_segment) roots.push_back(v);
+  std::sort(roots.begin(), roots.end(), [&](int a, int b) { return s->count[a] > s->count[b]; });
+  std::vector<std::pair<int, int>> touching;  // segment roots that share an edge, (small, large)
+  for (const auto& [a, b] : edges) {
+    const int ra = s->Find(a), rb = s->Find(b);
+    if (ra != rb) touching.emplace_back(std::min(ra, rb), std::max(ra, rb));
+  }
+  std::sort(touching.begin(), touching.end());
+  touching.erase(std::unique(touching.begin(), touching.end()), touching.end());
+  const auto touch = [&](int a, int b) {
+    return std::binary_search(touching.begin(), touching.end(), std::make_pair(std::min(a, b), std::max(a, b)));
+  };
+  AlbedoOptions apart = o;
+  apart.max_log_spread = o.max_apart_log_spread;
+  std::vector<std::vector<int>> groups;  // each: its roots, the first the largest (the group's)
+  for (int r : roots) {
+    const auto into = std::find_if(groups.begin(), groups.end(), [&](const std::vector<int>& g) {
+      return Alike(s->Mean(g.front()), s->Mean(r), apart) &&
+             std::none_of(g.begin(), g.end(), [&](int m) { return touch(m, r); });
+    });
+    if (into == groups.end()) {
+      groups.push_back({r});
+      continue;
+    }
+    const int big = into->front();
+    into->push_back(r);
+    s->parent[r] = big;
+    s->sum[big] += s->sum[r];
+    s->count[big] += s->count[r];
+  }
+}
+
 }  // namespace
 
 int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& o) {
@@ -71,6 +115,7 @@ int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& o) {
     s.sum[big] += s.sum[small];
     s.count[big] += s.count[small];
   }
+  if (o.max_apart_log_spread > 0) JoinApart(&s, pairs, o);
   int flattened = 0;
   std::vector<char> counted(n, 0);
   for (int v = 0; v < n; ++v) {
@@ -85,10 +130,12 @@ int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& o) {
 AlbedoOptions DelitAlbedoOptions() {
   AlbedoOptions o;
   o.max_log_spread = o.max_log_step;
+  o.max_apart_log_spread = o.max_log_step;
   return o;
 }
 
-int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options, double scale) {
+int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options, double scale,
+                  double median) {
   const std::size_t n = mesh->positions.size();
   LP_CHECK(mesh->shaded.size() == n && irradiance.size() == n && mesh->albedo.size() == n,
            "DelightAlbedo: shaded colours and irradiance per vertex");
@@ -108,12 +155,12 @@ int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const Albedo
   }
   const int segments = FlattenAlbedo(mesh, options);  // keeps each segment's sum: after > 0
   for (const Eigen::Vector3f& a : mesh->albedo) after += a.sum();
-  // The scale stays the reconstruction's (the mean colour seen, which flattening keeps): it
-  // sets the interreflections.
-  // The de-lit colours have a long tail (demo: 90th percentile 0.37, 99th 2.4 at this
-  // scale), which is clipped at 0.95; scaling everything down to fit the tail instead
-  // fitted the demo worse (docs/method.md).
-  ScaleAlbedo(mesh, scale * before / after);
+  // The scale sets the interreflections. The rule the albedo was scaled by before (the
+  // median): the mean colour seen, which flattening keeps, has the light's fall-off in it,
+  // and a room under a near lamp (its colours' mean far above their median) came out with
+  // most of its surface at the clip (docs/method.md, "The albedo's scale"). The de-lit
+  // colours' long tail (unlit vertices) is clipped at kMaxAlbedo either way.
+  ScaleAlbedo(mesh, median > 0 ? AlbedoScaleTo(*mesh, median) : scale * before / after);
   return segments;
 }
 

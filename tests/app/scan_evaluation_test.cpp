@@ -64,6 +64,24 @@ TEST(ScanEvaluation, TheAlbedosScaleIsTheRatioToTheTrueAlbedo) {
   EXPECT_EQ(samples, 0);
 }
 
+TEST(ScanEvaluation, TheAlbedosErrorIsWhatIsLeftOnceItsScaleIsUndone) {
+  HeldOutView held;
+  held.view = test::BlankView(test::LookAt({0, 0, 2}, {0, 0, 0}, 40, 30, 60));
+  held.true_albedo = ImageRGB(40, 30);
+  for (float& v : held.true_albedo.data) v = 0.4f;
+  double error = -1;
+  EXPECT_NEAR(AlbedoScale(GridPlane(4, 8, 0.1), held, nullptr, &error), 0.25, 1e-6);
+  EXPECT_NEAR(error, 0, 1e-6) << "a quarter of the truth everywhere: right but for its scale";
+  // The left half of the view 0.4, the right half 0.2: the ratios are 0.25 and 0.5 on as
+  // many pixels, the median takes the upper, 0.5; undone, the plane is 0.2 where the truth
+  // is 0.4 (error 0.2) and right elsewhere: sqrt(0.2^2 / (0.4^2 + 0.2^2)).
+  for (int y = 0; y < 30; ++y)
+    for (int x = 20; x < 40; ++x)
+      for (int c = 0; c < 3; ++c) held.true_albedo.data[3 * (y * 40 + x) + c] = 0.2f;
+  EXPECT_NEAR(AlbedoScale(GridPlane(4, 8, 0.1), held, nullptr, &error), 0.5, 1e-6);
+  EXPECT_NEAR(error, std::sqrt(0.04 / 0.2), 1e-6);
+}
+
 TEST(ScanEvaluation, AHeldOutFileWithAWrongSizeIsAClearError) {
   const fs::path dir = fs::temp_directory_path() / ("lp_scan_eval_" + std::to_string(::getpid()));
   fs::create_directories(dir);

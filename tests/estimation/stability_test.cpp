@@ -539,15 +539,27 @@ double AlbedoLogError(const Mesh& mesh, const std::vector<Eigen::Vector3f>& a,
   return e / r.size();
 }
 
+/// Room() lit by one cell of a 9-ring map, made to look reconstructed (AsReconstructed).
+struct LitRoom {
+  SceneBundle b = Room();
+  EnvMap env{9, b.up};
+  std::vector<double> truth = Cells(env, {{CellAt(env, 30, 50), 2.0}});
+  std::vector<Eigen::Vector3f> true_albedo;
+  LitRoom() {
+    LightByCells(&b, env, truth);
+    true_albedo = AsReconstructed(&b, env, truth);
+  }
+};
+
 // Albedo refinement against ground truth: the flattened colour seen holds each segment's
 // mean shading (and the floor and the grey wall share one albedo); de-lit by the estimate
 // it comes closer to the true albedo, and the images are explained better.
 TEST(Stability, AlbedoRefinementComesCloserToTheTrueAlbedo) {
-  SceneBundle b = Room();
-  const EnvMap env(9, b.up);
-  const std::vector<double> truth = Cells(env, {{CellAt(env, 30, 50), 2.0}});
-  LightByCells(&b, env, truth);
-  const std::vector<Eigen::Vector3f> true_albedo = AsReconstructed(&b, env, truth);
+  LitRoom room;
+  SceneBundle& b = room.b;
+  const EnvMap& env = room.env;
+  const std::vector<double>& truth = room.truth;
+  const std::vector<Eigen::Vector3f>& true_albedo = room.true_albedo;
   const double flattened = AlbedoLogError(b.mesh, b.mesh.albedo, true_albedo);
   {
     // De-lit by the true light's irradiance (bounces off the flattened albedo, as the
@@ -599,14 +611,31 @@ TEST(Stability, AlbedoRefinementComesCloserToTheTrueAlbedo) {
   }
 }
 
+// Further albedo passes run only while the last moved the lights (albedo_settle): with 0
+// every pass runs, with a move no pass can reach (1: the whole distance) only the first,
+// and the last pass's move is recorded either way.
+TEST(Stability, FurtherAlbedoPassesRunOnlyWhileTheLightsMove) {
+  LitRoom room;
+  SceneBundle& b = room.b;
+  EstimateOptions eo = Small();
+  eo.room_albedo = 0;
+  eo.albedo_passes = 3;
+  eo.albedo_settle = 0;
+  const EstimateResult every = Estimate(b, eo);
+  EXPECT_EQ(every.albedo_passes, 3);
+  EXPECT_TRUE(std::isfinite(every.albedo_last_move));
+  eo.albedo_settle = 1;
+  const EstimateResult first = Estimate(b, eo);
+  EXPECT_EQ(first.albedo_passes, 1);
+  EXPECT_LE(first.albedo_last_move, 1);
+  EXPECT_GE(first.albedo_last_move, 0);
+}
+
 // An estimate that lights nothing has no irradiance to de-light by: the albedo is kept, and
 // the warning says why the map is dark.
 TEST(Stability, AlbedoRefinementWithNothingLitOrSeenKeepsTheAlbedo) {
-  SceneBundle b = Room();
-  const EnvMap env(9, b.up);
-  const std::vector<double> truth = Cells(env, {{CellAt(env, 30, 50), 2.0}});
-  LightByCells(&b, env, truth);
-  AsReconstructed(&b, env, truth);
+  LitRoom room;
+  SceneBundle& b = room.b;
   EstimateOptions eo = Small();
   eo.objective.sigma = 0.02;
   eo.point_lights.max_lights = 0;  // the map lighting nothing (see ASigmaBelowTheNoise...)

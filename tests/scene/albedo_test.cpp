@@ -71,6 +71,30 @@ TEST(FlattenAlbedo, AnAbruptBrightnessStepSplitsAndSmallSegmentsKeepTheirColour)
   EXPECT_EQ(off.albedo, original);
 }
 
+TEST(FlattenAlbedo, AlikeSegmentsApartAreOneMaterialTouchingOnesStayApart) {
+  // Three grey strips that do not touch: 0.5 and 0.4 (a checker's squares of one paint,
+  // one darker by the light left in it: log luminances 0.22 apart) and 0.1 (another paint,
+  // 1.4 apart); a fourth, 0.4, touches the first across a step.
+  Mesh m = Strip(100, 0, Eigen::Vector3f::Constant(0.5f), 1, 1);
+  m.Append(Strip(60, 2.0f, Eigen::Vector3f::Constant(0.4f), 1, 1));
+  m.Append(Strip(80, 4.0f, Eigen::Vector3f::Constant(0.1f), 1, 1));
+  m.Append(Strip(70, 1.0f, Eigen::Vector3f::Constant(0.4f), 1, 1));  // vertices 480..619
+  m.triangles.push_back({198, 480, 199});
+  const Mesh seen = m;
+  AlbedoOptions o;
+  o.min_segment = 50;
+  o.max_log_spread = o.max_log_step;
+  EXPECT_EQ(FlattenAlbedo(&m, o), 4) << "not joined apart: four segments";
+  m = seen;
+  o.max_apart_log_spread = 0.5f;
+  EXPECT_EQ(FlattenAlbedo(&m, o), 3);
+  const float joined = (200 * 0.5f + 120 * 0.4f) / 320;  // the mean over both, by vertices
+  EXPECT_NEAR(m.albedo[0].x(), joined, 1e-5f);
+  EXPECT_NEAR(m.albedo[200].x(), joined, 1e-5f);
+  EXPECT_NEAR(m.albedo[320].x(), 0.1f, 1e-5f) << "another paint stays apart";
+  EXPECT_NEAR(m.albedo[480].x(), 0.4f, 1e-5f) << "a step across an edge is a material's: kept apart";
+}
+
 /// A floor and a wall of one chromaticity, albedos 1.38 apart (the demo's floor and grey
 /// wall), lit so that the colour seen is continuous across their seam: the floor's
 /// irradiance falls from 1 to 0.725 towards the seam, the wall's from 1 at the seam to 0.6.
@@ -128,6 +152,20 @@ TEST(DelightAlbedo, AnAbsoluteScaleIsKeptAndClippedAtTheLargestAlbedo) {
   for (int v : {0, 599, 600, 1199})
     for (int c = 0; c < 3; ++c)
       EXPECT_NEAR(three.mesh.albedo[v][c], std::min(kMaxAlbedo, 3 * one.mesh.albedo[v][c]), 1e-5f) << v << "," << c;
+}
+
+TEST(DelightAlbedo, TheMedianRuleGivesTheDelitAlbedoThatMedian) {
+  // De-lit, the floor is 0.6 x tint and the wall 0.6 / 1.38 x tint (as many vertices
+  // each); with a median the albedo's median luminance is that, whatever the colours'
+  // mean (the light's fall-off is in it), the floor / wall ratio kept.
+  FloorAndWall s;
+  AlbedoOptions d = DelitAlbedoOptions();
+  d.min_segment = 50;
+  ASSERT_EQ(DelightAlbedo(&s.mesh, s.irradiance, d, 1.0, 0.3), 2);
+  EXPECT_NEAR(AlbedoScaleTo(s.mesh, 0.3), 1, 1e-5) << "its median luminance is 0.3";
+  EXPECT_NEAR(s.mesh.albedo[0].sum() / s.mesh.albedo[1199].sum(), FloorAndWall::kRatio, 0.005 * FloorAndWall::kRatio);
+  const float floor_lum = 0.2126f * s.mesh.albedo[0].x() + 0.7152f * s.mesh.albedo[0].y() + 0.0722f * s.mesh.albedo[0].z();
+  EXPECT_NEAR(floor_lum, 0.3f, 1e-4f) << "the upper of the two halves is the median (nth_element at n/2)";
 }
 
 TEST(AlbedoScale, TheMedianIsTakenToTheGivenAlbedo) {
