@@ -20,7 +20,9 @@ Run AddEvaluate(CLI::App& app) {
   auto spp = std::make_shared<int>(64);
   auto threads = std::make_shared<int>(0);
   cmd->add_option("RUN_DIR", *run, "what `lightprobe --headless SCAN --out RUN_DIR` wrote")->required();
-  cmd->add_option("--truth", *truth, "the scan's directory (truth.json; gt_mesh.ply and holdout/ when it has them)")
+  cmd->add_option("--truth", *truth,
+                  "the scan's directory (truth.json, gt_mesh.ply and holdout/, each scored when there; a real "
+                  "recording's held-out frame: holdout/ alone)")
       ->required();
   cmd->add_option("--spp", *spp, "samples per pixel of the held-out view's relit render")->capture_default_str();
   cmd->add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
@@ -45,12 +47,19 @@ Run AddEvaluate(CLI::App& app) {
       else
         std::printf("sun %zu: no directional light estimated\n", k);
     }
-    std::printf("%d lamp(s) estimated; the largest spurious one gives %.1f %% of their light at the centre\n",
-                s.estimated_lamps, 100 * s.spurious_share);
+    if (std::isfinite(s.spurious_share))
+      std::printf("%d lamp(s) estimated; the largest spurious one gives %.1f %% of their light at the centre\n",
+                  s.estimated_lamps, 100 * s.spurious_share);
+    else
+      std::printf("%d lamp(s) estimated (no truth.json: none scored)\n", s.estimated_lamps);
     std::printf("albedo's scale (estimated / true) %.3f over %d pixels, its error once the scale is undone %.3f; held-out view relit: relative RMSE %.3f "
                 "(%.3f over the %.0f %% of its pixels the scan covers; %.3f there with the true albedo: the light's part)\n",
                 s.albedo_scale, s.albedo_samples, s.albedo_error, s.held_out_relit, s.held_out_relit_covered, 100 * s.held_out_covered,
                 s.held_out_relit_true_albedo);
+    if (std::isfinite(s.held_out_relit_blurred))
+      std::printf("held-out view, both blurred by %.0f px: %.3f (the light's part); what the blur takes away: %.3f (the "
+                  "colour map's sharpness and registration)\n",
+                  kSplitBlurPx, s.held_out_relit_blurred, s.held_out_colour_map_part);
     const fs::path out = fs::path(*run) / "evaluation.json";
     WriteTextAtomically(out, ScanScoreJson(s));
     const bool reported = AddToReport(*run, s);

@@ -150,6 +150,43 @@ void ScoreSuns(const TrueLamps& truth, const std::vector<DirectionalLight>& esti
   }
 }
 
+/// `image` blurred by a Gaussian of `sigma` pixels over the pixels `valid` marks (normalised
+/// convolution: the others neither give nor take; they come out as they were).
+ImageRGB BlurOver(const ImageRGB& image, const std::vector<std::uint8_t>& valid, double sigma) {
+  const int w = image.width, h = image.height, r = static_cast<int>(std::ceil(3 * sigma));
+  std::vector<float> kernel(2 * r + 1);
+  for (int k = -r; k <= r; ++k) kernel[k + r] = static_cast<float>(std::exp(-0.5 * k * k / (sigma * sigma)));
+  // Channels 0-2 the colour times the weight, 3 the weight; x then y.
+  std::vector<float> a(4 * static_cast<std::size_t>(w) * h, 0.f), b(a.size(), 0.f);
+  for (std::size_t p = 0; p < valid.size(); ++p)
+    if (valid[p]) {
+      for (int c = 0; c < 3; ++c) a[4 * p + c] = image.data[3 * p + c];
+      a[4 * p + 3] = 1;
+    }
+  const auto pass = [&](const std::vector<float>& in, std::vector<float>& out, int dx, int dy) {
+    ParallelFor(0, h, [&](std::size_t yy) {
+      const int y = static_cast<int>(yy);
+      for (int x = 0; x < w; ++x) {
+        float sum[4] = {0, 0, 0, 0};
+        for (int k = -r; k <= r; ++k) {
+          const int sx = x + k * dx, sy = y + k * dy;
+          if (sx < 0 || sy < 0 || sx >= w || sy >= h) continue;
+          const float* v = &in[4 * (static_cast<std::size_t>(sy) * w + sx)];
+          for (int c = 0; c < 4; ++c) sum[c] += kernel[k + r] * v[c];
+        }
+        std::copy(sum, sum + 4, &out[4 * (static_cast<std::size_t>(y) * w + x)]);
+      }
+    });
+  };
+  pass(a, b, 1, 0);
+  pass(b, a, 0, 1);
+  ImageRGB out = image;
+  for (std::size_t p = 0; p < valid.size(); ++p)
+    if (valid[p] && a[4 * p + 3] > 0)
+      for (int c = 0; c < 3; ++c) out.data[3 * p + c] = a[4 * p + c] / a[4 * p + 3];
+  return out;
+}
+
 /// Per pixel of the held-out view, the albedo where its ray first hits `tracer`'s mesh; NaN
 /// for a pixel outside the mask or hitting nothing (the reconstruction does not cover it).
 std::vector<Eigen::Vector3f> HitAlbedos(const RayTracer& tracer, const HeldOutView& held) {
@@ -233,6 +270,9 @@ void RelitError(const HeldOutView& held, const RayTracer& tracer, const std::vec
   }
   s->held_out_covered = in_view ? static_cast<double>(hit) / in_view : 0;
   s->held_out_relit_covered = RelativeImageRmse(image, held.view.image, covered);
+  const BlurSplit split = SplitByBlur(image, held.view.image, covered);
+  s->held_out_relit_blurred = split.smooth;
+  s->held_out_colour_map_part = split.sharp;
   if (!true_albedo) return;
   // At the one scale that fits best (light x albedo is what the images fix; the scale's
   // share of the error is in light_times_albedo).
@@ -301,6 +341,16 @@ MeshError CompareMeshes(const Mesh& reconstructed, const Mesh& truth, const std:
   return e;
 }
 
+BlurSplit SplitByBlur(const ImageRGB& image, const ImageRGB& reference, const std::vector<std::uint8_t>& valid,
+                      double sigma_px) {
+  BlurSplit s;
+  s.total = RelativeImageRmse(image, reference, valid);
+  s.smooth = RelativeImageRmse(BlurOver(image, valid, sigma_px), BlurOver(reference, valid, sigma_px), valid);
+  if (std::isfinite(s.total) && std::isfinite(s.smooth))
+    s.sharp = std::sqrt(std::max(0.0, s.total * s.total - s.smooth * s.smooth));
+  return s;
+}
+
 double AlbedoScale(const Mesh& mesh, const HeldOutView& held, int* samples, double* error) {
   const RayTracer tracer(mesh);
   const std::vector<Eigen::Vector3f> hits = HitAlbedos(tracer, held);
@@ -312,7 +362,12 @@ double AlbedoScale(const Mesh& mesh, const HeldOutView& held, int* samples, doub
 ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int spp) {
   Stopwatch sw;
   ScanScore s;
-  const TrueLamps truth = ReadTrueLamps(truth_dir / "truth.json");  // the cheap input's errors first
+  // The cheap input's errors first; without truth.json (a real recording's held-out frame)
+  // no light is scored, without any truth nothing can be.
+  if (!fs::exists(truth_dir / "truth.json") && !fs::exists(truth_dir / "gt_mesh.ply") &&
+      !fs::exists(truth_dir / "holdout" / "holdout.json"))
+    throw InputError(truth_dir.string(), "no truth.json, gt_mesh.ply nor holdout/holdout.json: nothing to score against");
+  const TrueLamps truth = fs::exists(truth_dir / "truth.json") ? ReadTrueLamps(truth_dir / "truth.json") : TrueLamps{};
   const fs::path scene_dir = run_dir / "scene", estimate_dir = run_dir / "estimate";
   const SceneBundle bundle = LoadSceneBundle(scene_dir);
   if (fs::exists(truth_dir / "gt_mesh.ply")) {
@@ -325,6 +380,7 @@ ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int s
   const fs::path lights_path = estimate_dir / "lights.json";
   const LightsFile lights = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
   ScoreLamps(truth, OfKind<PointLight>(lights.lights), &s);
+  if (!fs::exists(truth_dir / "truth.json")) s.spurious_share = NAN;  // no truth: no lamp is known spurious
   ScoreSuns(truth, OfKind<DirectionalLight>(lights.lights), &s);
   const fs::path albedo_mesh = estimate_dir / "albedo_mesh.ply";
   Mesh lit = fs::exists(albedo_mesh) ? ReadPly(albedo_mesh) : bundle.mesh;
@@ -362,7 +418,7 @@ std::string ScanScoreJson(const ScanScore& s) {
     j["suns"].push_back({{"truth", vec(u.truth)}, {"angle_deg", num(u.angle_deg)},
                          {"irradiance_ratio", num(u.irradiance_ratio)}});
   j["estimated_lamps"] = s.estimated_lamps;
-  j["spurious_share"] = s.spurious_share;
+  j["spurious_share"] = num(s.spurious_share);
   j["albedo_scale"] = num(s.albedo_scale);
   j["albedo_samples"] = s.albedo_samples;
   j["albedo_error"] = num(s.albedo_error);
@@ -371,6 +427,8 @@ std::string ScanScoreJson(const ScanScore& s) {
   j["held_out_relit_covered"] = num(s.held_out_relit_covered);
   j["held_out_relit_true_albedo"] = num(s.held_out_relit_true_albedo);
   j["held_out_true_albedo_scale"] = num(s.held_out_true_albedo_scale);
+  j["held_out_relit_blurred"] = num(s.held_out_relit_blurred);
+  j["held_out_colour_map_part"] = num(s.held_out_colour_map_part);
   j["seconds"] = s.seconds;
   return j.dump(2) + "\n";
 }

@@ -41,6 +41,19 @@ MeshError CompareMeshes(const Mesh& reconstructed, const Mesh& truth, const std:
 /// without samples. `error`, when given, gets ScanScore::albedo_error at that scale.
 double AlbedoScale(const Mesh& mesh, const HeldOutView& view, int* samples = nullptr, double* error = nullptr);
 
+/// The Gaussian blur (sigma, pixels) SplitByBlur uses by default: registration of a
+/// reconstruction's colours is off by a pixel or two at the keyframes' scale.
+inline constexpr double kSplitBlurPx = 4;
+/// The relative RMSE of `image` against `reference` over the `valid` pixels (`total`);
+/// the same with both blurred by a Gaussian of `sigma_px` over the valid pixels alone
+/// (`smooth`: a light's errors, which are smooth, survive the blur); and
+/// sqrt(max(0, total^2 - smooth^2)) (`sharp`: what the blur took away, the colour map's).
+struct BlurSplit {
+  double total = NAN, smooth = NAN, sharp = NAN;
+};
+BlurSplit SplitByBlur(const ImageRGB& image, const ImageRGB& reference, const std::vector<std::uint8_t>& valid,
+                      double sigma_px = kSplitBlurPx);
+
 /// One true lamp against the nearest estimated point light.
 struct LampScore {
   Eigen::Vector3d truth = Eigen::Vector3d::Zero(), estimate = Eigen::Vector3d::Zero();
@@ -66,7 +79,7 @@ struct ScanScore {
   int estimated_lamps = 0;
   /// The estimated lamps that are no true lamp's nearest: their share of the irradiance
   /// all estimated lamps give the room's centre (luminance / d^2), the largest.
-  double spurious_share = 0;
+  double spurious_share = 0;  ///< NaN without truth.json
   double albedo_scale = NAN;
   int albedo_samples = 0;
   /// The albedo's error once its scale is undone: over the same pixels, the relative RMS of
@@ -82,6 +95,11 @@ struct ScanScore {
   /// error, the colour map's (sharpness, registration, segmentation) taken out, at the one
   /// scale that fits best (held_out_true_albedo_scale: light x albedo's own error aside).
   double held_out_relit_true_albedo = NAN, held_out_true_albedo_scale = NAN;
+  /// The same error split without a true albedo (SplitByBlur): over the covered pixels,
+  /// with both images blurred by a Gaussian of kSplitBlurPx pixels (the light's part: its
+  /// errors are smooth) and what the blur takes away (the colour map's: its sharpness and
+  /// registration are pixel-sharp).
+  double held_out_relit_blurred = NAN, held_out_colour_map_part = NAN;
   double seconds = 0;
 };
 

@@ -336,8 +336,8 @@ const char* ToString(ImageEncoding e) {
 
 ImageRGB ReadImageLinear(const fs::path& path, ImageEncoding* encoding) {
   const std::string ext = Lower(path.extension().string());
-  if (ext != ".exr" && ext != ".pfm" && ext != ".png" && ext != ".hdr")
-    throw InputError(path.string(), "unsupported image format '" + ext + "' (use .exr, .pfm or .png)");
+  if (ext != ".exr" && ext != ".pfm" && ext != ".png" && ext != ".hdr" && ext != ".jpg" && ext != ".jpeg")
+    throw InputError(path.string(), "unsupported image format '" + ext + "' (use .exr, .pfm, .png or .jpg)");
   return FromMat(ReadRaw(path, cv::IMREAD_UNCHANGED), path, encoding);
 }
 

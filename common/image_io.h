@@ -18,7 +18,7 @@ inline constexpr std::uint64_t kMaxImagePixels = 64ull << 20;
 enum class ImageEncoding { kLinearFloat, kSrgb8, kLinear16 };
 const char* ToString(ImageEncoding e);
 
-/// Reads .exr / .pfm (linear float), 8-bit PNG (sRGB-encoded, decoded to linear)
+/// Reads .exr / .pfm / .hdr (linear float), 8-bit PNG or JPEG (sRGB-encoded, decoded to linear)
 /// or 16-bit PNG (linear, /65535). Grey images are expanded to RGB.
 ImageRGB ReadImageLinear(const std::filesystem::path& path, ImageEncoding* encoding = nullptr);
 

@@ -82,6 +82,35 @@ TEST(ScanEvaluation, TheAlbedosErrorIsWhatIsLeftOnceItsScaleIsUndone) {
   EXPECT_NEAR(error, std::sqrt(0.04 / 0.2), 1e-6);
 }
 
+// The held-out error split without a true albedo: a light's error (smooth: here 10 % too
+// bright everywhere) survives the blur; a colour map's (pixel-sharp: a +-10 % checker of
+// one-pixel squares) is what the blur takes away.
+TEST(ScanEvaluation, TheBlurSplitsSmoothErrorsFromSharpOnes) {
+  ImageRGB reference(64, 48);
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x)
+      for (int c = 0; c < 3; ++c) reference.at(x, y)[c] = 0.2f + 0.005f * x;  // a smooth wall
+  std::vector<std::uint8_t> valid(64 * 48, 1);
+  for (int x = 40; x < 64; ++x) valid[10 * 64 + x] = 0;  // a hole: neither gives nor takes
+  ImageRGB brighter = reference, speckled = reference;
+  for (float& v : brighter.data) v *= 1.1f;
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x)
+      for (int c = 0; c < 3; ++c) speckled.at(x, y)[c] *= (x + y) % 2 ? 1.1f : 0.9f;
+  // (RelativeImageRmse is over the reference's mean: 10 % everywhere is 0.1 x RMS / mean.)
+  double sum = 0, squares = 0;
+  for (float v : reference.data) sum += v, squares += double(v) * v;
+  const double n = static_cast<double>(reference.data.size()), ten_percent = 0.1 * std::sqrt(squares / n) / (sum / n);
+  const app::BlurSplit light = app::SplitByBlur(brighter, reference, valid);
+  EXPECT_NEAR(light.total, ten_percent, 1e-3);
+  EXPECT_NEAR(light.smooth, light.total, 0.02 * light.total) << "a uniform 10 % survives the blur";
+  EXPECT_LT(light.sharp, 0.2 * light.total);
+  const app::BlurSplit colour = app::SplitByBlur(speckled, reference, valid);
+  EXPECT_NEAR(colour.total, ten_percent, 2e-3);
+  EXPECT_LT(colour.smooth, 0.1 * colour.total) << "a one-pixel checker averages out";
+  EXPECT_NEAR(colour.sharp, colour.total, 0.01 * colour.total);
+}
+
 TEST(ScanEvaluation, AHeldOutFileWithAWrongSizeIsAClearError) {
   const fs::path dir = fs::temp_directory_path() / ("lp_scan_eval_" + std::to_string(::getpid()));
   fs::create_directories(dir);
