@@ -39,6 +39,7 @@ expect "albedo-samples must be between 1 and 4096, not 0" "$exe" estimate "$tmp/
 expect "rings must be a whole number, not '21.5'" "$exe" estimate "$tmp/s" --out "$tmp/o" --rings 21.5 --quiet
 expect "spp must be at least 1, not 0" "$exe" estimate "$tmp/s" --out "$tmp/o" --spp 0 --quiet
 expect "room-albedo must be between 0 and 0.95, not 2" "$exe" estimate "$tmp/s" --out "$tmp/o" --room-albedo 2 --quiet
+expect "albedo-settle must be between 0 and 1, not -0.1" "$exe" estimate "$tmp/s" --out "$tmp/o" --albedo-settle -0.1 --quiet
 expect "no truth.json, gt_mesh.ply nor holdout/holdout.json: nothing to score against" "$exe" evaluate "$tmp/run" --truth "$tmp/s"
 echo '{"lights": []}' >"$tmp/truth.json"
 expect "run/scene: scene directory not found" "$exe" evaluate "$tmp/run" --truth "$tmp"
