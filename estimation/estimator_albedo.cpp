@@ -117,18 +117,24 @@ bool Estimator::RefineAlbedo(int pass) {
 
 bool Estimator::Settled(const std::vector<Light>& before) {
   const std::vector<Light> now = Lights();
-  double moved = now.size() == before.size() ? 0 : INFINITY;
-  for (std::size_t k = 0; k < now.size() && std::isfinite(moved); ++k) {
-    if (now[k].index() != before[k].index()) {
-      moved = INFINITY;
-    } else if (const auto* lamp = std::get_if<PointLight>(&now[k])) {
-      const Eigen::Vector3d was = std::get<PointLight>(before[k]).position;
-      moved = std::max(moved, (lamp->position - was).norm() / std::max(1e-6, (was - centre_).norm()));
-    } else if (const auto* sun = std::get_if<DirectionalLight>(&now[k])) {
-      const double c = sun->direction.dot(std::get<DirectionalLight>(before[k]).direction);
-      moved = std::max(moved, std::acos(std::clamp(c, -1.0, 1.0)));
-    }
-  }
+  // Each light against the nearest of its kind before (the lights' order may change), the
+  // counts of each kind the same or it moved without measure.
+  const auto nearest = [&](const Light& light) {
+    double best = INFINITY;
+    for (const Light& was : before)
+      if (const auto* lamp = std::get_if<PointLight>(&light); lamp && std::holds_alternative<PointLight>(was)) {
+        const Eigen::Vector3d from = std::get<PointLight>(was).position;
+        best = std::min(best, (lamp->position - from).norm() / std::max(1e-6, (from - centre_).norm()));
+      } else if (const auto* sun = std::get_if<DirectionalLight>(&light); sun && std::holds_alternative<DirectionalLight>(was)) {
+        const double c = sun->direction.dot(std::get<DirectionalLight>(was).direction);
+        best = std::min(best, std::acos(std::clamp(c, -1.0, 1.0)));
+      }
+    return best;
+  };
+  const bool same_counts = OfKind<PointLight>(now).size() == OfKind<PointLight>(before).size() &&
+                           OfKind<DirectionalLight>(now).size() == OfKind<DirectionalLight>(before).size();
+  double moved = same_counts ? 0 : INFINITY;
+  for (const Light& light : now) moved = std::max(moved, nearest(light));
   res_.albedo_last_move = moved;
   const bool settled = opt_.albedo_settle > 0 && moved <= opt_.albedo_settle;  // (no lamp nor sun: 0, settled)
   Progress(Fmt("albedo pass %d moved the lights by %.3g (a lamp: of its distance from the scene's centre; at most %.3g "

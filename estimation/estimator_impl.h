@@ -110,8 +110,9 @@ class Estimator {
   /// The lights as they stand (directional lights first, then lamps).
   std::vector<Light> Lights() const { return Joined(suns_, points_); }
   /// Whether the lights moved no more than albedo_settle since `before` (Lights() then): the
-  /// largest of a lamp's move over its distance from the scene's centre and a directional
-  /// light's turn (radians), infinite when a light came or went. Recorded as the last
+  /// largest, over the lights, of a lamp's distance from the nearest lamp before over that
+  /// one's distance from the scene's centre, and a directional light's angle to the nearest
+  /// before (radians); infinite when the count of a kind changed. Recorded as the last
   /// albedo pass's move, and said.
   bool Settled(const std::vector<Light>& before);
   std::vector<float> OverClusters(const std::vector<float>& values) const;
