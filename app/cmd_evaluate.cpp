@@ -52,10 +52,16 @@ Run AddEvaluate(CLI::App& app) {
                   s.estimated_lamps, 100 * s.spurious_share);
     else
       std::printf("%d lamp(s) estimated (no truth.json: none scored)\n", s.estimated_lamps);
-    std::printf("albedo's scale (estimated / true) %.3f over %d pixels, its error once the scale is undone %.3f; held-out view relit: relative RMSE %.3f "
-                "(%.3f over the %.0f %% of its pixels the scan covers; %.3f there with the true albedo: the light's part)\n",
-                s.albedo_scale, s.albedo_samples, s.albedo_error, s.held_out_relit, s.held_out_relit_covered, 100 * s.held_out_covered,
-                s.held_out_relit_true_albedo);
+    if (s.albedo_samples > 0)
+      std::printf("albedo's scale (estimated / true) %.3f over %d pixels; its error once the scale is undone %.3f\n",
+                  s.albedo_scale, s.albedo_samples, s.albedo_error);
+    if (std::isfinite(s.held_out_relit)) {
+      std::printf("held-out view relit: relative RMSE %.3f (%.3f over the %.0f %% of its pixels the scan covers",
+                  s.held_out_relit, s.held_out_relit_covered, 100 * s.held_out_covered);
+      if (std::isfinite(s.held_out_relit_true_albedo))
+        std::printf("; %.3f there with the true albedo in place of the colour map", s.held_out_relit_true_albedo);
+      std::printf(")\n");
+    }
     if (std::isfinite(s.held_out_relit_blurred))
       std::printf("held-out view, both blurred by %.0f px: %.3f (the light's part); what the blur takes away: %.3f (the "
                   "colour map's sharpness and registration)\n",
