@@ -236,6 +236,13 @@ double AlbedoError(const std::vector<Eigen::Vector3f>& hits, const HeldOutView& 
   return ref > 0 ? std::sqrt(err / ref) : NAN;
 }
 
+/// AlbedoScale's scale and error on the hits HitAlbedos found.
+double ScaleAndError(const std::vector<Eigen::Vector3f>& hits, const HeldOutView& held, int* samples, double* error) {
+  const double scale = MedianAlbedoRatio(hits, held, samples);
+  *error = AlbedoError(hits, held, scale);
+  return scale;
+}
+
 /// The held-out view relit under the run's estimate (`file`: its map, every light) on
 /// `tracer`'s mesh, whose albedo each pixel hits is `hits`: its error over the view's
 /// pixels, and over those the mesh covers (`covered`: their share).
@@ -353,9 +360,9 @@ BlurSplit SplitByBlur(const ImageRGB& image, const ImageRGB& reference, const st
 
 double AlbedoScale(const Mesh& mesh, const HeldOutView& held, int* samples, double* error) {
   const RayTracer tracer(mesh);
-  const std::vector<Eigen::Vector3f> hits = HitAlbedos(tracer, held);
-  const double scale = MedianAlbedoRatio(hits, held, samples);
-  if (error) *error = AlbedoError(hits, held, scale);
+  double e = NAN;
+  const double scale = ScaleAndError(HitAlbedos(tracer, held), held, samples, &e);
+  if (error) *error = e;
   return scale;
 }
 
@@ -364,13 +371,14 @@ ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int s
   ScanScore s;
   // The cheap input's errors first; without truth.json (a real recording's held-out frame)
   // no light is scored, without any truth nothing can be.
-  if (!fs::exists(truth_dir / "truth.json") && !fs::exists(truth_dir / "gt_mesh.ply") &&
-      !fs::exists(truth_dir / "holdout" / "holdout.json"))
+  const bool has_lights = fs::exists(truth_dir / "truth.json"), has_mesh = fs::exists(truth_dir / "gt_mesh.ply"),
+             has_held_out = fs::exists(truth_dir / "holdout" / "holdout.json");
+  if (!has_lights && !has_mesh && !has_held_out)
     throw InputError(truth_dir.string(), "no truth.json, gt_mesh.ply nor holdout/holdout.json: nothing to score against");
-  const TrueLamps truth = fs::exists(truth_dir / "truth.json") ? ReadTrueLamps(truth_dir / "truth.json") : TrueLamps{};
+  const TrueLamps truth = has_lights ? ReadTrueLamps(truth_dir / "truth.json") : TrueLamps{};
   const fs::path scene_dir = run_dir / "scene", estimate_dir = run_dir / "estimate";
   const SceneBundle bundle = LoadSceneBundle(scene_dir);
-  if (fs::exists(truth_dir / "gt_mesh.ply")) {
+  if (has_mesh) {
     Mesh truth = ReadPly(truth_dir / "gt_mesh.ply");
     SanitizeMesh(&truth, (truth_dir / "gt_mesh.ply").string());
     std::vector<Camera> cameras;
@@ -380,18 +388,17 @@ ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int s
   const fs::path lights_path = estimate_dir / "lights.json";
   const LightsFile lights = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
   ScoreLamps(truth, OfKind<PointLight>(lights.lights), &s);
-  if (!fs::exists(truth_dir / "truth.json")) s.spurious_share = NAN;  // no truth: no lamp is known spurious
+  if (!has_lights) s.spurious_share = NAN;  // no truth: no lamp is known spurious
   ScoreSuns(truth, OfKind<DirectionalLight>(lights.lights), &s);
   const fs::path albedo_mesh = estimate_dir / "albedo_mesh.ply";
   Mesh lit = fs::exists(albedo_mesh) ? ReadPly(albedo_mesh) : bundle.mesh;
   SanitizeMesh(&lit, albedo_mesh.string());
   if (lit.normals.size() != lit.positions.size()) ComputeVertexNormals(&lit);
-  if (fs::exists(truth_dir / "holdout" / "holdout.json")) {
+  if (has_held_out) {
     const HeldOutView held = ReadHeldOutView(truth_dir / "holdout" / "holdout.json");
     const RayTracer tracer(std::move(lit));
     const std::vector<Eigen::Vector3f> hits = HitAlbedos(tracer, held);
-    s.albedo_scale = MedianAlbedoRatio(hits, held, &s.albedo_samples);
-    s.albedo_error = AlbedoError(hits, held, s.albedo_scale);
+    s.albedo_scale = ScaleAndError(hits, held, &s.albedo_samples, &s.albedo_error);
     RelitError(held, tracer, hits, lights, estimate_dir, bundle.up, spp, &s);
   }
   for (LampScore& l : s.lamps) l.light_times_albedo = l.intensity_ratio * s.albedo_scale;
@@ -399,7 +406,9 @@ ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int s
   return s;
 }
 
-std::string ScanScoreJson(const ScanScore& s) {
+namespace {
+
+json ScoreJson(const ScanScore& s) {
   const auto num = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
   const auto vec = [](const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); };
   json j;
@@ -430,14 +439,18 @@ std::string ScanScoreJson(const ScanScore& s) {
   j["held_out_relit_blurred"] = num(s.held_out_relit_blurred);
   j["held_out_colour_map_part"] = num(s.held_out_colour_map_part);
   j["seconds"] = s.seconds;
-  return j.dump(2) + "\n";
+  return j;
 }
+
+}  // namespace
+
+std::string ScanScoreJson(const ScanScore& s) { return ScoreJson(s).dump(2) + "\n"; }
 
 bool AddToReport(const fs::path& run_dir, const ScanScore& s) {
   const fs::path report = run_dir / "estimate" / "report.json";
   if (!fs::exists(report)) return false;
   json j = ReadJsonFile(report);
-  j["evaluation"] = json::parse(ScanScoreJson(s));
+  j["evaluation"] = ScoreJson(s);
   WriteTextAtomically(report, j.dump(2) + "\n");
   return true;
 }

@@ -121,18 +121,13 @@ bool Estimator::Settled(const std::vector<Light>& before) {
   // counts of each kind the same or it moved without measure.
   const auto nearest = [&](const Light& light) {
     double best = INFINITY;
-    for (const Light& was : before)
-      if (const auto* lamp = std::get_if<PointLight>(&light); lamp && std::holds_alternative<PointLight>(was)) {
-        const Eigen::Vector3d from = std::get<PointLight>(was).position;
-        best = std::min(best, (lamp->position - from).norm() / std::max(1e-6, (from - centre_).norm()));
-      } else if (const auto* sun = std::get_if<DirectionalLight>(&light); sun && std::holds_alternative<DirectionalLight>(was)) {
-        const double c = sun->direction.dot(std::get<DirectionalLight>(was).direction);
-        best = std::min(best, std::acos(std::clamp(c, -1.0, 1.0)));
-      }
+    for (const Light& was : before) best = std::min(best, ShapeDistance(light, was, centre_));
     return best;
   };
-  const bool same_counts = OfKind<PointLight>(now).size() == OfKind<PointLight>(before).size() &&
-                           OfKind<DirectionalLight>(now).size() == OfKind<DirectionalLight>(before).size();
+  std::vector<int> count(std::variant_size_v<Light>, 0);  // of each kind, now less before
+  for (const Light& light : now) ++count[light.index()];
+  for (const Light& light : before) --count[light.index()];
+  const bool same_counts = std::all_of(count.begin(), count.end(), [](int c) { return c == 0; });
   double moved = same_counts ? 0 : INFINITY;
   for (const Light& light : now) moved = std::max(moved, nearest(light));
   res_.albedo_last_move = moved;

@@ -4,6 +4,8 @@
 /// "directional_lights" (docs/formats.md). What only this kind knows: its unit column on
 /// shading vertices and the column's derivative across the sphere, the light it sends to a
 /// point, its shape (a direction on S^2, stepped in its tangent plane) and how a step moves it.
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <vector>
 
@@ -81,5 +83,9 @@ inline DirectionalLight Moved(DirectionalLight l, const double* step) {
 inline int CompassMoves(const DirectionalLight&) { return 4; }
 inline double CompassUnit(const DirectionalLight&, const Eigen::Vector3d&) { return 1; }
 DirectionalLight CompassMove(DirectionalLight l, int move, double step);
+/// How far `now` is from `was` in CompassUnits: the angle between their directions.
+inline double ShapeDistance(const DirectionalLight& now, const DirectionalLight& was, const Eigen::Vector3d&) {
+  return std::acos(std::clamp(now.direction.dot(was.direction), -1.0, 1.0));
+}
 
 }  // namespace lp

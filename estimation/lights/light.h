@@ -3,9 +3,10 @@
 /// pbrt-v4's Light): a closed set of kinds, each in its own file under estimation/lights/
 /// with what only it knows, and these functions that any code handling "a light" calls.
 /// A new kind: its file (its struct, UnitColumn, Irradiance, SameShape, Scale, ShapeDims /
-/// ShapeBasis / Moved, CompassMoves / CompassUnit / CompassMove), its test, and its
+/// ShapeBasis / Moved, CompassMoves / CompassUnit / CompassMove / ShapeDistance), its test, and its
 /// entry in `Light` below (docs/architecture.md, "Light kinds").
 #include <cstdint>
+#include <limits>
 #include <type_traits>
 #include <variant>
 #include <vector>
@@ -53,6 +54,13 @@ inline void ShapeGradient(const Eigen::Matrix3d& basis, int dims, const float* d
 }
 inline Light Moved(const Light& light, const double* step) {
   return std::visit([&](const auto& l) -> Light { return Moved(l, step); }, light);
+}
+/// How far apart two lights' shapes are in CompassUnits of `b` (a lamp's move over its
+/// distance from `centre`, a direction's angle); infinite for two kinds.
+inline double ShapeDistance(const Light& a, const Light& b, const Eigen::Vector3d& centre) {
+  if (a.index() != b.index()) return std::numeric_limits<double>::infinity();
+  return std::visit([&](const auto& l) { return ShapeDistance(l, std::get<std::decay_t<decltype(l)>>(b), centre); },
+                    a);
 }
 inline int CompassMoves(const Light& light) {
   return std::visit([](const auto& l) { return CompassMoves(l); }, light);

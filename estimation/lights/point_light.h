@@ -76,6 +76,11 @@ inline int CompassMoves(const PointLight&) { return 6; }
 inline double CompassUnit(const PointLight& l, const Eigen::Vector3d& centre) {
   return std::max((l.position - centre).norm(), 1e-6);
 }
+/// How far `now` is from `was` in CompassUnits of `was`: the move over its distance from
+/// `centre`.
+inline double ShapeDistance(const PointLight& now, const PointLight& was, const Eigen::Vector3d& centre) {
+  return (now.position - was.position).norm() / CompassUnit(was, centre);
+}
 inline PointLight CompassMove(PointLight l, int move, double step) {
   l.position[move / 2] += move % 2 ? -step : step;
   return l;

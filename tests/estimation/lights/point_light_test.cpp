@@ -173,5 +173,20 @@ TEST(PointLights, RefinementFindsTheLampFromHalfAMetreAway) {
   EXPECT_LT((found.intensity - lamp.intensity).norm(), 0.02 * lamp.intensity.norm());
 }
 
+// ShapeDistance in CompassUnits, closed form: a lamp 2 m from the centre moved 0.2 m is
+// 0.1 apart; a direction turned by 0.05 rad is 0.05 apart; two kinds are infinitely apart.
+TEST(LightKinds, ShapeDistanceIsInCompassUnits) {
+  const Eigen::Vector3d centre(1, 0, 0);
+  PointLight was, now;
+  was.position = {1, 0, 2};
+  now.position = {1, 0.2, 2};
+  EXPECT_NEAR(ShapeDistance(Light(now), Light(was), centre), 0.1, 1e-12);
+  DirectionalLight a, b;
+  a.direction = {0, 0, 1};
+  b.direction = {std::sin(0.05), 0, std::cos(0.05)};
+  EXPECT_NEAR(ShapeDistance(Light(b), Light(a), centre), 0.05, 1e-9);
+  EXPECT_TRUE(std::isinf(ShapeDistance(Light(now), Light(a), centre)));
+}
+
 }  // namespace
 }  // namespace lp
