@@ -55,6 +55,10 @@ std::vector<EstimateOption> MakeTable() {
        "the colours' scale",
        Type::kReal, 0, 0.95 /* kMaxAlbedo as a decimal */, false, LP_GET(room_albedo), LP_SET(room_albedo, double),
        "", 0, 0, {}},
+      {"free-albedo", "free_albedo",
+       "after an albedo pass, fit the lights' places with each segment's albedo left free (the shading within "
+       "the segments places them); 0 = under the de-lit albedo",
+       Type::kBool, 0, 1, false, LP_GET(free_albedo), LP_SET(free_albedo, bool), "", 0, 0, {}},
       {"albedo-samples", "albedo_samples", "paths per vertex for the irradiance an albedo pass de-lights by",
        Type::kInt, 1, 4096, false, LP_GET(albedo_samples), LP_SET(albedo_samples, int), "", 0, 0, {}},
       {"trace-pixels", "trace_pixels",

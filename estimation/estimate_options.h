@@ -133,6 +133,10 @@ struct EstimateOptions {
   /// pass keeps that scale. 0 keeps the colours' scale (docs/method.md, "The albedo's
   /// scale").
   double room_albedo = 0.6;
+  /// After an albedo pass, the lights' shapes are fitted with each de-lit segment's albedo
+  /// left free (eliminated, LightFitProblem::segment): the shading within the segments
+  /// places them, not the de-lit albedos the last estimate implied (docs/method.md).
+  bool free_albedo = true;
   /// Stop when the rendered estimate changes by less than this between rounds:
   /// |A (lambda_k - lambda_{k-1})| / |A lambda_k| < 2 % (over the observed pixels).
   double change_threshold = 0.02;

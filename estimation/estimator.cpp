@@ -128,6 +128,7 @@ void Estimator::UseViews(int stride) {
   A_ = TransportMatrix();
   vertices_ = ShadingVertices();
   columns_.clear();
+  row_segment_.clear();
   holdout_.clear();
   holdout_fit_.reset();
 }

@@ -80,6 +80,7 @@ bool Estimator::RefineAlbedo(int pass) {
   Stopwatch as;
   int segments = -1;  // an estimate that lights nothing (warned in Conclude) has no irradiance
   std::vector<float> irradiance;
+  std::vector<int> labels;
   if (res_.rendered_fraction >= 0.01) {
     const int paths = AlbedoPaths();
     Progress(Fmt("albedo pass %d: de-lighting %zu vertices (%d paths each)", pass, mesh_.positions.size(), paths));
@@ -95,10 +96,17 @@ bool Estimator::RefineAlbedo(int pass) {
         CheckCancel();
       }
       irradiance = OverClusters(radiance.Irradiance());
+      // The albedo's scale by the rule it was given before the rounds (--room-albedo), or
+      // the colours' own when that is 0.
+      segments = DelightAlbedo(&mesh_, irradiance, DelitAlbedoOptions(), res_.albedo_scale, opt_.room_albedo, &labels);
+      if (segments >= 0 && opt_.free_albedo) {
+        row_segment_ = RowSegments(full ? *full : *scene_, labels);
+        const auto free_rows = std::count_if(row_segment_.begin(), row_segment_.end(), [](int s) { return s >= 0; });
+        Progress(Fmt("albedo pass %d: the lights' places fitted with the albedo of %d segments left free (%lld of %zu "
+                     "rows)",
+                     pass, segments, static_cast<long long>(free_rows), row_segment_.size()));
+      }
     }  // before the scene it refers to is replaced
-    // The albedo's scale by the rule it was given before the rounds (--room-albedo), or the
-    // colours' own when that is 0.
-    segments = DelightAlbedo(&mesh_, irradiance, DelitAlbedoOptions(), res_.albedo_scale, opt_.room_albedo);
   }
   res_.albedo_seconds += as.Seconds();
   if (segments < 0) {
@@ -113,6 +121,34 @@ bool Estimator::RefineAlbedo(int pass) {
   Progress(Fmt("albedo pass %d: de-lit %zu vertices into %d segments in %.2f s", pass, mesh_.positions.size(),
                segments, as.Seconds()));
   return true;
+}
+
+std::vector<int> Estimator::RowSegments(const RayTracer& full, const std::vector<int>& labels) const {
+  std::vector<std::pair<const View*, std::size_t>> pixels;  // the rows' pixels, in y_'s order
+  for (const View& v : views_)
+    for (std::size_t i = 0; i < v.valid.size(); ++i)
+      if (v.valid[i]) pixels.emplace_back(&v, i);
+  std::vector<int> out(pixels.size(), -1);
+  const Mesh& mesh = full.mesh();
+  ParallelForChunks(0, pixels.size(), 4096, [&](std::size_t b, std::size_t e) {
+    for (std::size_t r = b; r < e; ++r) {
+      const Camera& cam = pixels[r].first->camera;
+      const std::size_t p = pixels[r].second;
+      // (the pixel's centre: integer coordinates, as the tracer's jitter is around them)
+      const double u = static_cast<double>(p % cam.width), v = static_cast<double>(p / cam.width);
+      SurfacePoint hit;
+      if (!full.Intersect(cam.center(), cam.RayDirection(u, v), &hit) || hit.triangle < 0) continue;
+      // The triangle's vertex nearest the hit (its three are of one segment but at a border).
+      const Eigen::Vector3i& t = mesh.triangles[hit.triangle];
+      int nearest = t[0];
+      for (int k = 1; k < 3; ++k)
+        if ((mesh.positions[t[k]].cast<double>() - hit.position).squaredNorm() <
+            (mesh.positions[nearest].cast<double>() - hit.position).squaredNorm())
+          nearest = t[k];
+      if (nearest < static_cast<int>(labels.size())) out[r] = labels[nearest];
+    }
+  });
+  return out;
 }
 
 bool Estimator::Settled(const std::vector<Light>& before) {

@@ -265,6 +265,7 @@ class Estimator {
     fit.loss = CauchyLoss{res_.objective_params.sigma};
     fit.alpha = res_.objective_params.alpha * opt_.point_lights.weight;
     fit.beta = res_.objective_params.beta;
+    if (opt_.free_albedo && row_segment_.size() * 3 == y_.size()) fit.segment = &row_segment_;
     return fit;
   }
 
@@ -286,6 +287,12 @@ class Estimator {
   /// Per vertex of the bundle's mesh: its vertex in the traced mesh (empty: the same mesh).
   std::vector<int> cluster_;
   Mesh mesh_;  ///< the bundle's mesh, whose albedo is refined (empty until then)
+  /// Per row of y_: the de-lit segment (of the last albedo pass) its pixel sees, or -1
+  /// (empty before a pass, or once the rows change).
+  std::vector<int> row_segment_;
+  /// Per row of views_: the segment of `labels` (per vertex of `full`, a tracer of the
+  /// bundle's mesh) its pixel's centre sees, or -1.
+  std::vector<int> RowSegments(const RayTracer& full, const std::vector<int>& labels) const;
   std::vector<double> lambda_;  ///< the estimate, normalized units, 3 per cell
   std::vector<std::uint8_t> reachable_;  ///< per cell: some sampled path reached it
   TransportMatrix A_;  ///< the map's columns, averaged over the rounds under one albedo

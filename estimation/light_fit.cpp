@@ -10,17 +10,28 @@
 namespace lp {
 namespace {
 
-/// Residuals y - base - sum_k s_k c_k over all rows, the lights' columns given.
-std::vector<double> Residual(const LightFitProblem& p, const std::vector<Light>& lights,
-                             const std::vector<std::vector<float>>& columns) {
+/// What base and the lights render, 3 per row (the lights' columns given).
+std::vector<double> Model(const LightFitProblem& p, const std::vector<Light>& lights,
+                          const std::vector<std::vector<float>>& columns) {
   LP_CHECK(columns.size() == lights.size(), "a column per light");
-  std::vector<double> r(p.y->size());
-  for (std::size_t i = 0; i < r.size(); ++i) r[i] = (*p.y)[i] - (*p.base)[i];
+  std::vector<double> model(*p.base);
   for (std::size_t k = 0; k < lights.size(); ++k) {
-    LP_CHECK(columns[k].size() == r.size(), "a column of the problem's rows");
+    LP_CHECK(columns[k].size() == model.size(), "a column of the problem's rows");
     const Eigen::Vector3d& s = Scale(lights[k]);
-    for (std::size_t i = 0; i < r.size(); ++i) r[i] -= s[i % 3] * columns[k][i];
+    for (std::size_t i = 0; i < model.size(); ++i) model[i] += s[i % 3] * columns[k][i];
   }
+  return model;
+}
+
+/// Residuals y - m model over all rows, the lights' columns given; `mult` receives m (3
+/// per row; all 1 without segments).
+std::vector<double> Residual(const LightFitProblem& p, const std::vector<Light>& lights,
+                             const std::vector<std::vector<float>>& columns, std::vector<double>* mult = nullptr) {
+  const std::vector<double> model = Model(p, lights, columns);
+  const std::vector<double> m = SegmentMultipliers(p, model);
+  std::vector<double> r(model.size());
+  for (std::size_t i = 0; i < r.size(); ++i) r[i] = (*p.y)[i] - m[i] * model[i];
+  if (mult) *mult = m;
   return r;
 }
 
@@ -52,7 +63,8 @@ double SquaredSum(const std::vector<double>& r) {
 /// The reweighted normal equations of RefineLights at `lights` (H lower and upper, g).
 void NormalEquations(const LightFitProblem& p, const std::vector<Light>& lights, const std::vector<int>& offset,
                      const std::vector<std::vector<float>>& cols, const std::vector<std::vector<float>>& jacs,
-                     const std::vector<double>& r, Eigen::MatrixXd* H, Eigen::VectorXd* g) {
+                     const std::vector<double>& r, const std::vector<double>& mult, Eigen::MatrixXd* H,
+                     Eigen::VectorXd* g) {
   const int K = static_cast<int>(lights.size()), n = offset.back();
   *H = Eigen::MatrixXd::Zero(n, n);
   *g = Eigen::VectorXd::Zero(n);
@@ -73,6 +85,7 @@ void NormalEquations(const LightFitProblem& p, const std::vector<Light>& lights,
       any = any || cols[k][i] != 0;
     }
     if (!any) continue;
+    J *= mult[i];  // the segments' multipliers held (their own derivative left out)
     const double w = p.loss.Weight(r[i]);
     H->selfadjointView<Eigen::Lower>().rankUpdate(J, w);
     *g += w * r[i] * J;
@@ -98,6 +111,39 @@ double LightFitProblem::Value(const std::vector<Light>& lights, const std::vecto
   return Energy(*this, lights, r);
 }
 
+std::vector<double> SegmentMultipliers(const LightFitProblem& p, const std::vector<double>& model) {
+  std::vector<double> m(model.size(), 1.0);
+  if (!p.segment) return m;
+  const std::vector<int>& seg = *p.segment;
+  LP_CHECK(seg.size() * 3 == model.size(), "a segment per row");
+  int segments = 0;
+  for (int s : seg) segments = std::max(segments, s + 1);
+  std::vector<int> rows(segments, 0);
+  for (int s : seg)
+    if (s >= 0) ++rows[s];
+  std::vector<double> k(3 * segments, 1.0), num(3 * segments), den(3 * segments);
+  for (int it = 0; it < 4; ++it) {
+    std::fill(num.begin(), num.end(), 0.0);
+    std::fill(den.begin(), den.end(), 0.0);
+    for (std::size_t i = 0; i < model.size(); ++i) {
+      const int s = seg[i / 3];
+      if (s < 0 || rows[s] < kMinSegmentRows) continue;
+      const std::size_t j = 3 * s + i % 3;
+      const double w = p.loss.Weight((*p.y)[i] - k[j] * model[i]);
+      num[j] += w * model[i] * (*p.y)[i];
+      den[j] += w * model[i] * model[i];
+    }
+    for (std::size_t j = 0; j < k.size(); ++j)
+      if (den[j] > 0)
+        k[j] = std::clamp(num[j] / den[j], 1 / kMaxSegmentMultiplier, kMaxSegmentMultiplier);
+  }
+  for (std::size_t i = 0; i < model.size(); ++i) {
+    const int s = seg[i / 3];
+    if (s >= 0 && rows[s] >= kMinSegmentRows) m[i] = k[3 * s + i % 3];
+  }
+  return m;
+}
+
 LightFitSubset::LightFitSubset(const LightFitProblem& full, std::size_t max_rows) : problem(full) {
   const std::size_t rows = full.vertices->rows();
   if (max_rows == 0 || rows <= max_rows) return;
@@ -115,10 +161,12 @@ LightFitSubset::LightFitSubset(const LightFitProblem& full, std::size_t max_rows
       y.push_back((*full.y)[3 * r + c]);
       base.push_back((*full.base)[3 * r + c]);
     }
+    if (full.segment) segment.push_back((*full.segment)[r]);
   }
   problem.vertices = &vertices;
   problem.y = &y;
   problem.base = &base;
+  if (full.segment) problem.segment = &segment;
   problem.alpha /= stride;
 }
 
@@ -130,14 +178,15 @@ int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_i
   const int n = offset.back();
   std::vector<std::vector<float>> cols, jacs;
   TraceColumns(p, *lights, &cols, &jacs);
-  std::vector<double> r = Residual(p, *lights, cols);
+  std::vector<double> mult;
+  std::vector<double> r = Residual(p, *lights, cols, &mult);
   double E = Energy(p, *lights, r);
   double mu = 1e-3;
   int it = 0;
   for (; it < max_iterations; ++it) {
     Eigen::MatrixXd H;
     Eigen::VectorXd g;
-    NormalEquations(p, *lights, offset, cols, jacs, r, &H, &g);
+    NormalEquations(p, *lights, offset, cols, jacs, r, mult, &H, &g);
     bool accepted = false;
     for (int tries = 0; tries < 8 && !accepted; ++tries) {
       Eigen::MatrixXd M = H;
@@ -154,7 +203,8 @@ int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_i
       }
       std::vector<std::vector<float>> tcols, tjacs;
       TraceColumns(p, trial, &tcols, &tjacs);
-      std::vector<double> tr = Residual(p, trial, tcols);
+      std::vector<double> tmult;
+      std::vector<double> tr = Residual(p, trial, tcols, &tmult);
       const double tE = Energy(p, trial, tr);
       if (tE < E) {
         accepted = true;
@@ -163,6 +213,7 @@ int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_i
         cols.swap(tcols);
         jacs.swap(tjacs);
         r.swap(tr);
+        mult.swap(tmult);
         E = tE;
         mu = std::max(mu / 3, 1e-9);
         if (log) log(it + 1, E, SquaredSum(r), *lights);
@@ -184,22 +235,31 @@ double RefitScale(const LightFitProblem& p, const std::vector<float>& others, Li
 
 double RefitScale(const LightFitProblem& p, const std::vector<float>& col, const std::vector<float>& others,
                   Eigen::Vector3d* scale_out, double* sse) {
-  std::vector<double> left(col.size());
-  for (std::size_t i = 0; i < col.size(); ++i) left[i] = (*p.y)[i] - (*p.base)[i];
+  std::vector<double> rest(*p.base);  // what the others render, held
   if (!others.empty())
-    for (std::size_t i = 0; i < col.size(); ++i) left[i] -= others[i];
+    for (std::size_t i = 0; i < col.size(); ++i) rest[i] += others[i];
   Eigen::Vector3d& scale = *scale_out;
+  const auto model = [&] {
+    std::vector<double> out(rest);
+    for (std::size_t i = 0; i < col.size(); ++i) out[i] += scale[i % 3] * col[i];
+    return out;
+  };
+  std::vector<double> m(col.size(), 1.0);
   for (int it = 0; it < 4; ++it) {
+    if (p.segment) m = SegmentMultipliers(p, model());  // the albedos for this scale, then the scale for them
     Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
     for (std::size_t i = 0; i < col.size(); ++i) {
-      const double r = left[i] - scale[i % 3] * col[i], w = p.loss.Weight(r);
-      num[i % 3] += w * col[i] * left[i];
-      den[i % 3] += w * double(col[i]) * col[i];
+      const double left = (*p.y)[i] - m[i] * rest[i], mc = m[i] * col[i];
+      const double r = left - scale[i % 3] * mc, w = p.loss.Weight(r);
+      num[i % 3] += w * mc * left;
+      den[i % 3] += w * mc * mc;
     }
     for (int c = 0; c < 3; ++c) scale[c] = den[c] > 0 ? std::max(0.0, num[c] / den[c]) : 0.0;
   }
+  const std::vector<double> final_model = model();
+  if (p.segment) m = SegmentMultipliers(p, final_model);
   std::vector<double> r(col.size());
-  for (std::size_t i = 0; i < col.size(); ++i) r[i] = left[i] - scale[i % 3] * col[i];
+  for (std::size_t i = 0; i < col.size(); ++i) r[i] = (*p.y)[i] - m[i] * final_model[i];
   *sse = SquaredSum(r);
   return p.loss.Sum(r) + Penalty(p, scale);
 }

@@ -17,8 +17,12 @@ namespace lp {
 
 /// The robust objective of lights on fixed shading vertices, the rest of the image
 /// (`base`: the environment's render, 3 per row) held fixed:
-///   E = sum rho(y - base - sum_k s_k . c_k(shape_k)) + sum_k alpha log(1 + beta sum_c s_kc),
-/// s_k a light's RGB scale (Scale), c_k its unit column (UnitColumn), rho the loss.
+///   E = sum rho(y - m . (base + sum_k s_k . c_k(shape_k))) + sum_k alpha log(1 + beta sum_c s_kc),
+/// s_k a light's RGB scale (Scale), c_k its unit column (UnitColumn), rho the loss, m 1 or,
+/// with `segment` given, per row its surface segment's RGB multiplier: the albedo of each
+/// segment (over kMinSegmentRows rows) is then free, eliminated where E is evaluated
+/// (variable projection, SegmentMultipliers), so the lights are fitted to the shading
+/// within the segments and not to their albedos (docs/method.md, "Albedo left free").
 struct LightFitProblem {
   const RayTracer* scene = nullptr;
   const ShadingVertices* vertices = nullptr;
@@ -26,6 +30,9 @@ struct LightFitProblem {
   const std::vector<double>* base = nullptr;  ///< 3 per row
   CauchyLoss loss{0.5};
   double alpha = 3, beta = 1;
+  /// Per row: the segment of the surface it sees (0 ..), or -1 (its albedo held); null: every
+  /// albedo held.
+  const std::vector<int>* segment = nullptr;
   /// E at these lights; `sse`, when given, receives the sum of squared residuals.
   double Value(const std::vector<Light>& lights, double* sse = nullptr) const;
   /// The same with the lights' unit columns given (as UnitColumn makes them on these
@@ -46,8 +53,21 @@ struct LightFitSubset {
   int stride = 1;
   ShadingVertices vertices;
   std::vector<double> y, base;
+  std::vector<int> segment;
   LightFitProblem problem;
 };
+
+/// A segment's albedo is left free only over at least this many rows (fewer fit their own
+/// shading as well as any light's).
+constexpr int kMinSegmentRows = 32;
+/// The free albedo's multiplier is kept within [1 / kMaxSegmentMultiplier, kMaxSegmentMultiplier].
+constexpr double kMaxSegmentMultiplier = 8;
+
+/// The albedo multipliers of LightFitProblem's segments for a model (3 per row: what the
+/// lights and base render), 3 per row (1 where the row's albedo is held): per segment and
+/// channel the m minimizing sum rho(y - m model) over its rows, by reweighted least squares
+/// (4 passes from 1), kept within kMaxSegmentMultiplier.
+std::vector<double> SegmentMultipliers(const LightFitProblem& problem, const std::vector<double>& model);
 
 /// Called after each accepted step of a fit: (step, E, sum of squared residuals, lights).
 using LightFitLog = std::function<void(int, double, double, const std::vector<Light>&)>;

@@ -73,7 +73,8 @@ void JoinApart(Segments* s, const std::vector<std::pair<int, int>>& edges, const
 
 }  // namespace
 
-int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& o) {
+int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& o, std::vector<int>* labels) {
+  if (labels) labels->assign(mesh->positions.size(), -1);
   if (!o.segment || mesh->albedo.size() != mesh->positions.size()) return 0;
   const int n = static_cast<int>(mesh->positions.size());
   struct Edge {
@@ -117,12 +118,13 @@ int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& o) {
   }
   if (o.max_apart_log_spread > 0) JoinApart(&s, pairs, o);
   int flattened = 0;
-  std::vector<char> counted(n, 0);
+  std::vector<int> index(n, -1);  // per root: its segment's number
   for (int v = 0; v < n; ++v) {
     const int r = s.Find(v);
     if (s.count[r] < o.min_segment) continue;
     mesh->albedo[v] = s.Mean(r).cast<float>();
-    if (!counted[r]) counted[r] = 1, ++flattened;
+    if (index[r] < 0) index[r] = flattened++;
+    if (labels) (*labels)[v] = index[r];
   }
   return flattened;
 }
@@ -135,7 +137,7 @@ AlbedoOptions DelitAlbedoOptions() {
 }
 
 int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options, double scale,
-                  double median) {
+                  double median, std::vector<int>* labels) {
   const std::size_t n = mesh->positions.size();
   LP_CHECK(mesh->shaded.size() == n && irradiance.size() == n && mesh->albedo.size() == n,
            "DelightAlbedo: shaded colours and irradiance per vertex");
@@ -153,7 +155,7 @@ int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const Albedo
     const float e = std::isfinite(irradiance[v]) ? std::max(floor, irradiance[v]) : floor;
     mesh->albedo[v] = mesh->shaded[v] / e;  // grey: the colour seen keeps its chromaticity
   }
-  const int segments = FlattenAlbedo(mesh, options);  // keeps each segment's sum: after > 0
+  const int segments = FlattenAlbedo(mesh, options, labels);  // keeps each segment's sum: after > 0
   for (const Eigen::Vector3f& a : mesh->albedo) after += a.sum();
   // The scale sets the interreflections. The rule the albedo was scaled by before (the
   // median): the mean colour seen, which flattening keeps, has the light's fall-off in it,

@@ -27,8 +27,9 @@ struct AlbedoOptions {
 inline constexpr float kMaxAlbedo = 0.95f;
 
 /// Replaces each segment's per-vertex albedo by the segment's mean; returns the number of
-/// segments flattened.
-int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& options = {});
+/// segments flattened. `labels`, when given, receives per vertex its flattened segment
+/// (0 .. the count - 1) or -1 (a vertex of a segment too small, that keeps its colour).
+int FlattenAlbedo(Mesh* mesh, const AlbedoOptions& options = {}, std::vector<int>* labels = nullptr);
 
 /// The segmentation of de-lit colours: as FlattenAlbedo's, and segments whose mean log
 /// luminances differ by more than max_log_step stay apart too (once the light is divided
@@ -46,9 +47,9 @@ AlbedoOptions DelitAlbedoOptions();
 /// `median` 0, so its mean is `scale` times that of the colours seen (the colours' own
 /// scale), and clipped to [0, kMaxAlbedo]. Either way a second pass starts from the same
 /// scale. Needs mesh->shaded; returns the segments, or -1 when it keeps the albedo as it
-/// was (no vertex lit, or every colour seen black).
+/// was (no vertex lit, or every colour seen black). `labels`: as FlattenAlbedo's.
 int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options = DelitAlbedoOptions(),
-                  double scale = 1, double median = 0);
+                  double scale = 1, double median = 0, std::vector<int>* labels = nullptr);
 
 /// The factor that takes `mesh`'s albedo to one whose median luminance over the vertices
 /// is `median` (1 when that is black or `median` is 0).

@@ -2,6 +2,7 @@
 // (estimation/light_fit.h): each kind's shape coordinates against central differences of
 // its column, its compass moves and its irradiance against closed forms, and a lamp and a
 // sun refined together by the one Levenberg-Marquardt.
+#include <algorithm>
 #include <cmath>
 
 #include <gtest/gtest.h>
@@ -136,6 +137,78 @@ TEST(LightFit, ALampAndASunAreRefinedTogether) {
   EXPECT_LT(std::acos(std::min(1.0, s.direction.dot(sun.direction))) * 180 / kPi, 0.2) << s.direction.transpose();
   EXPECT_LT((l.intensity - lamp.intensity).norm(), 0.03 * lamp.intensity.norm());
   EXPECT_LT((s.irradiance - sun.irradiance).norm(), 0.03 * sun.irradiance.norm());
+}
+
+TEST(LightFit, SegmentMultipliersAreEachSegmentsLeastSquaresRatio) {
+  // Each segment's multiplier is the ratio that fits its rows (closed form: y = k model
+  // exactly there, per channel); rows of no segment, and of a segment under
+  // kMinSegmentRows, keep 1; a multiplier beyond kMaxSegmentMultiplier is held at it.
+  const int rows = 3 * kMinSegmentRows + 5;
+  std::vector<int> segment(rows);
+  std::vector<double> model(3 * rows), y(3 * rows);
+  const double k[4][3] = {{1.5, 0.8, 1.1}, {0.4, 0.5, 0.6}, {2.0, 2.0, 2.0}, {1e3, 1, 1}};
+  for (int r = 0; r < rows; ++r) {
+    segment[r] = r < kMinSegmentRows ? 0 : r < 2 * kMinSegmentRows ? 1 : r < 3 * kMinSegmentRows ? 3 : r % 2 ? 2 : -1;
+    for (int c = 0; c < 3; ++c) {
+      model[3 * r + c] = 0.1 + 0.01 * ((7 * r + 3 * c) % 23);
+      y[3 * r + c] = (segment[r] >= 0 ? k[segment[r]][c] : 0.7) * model[3 * r + c];
+    }
+  }
+  LightFitProblem p;
+  p.y = &y;
+  p.segment = &segment;
+  const std::vector<double> m = SegmentMultipliers(p, model);
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < 3; ++c) {
+      const double expect = segment[r] == 0 || segment[r] == 1 ? k[segment[r]][c]
+                            : segment[r] == 3 ? std::min(k[3][c], kMaxSegmentMultiplier)
+                                              : 1.0;  // segment 2 has 2 rows; -1 none
+      EXPECT_NEAR(m[3 * r + c], expect, 1e-9) << "row " << r << " channel " << c << " segment " << segment[r];
+    }
+  p.segment = nullptr;  // every albedo held
+  for (double v : SegmentMultipliers(p, model)) EXPECT_EQ(v, 1.0);
+}
+
+TEST(LightFit, ALampIsPlacedByTheShadingWhenTheAlbedoIsLeftFree) {
+  // The image of a lamp over a plane and a ball whose albedos are wrong by 1.6x and 0.6x
+  // (what a de-lit albedo that took some of the light may be): with the albedo held the
+  // lamp goes where it makes up for them; with each surface's albedo left free (variable
+  // projection) the shading within each places it where it is.
+  const RayTracer scene(PlaneAndBall());
+  const Camera cam = test::LookAt({1.5, -1.5, 1.5}, {0, 0, 0.1}, 48, 36, 50);  // the ball over kMinSegmentRows
+  TracerOptions o;
+  o.spp = 4;
+  o.bounces = 2;
+  const ShadingVertices v = GatherShadingVertices(scene, {test::BlankView(cam)}, o);
+  std::vector<int> segment(v.rows(), -1);  // the surface each pixel's centre sees
+  for (std::size_t r = 0; r < v.rows(); ++r) {
+    SurfacePoint hit;
+    if (scene.Intersect(cam.center(), cam.RayDirection(double(r % 48), double(r / 48)), &hit))
+      segment[r] = hit.position.z() < 1e-3 ? 0 : 1;
+  }
+  const PointLight lamp{{0.5, 0.4, 1.2}, {3, 2.5, 2}, 0};
+  std::vector<float> a;
+  UnitColumn(scene, v, Light{lamp}, &a);
+  std::vector<double> y(a.size()), base(a.size(), 0.0);
+  for (std::size_t i = 0; i < y.size(); ++i) {
+    const int s = segment[i / 3];
+    y[i] = (s == 0 ? 1.6 : s == 1 ? 0.6 : 1.0) * lamp.intensity[i % 3] * a[i];
+  }
+  LightFitProblem fit{&scene, &v, &y, &base, CauchyLoss{0.5}, 0};
+  ASSERT_GE(std::count(segment.begin(), segment.end(), 1), kMinSegmentRows);
+  const std::vector<Light> start{PointLight{lamp.position + Eigen::Vector3d(0.15, -0.15, 0.15), {1, 1, 1}, 0}};
+  std::vector<Light> held = start;
+  RefineLights(fit, &held, 60);
+  fit.segment = &segment;
+  std::vector<Light> free = start;
+  EXPECT_GT(RefineLights(fit, &free, 60), 0);
+  const double held_error = (std::get<PointLight>(held[0]).position - lamp.position).norm();
+  const double free_error = (std::get<PointLight>(free[0]).position - lamp.position).norm();
+  EXPECT_LT(free_error, 0.01) << std::get<PointLight>(free[0]).position.transpose();
+  EXPECT_GT(held_error, 5 * free_error) << held_error << " against " << free_error;
+  // At the truth the free fit is exact (each surface's multiplier its albedo's error).
+  std::vector<Light> truth{Light{lamp}};
+  EXPECT_LT(fit.Value(truth), 1e-12 * fit.Value(start));
 }
 
 }  // namespace
