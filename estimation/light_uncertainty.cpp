@@ -1,0 +1,126 @@
+#include "estimation/light_uncertainty.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include <Eigen/Dense>
+
+#include "common/error.h"
+
+namespace lp {
+namespace {
+
+/// A row and channel's Jacobian, sparse: its parameters and their derivatives.
+struct SparseRow {
+  std::vector<int> index;
+  std::vector<double> value;
+  void Clear() {
+    index.clear();
+    value.clear();
+  }
+  void Add(int i, double v) {
+    if (v == 0) return;
+    index.push_back(i);
+    value.push_back(v);
+  }
+};
+
+}  // namespace
+
+std::vector<LightUncertainty> LightUncertainties(const LightFitProblem& p, const std::vector<Light>& lights,
+                                                 const TransportMatrix* map, const std::vector<double>& lambda,
+                                                 const std::vector<int>& row_block) {
+  const std::size_t rows = p.vertices->rows();
+  LP_CHECK(p.y->size() == 3 * rows && p.base->size() == 3 * rows && row_block.size() == rows,
+           "LightUncertainties: 3 observations, a base and a block per row");
+  // The parameters: each light's shape coordinates and its 3 scales, then the lit cells' channels.
+  std::vector<int> offset{0};
+  for (const Light& l : lights) offset.push_back(offset.back() + ShapeDims(l) + 3);
+  int n = offset.back();
+  std::vector<int> cell_param;  // per cell and channel: its parameter, or -1
+  if (map) {
+    LP_CHECK(map->rows() == rows && lambda.size() == 3 * static_cast<std::size_t>(map->cells),
+             "LightUncertainties: the map's rows are the problem's");
+    cell_param.assign(lambda.size(), -1);
+    for (std::size_t k = 0; k < lambda.size(); ++k)
+      if (lambda[k] > 0) cell_param[k] = n++;
+  }
+  std::vector<std::vector<float>> cols(lights.size()), jacs(lights.size());
+  std::vector<Eigen::Matrix3d> bases;
+  for (std::size_t k = 0; k < lights.size(); ++k) {
+    UnitColumn(*p.scene, *p.vertices, lights[k], &cols[k], &jacs[k]);
+    bases.push_back(ShapeBasis(lights[k]));
+  }
+  const int blocks = row_block.empty() ? 0 : *std::max_element(row_block.begin(), row_block.end()) + 1;
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n);  // the bread: sum w J J^T
+  Eigen::MatrixXd score = Eigen::MatrixXd::Zero(n, blocks);  // per block: sum w r J
+  SparseRow J;
+  double shape[3];
+  for (std::size_t row = 0; row < rows; ++row)
+    for (int c = 0; c < 3; ++c) {
+      const std::size_t i = 3 * row + c;
+      J.Clear();
+      double model = (*p.base)[i];
+      for (std::size_t k = 0; k < lights.size(); ++k) {
+        const double s = Scale(lights[k])[c];
+        const int dims = offset[k + 1] - offset[k] - 3;
+        ShapeGradient(bases[k], dims, &jacs[k][9 * row + 3 * c], shape);
+        for (int a = 0; a < dims; ++a) J.Add(offset[k] + a, s * shape[a]);
+        J.Add(offset[k] + dims + c, cols[k][i]);
+        model += s * cols[k][i];
+      }
+      if (map)
+        for (std::int64_t e = map->row_start[row]; e < map->row_start[row + 1]; ++e) {
+          const int param = cell_param[3 * static_cast<std::size_t>(map->col[e]) + c];
+          if (param >= 0) J.Add(param, map->val[e][c]);
+        }
+      if (J.index.empty()) continue;
+      const double r = (*p.y)[i] - model, w = p.loss.Weight(r);
+      for (std::size_t a = 0; a < J.index.size(); ++a) {
+        for (std::size_t b = 0; b < J.index.size(); ++b) H(J.index[a], J.index[b]) += w * J.value[a] * J.value[b];
+        score(J.index[a], row_block[row]) += w * r * J.value[a];
+      }
+    }
+  // The meat, with the small-sample factor of a clustered sandwich; the bread's inverse
+  // through its eigenvalues (a direction the data do not fix gets an infinite variance).
+  const Eigen::MatrixXd meat = score * score.transpose() * (blocks > 1 ? blocks / (blocks - 1.0) : 1.0);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(H);
+  const Eigen::VectorXd ev = eig.eigenvalues();
+  const double floor = 1e-12 * std::max(ev.cwiseAbs().maxCoeff(), 1e-300);
+  Eigen::VectorXd inv(n);
+  for (int a = 0; a < n; ++a) inv[a] = ev[a] > floor ? 1 / ev[a] : 0.0;
+  const Eigen::MatrixXd Hinv = eig.eigenvectors() * inv.asDiagonal() * eig.eigenvectors().transpose();
+  const Eigen::MatrixXd cov = Hinv * meat * Hinv;
+  std::vector<LightUncertainty> out(lights.size());
+  for (std::size_t k = 0; k < lights.size(); ++k) {
+    const int dims = offset[k + 1] - offset[k] - 3;
+    const Eigen::MatrixXd shape_cov = cov.block(offset[k], offset[k], dims, dims);
+    const Eigen::MatrixXd basis = bases[k].leftCols(dims);
+    out[k].shape_covariance = basis * shape_cov * basis.transpose();
+    for (int c = 0; c < 3; ++c) out[k].scale_sigma[c] = std::sqrt(std::max(0.0, cov(offset[k] + dims + c, offset[k] + dims + c)));
+    // A parameter the data do not fix at all (a zero eigenvalue of the bread) is unknown.
+    for (int a = 0; a < n; ++a)
+      if (!(ev[a] > floor)) {
+        const Eigen::VectorXd v = eig.eigenvectors().col(a);
+        if (v.segment(offset[k], dims).norm() > 1e-3) out[k].shape_covariance.setConstant(INFINITY);
+        for (int c = 0; c < 3; ++c)
+          if (std::abs(v[offset[k] + dims + c]) > 1e-3) out[k].scale_sigma[c] = INFINITY;
+      }
+  }
+  return out;
+}
+
+double SquaredMahalanobis(const Eigen::Vector3d& d, const Eigen::Matrix3d& covariance) {
+  if (!covariance.allFinite()) return 0;  // nothing known: everywhere is inside
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(covariance);
+  const double floor = 1e-12 * std::max(eig.eigenvalues().cwiseAbs().maxCoeff(), 1e-300);
+  double m = 0;
+  for (int a = 0; a < 3; ++a) {
+    const double along = eig.eigenvectors().col(a).dot(d);
+    if (eig.eigenvalues()[a] > floor) m += along * along / eig.eigenvalues()[a];
+  }
+  return m;
+}
+
+}  // namespace lp

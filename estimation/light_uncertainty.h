@@ -1,0 +1,49 @@
+#pragma once
+/// How well the images fix each light (issue 42; docs/method.md, "Uncertainty"): the
+/// covariance of its shape and the standard deviation of its scale, marginal over the other
+/// lights and the map's lit cells (nuisance parameters), from the data term's Gauss-Newton
+/// curvature with the cells at zero held there (active constraints; the activation penalty,
+/// concave, left out) and a sandwich over blocks of pixels (neighbouring residuals are
+/// correlated: the model's errors are spatially smooth). It is conditional on the mesh and
+/// the albedo: their errors are not in it.
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "estimation/light_fit.h"
+#include "estimation/lights/light.h"
+#include "estimation/transport.h"
+
+namespace lp {
+
+struct LightUncertainty {
+  /// The shape's covariance in world coordinates: a lamp's position (m^2); a directional
+  /// light's direction in its tangent plane (radians^2), embedded in world coordinates
+  /// (rank 2: nothing along the direction itself).
+  Eigen::Matrix3d shape_covariance = Eigen::Matrix3d::Zero();
+  /// Per channel, the standard deviation of its Scale (a lamp's intensity, a directional
+  /// light's irradiance), in the same units.
+  Eigen::Vector3d scale_sigma = Eigen::Vector3d::Zero();
+};
+
+/// The square of the 95 % quantile of the chi distribution with 3 / 2 degrees of freedom:
+/// a position / a direction is inside its 95 % region when its Mahalanobis distance is at
+/// most sqrt of these (2.80 and 2.45).
+inline constexpr double kChiSquare95Dim3 = 7.814727903251178;
+inline constexpr double kChiSquare95Dim2 = 5.991464547107979;
+
+/// The uncertainty of `lights` fitted by `problem` (its rows, observations, loss; `base`
+/// the map's render, A lambda, so that y - base - the lights is the residual), with the
+/// map's lit cells (lambda > 0 in a channel: that channel is a parameter, its column A's)
+/// as nuisance parameters when `map` is given. `row_block`: per row its block (0 ..), the
+/// units the sandwich treats as independent. One per light, in its order. Where the data do
+/// not fix a parameter at all (a singular curvature) its variance is infinite.
+std::vector<LightUncertainty> LightUncertainties(const LightFitProblem& problem, const std::vector<Light>& lights,
+                                                 const TransportMatrix* map, const std::vector<double>& lambda,
+                                                 const std::vector<int>& row_block);
+
+/// The squared Mahalanobis distance of a shape error `d` (world coordinates; a direction's
+/// in its tangent plane) under `covariance` (its pseudo-inverse where it is rank 2).
+double SquaredMahalanobis(const Eigen::Vector3d& d, const Eigen::Matrix3d& covariance);
+
+}  // namespace lp
