@@ -112,7 +112,7 @@ static std::string Fmt(const char* fmt, double a, double b, double c, double d, 
 
 /// lights.json: the map (when it lights anything), the point lights and the directional ones.
 static void WriteLights(const fs::path& out, const EstimateResult& r) {
-  LightsFile lights{"", r.lighting.lights};
+  LightsFile lights{"", r.lighting.lights, r.uncertainty};
   for (double v : r.lighting.map)
     if (v > 0) lights.environment = "envmap.exr";
   WriteTextAtomically(out / "lights.json", LightsJson(lights));
@@ -248,10 +248,11 @@ static json LeftOutJson(const SceneBundle& bundle, const EstimateResult& r) {
           {"degenerate_triangles_removed", bundle.degenerate_triangles_removed}};
 }
 
-/// The lights of `lighting` of kind T as lights.json holds them.
+/// The lights of `lighting` of kind T as lights.json holds them (with `uncertainty`, one
+/// per light of `lighting`, when given).
 template <class T>
-static json LightsOfKind(const Lighting& lighting) {
-  return json::parse(LightsJson({"", AsLights(lighting.Of<T>())}))[LightsKey(T{})];
+static json LightsOfKind(const Lighting& lighting, const std::vector<LightUncertainty>& uncertainty = {}) {
+  return json::parse(LightsJson({"", lighting.lights, uncertainty}))[LightsKey(T{})];
 }
 
 static json RoundsJson(const EstimateResult& r) {
@@ -279,7 +280,7 @@ static json FinalJson(const EstimateResult& r) {
   if (std::isfinite(r.final_position_error_share)) result["position_error_share"] = r.final_position_error_share;
   result["rendered_fraction"] = r.rendered_fraction;
   ForEachKind([&](auto kind) {
-    result[LightsKey(kind)] = LightsOfKind<decltype(kind)>(r.lighting);
+    result[LightsKey(kind)] = LightsOfKind<decltype(kind)>(r.lighting, r.uncertainty);
   });
   result["scene_centre"] = {r.scene_centre.x(), r.scene_centre.y(), r.scene_centre.z()};
   return result;

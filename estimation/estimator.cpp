@@ -1,5 +1,7 @@
 #include "estimation/estimator.h"
 
+#include <Eigen/Eigenvalues>
+
 #include "estimation/estimator_impl.h"
 
 namespace lp {
@@ -419,6 +421,8 @@ void Estimator::Conclude() {
   res_.left_out.assign(cells_, 0);
   for (int j = 0; j < cells_; ++j) res_.left_out[j] = !reachable_[j];
   res_.lighting = InImageUnits();
+  res_.uncertainty = Uncertainty();
+  for (LightUncertainty& u : res_.uncertainty) u.scale_sigma *= res_.image_mean;
   res_.final_relative_rmse = res_.convergence.empty() ? 0 : res_.convergence.back().relative_rmse;
   res_.final_rmse = res_.final_relative_rmse * res_.image_mean;
   if (opt_.scorer) opt_.scorer->Conclude(&res_);
@@ -434,6 +438,37 @@ void Estimator::Conclude() {
                   res_.rendered_fraction, opt_.objective.sigma, opt_.objective.alpha);
     res_.warnings.push_back(line);
   }
+}
+
+std::vector<LightUncertainty> Estimator::Uncertainty() {
+  const std::vector<Light> lights = Joined(suns_, points_);
+  if (lights.empty() || vertices_.rows() * 3 != y_.size() || A_.rows() * 3 != y_.size()) return {};
+  CheckCancel();
+  Stopwatch us;
+  // kUncertaintyBlocksAcross^2 blocks in each view.
+  std::vector<int> block(A_.rows());
+  for (std::size_t r = 0; r < A_.rows(); ++r) {
+    const Camera& cam = bundle_.views[A_.row_view[r]].camera;
+    const int x = A_.row_pixel[r] % cam.width, y = A_.row_pixel[r] / cam.width;
+    const int bw = (cam.width + kUncertaintyBlocksAcross - 1) / kUncertaintyBlocksAcross;
+    const int bh = (cam.height + kUncertaintyBlocksAcross - 1) / kUncertaintyBlocksAcross;
+    block[r] = (A_.row_view[r] * kUncertaintyBlocksAcross + y / bh) * kUncertaintyBlocksAcross + x / bw;
+  }
+  // (blocks no row falls in are empty: their score is 0)
+  const std::vector<double> base = A_.Multiply(lambda_);
+  const LightFitProblem fit = FitProblem(&base);
+  LightFitProblem held = fit;
+  held.segment = nullptr;  // under the albedo the map and the intensities were solved with
+  std::vector<LightUncertainty> out = LightUncertainties(held, lights, &A_, lambda_, block);
+  for (std::size_t k = 0; k < out.size(); ++k) {
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(out[k].shape_covariance);
+    const bool lamp = std::holds_alternative<PointLight>(lights[k]);
+    const double widest = std::sqrt(std::max(0.0, eig.eigenvalues()[2]) * (lamp ? kChiSquare95Dim3 : kChiSquare95Dim2));
+    Progress(lamp ? Fmt("point light %zu: its place within %.3g m (the 95 %% region's longest semi-axis)", k, widest)
+                  : Fmt("directional light %zu: its direction within %.3g degrees (95 %%)", k, widest * 180 / kPi));
+  }
+  Progress(Fmt("the lights' uncertainty in %.2f s", us.Seconds()));
+  return out;
 }
 
 void Estimator::RenderFittedViews() {

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "estimation/estimate_options.h"
+#include "estimation/light_uncertainty.h"
 #include "estimation/lighting.h"
 #include "estimation/objective.h"
 #include "estimation/path_tracer.h"
@@ -83,6 +84,10 @@ struct EstimateResult {
   /// cells); the lights, the directional ones (a sun: its cells of the map are empty) then
   /// the point lights (the near part), each kind strongest first.
   Lighting lighting;
+  /// How well the images fix each light of `lighting.lights` (same order; image units;
+  /// estimation/light_uncertainty.h), conditional on the mesh and albedo; empty when there
+  /// are no lights.
+  std::vector<LightUncertainty> uncertainty;
   std::vector<std::uint8_t> left_out;  ///< per cell: 1 = no sampled path reached it
   std::vector<ImageRGB> renders;       ///< relit views (every pixel), when options.render
   std::vector<ConvergenceRow> convergence;

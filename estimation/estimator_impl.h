@@ -20,6 +20,7 @@
 #include "scene/ray_tracer.h"
 #include "scene/simplify.h"
 #include "estimation/light_fit.h"
+#include "estimation/light_uncertainty.h"
 #include "estimation/light_render.h"
 #include "estimation/lights/light.h"
 #include "estimation/robust_loss.h"
@@ -48,6 +49,11 @@ inline std::vector<double> Plus(std::vector<double> a, const std::vector<double>
 /// The rows (every n-th) the lights' shadow-seeing refinements look at: a quarter of a
 /// 160 x 120 view's (what a column costs on all rows: docs/benchmarks.md).
 constexpr std::size_t kShadowRows = 4800;
+
+/// The lights' uncertainty takes each view as this many blocks across and down (16 a view),
+/// each independent of the others: the model's errors (the mesh's, the albedo's, another
+/// renderer's) are smooth across neighbouring pixels (docs/method.md, "Uncertainty").
+constexpr int kUncertaintyBlocksAcross = 4;
 
 /// A round's linear problem over the cells some sampled path reached and the lights'
 /// columns after them (each light's Scale its 3 unknowns), and the way back from its
@@ -120,6 +126,9 @@ class Estimator {
   Mesh WithAlbedoOf(const Mesh& full, const std::vector<float>& irradiance) const;
   /// The estimate in image units, its scores and what the user should know about it.
   void Conclude();
+  /// How well the images fix each light (Joined(suns_, points_)'s order, normalized units),
+  /// on the last round's rows; empty without lights or shading vertices.
+  std::vector<LightUncertainty> Uncertainty();
   /// The sky beside a directional light, after the rounds (docs/method.md).
   void FitSky();
   /// Relit renders of the fitted views under the estimate (EstimateOptions::render_spp).

@@ -7,6 +7,8 @@
 #include <Eigen/Dense>
 
 #include "common/error.h"
+#include "estimation/light_fit.h"
+#include "estimation/transport.h"
 
 namespace lp {
 namespace {

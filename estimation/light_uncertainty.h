@@ -10,11 +10,12 @@
 
 #include <Eigen/Core>
 
-#include "estimation/light_fit.h"
 #include "estimation/lights/light.h"
-#include "estimation/transport.h"
 
 namespace lp {
+
+struct LightFitProblem;  // estimation/light_fit.h
+struct TransportMatrix;  // estimation/transport.h
 
 struct LightUncertainty {
   /// The shape's covariance in world coordinates: a lamp's position (m^2); a directional

@@ -24,6 +24,23 @@ json ToJson(const DirectionalLight& l) {
   return {{"direction", Vec(l.direction)}, {"irradiance", Vec(l.irradiance)}, {"angular_radius", l.angular_radius}};
 }
 
+/// A number, or null where it is not finite (JSON has no infinity).
+json Number(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+json Matrix(const Eigen::Matrix3d& m) {
+  json rows = json::array();
+  for (int r = 0; r < 3; ++r) rows.push_back({Number(m(r, 0)), Number(m(r, 1)), Number(m(r, 2))});
+  return rows;
+}
+json Sigma(const Eigen::Vector3d& v) { return {Number(v.x()), Number(v.y()), Number(v.z())}; }
+
+/// Each kind's keys for its uncertainty.
+struct UncertaintyKeys {
+  const char* shape;
+  const char* scale;
+};
+UncertaintyKeys KeysOf(const PointLight&) { return {"position_covariance", "intensity_sigma"}; }
+UncertaintyKeys KeysOf(const DirectionalLight&) { return {"direction_covariance", "irradiance_sigma"}; }
+
 /// Reads one light's fields, each error a one-line InputError naming the file.
 struct FieldReader {
   const std::string& name;
@@ -35,6 +52,38 @@ struct FieldReader {
     const Eigen::Vector3d x(v[0].get<double>(), v[1].get<double>(), v[2].get<double>());
     if (!x.allFinite()) throw InputError(name, std::string(what) + " \"" + key + "\" is not finite");
     return x;
+  }
+  /// A number or null (infinite), the matrix's or sigma's entry `key` names.
+  double Entry(const json& v, const char* key) const {
+    if (v.is_null()) return INFINITY;
+    if (!v.is_number() || !std::isfinite(v.get<double>()))
+      throw InputError(name, std::string("\"") + key + "\" must hold numbers (or null: unknown)");
+    return v.get<double>();
+  }
+  /// A light's uncertainty, when it has one (else everything unknown).
+  LightUncertainty Uncertainty(const json& l, const UncertaintyKeys& keys) const {
+    LightUncertainty u;
+    u.shape_covariance.setConstant(INFINITY);
+    u.scale_sigma.setConstant(INFINITY);
+    if (l.contains(keys.shape)) {
+      const json& m = l[keys.shape];
+      if (!m.is_array() || m.size() != 3)
+        throw InputError(name, std::string("\"") + keys.shape + "\" must be 3 rows of 3 numbers");
+      for (int r = 0; r < 3; ++r) {
+        if (!m[r].is_array() || m[r].size() != 3)
+          throw InputError(name, std::string("\"") + keys.shape + "\" must be 3 rows of 3 numbers");
+        for (int c = 0; c < 3; ++c) u.shape_covariance(r, c) = Entry(m[r][c], keys.shape);
+      }
+    }
+    if (l.contains(keys.scale)) {
+      const json& v = l[keys.scale];
+      if (!v.is_array() || v.size() != 3) throw InputError(name, std::string("\"") + keys.scale + "\" must be 3 numbers");
+      for (int c = 0; c < 3; ++c) {
+        u.scale_sigma[c] = Entry(v[c], keys.scale);
+        if (u.scale_sigma[c] < 0) throw InputError(name, std::string("\"") + keys.scale + "\" is negative");
+      }
+    }
+    return u;
   }
   double Number(const json& l, const char* what, const char* key, double below) const {
     const json& v = l[key];
@@ -69,9 +118,21 @@ void Read(const json& l, const FieldReader& r, DirectionalLight* d) {
 std::string LightsJson(const LightsFile& lights) {
   json j = json::object();
   if (!lights.environment.empty()) j["environment"] = lights.environment;
+  LP_CHECK(lights.uncertainty.empty() || lights.uncertainty.size() == lights.lights.size(),
+           "an uncertainty per light, or none");
   ForEachKind([&](const auto& kind) { j[LightsKey(kind)] = json::array(); });
-  for (const Light& light : lights.lights)
-    std::visit([&](const auto& l) { j[LightsKey(l)].push_back(ToJson(l)); }, light);
+  for (std::size_t k = 0; k < lights.lights.size(); ++k)
+    std::visit(
+        [&](const auto& l) {
+          json entry = ToJson(l);
+          if (!lights.uncertainty.empty()) {
+            const UncertaintyKeys keys = KeysOf(l);
+            entry[keys.shape] = Matrix(lights.uncertainty[k].shape_covariance);
+            entry[keys.scale] = Sigma(lights.uncertainty[k].scale_sigma);
+          }
+          j[LightsKey(l)].push_back(entry);
+        },
+        lights.lights[k]);
   return j.dump(2) + "\n";
 }
 
@@ -98,8 +159,19 @@ LightsFile ParseLightsJson(const std::string& text, const std::string& name) {
       decltype(kind) light;
       Read(l, reader, &light);
       out.lights.push_back(light);
+      const UncertaintyKeys keys = KeysOf(light);
+      if (l.contains(keys.shape) || l.contains(keys.scale)) {
+        out.uncertainty.resize(out.lights.size() - 1, reader.Uncertainty(json::object(), keys));
+        out.uncertainty.push_back(reader.Uncertainty(l, keys));
+      }
     }
   });
+  if (!out.uncertainty.empty()) {  // the lights after the last that had one: unknown
+    LightUncertainty unknown;
+    unknown.shape_covariance.setConstant(INFINITY);
+    unknown.scale_sigma.setConstant(INFINITY);
+    out.uncertainty.resize(out.lights.size(), unknown);
+  }
   return out;
 }
 

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "common/image.h"
+#include "estimation/light_uncertainty.h"
 #include "estimation/lighting.h"
 
 namespace lp {
@@ -17,6 +18,12 @@ struct LightsFile {
   std::string environment;
   /// Every light, kind by kind in the file's order of kinds (each kind has its key).
   std::vector<Light> lights;
+  /// How well the estimate knows each light (estimation/light_uncertainty.h), one per light
+  /// in `lights`' order, or empty (none said). In the file: a point light's
+  /// "position_covariance" (3 x 3, m^2) and "intensity_sigma"; a directional light's
+  /// "direction_covariance" (3 x 3 in its tangent plane, radians^2) and "irradiance_sigma";
+  /// an entry the data do not fix is null (infinite).
+  std::vector<LightUncertainty> uncertainty;
 };
 
 /// The file's key for the lights of each kind ("point_lights", "directional_lights").

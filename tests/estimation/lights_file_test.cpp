@@ -15,7 +15,7 @@ namespace {
 namespace fs = std::filesystem;
 
 TEST(LightsFile, RoundTripsAndRefusesBadLights) {
-  const LightsFile in{"envmap.exr", {PointLight{{1, 2, 3}, {0.5, 0.25, 0}, 0.05}}};
+  const LightsFile in{"envmap.exr", {PointLight{{1, 2, 3}, {0.5, 0.25, 0}, 0.05}}, {}};
   const LightsFile out = ParseLightsJson(LightsJson(in), "lights.json");
   EXPECT_EQ(out.environment, "envmap.exr");
   const std::vector<PointLight> lamps = OfKind<PointLight>(out.lights);
@@ -35,7 +35,7 @@ TEST(LightsFile, RoundTripsAndRefusesBadLights) {
   EXPECT_EQ(d.irradiance, Eigen::Vector3d(2, 1.5, 1));
   EXPECT_EQ(d.angular_radius, 0.0046);
   // Both kinds in one file come back, each under its key.
-  const LightsFile both{"", {DirectionalLight{{0, 0, 1}, {1, 1, 1}, 0}, PointLight{{0, 0, 2}, {3, 3, 3}, 0}}};
+  const LightsFile both{"", {DirectionalLight{{0, 0, 1}, {1, 1, 1}, 0}, PointLight{{0, 0, 2}, {3, 3, 3}, 0}}, {}};
   const LightsFile both_back = ParseLightsJson(LightsJson(both), "lights.json");
   EXPECT_EQ(OfKind<PointLight>(both_back.lights).size(), 1u);
   EXPECT_EQ(OfKind<DirectionalLight>(both_back.lights).size(), 1u);
@@ -55,6 +55,45 @@ TEST(LightsFile, RoundTripsAndRefusesBadLights) {
                           R"({"point_lights": [{"position": [0, 0, 0], "intensity": [1, -1, 1]}]})",
                           R"({"point_lights": [{"intensity": [1, 1, 1]}]})", R"({"point_lights": {}})",
                           R"([1, 2])", R"({"point_lights": [{"position": [0, 0, 0], "intensity": [1, 1, 1], "radius": -1}]})"})
+    EXPECT_THROW(ParseLightsJson(bad, "x"), InputError) << bad;
+}
+
+TEST(LightsFile, EachLightsUncertaintyRoundTripsUnknownAsNull) {
+  // Each light keeps its own uncertainty through the file, kind by kind; an entry the data
+  // do not fix is written as null and read back as infinite; a light without the keys gets
+  // "unknown"; malformed entries are one-line errors.
+  LightUncertainty lamp, sun;
+  lamp.shape_covariance << 4e-4, 1e-4, 0, 1e-4, 9e-4, 2e-5, 0, 2e-5, 1e-2;
+  lamp.scale_sigma = {0.1, 0.2, 0.3};
+  sun.shape_covariance = Eigen::Vector3d(1e-6, 4e-6, 0).asDiagonal();
+  sun.scale_sigma = {0.01, INFINITY, 0.03};
+  const LightsFile in{"", {DirectionalLight{{0, 0, 1}, {1, 1, 1}, 0}, PointLight{{0, 0, 2}, {3, 3, 3}, 0}}, {sun, lamp}};
+  const std::string text = LightsJson(in);
+  EXPECT_NE(text.find("\"position_covariance\""), std::string::npos);
+  EXPECT_NE(text.find("\"direction_covariance\""), std::string::npos);
+  EXPECT_NE(text.find("null"), std::string::npos);
+  const LightsFile out = ParseLightsJson(text, "lights.json");
+  ASSERT_EQ(out.uncertainty.size(), 2u);
+  for (std::size_t k = 0; k < 2; ++k) {  // each with its light, in the file's order of kinds
+    const LightUncertainty& expect = std::holds_alternative<PointLight>(out.lights[k]) ? lamp : sun;
+    EXPECT_EQ(out.uncertainty[k].shape_covariance, expect.shape_covariance) << k;
+    EXPECT_EQ(out.uncertainty[k].scale_sigma, expect.scale_sigma) << k;
+  }
+  EXPECT_TRUE(ParseLightsJson(LightsJson({"", in.lights, {}}), "x").uncertainty.empty());
+  const LightsFile partly = ParseLightsJson(
+      R"({"point_lights": [{"position": [0, 0, 1], "intensity": [1, 1, 1]},
+                           {"position": [0, 0, 2], "intensity": [1, 1, 1], "intensity_sigma": [0.5, 0.5, 0.5]}]})",
+      "x");
+  ASSERT_EQ(partly.uncertainty.size(), 2u);
+  EXPECT_FALSE(partly.uncertainty[0].scale_sigma.allFinite());
+  EXPECT_EQ(partly.uncertainty[1].scale_sigma, Eigen::Vector3d::Constant(0.5));
+  EXPECT_FALSE(partly.uncertainty[1].shape_covariance.allFinite());
+  for (const char* bad :
+       {R"({"point_lights": [{"position": [0, 0, 0], "intensity": [1, 1, 1], "intensity_sigma": [1, -1, 1]}]})",
+        R"({"point_lights": [{"position": [0, 0, 0], "intensity": [1, 1, 1], "intensity_sigma": [1, 1]}]})",
+        R"({"point_lights": [{"position": [0, 0, 0], "intensity": [1, 1, 1], "position_covariance": [[1, 0, 0]]}]})",
+        R"({"directional_lights": [{"direction": [0, 0, 1], "irradiance": [1, 1, 1],
+                                   "direction_covariance": [[1, 0, 0], [0, 1, 0], [0, 0, "x"]]}]})"})
     EXPECT_THROW(ParseLightsJson(bad, "x"), InputError) << bad;
 }
 
