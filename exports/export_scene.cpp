@@ -20,6 +20,7 @@ ExportScene LoadExportScene(const fs::path& scene_dir, const fs::path& estimate_
   const LightsFile lights = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
   ExportScene s;
   s.lights = lights.lights;
+  s.uncertainty = lights.uncertainty;
   if (!lights.environment.empty()) {
     s.environment = ReadEquirectMap(estimate_dir / lights.environment);
   }

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 
 #include "common/image.h"
+#include "estimation/light_uncertainty.h"
 #include "estimation/lighting.h"
 #include "scene/camera.h"
 #include "scene/mesh.h"
@@ -24,6 +25,8 @@ struct ExportScene {
   std::vector<Camera> cameras;  ///< the keyframes', in order
   ImageRGB environment;         ///< the map, EnvMap's equirectangular convention; empty when none
   std::vector<Light> lights;    ///< every kind (each exporter writes each kind its own way)
+  /// lights.json's uncertainty of each light (same order), or empty when it has none.
+  std::vector<LightUncertainty> uncertainty;
 };
 
 /// Reads SCENE_DIR's bundle and ESTIMATE_DIR/lights.json with the map it names, and

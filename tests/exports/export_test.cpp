@@ -341,6 +341,36 @@ TEST(ShExport, WithTheSunInTheCoefficientsTheOrderTwoErrorIsStated) {
   fs::remove_all(dir);
 }
 
+TEST(ShExport, EachLightCarriesItsUncertaintyInBothFrames) {
+  // lighting.json gives each light lights.json's covariance and sigma, the covariance also
+  // in the y-up frame (G C G^T: a variance along world z is one along y-up's y), and null
+  // where unknown; with no uncertainty the keys are absent.
+  ExportScene s = SmallScene();
+  s.lights.push_back(PointLight{{0.5, 0.2, 1.5}, {2, 2, 2}, 0});
+  s.lights.push_back(DirectionalLight{Eigen::Vector3d(0, 0.6, 0.8), {1, 1, 1}, 0});
+  LightUncertainty lamp, sun;
+  lamp.shape_covariance = Eigen::Vector3d(1e-4, 4e-4, 9e-4).asDiagonal();
+  lamp.scale_sigma = {0.1, 0.2, 0.3};
+  sun.shape_covariance.setConstant(INFINITY);
+  sun.scale_sigma = {0.01, 0.01, 0.01};
+  s.uncertainty = {lamp, sun};
+  const fs::path dir = Scratch("sh_uncertainty");
+  WriteExport(s, ExportFormat::kSh, dir);
+  const json j = ReadJson(dir / "lighting.json");
+  const json& l = j["point_lights"].at(0);
+  EXPECT_DOUBLE_EQ(l["position_covariance"][2][2].get<double>(), 9e-4);
+  EXPECT_DOUBLE_EQ(l["position_covariance_y_up"][1][1].get<double>(), 9e-4);  // world z is y-up's y
+  EXPECT_DOUBLE_EQ(l["position_covariance_y_up"][2][2].get<double>(), 4e-4);  // world y is y-up's -z
+  EXPECT_DOUBLE_EQ(l["intensity_sigma"][2].get<double>(), 0.3);
+  const json& d = j["directional_lights"].at(0);
+  EXPECT_TRUE(d["direction_covariance"][0][0].is_null());
+  EXPECT_DOUBLE_EQ(d["irradiance_sigma"][0].get<double>(), 0.01);
+  s.uncertainty.clear();
+  WriteExport(s, ExportFormat::kSh, dir);
+  EXPECT_FALSE(ReadJson(dir / "lighting.json")["point_lights"].at(0).contains("position_covariance"));
+  fs::remove_all(dir);
+}
+
 TEST(GltfExport, LightsCamerasAndBuffersByHand) {
   ExportScene s = SmallScene();
   PointLight lamp;
