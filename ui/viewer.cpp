@@ -12,6 +12,7 @@
 #include <thread>
 #include <fstream>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
 
@@ -318,6 +319,7 @@ void Viewer::DrawScene(const Rect& r) {
   lines_.Clear();
   AddLampMarkers(size);
   AddSunMarkers(size);
+  AddRegions();
   lines_.Draw();
   view_projection_ = vp;
   RenderTarget::Unbind();
@@ -350,6 +352,70 @@ void Viewer::AddLampMarkers(float size) {
       for (int b = a + 1; b < 3; ++b)
         for (int i = 0; i < 2; ++i)
           for (int j = 0; j < 2; ++j) lines_.Add(tip[2 * a + i], tip[2 * b + j], color);
+  }
+}
+
+const LightUncertainty* Viewer::UncertaintyOf(std::size_t k) const {
+  if (!est_.result || est_.result->uncertainty.size() != est_.lighting.lights.size() ||
+      est_.result->lighting.lights.size() != est_.lighting.lights.size() || k >= est_.lighting.lights.size())
+    return nullptr;
+  if (!SameShape(est_.result->lighting.lights[k], est_.lighting.lights[k])) return nullptr;
+  return &est_.result->uncertainty[k];
+}
+
+namespace {
+
+/// The 95 % region's semi-axes (ascending) and their directions for a covariance whose
+/// squared Mahalanobis bound is `chi2`; false when it is unknown.
+bool Region(const Eigen::Matrix3d& covariance, double chi2, Eigen::Vector3d* semi_axes, Eigen::Matrix3d* axes) {
+  if (!covariance.allFinite()) return false;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(covariance);
+  *semi_axes = (eig.eigenvalues().cwiseMax(0.0) * chi2).cwiseSqrt();
+  *axes = eig.eigenvectors();
+  return true;
+}
+
+/// The lights' colour as the markers draw it, dimmed.
+Eigen::Vector3f Dimmed(const Eigen::Vector3d& rgb) {
+  const double peak = rgb.maxCoeff();
+  const Eigen::Vector3f colour = peak > 0 ? Eigen::Vector3f((rgb / peak).cast<float>()) : Eigen::Vector3f::Ones();
+  return 0.7f * colour.cwiseMax(0.15f);
+}
+
+}  // namespace
+
+void Viewer::AddRegions() {
+  constexpr int kSegments = 32;
+  const auto ellipse = [&](const Eigen::Vector3f& centre, const Eigen::Vector3f& u, const Eigen::Vector3f& v,
+                           const Eigen::Vector3f& colour) {
+    for (int k = 0; k < kSegments; ++k) {
+      const float t0 = 6.2831853f * k / kSegments, t1 = 6.2831853f * (k + 1) / kSegments;
+      lines_.Add(centre + std::cos(t0) * u + std::sin(t0) * v, centre + std::cos(t1) * u + std::sin(t1) * v, colour);
+    }
+  };
+  for (std::size_t k = 0; k < est_.lighting.lights.size(); ++k) {
+    const LightUncertainty* u = UncertaintyOf(k);
+    Eigen::Vector3d semi;
+    Eigen::Matrix3d axes;
+    if (!u) continue;
+    if (const PointLight* l = std::get_if<PointLight>(&est_.lighting.lights[k])) {
+      if (!Region(u->shape_covariance, kChiSquare95Dim3, &semi, &axes)) continue;
+      const Eigen::Vector3f p = l->position.cast<float>(), colour = Dimmed(l->intensity);
+      Eigen::Vector3f a[3];
+      for (int i = 0; i < 3; ++i) a[i] = (semi[i] * axes.col(i)).cast<float>();
+      ellipse(p, a[0], a[1], colour);
+      ellipse(p, a[0], a[2], colour);
+      ellipse(p, a[1], a[2], colour);
+    } else if (const DirectionalLight* d = std::get_if<DirectionalLight>(&est_.lighting.lights[k])) {
+      if (!Region(u->shape_covariance, kChiSquare95Dim2, &semi, &axes)) continue;
+      // The cone's two widest angles (the third axis is the direction itself), drawn around
+      // the marker at the marker's distance.
+      const Eigen::Vector3f centre = SunMarkerCentre(*d);
+      const float reach = (centre - camera_.target).norm();
+      const Eigen::Vector3f a = reach * std::tan(std::min(1.4, semi[2])) * axes.col(2).cast<float>();
+      const Eigen::Vector3f b = reach * std::tan(std::min(1.4, semi[1])) * axes.col(1).cast<float>();
+      ellipse(centre, a, b, Dimmed(d->irradiance));
+    }
   }
 }
 
@@ -905,16 +971,29 @@ void Viewer::WriteState(const std::string& path) const {
   j["estimate"]["dominant"] = json::array();
   for (const Eigen::Vector3d& d : est_.dominant) j["estimate"]["dominant"].push_back(vec(d));
   // The lamps, and how the 3D view projects the world (column-major, to NDC over view3d).
+  // Each light's 95 % region as the 3D view draws it (semi-axes ascending, m or radians;
+  // their directions as columns), when the finished estimate has one.
+  const auto with_region = [&](json entry, std::size_t k, double chi2) {
+    Eigen::Vector3d semi;
+    Eigen::Matrix3d axes;
+    if (const LightUncertainty* u = UncertaintyOf(k); u && Region(u->shape_covariance, chi2, &semi, &axes))
+      entry["region_95"] = {{"semi_axes", vec(semi)}, {"axes", {vec(axes.col(0)), vec(axes.col(1)), vec(axes.col(2))}}};
+    return entry;
+  };
   j["estimate"]["point_lights"] = json::array();
-  for (const PointLight& l : est_.lighting.Of<PointLight>())
-    j["estimate"]["point_lights"].push_back({{"position", vec(l.position)}, {"intensity", vec(l.intensity)}});
   j["estimate"]["directional_lights"] = json::array();  // and where the 3D view draws each
-  for (const DirectionalLight& l : est_.lighting.Of<DirectionalLight>())
-    j["estimate"]["directional_lights"].push_back({{"direction", vec(l.direction)},
-                                                   {"irradiance", vec(l.irradiance)},
-                                                   {"angular_radius", l.angular_radius},
-                                                   {"marker", vec(SunMarkerCentre(l).cast<double>())},
-                                                   {"marker_radius", sun_marker_size_}});
+  for (std::size_t k = 0; k < est_.lighting.lights.size(); ++k) {
+    if (const PointLight* l = std::get_if<PointLight>(&est_.lighting.lights[k]))
+      j["estimate"]["point_lights"].push_back(
+          with_region({{"position", vec(l->position)}, {"intensity", vec(l->intensity)}}, k, kChiSquare95Dim3));
+    if (const DirectionalLight* l = std::get_if<DirectionalLight>(&est_.lighting.lights[k]))
+      j["estimate"]["directional_lights"].push_back(with_region({{"direction", vec(l->direction)},
+                                                                 {"irradiance", vec(l->irradiance)},
+                                                                 {"angular_radius", l->angular_radius},
+                                                                 {"marker", vec(SunMarkerCentre(*l).cast<double>())},
+                                                                 {"marker_radius", sun_marker_size_}},
+                                                                k, kChiSquare95Dim2));
+  }
   j["view3d_projection"] = std::vector<float>(view_projection_.data(), view_projection_.data() + 16);
   j["orbit_target"] = vec(camera_.target.cast<double>());
   if (est_.env)

@@ -53,6 +53,12 @@ class Viewer {
   void SyncShading();
   void DrawScene(const Rect& r);
   void AddLampMarkers(float size);
+  /// Light k of est_.lighting's uncertainty, when the finished estimate shown has one
+  /// (null while an estimate runs, or where it does not).
+  const LightUncertainty* UncertaintyOf(std::size_t k) const;
+  /// The 95 % region of each light: a lamp's ellipsoid (its three principal ellipses), a
+  /// directional light's cone (an ellipse around its marker), in the light's colour dimmed.
+  void AddRegions();
   void AddSunMarkers(float size);
   Eigen::Vector3f SunMarkerCentre(const DirectionalLight& l) const;
   float sun_marker_size_ = 0;  ///< the radius (world units) of the suns' rings last drawn

@@ -285,6 +285,25 @@ TEST(Viewer, ALampIsDrawnAtItsPosition) {
   std::printf("lamp marker expected at (%.1f, %.1f); the true lamp projects to (%.1f, %.1f)\n", lx, ly, tx, ty);
   EXPECT_LT(std::hypot(lx - tx, ly - ty), 10);
   ExpectLampMarker(ReadRgb8(a / "lit.png"), state, 0);
+  // Its 95 % region, as the view draws it (three principal ellipses): semi-axes positive and
+  // ascending along orthonormal axes; the truth's squared Mahalanobis distance under it said.
+  const nlohmann::json& lamp = state["estimate"]["point_lights"][0];
+  ASSERT_TRUE(lamp.contains("region_95")) << lamp.dump();
+  Eigen::Vector3d semi;
+  Eigen::Matrix3d axes;
+  for (int i = 0; i < 3; ++i) {
+    semi[i] = lamp["region_95"]["semi_axes"][i].get<double>();
+    for (int k = 0; k < 3; ++k) axes(k, i) = lamp["region_95"]["axes"][i][k].get<double>();
+  }
+  EXPECT_GT(semi[0], 0);
+  EXPECT_LE(semi[0], semi[1]);
+  EXPECT_LE(semi[1], semi[2]);
+  EXPECT_LT(semi[2], 0.5) << "a lamp the window finds within 5 cm is not unknown to half a metre";
+  EXPECT_TRUE((axes.transpose() * axes).isApprox(Eigen::Matrix3d::Identity(), 1e-9));
+  const Eigen::Vector3d along = axes.transpose() * (truth - found);
+  const double m = (along.array() / semi.array()).square().sum() * 7.814727903251178;  // (semi = sqrt(7.81 eig))
+  std::printf("the lamp's 95 %% region: semi-axes %.3g %.3g %.3g m; the truth at a squared distance %.2f\n", semi[0],
+              semi[1], semi[2], m);
 }
 
 // A sun (synth's sun-and-sky, 96 x 72): the estimate takes it as a directional light within
