@@ -7,6 +7,7 @@
 #include <Eigen/Dense>
 
 #include "common/error.h"
+#include "common/parallel.h"
 #include "estimation/light_fit.h"
 #include "estimation/transport.h"
 
@@ -55,45 +56,67 @@ std::vector<LightUncertainty> LightUncertainties(const LightFitProblem& p, const
     bases.push_back(ShapeBasis(lights[k]));
   }
   const int blocks = row_block.empty() ? 0 : *std::max_element(row_block.begin(), row_block.end()) + 1;
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n);  // the bread: sum w J J^T
-  Eigen::MatrixXd score = Eigen::MatrixXd::Zero(n, blocks);  // per block: sum w r J
-  SparseRow J;
-  double shape[3];
-  for (std::size_t row = 0; row < rows; ++row)
-    for (int c = 0; c < 3; ++c) {
-      const std::size_t i = 3 * row + c;
-      J.Clear();
-      double model = (*p.base)[i];
-      for (std::size_t k = 0; k < lights.size(); ++k) {
-        const double s = Scale(lights[k])[c];
-        const int dims = offset[k + 1] - offset[k] - 3;
-        ShapeGradient(bases[k], dims, &jacs[k][9 * row + 3 * c], shape);
-        for (int a = 0; a < dims; ++a) J.Add(offset[k] + a, s * shape[a]);
-        J.Add(offset[k] + dims + c, cols[k][i]);
-        model += s * cols[k][i];
-      }
-      if (map)
-        for (std::int64_t e = map->row_start[row]; e < map->row_start[row + 1]; ++e) {
-          const int param = cell_param[3 * static_cast<std::size_t>(map->col[e]) + c];
-          if (param >= 0) J.Add(param, map->val[e][c]);
+  // The bread (sum w J J^T, its upper triangle) and each block's score (sum w r J), summed
+  // over fixed chunks of rows in parallel and then in the chunks' order (the same result on
+  // any number of threads).
+  constexpr int kChunks = 8;
+  std::vector<Eigen::MatrixXd> Hs(kChunks, Eigen::MatrixXd::Zero(n, n)), scores(kChunks, Eigen::MatrixXd::Zero(n, blocks));
+  const std::size_t per_chunk = (rows + kChunks - 1) / kChunks;
+  ParallelFor(0, kChunks, [&](std::size_t chunk) {
+    Eigen::MatrixXd& H = Hs[chunk];
+    Eigen::MatrixXd& score = scores[chunk];
+    SparseRow J;
+    double shape[3];
+    for (std::size_t row = chunk * per_chunk; row < std::min(rows, (chunk + 1) * per_chunk); ++row)
+      for (int c = 0; c < 3; ++c) {
+        const std::size_t i = 3 * row + c;
+        J.Clear();
+        double model = (*p.base)[i];
+        for (std::size_t k = 0; k < lights.size(); ++k) {
+          const double s = Scale(lights[k])[c];
+          const int dims = offset[k + 1] - offset[k] - 3;
+          ShapeGradient(bases[k], dims, &jacs[k][9 * row + 3 * c], shape);
+          for (int a = 0; a < dims; ++a) J.Add(offset[k] + a, s * shape[a]);
+          J.Add(offset[k] + dims + c, cols[k][i]);
+          model += s * cols[k][i];
         }
-      if (J.index.empty()) continue;
-      const double r = (*p.y)[i] - model, w = p.loss.Weight(r);
-      for (std::size_t a = 0; a < J.index.size(); ++a) {
-        for (std::size_t b = 0; b < J.index.size(); ++b) H(J.index[a], J.index[b]) += w * J.value[a] * J.value[b];
-        score(J.index[a], row_block[row]) += w * r * J.value[a];
+        if (map)
+          for (std::int64_t e = map->row_start[row]; e < map->row_start[row + 1]; ++e) {
+            const int param = cell_param[3 * static_cast<std::size_t>(map->col[e]) + c];
+            if (param >= 0) J.Add(param, map->val[e][c]);
+          }
+        if (J.index.empty()) continue;
+        const double r = (*p.y)[i] - model, w = p.loss.Weight(r);
+        for (std::size_t a = 0; a < J.index.size(); ++a) {
+          const double wa = w * J.value[a];
+          for (std::size_t b = a; b < J.index.size(); ++b)
+            H(std::min(J.index[a], J.index[b]), std::max(J.index[a], J.index[b])) += wa * J.value[b];
+          score(J.index[a], row_block[row]) += wa * r;
+        }
       }
-    }
-  // The meat, with the small-sample factor of a clustered sandwich; the bread's inverse
-  // through its eigenvalues (a direction the data do not fix gets an infinite variance).
-  const Eigen::MatrixXd meat = score * score.transpose() * (blocks > 1 ? blocks / (blocks - 1.0) : 1.0);
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(H);
-  const Eigen::VectorXd ev = eig.eigenvalues();
-  const double floor = 1e-12 * std::max(ev.cwiseAbs().maxCoeff(), 1e-300);
-  Eigen::VectorXd inv(n);
-  for (int a = 0; a < n; ++a) inv[a] = ev[a] > floor ? 1 / ev[a] : 0.0;
-  const Eigen::MatrixXd Hinv = eig.eigenvectors() * inv.asDiagonal() * eig.eigenvectors().transpose();
-  const Eigen::MatrixXd cov = Hinv * meat * Hinv;
+  });
+  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n), score = Eigen::MatrixXd::Zero(n, blocks);
+  for (int chunk = 0; chunk < kChunks; ++chunk) {
+    H += Hs[chunk];
+    score += scores[chunk];
+  }
+  H = H.selfadjointView<Eigen::Upper>();
+  // The bread's inverse, only its columns of the lights' parameters (the first
+  // offset.back()): their covariance is Hinv_L^T M Hinv_L with the meat M = G/(G-1) sum_b
+  // g_b g_b^T, that is Z Z^T with Z = Hinv_L^T [g_b] (the map's parameters are marginalized
+  // out by it). A pivoted LDL^T with a ridge of 1e-12 of the largest diagonal entry (a
+  // parameter no row sees would make H singular).
+  const int nl = offset.back();
+  const double ridge = 1e-12 * std::max(H.diagonal().maxCoeff(), 1e-300);
+  H.diagonal().array() += ridge;
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
+  const Eigen::MatrixXd hinv_l = ldlt.solve(Eigen::MatrixXd::Identity(n, nl));
+  const Eigen::MatrixXd z = hinv_l.transpose() * score;
+  const Eigen::MatrixXd cov = z * z.transpose() * (blocks > 1 ? blocks / (blocks - 1.0) : 1.0);
+  // A parameter the data do not fix (its variance with the others free over its variance
+  // with them held, H^-1_aa H_aa, beyond 1e8: a zero direction of H, or one the other
+  // parameters can take over entirely) is unknown.
+  const auto unknown = [&](int a) { return !(hinv_l(a, a) * (H(a, a) - ridge) < 1e8) || !(H(a, a) > ridge); };
   std::vector<LightUncertainty> out(lights.size());
   for (std::size_t k = 0; k < lights.size(); ++k) {
     const int dims = offset[k + 1] - offset[k] - 3;
@@ -101,14 +124,10 @@ std::vector<LightUncertainty> LightUncertainties(const LightFitProblem& p, const
     const Eigen::MatrixXd basis = bases[k].leftCols(dims);
     out[k].shape_covariance = basis * shape_cov * basis.transpose();
     for (int c = 0; c < 3; ++c) out[k].scale_sigma[c] = std::sqrt(std::max(0.0, cov(offset[k] + dims + c, offset[k] + dims + c)));
-    // A parameter the data do not fix at all (a zero eigenvalue of the bread) is unknown.
-    for (int a = 0; a < n; ++a)
-      if (!(ev[a] > floor)) {
-        const Eigen::VectorXd v = eig.eigenvectors().col(a);
-        if (v.segment(offset[k], dims).norm() > 1e-3) out[k].shape_covariance.setConstant(INFINITY);
-        for (int c = 0; c < 3; ++c)
-          if (std::abs(v[offset[k] + dims + c]) > 1e-3) out[k].scale_sigma[c] = INFINITY;
-      }
+    for (int a = 0; a < dims; ++a)
+      if (unknown(offset[k] + a)) out[k].shape_covariance.setConstant(INFINITY);
+    for (int c = 0; c < 3; ++c)
+      if (unknown(offset[k] + dims + c)) out[k].scale_sigma[c] = INFINITY;
   }
   return out;
 }

@@ -122,6 +122,28 @@ TEST(LightUncertainty, AFarLampsRegionIsLongAlongItsRay) {
   EXPECT_GT(u.scale_sigma.minCoeff(), 0);
 }
 
+TEST(LightUncertainty, ALightNoPixelSeesIsUnknownAndTheOtherStaysKnown) {
+  // A second lamp under the floor lights nothing the camera sees: its place and intensity
+  // are unknown (infinite), and the lamp above keeps a finite region.
+  const Scene scene;
+  const PointLight lamp{{0.5, 0.4, 1.2}, {3, 2.5, 2}, 0}, hidden{{0.3, 0.2, -1.0}, {1, 1, 1}, 0};
+  std::mt19937 rng(5);
+  std::vector<double> y = scene.Image(lamp);
+  double mean = 0;
+  for (double v : y) mean += v / y.size();
+  y = WithNoise(y, 0.05 * mean, &rng);
+  const std::vector<double> zero(y.size(), 0.0);
+  const LightFitProblem fit{&scene.tracer, &scene.vertices, &y, &zero, CauchyLoss{mean}, 0};
+  std::vector<int> blocks(scene.vertices.rows());
+  for (std::size_t r = 0; r < blocks.size(); ++r) blocks[r] = static_cast<int>(r % 24);
+  const std::vector<LightUncertainty> u = LightUncertainties(fit, {Light{lamp}, Light{hidden}}, nullptr, {}, blocks);
+  ASSERT_EQ(u.size(), 2u);
+  EXPECT_TRUE(u[0].shape_covariance.allFinite());
+  EXPECT_TRUE(u[0].scale_sigma.allFinite());
+  EXPECT_FALSE(u[1].shape_covariance.allFinite());
+  EXPECT_FALSE(u[1].scale_sigma.allFinite());
+}
+
 TEST(LightUncertainty, SquaredMahalanobisIsTheClosedForm) {
   Eigen::Matrix3d cov = Eigen::Vector3d(4, 1, 0.25).asDiagonal();
   EXPECT_NEAR(SquaredMahalanobis({2, 1, 0.5}, cov), 3, 1e-12);
