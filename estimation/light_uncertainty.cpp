@@ -29,6 +29,91 @@ struct SparseRow {
   }
 };
 
+/// The parameters (each light's shape coordinates and 3 scales, then the map's lit cells'
+/// channels) and the lights' columns and their derivatives on the problem's rows.
+struct Parameters {
+  std::vector<int> offset{0};   ///< per light: its first parameter; the last: the lights' count
+  std::vector<int> cell_param;  ///< per cell and channel: its parameter, or -1
+  int n = 0;
+  std::vector<std::vector<float>> cols, jacs;
+  std::vector<Eigen::Matrix3d> bases;
+
+  Parameters(const LightFitProblem& p, const std::vector<Light>& lights, const TransportMatrix* map,
+             const std::vector<double>& lambda) {
+    for (const Light& l : lights) offset.push_back(offset.back() + ShapeDims(l) + 3);
+    n = offset.back();
+    if (map) {
+      cell_param.assign(lambda.size(), -1);
+      for (std::size_t k = 0; k < lambda.size(); ++k)
+        if (lambda[k] > 0) cell_param[k] = n++;
+    }
+    cols.resize(lights.size());
+    jacs.resize(lights.size());
+    for (std::size_t k = 0; k < lights.size(); ++k) {
+      UnitColumn(*p.scene, *p.vertices, lights[k], &cols[k], &jacs[k]);
+      bases.push_back(ShapeBasis(lights[k]));
+    }
+  }
+  int ShapeDimsOf(std::size_t k) const { return offset[k + 1] - offset[k] - 3; }
+
+  /// Row `row`'s channel `c`: its Jacobian into `J`, and the model's value there.
+  double Row(const LightFitProblem& p, const std::vector<Light>& lights, const TransportMatrix* map, std::size_t row,
+             int c, SparseRow* J) const {
+    const std::size_t i = 3 * row + c;
+    J->Clear();
+    double model = (*p.base)[i], shape[3];
+    for (std::size_t k = 0; k < lights.size(); ++k) {
+      const double s = Scale(lights[k])[c];
+      const int dims = ShapeDimsOf(k);
+      ShapeGradient(bases[k], dims, &jacs[k][9 * row + 3 * c], shape);
+      for (int a = 0; a < dims; ++a) J->Add(offset[k] + a, s * shape[a]);
+      J->Add(offset[k] + dims + c, cols[k][i]);
+      model += s * cols[k][i];
+    }
+    if (map)
+      for (std::int64_t e = map->row_start[row]; e < map->row_start[row + 1]; ++e) {
+        const int param = cell_param[3 * static_cast<std::size_t>(map->col[e]) + c];
+        if (param >= 0) J->Add(param, map->val[e][c]);
+      }
+    return model;
+  }
+};
+
+/// The bread (sum w J J^T) and each block's score (sum w r J, a column per block), summed
+/// over fixed chunks of rows in parallel and then in the chunks' order (the same result on
+/// any number of threads).
+void BreadAndScores(const LightFitProblem& p, const std::vector<Light>& lights, const TransportMatrix* map,
+                    const Parameters& par, const std::vector<int>& row_block, int blocks, Eigen::MatrixXd* bread,
+                    Eigen::MatrixXd* scores) {
+  const std::size_t rows = p.vertices->rows();
+  constexpr int kChunks = 8;
+  std::vector<Eigen::MatrixXd> Hs(kChunks, Eigen::MatrixXd::Zero(par.n, par.n));
+  std::vector<Eigen::MatrixXd> Gs(kChunks, Eigen::MatrixXd::Zero(par.n, blocks));
+  const std::size_t per_chunk = (rows + kChunks - 1) / kChunks;
+  ParallelFor(0, kChunks, [&](std::size_t chunk) {
+    SparseRow J;
+    for (std::size_t row = chunk * per_chunk; row < std::min(rows, (chunk + 1) * per_chunk); ++row)
+      for (int c = 0; c < 3; ++c) {
+        const double model = par.Row(p, lights, map, row, c, &J);
+        if (J.index.empty()) continue;
+        const double r = (*p.y)[3 * row + c] - model, w = p.loss.Weight(r);
+        for (std::size_t a = 0; a < J.index.size(); ++a) {  // the upper triangle
+          const double wa = w * J.value[a];
+          for (std::size_t b = a; b < J.index.size(); ++b)
+            Hs[chunk](std::min(J.index[a], J.index[b]), std::max(J.index[a], J.index[b])) += wa * J.value[b];
+          Gs[chunk](J.index[a], row_block[row]) += wa * r;
+        }
+      }
+  });
+  *bread = Eigen::MatrixXd::Zero(par.n, par.n);
+  *scores = Eigen::MatrixXd::Zero(par.n, blocks);
+  for (int chunk = 0; chunk < kChunks; ++chunk) {
+    *bread += Hs[chunk];
+    *scores += Gs[chunk];
+  }
+  *bread = bread->selfadjointView<Eigen::Upper>();
+}
+
 }  // namespace
 
 std::vector<LightUncertainty> LightUncertainties(const LightFitProblem& p, const std::vector<Light>& lights,
@@ -37,80 +122,21 @@ std::vector<LightUncertainty> LightUncertainties(const LightFitProblem& p, const
   const std::size_t rows = p.vertices->rows();
   LP_CHECK(p.y->size() == 3 * rows && p.base->size() == 3 * rows && row_block.size() == rows,
            "LightUncertainties: 3 observations, a base and a block per row");
-  // The parameters: each light's shape coordinates and its 3 scales, then the lit cells' channels.
-  std::vector<int> offset{0};
-  for (const Light& l : lights) offset.push_back(offset.back() + ShapeDims(l) + 3);
-  int n = offset.back();
-  std::vector<int> cell_param;  // per cell and channel: its parameter, or -1
-  if (map) {
-    LP_CHECK(map->rows() == rows && lambda.size() == 3 * static_cast<std::size_t>(map->cells),
-             "LightUncertainties: the map's rows are the problem's");
-    cell_param.assign(lambda.size(), -1);
-    for (std::size_t k = 0; k < lambda.size(); ++k)
-      if (lambda[k] > 0) cell_param[k] = n++;
-  }
-  std::vector<std::vector<float>> cols(lights.size()), jacs(lights.size());
-  std::vector<Eigen::Matrix3d> bases;
-  for (std::size_t k = 0; k < lights.size(); ++k) {
-    UnitColumn(*p.scene, *p.vertices, lights[k], &cols[k], &jacs[k]);
-    bases.push_back(ShapeBasis(lights[k]));
-  }
+  LP_CHECK(!map || (map->rows() == rows && lambda.size() == 3 * static_cast<std::size_t>(map->cells)),
+           "LightUncertainties: the map's rows are the problem's");
+  const Parameters par(p, lights, map, lambda);
   const int blocks = row_block.empty() ? 0 : *std::max_element(row_block.begin(), row_block.end()) + 1;
-  // The bread (sum w J J^T, its upper triangle) and each block's score (sum w r J), summed
-  // over fixed chunks of rows in parallel and then in the chunks' order (the same result on
-  // any number of threads).
-  constexpr int kChunks = 8;
-  std::vector<Eigen::MatrixXd> Hs(kChunks, Eigen::MatrixXd::Zero(n, n)), scores(kChunks, Eigen::MatrixXd::Zero(n, blocks));
-  const std::size_t per_chunk = (rows + kChunks - 1) / kChunks;
-  ParallelFor(0, kChunks, [&](std::size_t chunk) {
-    Eigen::MatrixXd& H = Hs[chunk];
-    Eigen::MatrixXd& score = scores[chunk];
-    SparseRow J;
-    double shape[3];
-    for (std::size_t row = chunk * per_chunk; row < std::min(rows, (chunk + 1) * per_chunk); ++row)
-      for (int c = 0; c < 3; ++c) {
-        const std::size_t i = 3 * row + c;
-        J.Clear();
-        double model = (*p.base)[i];
-        for (std::size_t k = 0; k < lights.size(); ++k) {
-          const double s = Scale(lights[k])[c];
-          const int dims = offset[k + 1] - offset[k] - 3;
-          ShapeGradient(bases[k], dims, &jacs[k][9 * row + 3 * c], shape);
-          for (int a = 0; a < dims; ++a) J.Add(offset[k] + a, s * shape[a]);
-          J.Add(offset[k] + dims + c, cols[k][i]);
-          model += s * cols[k][i];
-        }
-        if (map)
-          for (std::int64_t e = map->row_start[row]; e < map->row_start[row + 1]; ++e) {
-            const int param = cell_param[3 * static_cast<std::size_t>(map->col[e]) + c];
-            if (param >= 0) J.Add(param, map->val[e][c]);
-          }
-        if (J.index.empty()) continue;
-        const double r = (*p.y)[i] - model, w = p.loss.Weight(r);
-        for (std::size_t a = 0; a < J.index.size(); ++a) {
-          const double wa = w * J.value[a];
-          for (std::size_t b = a; b < J.index.size(); ++b)
-            H(std::min(J.index[a], J.index[b]), std::max(J.index[a], J.index[b])) += wa * J.value[b];
-          score(J.index[a], row_block[row]) += wa * r;
-        }
-      }
-  });
-  Eigen::MatrixXd H = Eigen::MatrixXd::Zero(n, n), score = Eigen::MatrixXd::Zero(n, blocks);
-  for (int chunk = 0; chunk < kChunks; ++chunk) {
-    H += Hs[chunk];
-    score += scores[chunk];
-  }
-  H = H.selfadjointView<Eigen::Upper>();
-  // The bread's inverse, only its columns of the lights' parameters (the first
-  // offset.back()): their covariance is Hinv_L^T M Hinv_L with the meat M = G/(G-1) sum_b
-  // g_b g_b^T, that is Z Z^T with Z = Hinv_L^T [g_b] (the map's parameters are marginalized
-  // out by it). A pivoted LDL^T with a ridge of 1e-12 of the largest diagonal entry (a
-  // parameter no row sees would make H singular).
-  const int nl = offset.back();
+  Eigen::MatrixXd H, score;
+  BreadAndScores(p, lights, map, par, row_block, blocks, &H, &score);
+  // The bread's inverse, only its columns of the lights' parameters: their covariance is
+  // Hinv_L^T M Hinv_L with the meat M = G/(G-1) sum_b g_b g_b^T, that is Z Z^T with
+  // Z = Hinv_L^T [g_b] (the map's parameters are marginalized out by it). A pivoted LDL^T
+  // with a ridge of 1e-12 of the largest diagonal entry (a parameter no row sees would make
+  // H singular).
+  const int nl = par.offset.back();
   const double ridge = 1e-12 * std::max(H.diagonal().maxCoeff(), 1e-300);
   H.diagonal().array() += ridge;
-  const Eigen::LDLT<Eigen::MatrixXd> ldlt(H);
-  const Eigen::MatrixXd hinv_l = ldlt.solve(Eigen::MatrixXd::Identity(n, nl));
+  const Eigen::MatrixXd hinv_l = Eigen::LDLT<Eigen::MatrixXd>(H).solve(Eigen::MatrixXd::Identity(par.n, nl));
   const Eigen::MatrixXd z = hinv_l.transpose() * score;
   const Eigen::MatrixXd cov = z * z.transpose() * (blocks > 1 ? blocks / (blocks - 1.0) : 1.0);
   // A parameter the data do not fix (its variance with the others free over its variance
@@ -119,15 +145,14 @@ std::vector<LightUncertainty> LightUncertainties(const LightFitProblem& p, const
   const auto unknown = [&](int a) { return !(hinv_l(a, a) * (H(a, a) - ridge) < 1e8) || !(H(a, a) > ridge); };
   std::vector<LightUncertainty> out(lights.size());
   for (std::size_t k = 0; k < lights.size(); ++k) {
-    const int dims = offset[k + 1] - offset[k] - 3;
-    const Eigen::MatrixXd shape_cov = cov.block(offset[k], offset[k], dims, dims);
-    const Eigen::MatrixXd basis = bases[k].leftCols(dims);
-    out[k].shape_covariance = basis * shape_cov * basis.transpose();
-    for (int c = 0; c < 3; ++c) out[k].scale_sigma[c] = std::sqrt(std::max(0.0, cov(offset[k] + dims + c, offset[k] + dims + c)));
+    const int first = par.offset[k], dims = par.ShapeDimsOf(k);
+    const Eigen::MatrixXd basis = par.bases[k].leftCols(dims);
+    out[k].shape_covariance = basis * cov.block(first, first, dims, dims) * basis.transpose();
+    for (int c = 0; c < 3; ++c) out[k].scale_sigma[c] = std::sqrt(std::max(0.0, cov(first + dims + c, first + dims + c)));
     for (int a = 0; a < dims; ++a)
-      if (unknown(offset[k] + a)) out[k].shape_covariance.setConstant(INFINITY);
+      if (unknown(first + a)) out[k].shape_covariance.setConstant(INFINITY);
     for (int c = 0; c < 3; ++c)
-      if (unknown(offset[k] + dims + c)) out[k].scale_sigma[c] = INFINITY;
+      if (unknown(first + dims + c)) out[k].scale_sigma[c] = INFINITY;
   }
   return out;
 }

@@ -162,6 +162,46 @@ Eigen::Vector3d MapIrradiance(const ImageRGB& map, const Eigen::Vector3d& up, co
   return e;
 }
 
+namespace {
+
+/// lighting.json's point and directional lights by value, each with its uncertainty where
+/// the estimate gave one (lights.json's keys; the covariance also in the y-up frame:
+/// G C G^T; null where unknown).
+void AddLightsByValue(const ExportScene& s, const Eigen::Matrix3d& G, json* out) {
+  json& j = *out;
+  const auto number = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
+  const auto matrix = [&](const Eigen::Matrix3d& m) {
+    json rows = json::array();
+    for (int r = 0; r < 3; ++r) rows.push_back({number(m(r, 0)), number(m(r, 1)), number(m(r, 2))});
+    return rows;
+  };
+  const auto with_uncertainty = [&](json entry, std::size_t k, const char* shape, const char* scale) {
+    if (s.uncertainty.size() != s.lights.size()) return entry;
+    const LightUncertainty& u = s.uncertainty[k];
+    entry[shape] = matrix(u.shape_covariance);
+    entry[std::string(shape) + "_y_up"] =
+        matrix(u.shape_covariance.allFinite() ? Eigen::Matrix3d(G * u.shape_covariance * G.transpose())
+                                              : u.shape_covariance);
+    entry[scale] = {number(u.scale_sigma.x()), number(u.scale_sigma.y()), number(u.scale_sigma.z())};
+    return entry;
+  };
+  j["point_lights"] = json::array();
+  j["directional_lights"] = json::array();
+  for (std::size_t k = 0; k < s.lights.size(); ++k) {
+    if (const PointLight* l = std::get_if<PointLight>(&s.lights[k]))
+      j["point_lights"].push_back(with_uncertainty({{"position", Vec(l->position)}, {"position_y_up", Vec(G * l->position)},
+                                                    {"intensity", Vec(l->intensity)}, {"radius", l->radius}},
+                                                   k, "position_covariance", "intensity_sigma"));
+    if (const DirectionalLight* d = std::get_if<DirectionalLight>(&s.lights[k]))
+      j["directional_lights"].push_back(
+          with_uncertainty({{"direction", Vec(d->direction)}, {"direction_y_up", Vec(G * d->direction)},
+                            {"irradiance", Vec(d->irradiance)}, {"angular_radius", d->angular_radius}},
+                           k, "direction_covariance", "irradiance_sigma"));
+  }
+}
+
+}  // namespace
+
 std::vector<std::string> WriteShExport(const ExportScene& s, const fs::path& dir) {
   const ExportAxes axes(s.up);
   const Eigen::Matrix3d I = Eigen::Matrix3d::Identity(), G = axes.gltf_from_world;
@@ -214,37 +254,7 @@ std::vector<std::string> WriteShExport(const ExportScene& s, const fs::path& dir
                      {"color", Vec(colour)},
                      {"intensity", m},
                      {"what", "direction towards the light; intensity x color = its irradiance on a surface facing it"}};
-  // Each light by value, with its uncertainty where the estimate gave one (lights.json's
-  // keys; the covariance also in the y-up frame: G C G^T; null where unknown).
-  const auto number = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
-  const auto matrix = [&](const Eigen::Matrix3d& m) {
-    json rows = json::array();
-    for (int r = 0; r < 3; ++r) rows.push_back({number(m(r, 0)), number(m(r, 1)), number(m(r, 2))});
-    return rows;
-  };
-  const auto with_uncertainty = [&](json entry, std::size_t k, const char* shape, const char* scale) {
-    if (s.uncertainty.size() != s.lights.size()) return entry;
-    const LightUncertainty& u = s.uncertainty[k];
-    entry[shape] = matrix(u.shape_covariance);
-    entry[std::string(shape) + "_y_up"] =
-        matrix(u.shape_covariance.allFinite() ? Eigen::Matrix3d(G * u.shape_covariance * G.transpose())
-                                              : u.shape_covariance);
-    entry[scale] = {number(u.scale_sigma.x()), number(u.scale_sigma.y()), number(u.scale_sigma.z())};
-    return entry;
-  };
-  j["point_lights"] = json::array();
-  j["directional_lights"] = json::array();
-  for (std::size_t k = 0; k < s.lights.size(); ++k) {
-    if (const PointLight* l = std::get_if<PointLight>(&s.lights[k]))
-      j["point_lights"].push_back(with_uncertainty({{"position", Vec(l->position)}, {"position_y_up", Vec(G * l->position)},
-                                                    {"intensity", Vec(l->intensity)}, {"radius", l->radius}},
-                                                   k, "position_covariance", "intensity_sigma"));
-    if (const DirectionalLight* d = std::get_if<DirectionalLight>(&s.lights[k]))
-      j["directional_lights"].push_back(
-          with_uncertainty({{"direction", Vec(d->direction)}, {"direction_y_up", Vec(G * d->direction)},
-                            {"irradiance", Vec(d->irradiance)}, {"angular_radius", d->angular_radius}},
-                           k, "direction_covariance", "irradiance_sigma"));
-  }
+  AddLightsByValue(s, G, &j);
   WriteTextAtomically(dir / "lighting.json", j.dump(2) + "\n");
   return {"lighting.json"};
 }
