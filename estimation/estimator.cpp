@@ -1,7 +1,5 @@
 #include "estimation/estimator.h"
 
-#include <Eigen/Eigenvalues>
-
 #include "estimation/estimator_impl.h"
 
 namespace lp {
@@ -456,16 +454,16 @@ std::vector<LightUncertainty> Estimator::Uncertainty() {
   }
   // (blocks no row falls in are empty: their score is 0)
   const std::vector<double> base = A_.Multiply(lambda_);
-  const LightFitProblem fit = FitProblem(&base);
-  LightFitProblem held = fit;
-  held.segment = nullptr;  // under the albedo the map and the intensities were solved with
-  std::vector<LightUncertainty> out = LightUncertainties(held, lights, &A_, lambda_, block);
+  LightFitProblem fit = FitProblem(&base);
+  fit.segment = nullptr;  // under the albedo the map and the intensities were solved with
+  std::vector<LightUncertainty> out = LightUncertainties(fit, lights, &A_, lambda_, block);
   for (std::size_t k = 0; k < out.size(); ++k) {
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(out[k].shape_covariance);
-    const bool lamp = std::holds_alternative<PointLight>(lights[k]);
-    const double widest = std::sqrt(std::max(0.0, eig.eigenvalues()[2]) * (lamp ? kChiSquare95Dim3 : kChiSquare95Dim2));
-    Progress(lamp ? Fmt("point light %zu: its place within %.3g m (the 95 %% region's longest semi-axis)", k, widest)
-                  : Fmt("directional light %zu: its direction within %.3g degrees (95 %%)", k, widest * 180 / kPi));
+    Eigen::Vector3d semi = Eigen::Vector3d::Constant(INFINITY);
+    Eigen::Matrix3d axes;
+    Region95(out[k].shape_covariance, ShapeDims(lights[k]), &semi, &axes);
+    Progress(std::holds_alternative<PointLight>(lights[k])
+                 ? Fmt("point light %zu: its place within %.3g m (the 95 %% region's longest semi-axis)", k, semi[2])
+                 : Fmt("directional light %zu: its direction within %.3g degrees (95 %%)", k, semi[2] * 180 / kPi));
   }
   Progress(Fmt("the lights' uncertainty in %.2f s", us.Seconds()));
   return out;

@@ -274,7 +274,7 @@ class Estimator {
     fit.loss = CauchyLoss{res_.objective_params.sigma};
     fit.alpha = res_.objective_params.alpha * opt_.point_lights.weight;
     fit.beta = res_.objective_params.beta;
-    if (opt_.free_albedo && row_segment_.size() * 3 == y_.size()) fit.segment = &row_segment_;
+    if (row_segment_.size() * 3 == y_.size()) fit.segment = &row_segment_;  // (made only with free_albedo)
     return fit;
   }
 

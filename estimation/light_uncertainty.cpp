@@ -157,6 +157,14 @@ std::vector<LightUncertainty> LightUncertainties(const LightFitProblem& p, const
   return out;
 }
 
+bool Region95(const Eigen::Matrix3d& covariance, int dims, Eigen::Vector3d* semi_axes, Eigen::Matrix3d* axes) {
+  if (!covariance.allFinite()) return false;
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(covariance);
+  *semi_axes = (eig.eigenvalues().cwiseMax(0.0) * (dims == 2 ? kChiSquare95Dim2 : kChiSquare95Dim3)).cwiseSqrt();
+  *axes = eig.eigenvectors();
+  return true;
+}
+
 double SquaredMahalanobis(const Eigen::Vector3d& d, const Eigen::Matrix3d& covariance) {
   if (!covariance.allFinite()) return 0;  // nothing known: everywhere is inside
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(covariance);

@@ -43,6 +43,11 @@ std::vector<LightUncertainty> LightUncertainties(const LightFitProblem& problem,
                                                  const TransportMatrix* map, const std::vector<double>& lambda,
                                                  const std::vector<int>& row_block);
 
+/// The 95 % region of a light's shape (`dims`: its ShapeDims, 3 or 2, whose bound it takes):
+/// its semi-axes (ascending; a direction's smallest, along the direction itself, 0) and
+/// their directions (columns); false when the covariance is unknown.
+bool Region95(const Eigen::Matrix3d& covariance, int dims, Eigen::Vector3d* semi_axes, Eigen::Matrix3d* axes);
+
 /// The squared Mahalanobis distance of a shape error `d` (world coordinates; a direction's
 /// in its tangent plane) under `covariance` (its pseudo-inverse where it is rank 2).
 double SquaredMahalanobis(const Eigen::Vector3d& d, const Eigen::Matrix3d& covariance);

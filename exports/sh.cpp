@@ -7,6 +7,7 @@
 
 #include "common/atomic_file.h"
 #include "estimation/envmap.h"
+#include "estimation/lights_file.h"
 #include "exports/axes.h"
 
 namespace lp {
@@ -164,40 +165,31 @@ Eigen::Vector3d MapIrradiance(const ImageRGB& map, const Eigen::Vector3d& up, co
 
 namespace {
 
-/// lighting.json's point and directional lights by value, each with its uncertainty where
-/// the estimate gave one (lights.json's keys; the covariance also in the y-up frame:
-/// G C G^T; null where unknown).
+/// lighting.json's point and directional lights by value: as lights.json writes them (with
+/// their uncertainty where the estimate gave one), each position, direction and covariance
+/// also in the y-up frame (G v, G C G^T; a covariance with an unknown entry as it is).
 void AddLightsByValue(const ExportScene& s, const Eigen::Matrix3d& G, json* out) {
-  json& j = *out;
-  const auto number = [](double v) { return std::isfinite(v) ? json(v) : json(nullptr); };
-  const auto matrix = [&](const Eigen::Matrix3d& m) {
-    json rows = json::array();
-    for (int r = 0; r < 3; ++r) rows.push_back({number(m(r, 0)), number(m(r, 1)), number(m(r, 2))});
-    return rows;
+  const json file = json::parse(LightsJson({"", s.lights, s.uncertainty}));
+  const auto turned_covariance = [&](const json& c) {
+    Eigen::Matrix3d m;
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) {
+        if (c[r][k].is_null()) return c;
+        m(r, k) = c[r][k].get<double>();
+      }
+    m = G * m * G.transpose();
+    return json{Vec(m.row(0)), Vec(m.row(1)), Vec(m.row(2))};
   };
-  const auto with_uncertainty = [&](json entry, std::size_t k, const char* shape, const char* scale) {
-    if (s.uncertainty.size() != s.lights.size()) return entry;
-    const LightUncertainty& u = s.uncertainty[k];
-    entry[shape] = matrix(u.shape_covariance);
-    entry[std::string(shape) + "_y_up"] =
-        matrix(u.shape_covariance.allFinite() ? Eigen::Matrix3d(G * u.shape_covariance * G.transpose())
-                                              : u.shape_covariance);
-    entry[scale] = {number(u.scale_sigma.x()), number(u.scale_sigma.y()), number(u.scale_sigma.z())};
-    return entry;
-  };
-  j["point_lights"] = json::array();
-  j["directional_lights"] = json::array();
-  for (std::size_t k = 0; k < s.lights.size(); ++k) {
-    if (const PointLight* l = std::get_if<PointLight>(&s.lights[k]))
-      j["point_lights"].push_back(with_uncertainty({{"position", Vec(l->position)}, {"position_y_up", Vec(G * l->position)},
-                                                    {"intensity", Vec(l->intensity)}, {"radius", l->radius}},
-                                                   k, "position_covariance", "intensity_sigma"));
-    if (const DirectionalLight* d = std::get_if<DirectionalLight>(&s.lights[k]))
-      j["directional_lights"].push_back(
-          with_uncertainty({{"direction", Vec(d->direction)}, {"direction_y_up", Vec(G * d->direction)},
-                            {"irradiance", Vec(d->irradiance)}, {"angular_radius", d->angular_radius}},
-                           k, "direction_covariance", "irradiance_sigma"));
-  }
+  ForEachKind([&](const auto& kind) {
+    const char* key = LightsKey(kind);
+    (*out)[key] = file[key];
+    for (json& l : (*out)[key]) {
+      for (const std::string v : {"position", "direction"})
+        if (l.contains(v)) l[v + "_y_up"] = Vec(G * Eigen::Vector3d(l[v][0], l[v][1], l[v][2]));
+      for (const std::string c : {"position_covariance", "direction_covariance"})
+        if (l.contains(c)) l[c + "_y_up"] = turned_covariance(l[c]);
+    }
+  });
 }
 
 }  // namespace

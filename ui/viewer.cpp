@@ -365,16 +365,6 @@ const LightUncertainty* Viewer::UncertaintyOf(std::size_t k) const {
 
 namespace {
 
-/// The 95 % region's semi-axes (ascending) and their directions for a covariance whose
-/// squared Mahalanobis bound is `chi2`; false when it is unknown.
-bool Region(const Eigen::Matrix3d& covariance, double chi2, Eigen::Vector3d* semi_axes, Eigen::Matrix3d* axes) {
-  if (!covariance.allFinite()) return false;
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(covariance);
-  *semi_axes = (eig.eigenvalues().cwiseMax(0.0) * chi2).cwiseSqrt();
-  *axes = eig.eigenvectors();
-  return true;
-}
-
 /// The lights' colour as the markers draw it, dimmed.
 Eigen::Vector3f Dimmed(const Eigen::Vector3d& rgb) {
   const double peak = rgb.maxCoeff();
@@ -399,7 +389,7 @@ void Viewer::AddRegions() {
     Eigen::Matrix3d axes;
     if (!u) continue;
     if (const PointLight* l = std::get_if<PointLight>(&est_.lighting.lights[k])) {
-      if (!Region(u->shape_covariance, kChiSquare95Dim3, &semi, &axes)) continue;
+      if (!Region95(u->shape_covariance, 3, &semi, &axes)) continue;
       const Eigen::Vector3f p = l->position.cast<float>(), colour = Dimmed(l->intensity);
       Eigen::Vector3f a[3];
       for (int i = 0; i < 3; ++i) a[i] = (semi[i] * axes.col(i)).cast<float>();
@@ -407,7 +397,7 @@ void Viewer::AddRegions() {
       ellipse(p, a[0], a[2], colour);
       ellipse(p, a[1], a[2], colour);
     } else if (const DirectionalLight* d = std::get_if<DirectionalLight>(&est_.lighting.lights[k])) {
-      if (!Region(u->shape_covariance, kChiSquare95Dim2, &semi, &axes)) continue;
+      if (!Region95(u->shape_covariance, 2, &semi, &axes)) continue;
       // The cone's two widest angles (the third axis is the direction itself), drawn around
       // the marker at the marker's distance.
       const Eigen::Vector3f centre = SunMarkerCentre(*d);
@@ -973,10 +963,11 @@ void Viewer::WriteState(const std::string& path) const {
   // The lamps, and how the 3D view projects the world (column-major, to NDC over view3d).
   // Each light's 95 % region as the 3D view draws it (semi-axes ascending, m or radians;
   // their directions as columns), when the finished estimate has one.
-  const auto with_region = [&](json entry, std::size_t k, double chi2) {
+  const auto with_region = [&](json entry, std::size_t k) {
     Eigen::Vector3d semi;
     Eigen::Matrix3d axes;
-    if (const LightUncertainty* u = UncertaintyOf(k); u && Region(u->shape_covariance, chi2, &semi, &axes))
+    if (const LightUncertainty* u = UncertaintyOf(k);
+        u && Region95(u->shape_covariance, ShapeDims(est_.lighting.lights[k]), &semi, &axes))
       entry["region_95"] = {{"semi_axes", vec(semi)}, {"axes", {vec(axes.col(0)), vec(axes.col(1)), vec(axes.col(2))}}};
     return entry;
   };
@@ -985,14 +976,14 @@ void Viewer::WriteState(const std::string& path) const {
   for (std::size_t k = 0; k < est_.lighting.lights.size(); ++k) {
     if (const PointLight* l = std::get_if<PointLight>(&est_.lighting.lights[k]))
       j["estimate"]["point_lights"].push_back(
-          with_region({{"position", vec(l->position)}, {"intensity", vec(l->intensity)}}, k, kChiSquare95Dim3));
+          with_region({{"position", vec(l->position)}, {"intensity", vec(l->intensity)}}, k));
     if (const DirectionalLight* l = std::get_if<DirectionalLight>(&est_.lighting.lights[k]))
       j["estimate"]["directional_lights"].push_back(with_region({{"direction", vec(l->direction)},
                                                                  {"irradiance", vec(l->irradiance)},
                                                                  {"angular_radius", l->angular_radius},
                                                                  {"marker", vec(SunMarkerCentre(*l).cast<double>())},
                                                                  {"marker_radius", sun_marker_size_}},
-                                                                k, kChiSquare95Dim2));
+                                                                k));
   }
   j["view3d_projection"] = std::vector<float>(view_projection_.data(), view_projection_.data() + 16);
   j["orbit_target"] = vec(camera_.target.cast<double>());
