@@ -86,6 +86,7 @@ struct Case {
   double relit_floor = NAN;   ///< relit error of the true lighting projected on the default cells
   double render_seconds = 0;  ///< one render of the fitted view at the default settings (FD's unit)
   std::vector<Curve> curves;  ///< fast first
+  PriorChoice prior;          ///< the map's prior fast's run chose (each weight's held-out loss)
   bool swept = false;         ///< the knobs were swept (the sMC-rounds knob is fast's rounds)
 };
 
@@ -302,11 +303,51 @@ std::string WritePlot(const fs::path& out, const Metric& m, const std::string& s
   return figure.str();
 }
 
-/// Every metric's plot at every size; returns their part of report.md.
+/// The map's prior at one size: per scene, the held-out loss of each weight the default
+/// estimate tried, with the lights it found and with the map alone (one standard error of
+/// its difference from the least either side), and the one it chose (PNG + CSV; none where
+/// no scene chose); returns its part of report.md.
+std::string WritePriorPlot(const fs::path& out, const std::string& size, const Cases& cases) {
+  std::vector<PlotPanel> panels;
+  std::ostringstream csv;
+  csv << "scene,size,alpha,lights,heldout_loss,standard_error,chosen\n";
+  for (const auto& c : cases) {
+    const PriorChoice& p = c->prior;
+    if (c->size != size || p.tried.empty()) continue;
+    PlotPanel panel;
+    panel.title = c->scene;
+    panel.x_label = "alpha (the map's prior)";
+    panel.y_label = "held-out loss";
+    panel.log_y = false;
+    PlotSeries with{"with the lights"}, alone{"the map alone"}, chosen{"chosen", {}, {}, false, true};
+    PlotSeries band{"+/- 1 SE", {}, {}, false, true};
+    for (const PriorChoice::Tried& t : p.tried) {
+      PlotSeries& s = t.lights > 0 ? with : alone;
+      s.x.push_back(t.alpha);
+      s.y.push_back(t.loss);
+      for (double d : {-t.standard_error, t.standard_error}) band.x.push_back(t.alpha), band.y.push_back(t.loss + d);
+      if (p.IsChosen(t)) chosen.x.push_back(t.alpha), chosen.y.push_back(t.loss);
+      csv << c->scene << ',' << size << ',' << t.alpha << ',' << t.lights << ',' << t.loss << ',' << t.standard_error
+          << ',' << p.IsChosen(t) << '\n';
+    }
+    for (PlotSeries* s : {&with, &alone, &chosen, &band})
+      if (!s->x.empty()) panel.series.push_back(*s);
+    panels.push_back(std::move(panel));
+  }
+  if (panels.empty()) return "";
+  const std::string stem = "prior_" + size;
+  WritePlotPng(out / (stem + ".png"), "the map's prior: held-out loss of each weight tried, " + size, panels, 3);
+  WriteTextAtomically(out / (stem + ".csv"), csv.str());
+  return "### The map's prior, " + size + "\n\n![the map's prior](" + stem + ".png)\n\nData: [" + stem + ".csv](" +
+         stem + ".csv)\n\n";
+}
+
+/// Every metric's plot at every size, and the map's prior's; returns their part of report.md.
 std::string WritePlots(const fs::path& out, const std::vector<std::string>& sizes, const Cases& cases) {
   std::string figures;
   for (const Metric& m : kMetrics)
     for (const std::string& size : sizes) figures += WritePlot(out, m, size, cases);
+  for (const std::string& size : sizes) figures += WritePriorPlot(out, size, cases);
   return figures;
 }
 
@@ -499,6 +540,7 @@ class ReportRun {
     fast.change_threshold = 0;
     EstimateResult rf = RunEstimate(*c, fast);
     c->curves.push_back(MethodCurve(*c, kFast, rf, fast, o_.eval_spp));
+    c->prior = rf.prior;
     c->curves.push_back(FdCurve(c->curves.back(), rf, c->render_seconds));
     Progress(Fmt("  fast %.1f s, relit error %.4f (true lighting on the cells %.4f)", rf.rounds.back().end_seconds,
                  c->curves[0].points.back().relit, c->relit_floor));

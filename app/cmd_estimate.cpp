@@ -205,7 +205,35 @@ static json SecondsJson(const EstimateResult& r, double command_seconds) {
   for (const auto& ri : r.rounds) solve += ri.solve_seconds;
   seconds["solve"] = solve;
   seconds["albedo"] = r.albedo_seconds;
+  seconds["prior"] = r.prior.seconds;
   return seconds;
+}
+
+/// report.json's "prior": the map's prior the data chose, each weight tried with its
+/// held-out loss, and why.
+static json PriorJson(const EstimateOptions& o, const EstimateResult& r) {
+  const PriorChoice& p = r.prior;
+  json tried = json::array();
+  for (const PriorChoice::Tried& t : p.tried)
+    tried.push_back({{"alpha", t.alpha},
+                     {"lights", t.lights},
+                     {"heldout_loss", t.loss},
+                     {"standard_error", t.standard_error},
+                     {"chosen", p.IsChosen(t)}});
+  return {{"alpha", std::isfinite(p.chosen) ? p.chosen : o.objective.alpha},
+          {"chosen", std::isfinite(p.chosen)},
+          {"lights_dropped", p.lights_dropped},
+          {"why", p.why},
+          {"tried", tried},
+          {"folds", p.folds},
+          {"blocks", p.blocks},
+          {"rule", "the map and the lights' intensities (the lights held where they are), and the map alone, fitted "
+                   "without a fold of the views' blocks (4 x 4 a view; block (x, y) of view v in fold (x + y + v) "
+                   "mod 4) and scored by the Cauchy loss on its pixels, at each alpha from the given one down (with "
+                   "a directional light, the lights at the given one only); of each, the strongest alpha whose loss "
+                   "exceeds the least by no more than one standard error of that difference (over the blocks); the "
+                   "lights stay if theirs is below the map alone's by the model selection's min_gain, and the "
+                   "estimate is solved again at the alpha chosen"}};
 }
 
 /// Albedo refinement: done for a reconstructed mesh (it carries the colours seen), left out
@@ -320,6 +348,7 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
   rep["image_mean"] = r.image_mean;
   rep["final"] = FinalJson(r);
   rep["model"] = ModelJson(o, r);
+  rep["prior"] = PriorJson(o, r);
   rep["warnings"] = r.warnings;
   rep["envmap_convention"] =
       "equirectangular, width = 2*height; row y: polar angle (y+0.5)/H*pi from up (top = up); column x: azimuth "

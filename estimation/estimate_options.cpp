@@ -59,6 +59,10 @@ std::vector<EstimateOption> MakeTable() {
        "after an albedo pass, fit the lights' places with each segment's albedo left free (the shading within "
        "the segments places them); 0 = under the de-lit albedo",
        Type::kBool, 0, 1, false, LP_GET(free_albedo), LP_SET(free_albedo, bool), "", 0, 0, {}},
+      {"choose-prior", "choose_prior",
+       "choose the map's prior by the pixels the fit did not use: the activation penalty from --alpha down to "
+       "--alpha/30, the strongest within one standard error of the best held-out loss; 0 = --alpha as given",
+       Type::kBool, 0, 1, false, LP_GET(choose_prior), LP_SET(choose_prior, bool), "", 0, 0, {}},
       {"albedo-samples", "albedo_samples", "paths per vertex for the irradiance an albedo pass de-lights by",
        Type::kInt, 1, 4096, false, LP_GET(albedo_samples), LP_SET(albedo_samples, int), "", 0, 0, {}},
       {"trace-pixels", "trace_pixels",

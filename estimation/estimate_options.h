@@ -25,6 +25,23 @@ constexpr double kAlphaReferencePixels = 19200;
 /// and per cell of this solid angle (the mean cell of 21 rings, 4 pi / 522): a cell of
 /// solid angle Omega_j is penalized with alpha * Omega_j / kAlphaReferenceSolidAngle.
 constexpr double kAlphaReferenceSolidAngle = 4 * 3.14159265358979323846 / 522;
+/// The map's prior the data chooses from (EstimateOptions::choose_prior): objective.alpha
+/// times each of these, strongest first (a stronger one than given is not tried: from the
+/// estimate made at it, a stronger penalty moves nothing; nor a weaker one than 1/30 of it,
+/// which scored within one standard error of 1/30 on every scene measured and costs the most:
+/// docs/benchmarks.md, sessions 26-27).
+constexpr double kPriorFactors[] = {1, 1.0 / 3, 1.0 / 10, 1.0 / 30};
+/// ... scored on this many folds of the views' blocks (kPriorBlocksAcross across and down a
+/// view; block (x, y) of view v in fold (x + y + v) mod kPriorFolds): neighbouring pixels
+/// have nearly the same rows of A, so small held-out blocks favour weak priors.
+constexpr int kPriorFolds = 4;
+/// A weaker prior than the given one is taken only where it lowers the held-out loss by
+/// more than this share of the given one's (as a light must, PointLightOptions::min_gain):
+/// gains of 1-2 % came with two lamps' and a stiff case's compact light spread over its neighbours
+/// (docs/benchmarks.md, session 27).
+constexpr double kPriorMinGain = 0.03;
+constexpr int kPriorBlocksAcross = 4;
+
 /// Round 1 (the cold start) solves at this Cauchy scale first when a smaller one is asked
 /// for, then halves it down to the one asked for, each solve warm-started (graduated
 /// non-convexity; see Estimate).
@@ -137,6 +154,13 @@ struct EstimateOptions {
   /// left free (eliminated, LightFitProblem::segment): the shading within the segments
   /// places them, not the de-lit albedos the last estimate implied (docs/method.md).
   bool free_albedo = true;
+  /// After the rounds, the map's prior (the activation penalty's weight) is chosen by the
+  /// data: the map and the lights' intensities (the lights held where they are) solved at
+  /// objective.alpha times each of kPriorFactors on three quarters of the pixels and scored
+  /// on the fourth (four folds of large blocks), the strongest weight within one standard
+  /// error of the best kept, and everything solved again at it (docs/method.md, "The map's
+  /// prior"). false: objective.alpha as given.
+  bool choose_prior = true;
   /// Stop when the rendered estimate changes by less than this between rounds:
   /// |A (lambda_k - lambda_{k-1})| / |A lambda_k| < 2 % (over the observed pixels).
   double change_threshold = 0.02;

@@ -28,7 +28,7 @@ std::vector<double> CollectObservations(const std::vector<View>& views) {
 namespace lp::detail {
 
 Estimator::Estimator(const SceneBundle& bundle, const EstimateOptions& options, double albedo_scale)
-    : bundle_(bundle), opt_(options), env_(res_.env) {
+    : bundle_(bundle), opt_(options), env_(res_.env), alpha_(options.objective.alpha) {
   Validate(opt_);
   res_.albedo_scale = albedo_scale;
   res_.env = EnvMap(opt_.rings, bundle_.up);
@@ -99,16 +99,6 @@ void Estimator::Observe() {
 }
 
 
-namespace {
-
-/// Whether pixel `p` of an image `width` wide is on the grid of every `stride`-th pixel of
-/// every `stride`-th row.
-bool OnGrid(std::size_t p, int width, int stride) {
-  return (p % width) % stride == 0 && (p / width) % stride == 0;
-}
-
-}  // namespace
-
 /// The rounds from now on fit the valid pixels on a grid of `stride` (1: all of them):
 /// the observations normalized to mean 1, and the penalty at their scale. What was traced
 /// on other pixels is dropped.
@@ -124,7 +114,7 @@ void Estimator::UseViews(int stride) {
   // alpha is given per 19,200 observed pixels (one 160x120 view): the data term grows with
   // the number of observations, and so must the penalty, or the balance between them
   // (how many cells light the scene) would change with resolution and view count.
-  res_.objective_params.alpha = opt_.objective.alpha * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
+  res_.objective_params.alpha = alpha_ * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
   A_ = TransportMatrix();
   vertices_ = ShadingVertices();
   columns_.clear();
@@ -168,8 +158,11 @@ void Estimator::RunRounds() {
     const SolveResult sr = Solve(rp, round, &info, round == 1);
     const std::vector<double> full = TakeSolution(rp, sr, &info);
     FitLights(rp, full, &info);
+    // The map's prior, once, in the first round on every pixel (after the lamps and the sun
+    // were sought): the rounds after it run at the prior chosen.
+    const bool prior_changed = stride_ == 1 && !res_.prior.done && ChoosePrior(&info);
     EndRound(sr, &info);
-    if (round > first && info.image_change < opt_.change_threshold && !info.lights_moved) break;
+    if (round > first && info.image_change < opt_.change_threshold && !info.lights_moved && !prior_changed) break;
   }
 }
 
@@ -288,13 +281,28 @@ void Estimator::GatherVertices(int round, int first) {
 /// on the demo). Round 1 solves at kGraduatedSigmaStart first and halves the scale down
 /// to sigma, each solve warm-started from the last.
 /// The activation penalty's per-unknown weights: a cell's solid angle over the reference
-/// one, a point light's PointLightOptions::weight.
-ObjectiveParams Estimator::CellWeights(const LinearProblem& problem, ObjectiveParams params) const {
+/// one, a point light's PointLightOptions::weight. Under a map's prior weaker than the given
+/// one (`prior`, as EstimateOptions' alpha; 0: alpha_), the lights and the map's cells
+/// within 2.5 ring spacings of a light's direction (a lamp's from the scene's centre) or in
+/// sparse_cells_ keep the given weight: those cells' columns are nearly the light's (a far
+/// lamp's too), and a weak prior there lets the map take its power or spread a compact light
+/// (docs/method.md, "The map's prior").
+ObjectiveParams Estimator::CellWeights(const LinearProblem& problem, ObjectiveParams params, double prior) const {
+  const double keep = std::max(1.0, opt_.objective.alpha / (prior > 0 ? prior : alpha_));
+  const double reach = std::cos(2.5 * kPi / env_.rings());
   params.cell_weight.resize(problem.unknown_cells);
   for (int k = 0; k < problem.unknown_cells; ++k) {
     const int j = problem.cell_of[k];
-    params.cell_weight[k] =
-        j < cells_ ? env_.solid_angle(j) / kAlphaReferenceSolidAngle : opt_.point_lights.weight;
+    if (j >= cells_) {
+      params.cell_weight[k] = opt_.point_lights.weight * keep;
+      continue;
+    }
+    params.cell_weight[k] = env_.solid_angle(j) / kAlphaReferenceSolidAngle;
+    if (keep == 1) continue;
+    bool near = !sparse_cells_.empty() && sparse_cells_[j];
+    for (const DirectionalLight& d : suns_) near = near || env_.direction(j).dot(d.direction) > reach;
+    for (const PointLight& p : points_) near = near || env_.direction(j).dot((p.position - centre_).normalized()) > reach;
+    if (near) params.cell_weight[k] *= keep;
   }
   return params;
 }
@@ -326,6 +334,7 @@ SolveResult Estimator::Solve(const RoundProblem& rp, int round, RoundInfo* info,
     row.iteration = iteration_offset + it.iteration;
     row.sigma = step_sigma;
     row.albedo_pass = res_.albedo_passes;  // the albedo the rounds run under
+    row.step = solve_step_;
     row.objective = it.objective;
     row.relative_rmse = it.Rmse();
     row.photometric_rmse = row.relative_rmse * res_.image_mean;
@@ -438,21 +447,24 @@ void Estimator::Conclude() {
   }
 }
 
+std::vector<int> Estimator::RowBlocks(int across) const {
+  std::vector<int> block(A_.rows());
+  for (std::size_t r = 0; r < A_.rows(); ++r) {
+    const Camera& cam = bundle_.views[A_.row_view[r]].camera;
+    const int x = A_.row_pixel[r] % cam.width, y = A_.row_pixel[r] / cam.width;
+    const int bw = (cam.width + across - 1) / across, bh = (cam.height + across - 1) / across;
+    block[r] = (A_.row_view[r] * across + y / bh) * across + x / bw;
+  }
+  return block;
+}
+
 std::vector<LightUncertainty> Estimator::Uncertainty() {
   const std::vector<Light> lights = Joined(suns_, points_);
   if (lights.empty() || vertices_.rows() * 3 != y_.size() || A_.rows() * 3 != y_.size()) return {};
   CheckCancel();
   Stopwatch us;
-  // kUncertaintyBlocksAcross^2 blocks in each view.
-  std::vector<int> block(A_.rows());
-  for (std::size_t r = 0; r < A_.rows(); ++r) {
-    const Camera& cam = bundle_.views[A_.row_view[r]].camera;
-    const int x = A_.row_pixel[r] % cam.width, y = A_.row_pixel[r] / cam.width;
-    const int bw = (cam.width + kUncertaintyBlocksAcross - 1) / kUncertaintyBlocksAcross;
-    const int bh = (cam.height + kUncertaintyBlocksAcross - 1) / kUncertaintyBlocksAcross;
-    block[r] = (A_.row_view[r] * kUncertaintyBlocksAcross + y / bh) * kUncertaintyBlocksAcross + x / bw;
-  }
   // (blocks no row falls in are empty: their score is 0)
+  const std::vector<int> block = RowBlocks(kUncertaintyBlocksAcross);
   const std::vector<double> base = A_.Multiply(lambda_);
   LightFitProblem fit = FitProblem(&base);
   fit.segment = nullptr;  // under the albedo the map and the intensities were solved with

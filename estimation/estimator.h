@@ -48,6 +48,8 @@ struct ConvergenceRow {
   /// within a round except where a search starts or adds a light, where the number of
   /// point lights changes (a light dropped: the model changed), and at a directional
   /// light's rows ("sun", which leave the map's penalty out) and the solve after them.
+  /// "prior": the map and the intensities solved again at the map's prior the data chose
+  /// (EstimateResult::prior; a penalty of another weight, so its objective is another function).
   const char* step = "solve";
 };
 
@@ -77,6 +79,40 @@ enum class AlbedoLeftOut {
 };
 /// One line saying why ("" for kRefined).
 const char* ToString(AlbedoLeftOut why);
+
+/// The map's prior chosen by the data (docs/method.md, "The map's prior"): the activation
+/// penalty's weight, tried from the given one down, with the lights found and with the map
+/// alone, each scored by the Cauchy loss on pixels the fit did not use (folds of large
+/// blocks); the strongest weight within one standard error of the best is kept, and the
+/// lights only if they predict better than the map alone.
+struct PriorChoice {
+  struct Tried {
+    double alpha = 0;           ///< the weight (as EstimateOptions' alpha)
+    double loss = 0;            ///< its held-out loss, summed over the folds (normalized units)
+    double standard_error = 0;  ///< of its difference from the least of its kind
+    int lights = 0;             ///< the lights fitted beside the map (0: the map alone)
+  };
+  std::vector<Tried> tried;      ///< with the lights (strongest first), then the map alone
+  double chosen = std::nan("");  ///< the weight solved at (NaN: the given one, nothing tried)
+  bool lights_dropped = false;   ///< the map alone predicted as well: the lights were dropped
+  std::string why;               ///< one line: how it was chosen, or why nothing was tried
+  bool done = false;             ///< whether the choice was made (or said why not)
+  int folds = 0, blocks = 0;
+  double seconds = 0;
+  /// Whether `t` (one of `tried`) is the weight and the lights the estimate was solved at.
+  bool IsChosen(const Tried& t) const {
+    return t.alpha == chosen && (lights_dropped ? t.lights == 0 : t.lights == tried.front().lights);
+  }
+};
+
+/// The rule PriorChoice follows, on `block_loss[k][b]`: the held-out loss of weight k
+/// (strongest first) on block b. Fills `loss` (each weight's total over the blocks used) and
+/// `standard_error` (of each total's difference from the least: sqrt(B) times the standard
+/// deviation of the blocks' differences, B the blocks used) and returns the first k whose
+/// loss exceeds the least by no more than its standard error.
+std::size_t StrongestWithinOneStandardError(const std::vector<std::vector<double>>& block_loss,
+                                            const std::vector<std::uint8_t>& used, std::vector<double>* loss,
+                                            std::vector<double>* standard_error);
 
 struct EstimateResult {
   EnvMap env{2, Eigen::Vector3d::UnitZ()};
@@ -119,6 +155,7 @@ struct EstimateResult {
   /// below the residuals, or a penalty that outweighs the data). One line each.
   std::vector<std::string> warnings;
   ObjectiveParams objective_params;  ///< as solved: alpha scaled to the observed pixel count
+  PriorChoice prior;                 ///< the map's prior the data chose
   /// The refined per-vertex albedo the estimate was made under (empty: the bundle's, unrefined).
   std::vector<Eigen::Vector3f> albedo;
   int albedo_passes = 0, albedo_segments = 0;

@@ -46,6 +46,16 @@ inline std::vector<double> Plus(std::vector<double> a, const std::vector<double>
   return buf;
 }
 
+/// Whether pixel `p` of an image `width` wide is on the grid of every `stride`-th pixel of
+/// every `stride`-th row.
+inline bool OnGrid(std::size_t p, int width, int stride) {
+  return (p % width) % stride == 0 && (p / width) % stride == 0;
+}
+
+/// The map's prior is fitted on every kPriorStride-th pixel of every kPriorStride-th row
+/// outside the fold (ChoosePrior; the fold's pixels are all scored).
+constexpr int kPriorStride = 2;
+
 /// The rows (every n-th) the lights' shadow-seeing refinements look at: a quarter of a
 /// 160 x 120 view's (what a column costs on all rows: docs/benchmarks.md).
 constexpr std::size_t kShadowRows = 4800;
@@ -129,6 +139,11 @@ class Estimator {
   /// How well the images fix each light (Joined(suns_, points_)'s order, normalized units),
   /// on the last round's rows; empty without lights or shading vertices.
   std::vector<LightUncertainty> Uncertainty();
+  /// The map's prior chosen by the data (docs/method.md, "The map's prior"; res_.prior says
+  /// how): where it is weaker than the given one, the round's map and lights' intensities
+  /// are solved again at it (its rows in `info`) and the rounds after it run at it. Returns
+  /// whether the prior changed.
+  bool ChoosePrior(RoundInfo* info);
   /// The sky beside a directional light, after the rounds (docs/method.md).
   void FitSky();
   /// Relit renders of the fitted views under the estimate (EstimateOptions::render_spp).
@@ -161,6 +176,23 @@ class Estimator {
   void FitLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info);
   void EndRound(const SolveResult& sr, RoundInfo* info);
   void MakeMapProblem();
+  /// Per row of A_: its block, `across` x `across` blocks a view, numbered
+  /// (view * across + y) * across + x.
+  std::vector<int> RowBlocks(int across) const;
+  /// `problem`'s unknowns (over the map's cells, then `lights`' columns) at the estimate so
+  /// far: lambda_ and the lights' scales.
+  std::vector<double> StartOf(const LinearProblem& problem, const std::vector<Light>& lights) const;
+  /// Per weight of `weights` (strongest first): the held-out loss per block of RowBlocks
+  /// (each block scored in its fold), and the folds' mean solution (the map's cells, then
+  /// `lights`), the map and `lights` fitted.
+  struct PriorFolds {
+    std::vector<std::vector<double>> loss, mean;
+  };
+  PriorFolds PriorLosses(const std::vector<Light>& lights, const std::vector<double>& weights,
+                         const std::vector<int>& block);
+  void SolveAtPrior(double alpha, const std::vector<double>& start, RoundInfo* info);
+  std::string PriorLeftOut(const std::vector<Light>& lights) const;
+  void SayPrior(const std::vector<double>& loss, const std::vector<double>& se, std::size_t k, std::size_t lights);
   // The near-light steps (docs/method.md, "Point lights").
   bool NearLights() const { return opt_.point_lights.max_lights > 0; }
   /// Whether `round` looks for a directional light: the first round on every pixel (round 2
@@ -193,7 +225,7 @@ class Estimator {
   std::vector<int> SkyCells() const;
   double RenderedShare(const PointLight& light);
   std::vector<float> Column(const Light& light);
-  ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params) const;
+  ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params, double prior = 0) const;
   void Score(ConvergenceRow* row, const Lighting& lighting) const;
   /// A convergence row of a light's refinement (the objective and the sum of squared
   /// residuals over y_ as given), scored and step left to the caller.
@@ -283,6 +315,13 @@ class Estimator {
   Stopwatch clock_;
   EstimateResult res_;
   const EnvMap& env_;  ///< res_.env
+  /// The map's prior, as EstimateOptions' objective.alpha (per kAlphaReferencePixels): the
+  /// given one, then the one ChoosePrior chose.
+  double alpha_ = 3;
+  /// Per cell: the neighbourhood of the map's brightest cell where it held a compact light
+  /// (directional.min_map_share of the map's power) when the prior was chosen, which keeps
+  /// the given prior (CellWeights); empty: none.
+  std::vector<std::uint8_t> sparse_cells_;
   int cells_ = 0;
   /// The views the rounds fit (the bundle's, or round 1's grid of their pixels: UseViews)
   /// and their grid's stride.
@@ -323,6 +362,7 @@ class Estimator {
   std::vector<CachedColumn> columns_;
   double vertex_samples_ = 0;       ///< paths per pixel they hold
   std::vector<std::uint8_t> holdout_;  ///< per row: left out of the model selection's fit
+  const char* solve_step_ = "solve";   ///< the step Solve's convergence rows are
   Eigen::Vector3d centre_;
   double radius_ = 1;
 };

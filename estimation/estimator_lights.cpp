@@ -12,13 +12,17 @@ RoundProblem Estimator::WithLights(const std::vector<PointLight>& lights) {
   for (const Light& l : rp.lights) columns.push_back(Column(l));
   rp.problem = columns.empty() ? map_problem_
                                : std::make_shared<LinearProblem>(WithColumns(*map_problem_, cells_, columns));
-  const LinearProblem& problem = *rp.problem;
-  rp.init.resize(3 * problem.unknown_cells);
+  rp.init = StartOf(*rp.problem, rp.lights);
+  return rp;
+}
+
+std::vector<double> Estimator::StartOf(const LinearProblem& problem, const std::vector<Light>& lights) const {
+  std::vector<double> init(3 * problem.unknown_cells);
   for (int k = 0; k < problem.unknown_cells; ++k) {
     const int j = problem.cell_of[k];
-    for (int c = 0; c < 3; ++c) rp.init[3 * k + c] = j < cells_ ? lambda_[3 * j + c] : Scale(rp.lights[j - cells_])[c];
+    for (int c = 0; c < 3; ++c) init[3 * k + c] = j < cells_ ? lambda_[3 * j + c] : Scale(lights[j - cells_])[c];
   }
-  return rp;
+  return init;
 }
 
 namespace {
@@ -452,11 +456,7 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
   ObjectiveParams params = res_.objective_params;
   params.alpha *= static_cast<double>(holdout_fit_->rows()) / std::max<std::size_t>(1, holdout_.size());
   params = CellWeights(problem, params);
-  std::vector<double> init(3 * problem.unknown_cells);
-  for (int k = 0; k < problem.unknown_cells; ++k) {
-    const int j = problem.cell_of[k];
-    for (int c = 0; c < 3; ++c) init[3 * k + c] = j < cells_ ? lambda_[3 * j + c] : Scale(all[j - cells_])[c];
-  }
+  const std::vector<double> init = StartOf(problem, all);
   SolverOptions so;
   so.max_iterations = 50;
   const SolveResult sr = lp::Solve(opt_.solver, Objective(problem, params), init, so);

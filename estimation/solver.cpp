@@ -335,14 +335,14 @@ class MajorizeMinimize {
 
   /// M(x) - E(lambda_k), computed in L-space.
   double Majorizer(const std::vector<double>& x) const {
-    double m = 0;
-    Eigen::VectorXd d(L_);
-    for (int c = 0; c < 3; ++c) {
+    double mc[3] = {0, 0, 0};  // per channel, summed in a fixed order
+    ParallelFor(0, 3, [&](std::size_t c) {
+      Eigen::VectorXd d(L_);
       for (int j = 0; j < L_; ++j) d[j] = x[3 * j + c] - centre_[3 * j + c];
-      m += 0.5 * d.dot(qp_[c]->Times(d));
-      for (int j = 0; j < L_; ++j) m -= h_[3 * j + c] * d[j];
-    }
-    return m + obj_.Penalty(x) - penalty_centre_;
+      mc[c] = 0.5 * d.dot(qp_[c]->Times(d));
+      for (int j = 0; j < L_; ++j) mc[c] -= h_[3 * j + c] * d[j];
+    });
+    return mc[0] + mc[1] + mc[2] + obj_.Penalty(x) - penalty_centre_;
   }
 
   /// Reweighted l1 on M with the penalty weight scaled by `weight`, from x; at most
@@ -350,9 +350,10 @@ class MajorizeMinimize {
   std::vector<double> InnerMinimize(std::vector<double> x, double weight, int max_steps = 20, bool exact = true) {
     double m = weight == 1.0 ? Majorizer(x) : 0;
     std::vector<double> trial(x.size());
-    std::vector<double> bc(L_), xc(L_);
     for (int step = 0; step < max_steps; ++step) {
-      for (int c = 0; c < 3; ++c) {
+      // The channels' QPs are independent (the penalty's weights are fixed at x): one task each.
+      ParallelFor(0, 3, [&](std::size_t c) {
+        std::vector<double> bc(L_), xc(L_);
         for (int j = 0; j < L_; ++j) {
           const double cost = weight * obj_.Alpha(j) * prm_.beta / (1 + prm_.beta * (x[3 * j] + x[3 * j + 1] + x[3 * j + 2]));
           bc[j] = b0_[c][j] - cost;
@@ -360,7 +361,7 @@ class MajorizeMinimize {
         }
         qp_[c]->Solve(bc.data(), xc.data(), exact && weight == 1.0);
         for (int j = 0; j < L_; ++j) trial[3 * j + c] = xc[j];
-      }
+      });
       if (weight != 1.0) {  // continuation stage: no monotonicity to keep
         x.swap(trial);
         continue;

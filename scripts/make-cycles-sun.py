@@ -6,8 +6,13 @@
 # (and a held-out second view from elsewhere). Writes scene bundles that lightprobe reads
 # (OUT_DIR: view 0, OUT_DIR_holdout: view 1; mesh.ply, scene.json, view0.exr, truth.json
 # with the render settings and the sun's direction and irradiance).
+# The same corner under extended light (issue 42; KIND, default sun):
+#   sky       a uniform white sky whose irradiance on an open floor is 1, nothing else;
+#   lamp-sky  a 5 cm lamp (Blender's point light, radiant intensity power / 4 pi W/sr) about
+#             1.4 m from the scene's centre (1.5, 1.5, 0.5) and a uniform sky whose
+#             irradiance on an open floor is 1/20 of the lamp's at that centre.
 #
-#   blender -b -noaudio --factory-startup --python scripts/make-cycles-sun.py -- OUT_DIR [SPP]
+#   blender -b -noaudio --factory-startup --python scripts/make-cycles-sun.py -- OUT_DIR [SPP] [KIND]
 #
 # (apt-get install blender; Debian 12 has 3.4.1.) Colours as in make-cycles-interreflection.py.
 import json
@@ -21,11 +26,23 @@ import mathutils
 argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 out_dir = os.path.abspath(argv[0] if argv else "tests/data/cycles/sun")
 spp = int(argv[1]) if len(argv) > 1 else 1024
+KIND = argv[2] if len(argv) > 2 else "sun"
+if KIND not in ("sun", "sky", "lamp-sky"):
+    raise SystemExit("KIND is sun, sky or lamp-sky, not " + KIND)
 W, H = 160, 120
 SUN_DIRECTION = mathutils.Vector((0.55, 0.35, 0.76)).normalized()  # towards the sun
 SUN_IRRADIANCE = 3.0  # W/m^2 on a surface facing it
 SUN_ANGLE_DEG = 0.53  # the sun's angular diameter
 SKY_RADIANCE = SUN_IRRADIANCE / 1000 / math.pi  # an open floor receives pi x this
+CENTRE = mathutils.Vector((1.5, 1.5, 0.5))  # lamp-sky: distances and the lamp's irradiance from here
+LAMP_POSITION = mathutils.Vector((2.1, 1.2, 1.75))
+LAMP_POWER = 60.0  # W
+LAMP_RADIUS = 0.05
+LAMP_INTENSITY = LAMP_POWER / (4 * math.pi)  # W/sr
+if KIND == "sky":
+    SKY_RADIANCE = 1.0 / math.pi
+elif KIND == "lamp-sky":
+    SKY_RADIANCE = LAMP_INTENSITY / (LAMP_POSITION - CENTRE).length_squared / 20 / math.pi
 
 
 def srgb_to_linear(c):
@@ -59,6 +76,7 @@ quad((0, 0, 0), (0, 0, 1.6), (3, 0, 1.6), (3, 0, 0), WALL)
 box(0.9, 1.5, 0.8, 1.4, 0.5, BOX)
 box(1.9, 2.2, 1.7, 2.0, 1.1, BLOCK)
 # --- the scene bundle's mesh (ASCII PLY, sRGB uchar colours) ---
+os.makedirs(out_dir, exist_ok=True)
 with open(os.path.join(out_dir, "mesh.ply"), "w") as f:
     f.write("ply\nformat ascii 1.0\ncomment made by scripts/make-cycles-sun.py\n")
     f.write("element vertex %d\nproperty float x\nproperty float y\nproperty float z\n" % (4 * len(quads)))
@@ -108,12 +126,28 @@ bg = world.node_tree.nodes["Background"]
 bg.inputs["Color"].default_value = (1, 1, 1, 1)
 bg.inputs["Strength"].default_value = SKY_RADIANCE
 bpy.context.scene.world = world
-sun_data = bpy.data.lights.new("sun", type="SUN")
-sun_data.energy = SUN_IRRADIANCE
-sun_data.angle = math.radians(SUN_ANGLE_DEG)
-sun = bpy.data.objects.new("sun", sun_data)
-sun.rotation_euler = SUN_DIRECTION.to_track_quat("Z", "Y").to_euler()  # a sun shines along its -z
-bpy.context.scene.collection.objects.link(sun)
+truth_lights = []
+if KIND == "sun":
+    sun_data = bpy.data.lights.new("sun", type="SUN")
+    sun_data.energy = SUN_IRRADIANCE
+    sun_data.angle = math.radians(SUN_ANGLE_DEG)
+    sun = bpy.data.objects.new("sun", sun_data)
+    sun.rotation_euler = SUN_DIRECTION.to_track_quat("Z", "Y").to_euler()  # a sun shines along its -z
+    bpy.context.scene.collection.objects.link(sun)
+    truth_lights.append({"type": "sun", "direction": list(SUN_DIRECTION), "rgb": [SUN_IRRADIANCE] * 3,
+                         "irradiance_rgb_W_per_m2": [SUN_IRRADIANCE] * 3, "angular_diameter_deg": SUN_ANGLE_DEG})
+elif KIND == "lamp-sky":
+    lamp_data = bpy.data.lights.new("lamp", type="POINT")
+    lamp_data.energy = LAMP_POWER
+    lamp_data.shadow_soft_size = LAMP_RADIUS
+    lamp = bpy.data.objects.new("lamp", lamp_data)
+    lamp.location = LAMP_POSITION
+    bpy.context.scene.collection.objects.link(lamp)
+    truth_lights.append({"name": "lamp", "type": "point", "blender_type": "POINT", "position": list(LAMP_POSITION),
+                         "radius": LAMP_RADIUS, "color": [1.0, 1.0, 1.0], "power_W": LAMP_POWER,
+                         "radiant_intensity_rgb_W_per_sr": [LAMP_INTENSITY] * 3,
+                         "intensity_image_units": [LAMP_INTENSITY] * 3,
+                         "distance_from_centre": (LAMP_POSITION - CENTRE).length})
 
 # Cameras: OpenCV convention in scene.json (x right, y down, z forward), Blender's looks down
 # its -z with +y up. Principal point at the image centre: (W - 1) / 2 with pixel centres at
@@ -157,9 +191,8 @@ cam_data.lens = 0.5 * cam_data.sensor_width / math.tan(0.5 * hfov)
 cam = bpy.data.objects.new("cam", cam_data)
 bpy.context.scene.collection.objects.link(cam)
 scene.camera = cam
-truth = {"scene": "cycles-sun", "blender_version": bpy.app.version_string, "spp": spp,
-         "lights": [{"type": "sun", "direction": list(SUN_DIRECTION), "rgb": [SUN_IRRADIANCE] * 3,
-                     "irradiance_rgb_W_per_m2": [SUN_IRRADIANCE] * 3, "angular_diameter_deg": SUN_ANGLE_DEG}],
+truth = {"scene": "cycles-" + KIND, "blender_version": bpy.app.version_string, "spp": spp,
+         "lights": truth_lights,
          "world": {"type": "uniform", "radiance": [SKY_RADIANCE] * 3},
          "render": {"engine": "CYCLES", "max_bounces": 64, "diffuse_bounces": 64, "pixel_filter": "BOX",
                     "filter_width_px": 1.0, "view_transform": "Standard", "denoising": False,

@@ -110,6 +110,47 @@ TEST_P(LampRecovery, OnePointLightAtItsPlace) {
   EXPECT_NEAR(r.final_position_error_m, error, 1e-9) << "the report's number is this one";
 }
 
+/// The map's irradiance on a surface facing `up` (red), from the cells above the horizon.
+double SkyIrradianceUp(const EstimateResult& r, const Eigen::Vector3d& up) {
+  double e = 0;
+  for (int j = 0; j < r.env.size(); ++j) e += std::max(0.0, r.env.direction(j).dot(up)) * r.env.solid_angle(j) * r.lighting.map[3 * j];
+  return e;
+}
+
+// Issue 42: the dim sky beside a lamp (1/20 of the lamp's irradiance at the centre) stays
+// in the map once the data choose its prior: the one given (alpha 3) drops it and lets
+// the lamp take its light. Chosen, the prior is weaker, the map's sky holds at least a
+// quarter of the true irradiance facing up (measured 58 %; 0 at the given prior), and the
+// held-out view relights better than at the given prior (beyond the noise: 1.3 % against
+// 2.3 % measured; the lamp 0.7 cm off and its intensity exact, against 2.2 cm and +4 %).
+TEST(LampRecovery, TheDimSkyBesideALampStaysInTheMapUnderThePriorTheDataChose) {
+  const HeldOutScene h("lamp-and-sky");
+  EstimateOptions eo;
+  eo.render = false;
+  const EstimateResult chosen = Estimate(h.fit, eo);
+  eo.choose_prior = false;
+  const EstimateResult given = Estimate(h.fit, eo);
+  double fitted[2], held[2], plain[2];
+  h.Errors(chosen, &fitted[0], &held[0], &plain[0], &plain[1]);
+  h.Errors(given, &fitted[1], &held[1], &plain[0], &plain[1]);
+  const double truth = 1.0 / 20, sky = SkyIrradianceUp(chosen, h.fit.up);
+  std::printf("lamp-and-sky: prior %g (%s); the sky facing up %.4f (given prior %.4f, truth %.4f); held-out beyond "
+              "the noise %.4f (given prior %.4f), fitted %.4f (%.4f)\n",
+              chosen.prior.chosen, chosen.prior.why.c_str(), sky, SkyIrradianceUp(given, h.fit.up), truth, held[0],
+              held[1], fitted[0], fitted[1]);
+  ASSERT_EQ(chosen.prior.tried.size(), std::size(kPriorFactors));
+  EXPECT_FALSE(chosen.prior.lights_dropped);
+  EXPECT_LT(chosen.prior.chosen, eo.objective.alpha);
+  EXPECT_GT(sky, 0.25 * truth);
+  EXPECT_LT(sky, 1.5 * truth);
+  EXPECT_LT(held[0], held[1]);
+  ASSERT_EQ(chosen.lighting.Count<PointLight>(), 1u);
+  // The convergence log has the rows of the solve at the prior chosen.
+  EXPECT_TRUE(std::any_of(chosen.convergence.begin(), chosen.convergence.end(),
+                          [](const ConvergenceRow& row) { return std::string(row.step) == "prior"; }));
+  EXPECT_TRUE(std::isnan(given.prior.chosen));
+}
+
 // Two lamps of different colours (warm and cool, 5 cm, 1.7 and 1.6 m from the centre): one
 // lamp cannot explain the images, so the model takes two, each held to the issue's targets
 // as the single lamps are (its nearest estimate: position, intensity; the views: fitted and

@@ -39,8 +39,11 @@ void ExpectHealthy(const EstimateResult& r) {
     // After the search the map's first solve steps the Cauchy scale down again (graduated).
     // A directional light's refinement ("sun") leaves the map's penalty out, so its rows
     // and the solve after them start new descents too.
+    // The solve at the map's prior the data chose ("prior") minimizes another function (the
+    // penalty's weight changed): its rows fall among themselves.
+    const bool new_prior = std::string(b.step) == "prior" && std::string(a.step) != "prior";
     if (a.round == b.round && std::string(b.step) != "search" && a.point_lights == b.point_lights &&
-        a.sigma == b.sigma && std::string(a.step) != "sun" && std::string(b.step) != "sun") {
+        a.sigma == b.sigma && std::string(a.step) != "sun" && std::string(b.step) != "sun" && !new_prior) {
       EXPECT_LE(b.objective, a.objective * (1 + 1e-12)) << "round " << b.round << " it " << b.iteration;
     }
   }
@@ -382,6 +385,7 @@ TEST_P(SmallSigma, ColdStartStillFindsTheLight) {
   eo.point_lights.max_lights = 0;  // the map's cold start (see the case above)
   eo.directional_lights = false;  // the map alone (a sun is sought whatever the lamps)
   const EstimateResult r = Estimate(b, eo);
+  EXPECT_TRUE(std::isnan(r.prior.chosen)) << "below the default scale the prior is not chosen: " << r.prior.why;
   ExpectHealthy(r);
   EXPECT_NEAR(PowerNear(r, env.direction(j), 45) / (2.0 * env.solid_angle(j)), 1.0, 0.15);
   EXPECT_GT(PowerNear(r, env.direction(j), 45), 0.8 * TotalPower(r));
