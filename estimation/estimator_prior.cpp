@@ -89,12 +89,15 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   }
   // With the lights: every weight, or only the given one beside a directional light (its
   // column is noisier than the map's, and a weaker prior lets the map take its power).
-  // Beside a directional light also the map alone at every weight: a flat sky under the given
-  // prior is taken for a sun (Cycles' uniform sky: a sun and a lamp 7 m away, docs/benchmarks.md).
+  // Beside a directional light also the map alone at every weaker weight: a flat sky under the
+  // given prior is taken for a sun (Cycles' uniform sky: a sun and a lamp 7 m away,
+  // docs/benchmarks.md).
   std::vector<double> with_alphas, alone_alphas;
   for (double f : kPriorFactors) alone_alphas.push_back(opt_.objective.alpha * f);
   with_alphas = suns_.empty() ? alone_alphas : std::vector<double>{opt_.objective.alpha};
+  // (the map alone at the given weight is what the directional light's own selection beat)
   if (suns_.empty()) alone_alphas.clear();
+  else alone_alphas.erase(alone_alphas.begin());
   const std::vector<int> block = RowBlocks(kPriorBlocksAcross);
   const PriorFolds with = PriorLosses(lights, with_alphas, block);
   const PriorFolds alone = alone_alphas.empty() ? PriorFolds() : PriorLosses({}, alone_alphas, block);
@@ -111,7 +114,7 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   std::vector<double> with_loss, with_se, alone_loss, alone_se;
   const auto choose = [&](const PriorFolds& folds, std::vector<double>* loss, std::vector<double>* se) {
     const std::size_t k = StrongestWithinOneStandardError(folds.loss, used, loss, se);
-    return (*loss)[0] - (*loss)[k] > kPriorMinGain * (*loss)[0] ? k : 0;
+    return k == 0 || (*loss)[0] - (*loss)[k] > kPriorMinGain * (*loss)[0] ? k : 0;
   };
   const std::size_t kw = choose(with, &with_loss, &with_se);
   const std::size_t ka = alone_alphas.empty() ? 0 : choose(alone, &alone_loss, &alone_se);
