@@ -69,6 +69,12 @@ std::string Estimator::PriorLeftOut(const std::vector<Light>& lights) const {
                ObjectiveParams{}.sigma);
   if (A_.rows() * 3 != y_.size() || (!lights.empty() && vertices_.rows() * 3 != y_.size()))
     return "the last round's rows are not every pixel's: the given --alpha";
+  // (a reconstructed mesh's albedo is the colours seen: a weaker prior lets the map explain
+  // its errors, and the held-out pixels, under the same albedo, agree: on our two-lamp scan
+  // alpha 0.1 was chosen and the cool lamp came back 140 % of its distance off, 13 % at 3)
+  if (!bundle_.mesh.shaded.empty())
+    return "a reconstructed mesh (its albedo is not known, and a weaker prior would let the map explain its "
+           "errors): the given --alpha";
   return "";
 }
 
