@@ -330,7 +330,7 @@ std::string WritePriorPlot(const fs::path& out, const std::string& size, const C
       csv << c->scene << ',' << size << ',' << t.alpha << ',' << t.lights << ',' << t.loss << ',' << t.standard_error
           << ',' << p.IsChosen(t) << '\n';
     }
-    for (PlotSeries* s : {&with, &alone, &chosen, &band})
+    for (PlotSeries* s : {&band, &with, &alone, &chosen})  // (the chosen marker drawn last, on top)
       if (!s->x.empty()) panel.series.push_back(*s);
     panels.push_back(std::move(panel));
   }
