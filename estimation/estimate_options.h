@@ -154,12 +154,13 @@ struct EstimateOptions {
   /// left free (eliminated, LightFitProblem::segment): the shading within the segments
   /// places them, not the de-lit albedos the last estimate implied (docs/method.md).
   bool free_albedo = true;
-  /// After the rounds, the map's prior (the activation penalty's weight) is chosen by the
-  /// data: the map and the lights' intensities (the lights held where they are) solved at
-  /// objective.alpha times each of kPriorFactors on three quarters of the pixels and scored
-  /// on the fourth (four folds of large blocks), the strongest weight within one standard
-  /// error of the best kept, and everything solved again at it (docs/method.md, "The map's
-  /// prior"). false: objective.alpha as given.
+  /// In the first round on every pixel the map's prior (the activation penalty's weight) is
+  /// chosen by the data: the map and the lights' intensities (the lights held where they
+  /// are; beside a directional light also the map alone) solved at objective.alpha times
+  /// each of kPriorFactors on three quarters of the pixels and scored on the fourth (four
+  /// folds of large blocks), the strongest weight within one standard error of the best
+  /// kept, and the rounds after it run at it (docs/method.md, "The map's prior"; not on a
+  /// reconstructed mesh, nor below the default Cauchy scale). false: objective.alpha as given.
   bool choose_prior = true;
   /// Stop when the rendered estimate changes by less than this between rounds:
   /// |A (lambda_k - lambda_{k-1})| / |A lambda_k| < 2 % (over the observed pixels).

@@ -1,7 +1,9 @@
-// The map's prior chosen by the data (docs/method.md, "The map's prior"): after the rounds,
-// the activation penalty's weight is tried from the given one down (kPriorFactors), each
-// scored by the Cauchy loss on pixels the fit did not use, and the estimate is solved again
-// at the strongest weight within one standard error of the best.
+// The map's prior chosen by the data (docs/method.md, "The map's prior"): in the first round
+// on every pixel, the activation penalty's weight is tried from the given one down
+// (kPriorFactors) with the lights found (and beside a directional light the map alone),
+// each scored by the Cauchy loss on large blocks of pixels the fit did not use; the estimate
+// is solved again at the strongest weight within one standard error of the best, and the
+// rounds after it run at it.
 #include "estimation/estimator_impl.h"
 
 namespace lp {
