@@ -319,7 +319,7 @@ std::string WritePriorPlot(const fs::path& out, const std::string& size, const C
     panel.x_label = "alpha (the map's prior)";
     panel.y_label = "held-out loss";
     panel.log_y = false;
-    PlotSeries with{"with the lights"}, alone{"the map alone"}, chosen{"chosen", {}, {}, false, true};
+    PlotSeries with{"with the lights", {}, {}}, alone{"the map alone", {}, {}}, chosen{"chosen", {}, {}, false, true};
     PlotSeries band{"+/- 1 SE", {}, {}, false, true};
     for (const PriorChoice::Tried& t : p.tried) {
       PlotSeries& s = t.lights > 0 ? with : alone;
