@@ -17,4 +17,20 @@ err=$(grep -o '"angular_error_deg": [0-9.e+-]*' "$out/report.json" | head -1 | a
 # Measured with --max-rounds 2 over seeds 1-5: 2.96, 2.09, 2.73, 3.17, 1.77 degrees (seed 1
 # here); a neighbouring cell of the 21-ring map is 9 degrees away.
 check_below "dominant light error (deg)" "$err" 6 || exit 1
+# The map's prior the data chose: every weight tried with its held-out loss, one chosen, the
+# alpha solved at among them and in the settings, and the convergence log's rows of it.
+python3 - "$out/report.json" <<'PY' || exit 1
+import json, sys
+r = json.load(open(sys.argv[1]))
+p = r["prior"]
+assert p["chosen"] and p["why"] and p["folds"] == 4 and p["blocks"] == 16, p
+tried = p["tried"]
+assert len(tried) >= 4 and sum(t["chosen"] for t in tried) == 1, tried
+assert all(t["heldout_loss"] > 0 and t["standard_error"] >= 0 for t in tried), tried
+assert [t["alpha"] for t in tried if t["chosen"]] == [p["alpha"]], p
+assert r["seconds"]["prior"] > 0
+PY
+if python3 -c 'import json,sys; sys.exit(json.load(open(sys.argv[1]))["prior"]["alpha"] == 3)' "$out/report.json"; then
+  grep -q ',prior,' "$out/convergence.csv" || { echo "a prior other than --alpha, and no 'prior' rows in convergence.csv"; exit 1; }
+fi
 echo "demo ok: angular error $err deg"
