@@ -10,7 +10,9 @@
 #   sky       a uniform white sky whose irradiance on an open floor is 1, nothing else;
 #   lamp-sky  a 5 cm lamp (Blender's point light, radiant intensity power / 4 pi W/sr) about
 #             1.4 m from the scene's centre (1.5, 1.5, 0.5) and a uniform sky whose
-#             irradiance on an open floor is 1/20 of the lamp's at that centre.
+#             irradiance on an open floor is 1/20 of the lamp's at that centre;
+#   hdr       Poly Haven's studio_small_03 (assets/hdri, CC0) as the world, as lightprobe
+#             reads an equirect map (`lightprobe render --envmap` of the same file is its truth).
 #
 #   blender -b -noaudio --factory-startup --python scripts/make-cycles-sun.py -- OUT_DIR [SPP] [KIND]
 #
@@ -27,8 +29,9 @@ argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 out_dir = os.path.abspath(argv[0] if argv else "tests/data/cycles/sun")
 spp = int(argv[1]) if len(argv) > 1 else 1024
 KIND = argv[2] if len(argv) > 2 else "sun"
-if KIND not in ("sun", "sky", "lamp-sky"):
-    raise SystemExit("KIND is sun, sky or lamp-sky, not " + KIND)
+if KIND not in ("sun", "sky", "lamp-sky", "hdr"):
+    raise SystemExit("KIND is sun, sky, lamp-sky or hdr, not " + KIND)
+HDR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "assets", "hdri", "studio_small_03_1k.hdr")
 W, H = 160, 120
 SUN_DIRECTION = mathutils.Vector((0.55, 0.35, 0.76)).normalized()  # towards the sun
 SUN_IRRADIANCE = 3.0  # W/m^2 on a surface facing it
@@ -125,6 +128,17 @@ world.use_nodes = True
 bg = world.node_tree.nodes["Background"]
 bg.inputs["Color"].default_value = (1, 1, 1, 1)
 bg.inputs["Strength"].default_value = SKY_RADIANCE
+if KIND == "hdr":
+    # The HDR as lightprobe reads it (docs/formats.md: column x at azimuth (x + 0.5) / W * 2 pi
+    # from +x towards +y, up = +z): Blender's equirect has u = 0.5 - atan2(y, x) / 2 pi, so x is mirrored.
+    nodes, links = world.node_tree.nodes, world.node_tree.links
+    coord, mapping, tex = nodes.new("ShaderNodeTexCoord"), nodes.new("ShaderNodeMapping"), nodes.new("ShaderNodeTexEnvironment")
+    mapping.inputs["Scale"].default_value = (-1.0, 1.0, 1.0)
+    tex.image = bpy.data.images.load(os.path.abspath(HDR))
+    links.new(coord.outputs["Generated"], mapping.inputs["Vector"])
+    links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+    links.new(tex.outputs["Color"], bg.inputs["Color"])
+    bg.inputs["Strength"].default_value = 1.0
 bpy.context.scene.world = world
 truth_lights = []
 if KIND == "sun":
