@@ -65,6 +65,16 @@ constexpr std::size_t kShadowRows = 4800;
 /// renderer's) are smooth across neighbouring pixels (docs/method.md, "Uncertainty").
 constexpr int kUncertaintyBlocksAcross = 4;
 
+/// `problem`'s solution (compact: 3 per unknown column) over all `columns` (3 per column;
+/// those it has no unknown for at 0).
+inline std::vector<double> Scattered(const LinearProblem& problem, const std::vector<double>& compact,
+                                     std::size_t columns) {
+  std::vector<double> full(3 * columns, 0.0);
+  for (int k = 0; k < problem.unknown_cells; ++k)
+    for (int c = 0; c < 3; ++c) full[3 * problem.cell_of[k] + c] = compact[3 * k + c];
+  return full;
+}
+
 /// A round's linear problem over the cells some sampled path reached and the lights'
 /// columns after them (each light's Scale its 3 unknowns), and the way back from its
 /// compact unknowns to the whole map and the lights.
@@ -77,10 +87,7 @@ struct RoundProblem {
 
   /// The unknowns over every column (3 per column): the map's cells, then `lights`.
   std::vector<double> Scatter(const std::vector<double>& compact, int cells) const {
-    std::vector<double> full(3 * (cells + lights.size()), 0.0);
-    for (int k = 0; k < problem->unknown_cells; ++k)
-      for (int c = 0; c < 3; ++c) full[3 * problem->cell_of[k] + c] = compact[3 * k + c];
-    return full;
+    return Scattered(*problem, compact, cells + lights.size());
   }
   /// The lights of kind T of a full vector (those with any scale), their scales from it.
   template <class T>
@@ -179,6 +186,13 @@ class Estimator {
   /// Per row of A_: its block, `across` x `across` blocks a view, numbered
   /// (view * across + y) * across + x.
   std::vector<int> RowBlocks(int across) const;
+  /// The lights in the order of a round problem's columns: `lights`, then the directional
+  /// lights so far.
+  std::vector<Light> ColumnOrder(const std::vector<PointLight>& lights) const;
+  /// The render of some rows: `map_rows` (those of A_) times the map's part of `full`, plus
+  /// each light's `columns` (those rows) times its scale in `full`.
+  std::vector<double> HeldOutRender(const TransportMatrix& map_rows, const std::vector<std::vector<float>>& columns,
+                                    const std::vector<double>& full) const;
   /// `problem`'s unknowns (over the map's cells, then `lights`' columns) at the estimate so
   /// far: lambda_ and the lights' scales.
   std::vector<double> StartOf(const LinearProblem& problem, const std::vector<Light>& lights) const;

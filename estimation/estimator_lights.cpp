@@ -6,14 +6,28 @@ namespace lp::detail {
 /// map's (the map's problem itself when there are none), warm-started from the estimate so far.
 RoundProblem Estimator::WithLights(const std::vector<PointLight>& lights) {
   RoundProblem rp;
-  rp.lights = AsLights(lights);
-  for (const DirectionalLight& d : suns_) rp.lights.push_back(d);
+  rp.lights = ColumnOrder(lights);
   std::vector<std::vector<float>> columns;
   for (const Light& l : rp.lights) columns.push_back(Column(l));
   rp.problem = columns.empty() ? map_problem_
                                : std::make_shared<LinearProblem>(WithColumns(*map_problem_, cells_, columns));
   rp.init = StartOf(*rp.problem, rp.lights);
   return rp;
+}
+
+std::vector<Light> Estimator::ColumnOrder(const std::vector<PointLight>& lights) const {
+  std::vector<Light> out = AsLights(lights);
+  for (const DirectionalLight& d : suns_) out.push_back(d);
+  return out;
+}
+
+std::vector<double> Estimator::HeldOutRender(const TransportMatrix& map_rows,
+                                             const std::vector<std::vector<float>>& columns,
+                                             const std::vector<double>& full) const {
+  std::vector<double> render = map_rows.Multiply(std::vector<double>(full.begin(), full.begin() + 3 * cells_));
+  for (std::size_t i = 0; i < render.size(); ++i)
+    for (std::size_t k = 0; k < columns.size(); ++k) render[i] += columns[k][i] * full[3 * (cells_ + k) + i % 3];
+  return render;
 }
 
 std::vector<double> Estimator::StartOf(const LinearProblem& problem, const std::vector<Light>& lights) const {
@@ -460,14 +474,9 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
   SolverOptions so;
   so.max_iterations = 50;
   const SolveResult sr = lp::Solve(opt_.solver, Objective(problem, params), init, so);
-  std::vector<double> x(3 * (cells_ + columns.size()), 0.0);
-  for (int k = 0; k < problem.unknown_cells; ++k)
-    for (int c = 0; c < 3; ++c) x[3 * problem.cell_of[k] + c] = sr.lambda[3 * k + c];
-  std::vector<double> residual = holdout_held_.Multiply(std::vector<double>(x.begin(), x.begin() + 3 * cells_));
-  for (std::size_t i = 0; i < residual.size(); ++i) {
-    for (std::size_t k = 0; k < columns.size(); ++k) residual[i] += held_columns[k][i] * x[3 * (cells_ + k) + i % 3];
-    residual[i] = y_held[i] - residual[i];
-  }
+  std::vector<double> residual =
+      HeldOutRender(holdout_held_, held_columns, Scattered(problem, sr.lambda, cells_ + columns.size()));
+  for (std::size_t i = 0; i < residual.size(); ++i) residual[i] = y_held[i] - residual[i];
   return CauchyLoss{params.sigma}.Sum(residual);
 }
 

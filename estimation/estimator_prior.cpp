@@ -83,7 +83,7 @@ std::string Estimator::PriorLeftOut(const std::vector<Light>& lights) const {
 bool Estimator::ChoosePrior(RoundInfo* info) {
   PriorChoice& pc = res_.prior;
   pc.done = true;
-  const std::vector<Light> lights = WithLights(points_).lights;  // the order of the problem solved again
+  const std::vector<Light> lights = ColumnOrder(points_);  // the order of the problem solved again
   pc.why = PriorLeftOut(lights);
   if (!pc.why.empty()) return false;
   CheckCancel();
@@ -230,12 +230,8 @@ Estimator::PriorFolds Estimator::PriorLosses(const std::vector<Light>& lights, c
       so.max_iterations = 50;
       const Objective objective(problem, CellWeights(problem, params, weights[a]));
       x = lp::Solve(opt_.solver, objective, x, so).lambda;
-      std::vector<double> full(unknowns, 0.0);
-      for (int k = 0; k < problem.unknown_cells; ++k)
-        for (int c = 0; c < 3; ++c) full[3 * problem.cell_of[k] + c] = x[3 * k + c];
-      std::vector<double> render = held_map.Multiply(std::vector<double>(full.begin(), full.begin() + 3 * cells_));
-      for (std::size_t i = 0; i < render.size(); ++i)
-        for (std::size_t l = 0; l < lights.size(); ++l) render[i] += held_columns[l][i] * full[3 * (cells_ + l) + i % 3];
+      std::vector<double> full = Scattered(problem, x, cells_ + lights.size());
+      const std::vector<double> render = HeldOutRender(held_map, held_columns, full);
       std::size_t h = 0;  // the held-out rows in order
       for (std::size_t r = 0; r < held.size(); ++r) {
         if (!held[r]) continue;
