@@ -11,6 +11,8 @@
 #   lamp-sky  a 5 cm lamp (Blender's point light, radiant intensity power / 4 pi W/sr) about
 #             1.4 m from the scene's centre (1.5, 1.5, 0.5) and a uniform sky whose
 #             irradiance on an open floor is 1/20 of the lamp's at that centre;
+#   two-lamps a warm lamp (140 W, 1.73 m from the centre) and a cool one half as strong (70 W,
+#             1.65 m) on either side of the corner, 5 cm each, no sky (issue 42's valley);
 #   hdr       Poly Haven's studio_small_03 (assets/hdri, CC0) as the world, as lightprobe
 #             reads an equirect map (`lightprobe render --envmap` of the same file is its truth).
 #
@@ -29,8 +31,8 @@ argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 out_dir = os.path.abspath(argv[0] if argv else "tests/data/cycles/sun")
 spp = int(argv[1]) if len(argv) > 1 else 1024
 KIND = argv[2] if len(argv) > 2 else "sun"
-if KIND not in ("sun", "sky", "lamp-sky", "hdr"):
-    raise SystemExit("KIND is sun, sky, lamp-sky or hdr, not " + KIND)
+if KIND not in ("sun", "sky", "lamp-sky", "two-lamps", "hdr"):
+    raise SystemExit("KIND is sun, sky, lamp-sky, two-lamps or hdr, not " + KIND)
 HDR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "assets", "hdri", "studio_small_03_1k.hdr")
 W, H = 160, 120
 SUN_DIRECTION = mathutils.Vector((0.55, 0.35, 0.76)).normalized()  # towards the sun
@@ -46,6 +48,12 @@ if KIND == "sky":
     SKY_RADIANCE = 1.0 / math.pi
 elif KIND == "lamp-sky":
     SKY_RADIANCE = LAMP_INTENSITY / (LAMP_POSITION - CENTRE).length_squared / 20 / math.pi
+elif KIND == "two-lamps":
+    SKY_RADIANCE = 0.0
+# (name, position, power in W, colour): the lamps of KIND lamp-sky and two-lamps.
+LAMPS = {"lamp-sky": [("lamp", LAMP_POSITION, LAMP_POWER, (1.0, 1.0, 1.0))],
+         "two-lamps": [("warm", mathutils.Vector((2.3, 1.0, 1.95)), 140.0, (1.0, 0.8, 0.6)),
+                       ("cool", mathutils.Vector((0.6, 2.2, 1.7)), 70.0, (0.6, 0.8, 1.0))]}.get(KIND, [])
 
 
 def srgb_to_linear(c):
@@ -150,18 +158,19 @@ if KIND == "sun":
     bpy.context.scene.collection.objects.link(sun)
     truth_lights.append({"type": "sun", "direction": list(SUN_DIRECTION), "rgb": [SUN_IRRADIANCE] * 3,
                          "irradiance_rgb_W_per_m2": [SUN_IRRADIANCE] * 3, "angular_diameter_deg": SUN_ANGLE_DEG})
-elif KIND == "lamp-sky":
-    lamp_data = bpy.data.lights.new("lamp", type="POINT")
-    lamp_data.energy = LAMP_POWER
+for name, position, power, colour in LAMPS:
+    lamp_data = bpy.data.lights.new(name, type="POINT")
+    lamp_data.energy = power
+    lamp_data.color = colour
     lamp_data.shadow_soft_size = LAMP_RADIUS
-    lamp = bpy.data.objects.new("lamp", lamp_data)
-    lamp.location = LAMP_POSITION
+    lamp = bpy.data.objects.new(name, lamp_data)
+    lamp.location = position
     bpy.context.scene.collection.objects.link(lamp)
-    truth_lights.append({"name": "lamp", "type": "point", "blender_type": "POINT", "position": list(LAMP_POSITION),
-                         "radius": LAMP_RADIUS, "color": [1.0, 1.0, 1.0], "power_W": LAMP_POWER,
-                         "radiant_intensity_rgb_W_per_sr": [LAMP_INTENSITY] * 3,
-                         "intensity_image_units": [LAMP_INTENSITY] * 3,
-                         "distance_from_centre": (LAMP_POSITION - CENTRE).length})
+    intensity = [power * c / (4 * math.pi) for c in colour]  # W/sr per channel
+    truth_lights.append({"name": name, "type": "point", "blender_type": "POINT", "position": list(position),
+                         "radius": LAMP_RADIUS, "color": list(colour), "power_W": power,
+                         "radiant_intensity_rgb_W_per_sr": intensity, "intensity_image_units": intensity,
+                         "distance_from_centre": (position - CENTRE).length})
 
 # Cameras: OpenCV convention in scene.json (x right, y down, z forward), Blender's looks down
 # its -z with +y up. Principal point at the image centre: (W - 1) / 2 with pixel centres at

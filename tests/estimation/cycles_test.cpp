@@ -4,6 +4,7 @@
 // through this project's renderer, so a convention error shared by the renderer and the
 // estimator (a mirrored azimuth, a flipped up, a transposed pose, a factor of pi in the
 // point light's units) cannot pass here as it can on self-made scenes.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
@@ -261,6 +262,40 @@ TEST(Cycles, ADimSkyBesideALampStaysInTheMap) {
   EXPECT_LT(error, 0.05 * distance);
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(l.intensity[c], intensity[c], 0.15 * intensity[c]);
   EXPECT_NEAR(up, true_up, 0.2 * true_up);
+  EXPECT_LT(relit, 1.25 * floor);
+}
+
+// Issue 42: two lamps of different brightness and colour (tests/data/cycles/two_lamps, KIND
+// two-lamps: warm 140 W 1.73 m from the corner's centre, cool 70 W 1.65 m), the true mesh
+// and albedo: each within 5 % of its distance and its intensity within 15 % per channel; the
+// held-out view relit within 1.25x the same render of the true lamps. Measured: warm 2.0 cm
+// (1.2 %), x0.98; cool 0.4 cm (0.2 %), x1.00; relit 2.9 % against 2.7 % (1.09x). (The weaker lamp does not slide along its ray:
+// LightFit.ALampStartedAnywhereAlongItsValleyEndsAtOneMinimum.)
+TEST(Cycles, TwoLampsOfDifferentBrightnessComeBackEach) {
+  const SceneBundle bundle = LoadSceneBundle(CyclesDir("two_lamps"));
+  const nlohmann::json truth = nlohmann::json::parse(ReadTextFile(CyclesDir("two_lamps") / "truth.json"));
+  EstimateOptions o;
+  o.render = false;
+  const EstimateResult r = Estimate(bundle, o);
+  const std::vector<PointLight> found = r.lighting.Of<PointLight>();
+  ASSERT_EQ(found.size(), 2u);
+  std::vector<PointLight> true_lamps;
+  for (const nlohmann::json& lamp : truth["lights"]) {
+    const Eigen::Vector3d position = Vec(lamp["position"]), intensity = Vec(lamp["intensity_image_units"]);
+    true_lamps.push_back({position, intensity, lamp["radius"].get<double>()});
+    const PointLight& l = *std::min_element(found.begin(), found.end(), [&](const PointLight& a, const PointLight& b) {
+      return (a.position - position).norm() < (b.position - position).norm();
+    });
+    const double distance = lamp["distance_from_centre"].get<double>(), error = (l.position - position).norm();
+    std::printf("%s lamp: %.2f cm off (%.1f %% of %.2f m), intensity %.3f %.3f %.3f (truth %.3f %.3f %.3f)\n",
+                lamp["name"].get<std::string>().c_str(), 100 * error, 100 * error / distance, distance, l.intensity.x(),
+                l.intensity.y(), l.intensity.z(), intensity.x(), intensity.y(), intensity.z());
+    EXPECT_LT(error, 0.05 * distance) << lamp["name"];
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(l.intensity[c], intensity[c], 0.15 * intensity[c]) << lamp["name"] << " channel " << c;
+  }
+  const SceneBundle held = LoadSceneBundle(CyclesDir("two_lamps_holdout"));
+  const double relit = RelitError(held, r.env, r.lighting), floor = RelitError(held, r.env, {UniformMap(r.env, 0), AsLights(true_lamps)});
+  std::printf("two lamps: held-out relit %.4f (the true lamps %.4f)\n", relit, floor);
   EXPECT_LT(relit, 1.25 * floor);
 }
 
