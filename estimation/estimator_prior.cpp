@@ -34,6 +34,16 @@ std::size_t StrongestWithinOneStandardError(const std::vector<std::vector<double
   return k;
 }
 
+std::size_t StrongestThatGains(const std::vector<std::vector<double>>& block_loss, const std::vector<std::uint8_t>& used,
+                               double min_gain, std::vector<double>* loss, std::vector<double>* standard_error) {
+  const std::size_t first = StrongestWithinOneStandardError(block_loss, used, loss, standard_error);
+  if (first == 0) return 0;
+  const double best = *std::min_element(loss->begin(), loss->end());
+  for (std::size_t k = first; k < loss->size(); ++k)
+    if ((*loss)[k] - best <= (*standard_error)[k] && (*loss)[0] - (*loss)[k] > min_gain * (*loss)[0]) return k;
+  return 0;
+}
+
 }  // namespace lp
 
 namespace lp::detail {
@@ -117,12 +127,11 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   for (int b : block) used[b] = 1;
   pc.folds = kPriorFolds;
   pc.blocks = static_cast<int>(std::count(used.begin(), used.end(), 1));
-  // Of each kind, the strongest weight within one standard error of its best, if it gains
+  // Of each kind, the strongest weight within one standard error of its best that gains
   // kPriorMinGain over the given one.
   std::vector<double> with_loss, with_se, alone_loss, alone_se;
   const auto choose = [&](const PriorFolds& folds, std::vector<double>* loss, std::vector<double>* se) {
-    const std::size_t k = StrongestWithinOneStandardError(folds.loss, used, loss, se);
-    return k == 0 || (*loss)[0] - (*loss)[k] > kPriorMinGain * (*loss)[0] ? k : 0;
+    return StrongestThatGains(folds.loss, used, kPriorMinGain, loss, se);
   };
   const std::size_t kw = choose(with, &with_loss, &with_se);
   const std::size_t ka = alone_alphas.empty() ? 0 : choose(alone, &alone_loss, &alone_se);

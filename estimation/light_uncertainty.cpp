@@ -114,6 +114,23 @@ void BreadAndScores(const LightFitProblem& p, const std::vector<Light>& lights, 
   *bread = bread->selfadjointView<Eigen::Upper>();
 }
 
+/// Each block's rows' bread (sum w J J^T over them).
+Eigen::MatrixXd BlockBread(const LightFitProblem& p, const std::vector<Light>& lights, const TransportMatrix* map,
+                           const Parameters& par, const std::vector<std::size_t>& rows) {
+  Eigen::MatrixXd h = Eigen::MatrixXd::Zero(par.n, par.n);
+  SparseRow J;
+  for (std::size_t row : rows)
+    for (int c = 0; c < 3; ++c) {
+      const double model = par.Row(p, lights, map, row, c, &J);
+      if (J.index.empty()) continue;
+      const double w = p.loss.Weight((*p.y)[3 * row + c] - model);
+      for (std::size_t a = 0; a < J.index.size(); ++a)
+        for (std::size_t b = a; b < J.index.size(); ++b)
+          h(std::min(J.index[a], J.index[b]), std::max(J.index[a], J.index[b])) += w * J.value[a] * J.value[b];
+    }
+  return h.selfadjointView<Eigen::Upper>();
+}
+
 }  // namespace
 
 std::vector<LightUncertainty> LightUncertainties(const LightFitProblem& p, const std::vector<Light>& lights,
@@ -128,17 +145,25 @@ std::vector<LightUncertainty> LightUncertainties(const LightFitProblem& p, const
   const int blocks = row_block.empty() ? 0 : *std::max_element(row_block.begin(), row_block.end()) + 1;
   Eigen::MatrixXd H, score;
   BreadAndScores(p, lights, map, par, row_block, blocks, &H, &score);
-  // The bread's inverse, only its columns of the lights' parameters: their covariance is
-  // Hinv_L^T M Hinv_L with the meat M = G/(G-1) sum_b g_b g_b^T, that is Z Z^T with
-  // Z = Hinv_L^T [g_b] (the map's parameters are marginalized out by it). A pivoted LDL^T
-  // with a ridge of 1e-12 of the largest diagonal entry (a parameter no row sees would make
-  // H singular).
+  // The bread's inverse, only its columns of the lights' parameters (the map's parameters
+  // are marginalized out by it). A pivoted LDL^T with a ridge of 1e-12 of the largest
+  // diagonal entry (a parameter no row sees would make H singular). The covariance is
+  // (G-1)/G sum_b d_b d_b^T over the G blocks, d_b = (H - H_b)^-1 g_b the step leaving block b
+  // out moves the lights by (the jackknife, CR3; with one block, H^-1 g).
   const int nl = par.offset.back();
   const double ridge = 1e-12 * std::max(H.diagonal().maxCoeff(), 1e-300);
   H.diagonal().array() += ridge;
   const Eigen::MatrixXd hinv_l = Eigen::LDLT<Eigen::MatrixXd>(H).solve(Eigen::MatrixXd::Identity(par.n, nl));
-  const Eigen::MatrixXd z = hinv_l.transpose() * score;
-  const Eigen::MatrixXd cov = z * z.transpose() * (blocks > 1 ? blocks / (blocks - 1.0) : 1.0);
+  Eigen::MatrixXd z = hinv_l.transpose() * score;  // the columns d_b
+  if (blocks > 1) {
+    std::vector<std::vector<std::size_t>> block_rows(blocks);
+    for (std::size_t row = 0; row < rows; ++row) block_rows[row_block[row]].push_back(row);
+    ParallelFor(0, blocks, [&](std::size_t b) {
+      const Eigen::MatrixXd without = H - BlockBread(p, lights, map, par, block_rows[b]);
+      z.col(b) = Eigen::LDLT<Eigen::MatrixXd>(without).solve(score.col(b)).head(nl);
+    });
+  }
+  const Eigen::MatrixXd cov = z * z.transpose() * (blocks > 1 ? (blocks - 1.0) / blocks : 1.0);
   // A parameter the data do not fix (its variance with the others free over its variance
   // with them held, H^-1_aa H_aa, beyond 1e8: a zero direction of H, or one the other
   // parameters can take over entirely) is unknown.

@@ -4,7 +4,8 @@
 /// lights and the map's lit cells (nuisance parameters), from the data term's Gauss-Newton
 /// curvature with the cells at zero held there (active constraints; the activation penalty,
 /// concave, left out) and a sandwich over blocks of pixels (neighbouring residuals are
-/// correlated: the model's errors are spatially smooth). It is conditional on the mesh and
+/// correlated: the model's errors are spatially smooth), each block left out in turn (the
+/// jackknife, CR3: a fit follows the few blocks that fix a light). It is conditional on the mesh and
 /// the albedo: their errors are not in it.
 #include <vector>
 

@@ -83,8 +83,9 @@ TEST(EstimateEndToEnd, ALampHalfAMetreAwayComesBackAsAPointLight) {
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(r.lighting.Of<PointLight>()[0].intensity[c], intensity[c], 0.15 * intensity[c]);
   EXPECT_FALSE(r.objective_increased);
   // How sure it is: a covariance per light, positive definite, the truth near its 95 %
-  // region (inside at 7.81; measured 19.4 here: the window is wide, docs/benchmarks.md
-  // measures the coverage, 59 %).
+  // region (inside at 7.81; measured 20.4 here: the window is wide; docs/benchmarks.md
+  // measures the coverage, LampRecovery.TheTrueLampsLieInTheirRegionsAsOftenAsTheRegionsSay
+  // checks it on ten lamps).
   ASSERT_EQ(r.uncertainty.size(), r.lighting.lights.size());
   const LightUncertainty& u = r.uncertainty.back();  // (directional lights first, then lamps)
   EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(u.shape_covariance).eigenvalues().minCoeff(), 0);

@@ -20,6 +20,7 @@
 #include "estimation/path_tracer.h"
 #include "estimation/light_fit.h"
 #include "estimation/light_render.h"
+#include "estimation/light_uncertainty.h"
 #include "estimation/lights/light.h"
 #include "estimation/sampling.h"
 #include "estimation/synth.h"
@@ -183,6 +184,45 @@ TEST(LampRecovery, TwoLampsEachAtItsPlaceWithItsIntensity) {
               fitted_plain, held_plain);
   EXPECT_LT(fitted, 0.08);
   EXPECT_LT(held, 0.10);
+}
+
+// Issue 42: each light's 95 % region is honest, in a window wide enough for a few cases (the
+// benchmark over 200 measures the coverage, docs/benchmarks.md): ten lamps of four scenes
+// (lamp-0.5m, 1m, 2m and two-lamps, scene seeds 11 and 12, estimate seeds 1 and 2, as the
+// benchmark's first seeds): at least 8 inside their 95 % regions (squared Mahalanobis
+// distance 7.81) and the mean squared distance within 2x of 3, its value for a calibrated
+// region in three dimensions (regions 10x too large in variance average 0.3, 10x too small
+// 30). Measured: all 10 inside, mean 2.7 (with the plain sandwich, before each block was
+// left out in turn: 8 inside, mean 5.0).
+TEST(LampRecovery, TheTrueLampsLieInTheirRegionsAsOftenAsTheRegionsSay) {
+  int inside = 0, lamps = 0;
+  double sum = 0;
+  for (const char* name : {"lamp-0.5m", "lamp-1m", "lamp-2m", "two-lamps"})
+    for (int seed : {1, 2}) {
+      SynthOptions so;
+      so.seed = 10 + seed;
+      const SynthScene s = MakeSynth(name, so, "");
+      EstimateOptions eo;
+      eo.render = false;
+      eo.tracer.seed = seed;
+      const EstimateResult r = Estimate(s.bundle, eo);
+      const std::vector<PointLight> found = r.lighting.Of<PointLight>();
+      ASSERT_EQ(found.size(), s.lighting.lights.size()) << name;
+      const std::size_t first = r.lighting.lights.size() - found.size();  // directional lights first
+      for (const SphereLight& truth : s.lighting.lights) {
+        std::size_t k = 0;
+        for (std::size_t j = 1; j < found.size(); ++j)
+          if ((found[j].position - truth.position).norm() < (found[k].position - truth.position).norm()) k = j;
+        const double m = SquaredMahalanobis(truth.position - found[k].position, r.uncertainty[first + k].shape_covariance);
+        std::printf("%s seed %d: %.2f cm off, squared Mahalanobis distance %.2f\n", name, seed,
+                    100 * (found[k].position - truth.position).norm(), m);
+        inside += m <= kChiSquare95Dim3, sum += m, ++lamps;
+      }
+    }
+  std::printf("%d of %d inside their 95 %% regions, mean squared distance %.2f\n", inside, lamps, sum / lamps);
+  EXPECT_GE(inside, 8);
+  EXPECT_GT(sum / lamps, 3 / 2.0);
+  EXPECT_LT(sum / lamps, 3 * 2.0);
 }
 
 // lamp-0.5m, the stiffest: 1.1-1.2 cm off and beyond the noise 6.2-7.0 % / 5.6-7.6 % over

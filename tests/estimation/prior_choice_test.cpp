@@ -38,5 +38,20 @@ TEST(PriorChoice, TheStrongestWithinOneStandardErrorOfItsDifferenceIsKept) {
   EXPECT_EQ(k, 0u);
 }
 
+TEST(PriorChoice, AWeakerWeightWithinTheErrorIsTakenWhenTheStrongestGainsTooLittle) {
+  // Weight 0 (the given one) loses 100 in every block's sum; weight 2 is the least (96, a
+  // 4 % gain); weight 1 (97.6, 2.4 %) is within one standard error of it (its differences
+  // (-1, 1.6, -1, 2) have a standard error of sqrt(4 * 7.92 / 3) = 3.25 > 1.6) but gains
+  // under 3 %: weight 2 is taken, not the given one. With 5 % asked none gains enough.
+  const std::vector<std::uint8_t> used = {1, 1, 1, 1};
+  const std::vector<std::vector<double>> block_loss = {{25, 25, 25, 25}, {23, 25.6, 23, 26}, {24, 24, 24, 24}};
+  std::vector<double> loss, se;
+  EXPECT_EQ(StrongestWithinOneStandardError(block_loss, used, &loss, &se), 1u);
+  EXPECT_NEAR(se[1], std::sqrt(4 * 7.92 / 3), 1e-12);
+  EXPECT_EQ(StrongestThatGains(block_loss, used, 0.03, &loss, &se), 2u);
+  EXPECT_EQ(StrongestThatGains(block_loss, used, 0.05, &loss, &se), 0u);
+  EXPECT_EQ(StrongestThatGains(block_loss, used, 0.02, &loss, &se), 1u);
+}
+
 }  // namespace
 }  // namespace lp
