@@ -1,6 +1,7 @@
 // Scene-bundle and PLY input: round trips, and clear errors on bad input.
 #include <cerrno>
 #include <filesystem>
+#include <vector>
 #include <fstream>
 
 #include <gtest/gtest.h>
@@ -20,10 +21,23 @@ namespace {
 using test::ErrorOf;
 namespace fs = std::filesystem;
 
+/// The directories TempDir made, removed when the test program's tests end (each test
+/// runs as its own process under ctest: nothing is left in the temporary directory).
+class TempDirs : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    std::error_code ec;
+    for (const fs::path& d : made) fs::remove_all(d, ec);
+  }
+  static inline std::vector<fs::path> made;
+};
+const ::testing::Environment* const kTempDirs = ::testing::AddGlobalTestEnvironment(new TempDirs);
+
 fs::path TempDir(const std::string& name) {
   const fs::path d = fs::temp_directory_path() / ("lp_io_test_" + name + "_" + std::to_string(::getpid()));
   fs::remove_all(d);
   fs::create_directories(d);
+  TempDirs::made.push_back(d);
   return d;
 }
 
