@@ -26,7 +26,10 @@ std::pair<std::vector<int>, double> Estimator::BrightestNeighbourhood() const {
 /// want it, as a lamp is. True when one was added.
 bool Estimator::FitDirectionalLight(RoundInfo* info) {
   CheckCancel();
-  if (vertices_.size() == 0) return false;  // no near-light model: no vertices to light
+  if (vertices_.size() == 0) {  // no near-light model: no vertices to light
+    Progress("no directional light tried: no shading vertices were gathered this round");
+    return false;
+  }
   DirectionalProposal proposal;
   if (!ProposeDirectionalLight(&proposal)) return false;
   SunFit fit(*this, info);

@@ -347,6 +347,27 @@ double EdgeError(const ImageRGB& render, const ImageRGB& image) {
 // estimator 5), 0 against a synth of 8 bounces, 6x too dim with the bounces matched. So here
 // the map's sky is only bounded (at most 10x the truth, nothing from below the horizon);
 // that it is in the map is asserted on Cycles' sun (64 bounces: within 20 %, cycles_test).
+// The round that looks for a directional light gathers the shading vertices it needs from
+// the map before it (round 1's, on a grid of the pixels and sampled uniformly): on
+// sun-and-sky's scene seed 108, estimate seed 8 that map's brightest neighbourhood held 0.225
+// of its power, under the 0.25 a proposal asks, while round 2's held 0.43; the vertices were
+// not gathered and no directional light was tried (the benchmark over 200 cases). Now the
+// sun comes back (measured 0.24 degrees off).
+TEST(LampRecovery, TheSunIsTriedWhereRoundOnesMapSpreadIt) {
+  SynthOptions so;
+  so.seed = 108;
+  const SynthScene s = MakeSynth("sun-and-sky", so, "");
+  EstimateOptions eo;
+  eo.render = false;
+  eo.tracer.seed = 8;
+  const EstimateResult r = Estimate(s.bundle, eo);
+  ASSERT_EQ(r.lighting.Count<DirectionalLight>(), 1u);
+  const Eigen::Vector3d towards = (s.lighting.lights.at(0).position - s.lighting.center).normalized();
+  const double angle = std::acos(std::min(1.0, r.lighting.Of<DirectionalLight>()[0].direction.dot(towards))) * 180 / kPi;
+  std::printf("the sun %.2f degrees off\n", angle);
+  EXPECT_LT(angle, 1.0);
+}
+
 TEST(LampRecovery, TheSunComesBackAsADirectionalLight) {
   SynthOptions so;
   so.held_out_views = 1;
