@@ -14,7 +14,8 @@
 #   two-lamps a warm lamp (140 W, 1.73 m from the centre) and a cool one half as strong (70 W,
 #             1.65 m) on either side of the corner, 5 cm each, no sky (issue 42's valley);
 #   hdr       Poly Haven's studio_small_03 (assets/hdri, CC0) as the world, as lightprobe
-#             reads an equirect map (`lightprobe render --envmap` of the same file is its truth).
+#             reads an equirect map (`lightprobe render --envmap` of the same file is its truth);
+#             each view's mask0.png keeps the pixels whose ray hits the room.
 #
 #   blender -b -noaudio --factory-startup --python scripts/make-cycles-sun.py -- OUT_DIR [SPP] [KIND]
 #
@@ -172,6 +173,26 @@ for name, position, power, colour in LAMPS:
                          "radiant_intensity_rgb_W_per_sr": intensity, "intensity_image_units": intensity,
                          "distance_from_centre": (position - CENTRE).length})
 
+def write_room_mask(path, eye, R, fx, width, height):
+    """mask0.png: 255 where the pixel centre's ray (OpenCV camera, R its world-from-camera
+    rotation) hits one of the quads, else 0."""
+    from mathutils.geometry import intersect_ray_tri
+    tris = [(c[0], c[1], c[2]) for c, _ in quads] + [(c[0], c[2], c[3]) for c, _ in quads]
+    tris = [tuple(mathutils.Vector(p) for p in t) for t in tris]
+    img = bpy.data.images.new("mask", width, height, alpha=False)
+    pixels = [0.0] * (4 * width * height)
+    for v in range(height):
+        for u in range(width):
+            d = R @ mathutils.Vector(((u - (width - 1) / 2) / fx, (v - (height - 1) / 2) / fx, 1.0))
+            hit = any(intersect_ray_tri(a, b, c, d, eye, True) is not None for a, b, c in tris)
+            i = 4 * ((height - 1 - v) * width + u)  # Blender's rows run bottom up
+            pixels[i:i + 4] = [1.0 if hit else 0.0] * 3 + [1.0]
+    img.pixels = pixels
+    img.filepath_raw = path
+    img.file_format = "PNG"
+    img.save()
+
+
 # Cameras: OpenCV convention in scene.json (x right, y down, z forward), Blender's looks down
 # its -z with +y up. Principal point at the image centre: (W - 1) / 2 with pixel centres at
 # integers. View 0 is fitted, view 1 held out.
@@ -239,6 +260,11 @@ for k, (eye, target) in enumerate(VIEWS):
     fx = cam_data.lens / cam_data.sensor_width * W
     view = {"image": "view0.exr", "width": W, "height": H, "fx": fx, "fy": fx, "cx": (W - 1) / 2,
             "cy": (H - 1) / 2, "world_from_camera": wfc}
+    if KIND == "hdr":
+        # A scan has no depth past the room: only the pixels whose ray hits the mesh are used
+        # (mask0.png, 255 there; unmasked, the softboxes seen directly dominate the fit).
+        write_room_mask(os.path.join(d, "mask0.png"), eye, R, fx, W, H)
+        view["mask"] = "mask0.png"
     with open(os.path.join(d, "scene.json"), "w") as f:
         json.dump({"mesh": "mesh.ply", "up": [0, 0, 1], "views": [view]}, f, indent=2)
     with open(os.path.join(d, "truth.json"), "w") as f:

@@ -299,6 +299,31 @@ TEST(Cycles, TwoLampsOfDifferentBrightnessComeBackEach) {
   EXPECT_LT(relit, 1.25 * floor);
 }
 
+// Issue 42: a real HDR world (tests/data/cycles/hdr, KIND hdr: Poly Haven's studio_small_03,
+// small bright softboxes, CC0, as lightprobe reads the equirect), both views masked to the
+// pixels that see the room (mask0.png): the held-out view relit within 1.25x the same render
+// (256 spp) of the true world on a fine grid (91 rings, ~2 degree cells). Measured: a
+// directional light kept for the main softbox, alpha 3; relit 4.85 % against 7.3 % (0.66x;
+// at 1024 spp 3.4 % against 3.95 %, 0.87x: the small bright softboxes are noisy to render);
+// the true world on the estimate's 522 cells 10.2 % (they smear the softboxes' shadows, the
+// directional light keeps them sharp).
+TEST(Cycles, AnHdrWorldRelightsWithinTheTruthsError) {
+  const SceneBundle bundle = LoadSceneBundle(CyclesDir("hdr"));
+  EstimateOptions o;
+  o.render = false;
+  const EstimateResult r = Estimate(bundle, o);
+  const ImageRGB hdr = ReadHdr(fs::path(LIGHTPROBE_SOURCE_DIR) / "assets" / "hdri" / "studio_small_03_1k.hdr");
+  const SceneBundle held = LoadSceneBundle(CyclesDir("hdr_holdout"));
+  const EnvMap fine(91, bundle.up);  // ~2 degree cells, as synth renders a measured map
+  const double relit = RelitError(held, r.env, r.lighting), floor = RelitError(held, fine, {fine.FromEquirect(hdr, 64), {}}),
+               on_cells = RelitError(held, r.env, {r.env.FromEquirect(hdr), {}});
+  std::printf("HDR world: prior %g, %zu directional and %zu point light(s); held-out relit %.4f (the true world %.4f: "
+              "%.2fx; on the estimate's cells %.4f)\n",
+              r.prior.chosen, r.lighting.Count<DirectionalLight>(), r.lighting.Count<PointLight>(), relit, floor,
+              relit / floor, on_cells);
+  EXPECT_LT(relit, 1.25 * floor);
+}
+
 /// Mean of one channel of an image over a block of pixels [x0, x1) x [y0, y1).
 double BlockMean(const ImageRGB& im, int c, int x0, int x1, int y0, int y1) {
   double s = 0;
