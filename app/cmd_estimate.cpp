@@ -152,19 +152,22 @@ static void WriteConvergence(const fs::path& out, const EstimateResult& r) {
   WriteConvergencePlot(out / "convergence.png", r.convergence);
 }
 
-/// render_view<k>.exr/.png and error_view<k>.png of view k; returns its entry of report.json.
-static json WriteView(const fs::path& out, std::size_t k, const View& v, const ImageRGB& img) {
-  const std::string name = "render_view" + std::to_string(k);
+/// render_view<k>.exr/.png (the clean render), fit_view<k>.exr (the fit) and
+/// error_view<k>.png of view k; returns its entry of report.json.
+static json WriteView(const fs::path& out, std::size_t k, const View& v, const ImageRGB& img, const ImageRGB& fit) {
+  const std::string name = "render_view" + std::to_string(k), fit_name = "fit_view" + std::to_string(k) + ".exr";
   WriteExr(out / (name + ".exr"), img);
+  WriteExr(out / fit_name, fit);
   // Same exposure for render and error image: the observed image's white level.
   const float white = WhiteLevel(v);
   WritePngSrgb(out / (name + ".png"), img, 1 / white);
-  const std::vector<float> err = ErrorImage(img, v);
-  double se = 0;
-  for (float e : err)
-    if (e >= 0) se += 3.0 * e * e;
-  WriteHeatmapPng(out / ("error_view" + std::to_string(k) + ".png"), img.width, img.height, err,
+  // The picture of the error from the clean render; the number from the fit (what the
+  // estimate minimized; the clean render's samples depend on the time it was given).
+  WriteHeatmapPng(out / ("error_view" + std::to_string(k) + ".png"), img.width, img.height, ErrorImage(img, v),
                   kErrorDisplayFraction * white);
+  double se = 0;
+  for (float e : ErrorImage(fit, v))
+    if (e >= 0) se += 3.0 * e * e;
   const int n = static_cast<int>(std::count(v.valid.begin(), v.valid.end(), 1));
   double mean_obs = 0;
   for (std::size_t i = 0; i < v.valid.size(); ++i)
@@ -172,6 +175,7 @@ static json WriteView(const fs::path& out, std::size_t k, const View& v, const I
   mean_obs = n > 0 ? mean_obs / n : 0.0;
   const double render_rmse = n > 0 ? std::sqrt(se / (3.0 * n)) : 0.0;
   return {{"render", name + ".exr"},
+          {"fit", fit_name},
           {"error_image", "error_view" + std::to_string(k) + ".png"},
           {"valid_pixels", n},
           {"masked_out", v.masked_out},
@@ -200,7 +204,8 @@ static json SettingsJson(const EstimateOptions& o, const EstimateResult& r) {
 /// report.json's "seconds": where the time went.
 static json SecondsJson(const EstimateResult& r, double command_seconds) {
   json seconds = {{"total", command_seconds}, {"bvh", r.bvh_seconds}, {"trace", r.trace.seconds},
-                  {"render", r.render_seconds}, {"estimate", r.total_seconds}};
+                  {"render", r.render_seconds}, {"clean_render", r.clean_render_seconds},
+                  {"estimate", r.total_seconds}};
   double solve = 0;
   for (const auto& ri : r.rounds) solve += ri.solve_seconds;
   seconds["solve"] = solve;
@@ -330,12 +335,16 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
   WriteConvergence(out, r);
   WriteLights(out, r);
   json views = json::array();
-  for (std::size_t k = 0; k < r.renders.size(); ++k) views.push_back(WriteView(out, k, bundle.views[k], r.renders[k]));
+  for (std::size_t k = 0; k < r.renders.size(); ++k)
+    views.push_back(WriteView(out, k, bundle.views[k], r.renders[k], r.fits[k]));
   json rep;
   rep["scene"] = fs::absolute(bundle.dir).lexically_normal().string();
   rep["settings"] = SettingsJson(o, r);
   rep["seconds"] = SecondsJson(r, command_seconds);
   rep["albedo"] = WriteAlbedo(out, bundle, r);
+  rep["clean_render"] = json::array();  // its passes: error (noise) against run time
+  for (const RenderPass& p : r.render_passes)
+    rep["clean_render"].push_back({{"spp", p.spp}, {"seconds", p.seconds}, {"relative_noise", p.noise}});
   rep["left_out"] = LeftOutJson(bundle, r);
   rep["trace"] = {{"paths", r.trace.paths},
                   {"rays", r.trace.rays},

@@ -14,8 +14,25 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 #define LP_GET(expr) [](const EstimateOptions& o) -> double { return static_cast<double>(o.expr); }
 #define LP_SET(expr, T) [](EstimateOptions* o, double v) { o->expr = static_cast<T>(v); }
 
-std::vector<EstimateOption> MakeTable() {
+/// The final renders' options (EstimateOptions::render_spp, render_noise, render_seconds).
+std::vector<EstimateOption> RenderOptions() {
   return {
+      {"render-spp", "render_spp",
+       "samples per pixel of the final relit render (render_view*), every pixel traced again; 0 = a clean render "
+       "(--render-noise)",
+       Type::kInt, 0, kInf, false, LP_GET(render_spp), LP_SET(render_spp, int), "", 0, 0, {}},
+      {"render-noise", "render_noise",
+       "the clean render (render_view*) is traced in passes until its relative noise is at most this; 0 = write the "
+       "fit as the render",
+       Type::kReal, 0, 1, false, LP_GET(render_noise), LP_SET(render_noise, double), "", 0, 0, {}},
+      {"render-seconds", "render_seconds",
+       "the clean render's passes stop before this many seconds; 0 = as long as the estimate took (at least 2)",
+       Type::kReal, 0, kInf, false, LP_GET(render_seconds), LP_SET(render_seconds, double), "", 0, 0, {}},
+  };
+}
+
+std::vector<EstimateOption> MakeTable() {
+  std::vector<EstimateOption> table = {
       {"rings", "rings", "rings of the environment map (21 -> 522 directions)", Type::kInt, kMinRings, kMaxRings, false,
        LP_GET(rings), LP_SET(rings, int), "rings", 5, 41, {}},
       {"spp", "spp",
@@ -70,10 +87,6 @@ std::vector<EstimateOption> MakeTable() {
        "seen) where it is finer; 0 = trace the bundle's mesh as it is",
        Type::kReal, 0, kMaxTracePixels, false, LP_GET(trace_pixels), LP_SET(trace_pixels, double),
        "traced mesh (pixels)", 0, 4, {}},
-      {"render-spp", "render_spp",
-       "samples per pixel of the final relit render, every pixel traced again; 0 = the fit itself (A lambda) where "
-       "it used the pixels, the rest traced at 64",
-       Type::kInt, 0, kInf, false, LP_GET(render_spp), LP_SET(render_spp, int), "", 0, 0, {}},
       {"point-lights", "point_lights",
        "point lights (lamps in the room) at most, beside the environment map; 0 = the map alone", Type::kInt, 0, 16,
        false, LP_GET(point_lights.max_lights), LP_SET(point_lights.max_lights, int), "point lights", 0, 8, {}},
@@ -86,6 +99,8 @@ std::vector<EstimateOption> MakeTable() {
       {"seed", "seed", "random seed (same seed => same result for any thread count)", Type::kInt, 0, 9007199254740992.0,
        false, LP_GET(tracer.seed), LP_SET(tracer.seed, std::uint64_t), "", 0, 0, {}},
   };
+  for (EstimateOption& o : RenderOptions()) table.push_back(std::move(o));
+  return table;
 }
 
 #undef LP_GET

@@ -64,6 +64,10 @@ constexpr double kMaxTracePixels = 64;
 constexpr int kMaxAlbedoPasses = 5;
 /// Samples per pixel of the pixels the fit did not use in the default final render.
 constexpr int kMaskedRenderSpp = 64;
+/// The clean render (EstimateOptions::render_noise) stops at this many samples per pixel.
+constexpr int kMaxCleanRenderSpp = 16384;
+/// The clean render's time when EstimateOptions::render_seconds is 0 is at least this.
+constexpr double kMinCleanRenderSeconds = 2;
 /// EstimateOptions::rings is kMinRings .. kMaxRings.
 constexpr int kMinRings = 2, kMaxRings = 181;
 
@@ -167,12 +171,22 @@ struct EstimateOptions {
   double change_threshold = 0.02;
   /// Average A over rounds, weighted by sample counts (all rounds are unbiased).
   bool combine_rounds = true;
-  /// The final relit render of the fitted views: 0 (the default) renders their valid pixels
-  /// as the fit itself, the last round's A lambda plus the lights' columns (no new paths;
-  /// its error is the fit's, in-sample), and traces only the pixels the fit did not use
-  /// (masked, no depth) at kMaskedRenderSpp; N > 0 traces every pixel again at N samples
-  /// (an independent render, at N / tracer.spp of a round's cost per pixel).
+  /// The final relit render of the fitted views (EstimateResult::renders): N > 0 traces every
+  /// pixel again at N samples (an independent render, at N / tracer.spp of a round's cost per
+  /// pixel); 0 (the default): the clean render below. (EstimateResult::fits is the fit
+  /// itself either way: its valid pixels the last round's A lambda plus the lights' columns,
+  /// no new paths; the pixels it did not use, masked or without depth, traced at
+  /// kMaskedRenderSpp.)
   int render_spp = 0;
+  /// The clean render of the fitted views (EstimateResult::renders, render_view*; the fit
+  /// itself is EstimateResult::fits): every pixel traced again in passes that double the
+  /// samples (ProgressiveRender) until its relative noise is at most this, or the next pass
+  /// would end past render_seconds; 0: no clean render (renders are the fit). Ignored when
+  /// render_spp > 0.
+  double render_noise = 0.02;
+  /// The clean render's time; 0 (the default): as long as the estimate took, at least
+  /// kMinCleanRenderSeconds.
+  double render_seconds = 0;
   bool render = true;
   /// Wall-clock origin for the convergence log (seconds already spent before Estimate).
   double time_offset = 0;

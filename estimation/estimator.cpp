@@ -490,17 +490,46 @@ void Estimator::RenderFittedViews() {
   Stopwatch rs;
   TracerOptions topt = opt_.tracer;
   topt.seed = opt_.tracer.seed * 1000003ull + 999;
-  topt.spp = opt_.render_spp > 0 ? opt_.render_spp : kMaskedRenderSpp;
+  topt.spp = kMaskedRenderSpp;
   topt.cancelled = opt_.cancelled;
   CellSampler sampler(env_, res_.lighting.map, reachable_, opt_.tracer.nee_floor);
-  const bool traced = opt_.render_spp > 0;  // every pixel; else the fit and the pixels it did not use
-  res_.renders = RenderLighting(*scene_, env_, res_.lighting, sampler, traced ? bundle_.views : UnusedPixels(views_), topt, traced);
-  if (!traced) PutFit(&res_.renders);
+  // The fit where it used the pixels, the rest traced.
+  res_.fits = RenderLighting(*scene_, env_, res_.lighting, sampler, UnusedPixels(views_), topt, false);
+  PutFit(&res_.fits);
+  CheckCancel();
+  if (opt_.render_spp > 0) {  // every pixel traced again at render_spp
+    topt.spp = opt_.render_spp;
+    res_.renders = RenderLighting(*scene_, env_, res_.lighting, sampler, bundle_.views, topt, true);
+  } else if (opt_.render_noise > 0) {
+    res_.renders = CleanRender(sampler, topt);
+  } else {
+    res_.renders = res_.fits;
+  }
   CheckCancel();
   res_.render_seconds = rs.Seconds();
-  Progress(Fmt(traced ? "relit %zu view(s) in %.2f s (%d samples per pixel)"
-                      : "relit %zu view(s) in %.2f s (the fit, and the pixels it did not use at %d samples per pixel)",
-               bundle_.views.size(), res_.render_seconds, topt.spp));
+  Progress(Fmt("relit %zu view(s) in %.2f s (the fit; ", bundle_.views.size(), res_.render_seconds) +
+           (opt_.render_spp > 0        ? Fmt("the render at %d samples per pixel)", opt_.render_spp)
+            : !res_.render_passes.empty() ? Fmt("the clean render at %d samples per pixel, noise %.3g)",
+                                                res_.render_passes.back().spp, res_.render_passes.back().noise)
+                                          : std::string("the render is the fit)")));
+}
+
+/// The clean render (ProgressiveRender from kMaskedRenderSpp samples a half): its passes in
+/// res_.render_passes and the progress lines.
+std::vector<ImageRGB> Estimator::CleanRender(const CellSampler& sampler, TracerOptions topt) {
+  topt.seed = opt_.tracer.seed * 1000003ull + 998;
+  topt.spp = kMaskedRenderSpp / 2;
+  const double seconds =
+      opt_.render_seconds > 0 ? opt_.render_seconds : std::max(kMinCleanRenderSeconds, clock_.Seconds());
+  const Stopwatch clock;
+  std::vector<ImageRGB> clean = ProgressiveRender(*scene_, env_, res_.lighting, sampler, bundle_.views, topt, opt_.render_noise,
+                           seconds, kMaxCleanRenderSpp, &res_.render_passes, [&](const RenderPass& p) {
+                             CheckCancel();
+                             Progress(Fmt("clean render: %d samples per pixel in %.2f s, relative noise %.3g", p.spp,
+                                          p.seconds, p.noise));
+                           });
+  res_.clean_render_seconds = clock.Seconds();
+  return clean;
 }
 
 /// The views with only the pixels the fit did not use marked valid.

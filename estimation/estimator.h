@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "estimation/estimate_options.h"
+#include "estimation/light_render.h"
 #include "estimation/light_uncertainty.h"
 #include "estimation/lighting.h"
 #include "estimation/objective.h"
@@ -133,12 +134,21 @@ struct EstimateResult {
   /// are no lights.
   std::vector<LightUncertainty> uncertainty;
   std::vector<std::uint8_t> left_out;  ///< per cell: 1 = no sampled path reached it
-  std::vector<ImageRGB> renders;       ///< relit views (every pixel), when options.render
+  /// Relit views (every pixel), when options.render: the clean render (render_noise, or
+  /// render_spp), else the fit.
+  std::vector<ImageRGB> renders;
+  /// The fit itself on the views' pixels it used (the last round's A lambda plus the lights'
+  /// columns), the pixels it did not use traced at kMaskedRenderSpp, when options.render.
+  std::vector<ImageRGB> fits;
+  /// The clean render's passes (empty when there was none).
+  std::vector<RenderPass> render_passes;
   std::vector<ConvergenceRow> convergence;
   std::vector<RoundInfo> rounds;
   TraceStats trace;
   double image_mean = 1;  ///< normalization
-  double bvh_seconds = 0, total_seconds = 0, render_seconds = 0;
+  /// total_seconds: the estimate, the fit's render included and the clean render (its own
+  /// clean_render_seconds, after the estimate) not; render_seconds: both renders.
+  double bvh_seconds = 0, total_seconds = 0, render_seconds = 0, clean_render_seconds = 0;
   /// The mesh the estimator traced (EstimateOptions::trace_pixels): its triangles and
   /// vertices, the grid it was clustered on (m; 0: the bundle's mesh as it is) and the
   /// seconds clustering took (in bvh_seconds too).

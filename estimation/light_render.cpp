@@ -1,6 +1,9 @@
 #include "estimation/light_render.h"
 
+#include <cmath>
+
 #include "common/error.h"
+#include "common/timer.h"
 #include "estimation/lights/light.h"
 #include "estimation/pixel_loop.h"
 
@@ -22,6 +25,76 @@ std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, 
       return Irradiance(scene, lighting.lights, off, hit.shading, hit.geometric, key, &rays);
     };
   return RenderEnvironment(scene, env, views, lighting.map, sampler, options, all_pixels, lamps, stats);
+}
+
+namespace {
+
+/// Half the difference of two renders' means (sums over `n` samples each), relative: the RMS
+/// over the views' valid pixels and channels, over the mean of their mean there.
+double HalvesNoise(const std::vector<ImageRGB>& a, const std::vector<ImageRGB>& b, const std::vector<View>& views) {
+  double sq = 0, sum = 0;
+  std::size_t count = 0;
+  for (std::size_t v = 0; v < views.size(); ++v)
+    for (std::size_t p = 0; p < a[v].pixels(); ++p) {
+      if (!views[v].valid.empty() && !views[v].valid[p]) continue;
+      for (int c = 0; c < 3; ++c) {
+        const double x = a[v].data[3 * p + c], y = b[v].data[3 * p + c];
+        sq += 0.25 * (x - y) * (x - y);
+        sum += 0.5 * (x + y);
+        ++count;
+      }
+    }
+  return count > 0 && sum > 0 ? std::sqrt(sq / count) / (sum / count) : 0.0;
+}
+
+/// `sum` += `add` x `weight`, image by image.
+void Accumulate(std::vector<ImageRGB>* sum, const std::vector<ImageRGB>& add, double weight) {
+  if (sum->empty()) {
+    *sum = add;
+    for (ImageRGB& im : *sum)
+      for (float& x : im.data) x = static_cast<float>(x * weight);
+    return;
+  }
+  for (std::size_t v = 0; v < add.size(); ++v)
+    for (std::size_t i = 0; i < add[v].data.size(); ++i) (*sum)[v].data[i] += static_cast<float>(add[v].data[i] * weight);
+}
+
+}  // namespace
+
+std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& env, const Lighting& lighting,
+                                        const CellSampler& sampler, const std::vector<View>& views,
+                                        const TracerOptions& options, double noise, double seconds, int max_spp,
+                                        std::vector<RenderPass>* passes,
+                                        const std::function<void(const RenderPass&)>& on_pass) {
+  Stopwatch clock;
+  std::vector<ImageRGB> half[2], mean;
+  TracerOptions o = options;
+  int each = 0;  // samples per pixel in each half so far
+  double last_pass = 0;
+  passes->clear();
+  for (int pass = 0;; ++pass) {
+    const double start = clock.Seconds();
+    for (int h = 0; h < 2; ++h) {
+      o.seed = options.seed * 1000003ull + 2 * static_cast<std::uint64_t>(pass) + h;
+      Accumulate(&half[h], RenderLighting(scene, env, lighting, sampler, views, o, true), o.spp);
+    }
+    each += o.spp;
+    last_pass = clock.Seconds() - start;
+    std::vector<ImageRGB> a = half[0], b = half[1];
+    for (std::size_t v = 0; v < a.size(); ++v)
+      for (std::size_t i = 0; i < a[v].data.size(); ++i) {
+        a[v].data[i] /= static_cast<float>(each);
+        b[v].data[i] /= static_cast<float>(each);
+      }
+    mean = a;
+    for (std::size_t v = 0; v < a.size(); ++v)
+      for (std::size_t i = 0; i < a[v].data.size(); ++i) mean[v].data[i] = 0.5f * (a[v].data[i] + b[v].data[i]);
+    passes->push_back({2 * each, clock.Seconds(), HalvesNoise(a, b, views)});
+    if (on_pass) on_pass(passes->back());
+    o.spp *= 2;
+    if (passes->back().noise <= noise || clock.Seconds() + 2 * last_pass > seconds || 2 * (each + o.spp) > max_spp)
+      return mean;
+  }
 }
 
 std::vector<ImageRGB> RenderLights(const RayTracer& scene, const std::vector<View>& views,

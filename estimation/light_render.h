@@ -1,6 +1,7 @@
 #pragma once
 /// Renders under the lights (every kind, estimation/lights/light.h) beside the map: the
 /// forward model of the lights' columns, and the final relit render.
+#include <functional>
 #include <vector>
 
 #include "common/image.h"
@@ -20,6 +21,25 @@ namespace lp {
 std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, const Lighting& lighting,
                                      const CellSampler& sampler, const std::vector<View>& views,
                                      const TracerOptions& options, bool all_pixels, TraceStats* stats = nullptr);
+
+/// One pass of ProgressiveRender: the samples per pixel so far, the seconds since it began,
+/// and the estimated relative noise of the render so far.
+struct RenderPass {
+  int spp = 0;
+  double seconds = 0, noise = 0;
+};
+
+/// A clean render of every pixel of `views` under `lighting` (RenderLighting), traced in
+/// passes: two independent halves, each given options.spp samples in the first pass and
+/// twice the last pass's in each after, until the relative noise of their mean (the RMS of
+/// half their difference over the valid pixels and channels, over the mean's mean there) is
+/// at most `noise`, or the next pass would end past `seconds`, or the samples reach
+/// `max_spp`. Each pass is given to `on_pass` (and kept in `passes`).
+std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& env, const Lighting& lighting,
+                                        const CellSampler& sampler, const std::vector<View>& views,
+                                        const TracerOptions& options, double noise, double seconds, int max_spp,
+                                        std::vector<RenderPass>* passes,
+                                        const std::function<void(const RenderPass&)>& on_pass = {});
 
 /// Renders each view under the lights alone, of any kind (every pixel when `all_pixels`,
 /// else only the valid ones): the forward model of the columns, with options.spp paths per

@@ -3,12 +3,12 @@
 convergence.csv and report.json must hold the same decisions (keys, strings, counts, the
 rows of the convergence log) and the same numbers within a relative tolerance (default
 1e-6), leaving out what measures time or the machine (keys and columns naming seconds,
-time, threads, wall) and the bundle's path ("scene"). Prints each difference and exits 1 when there is any.
+time, threads, wall), the bundle's path ("scene") and the clean render's passes. Prints each difference and exits 1 when there is any.
 Usage: compare-results.py A B [--rtol 1e-6]"""
 import argparse, csv, json, math, os, sys
 
 SKIP = ("second", "time", "thread", "wall", "hardware")
-SKIP_KEYS = ("scene",)  # the bundle's path
+SKIP_KEYS = ("scene", "clean_render")  # the bundle's path; the clean render's passes (as many as its time allows)
 
 
 def skipped(key):

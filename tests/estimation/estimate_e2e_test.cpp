@@ -161,8 +161,8 @@ TEST(EstimateEndToEnd, ImageScaledBy1000ScalesTheEstimate) {
 }
 
 TEST(EstimateEndToEnd, TheRelitViewIsTheFitWhereItUsedThePixelsAndARenderElsewhere) {
-  // By default (render_spp 0) the relit views are the fit itself (A lambda) on the pixels
-  // the fit used, and traced on the others: their error there is the fit's, the pixels
+  // The fit's images (EstimateResult::fits, fit_view*.exr) are the fit itself (A lambda) on
+  // the pixels the fit used, and traced on the others: their error there is the fit's, the pixels
   // left out are lit, and the image is the one a render traced anew (render_spp > 0, the
   // same estimate) gives, pixel for pixel within its noise (a pixel put in another's place
   // would not be).
@@ -177,8 +177,8 @@ TEST(EstimateEndToEnd, TheRelitViewIsTheFitWhereItUsedThePixelsAndARenderElsewhe
   eo.max_rounds = 2;
   eo.change_threshold = 0;
   const EstimateResult fit = Estimate(b, eo);
-  ASSERT_EQ(fit.renders.size(), 1u);
-  const ImageRGB& a = fit.renders[0];
+  ASSERT_EQ(fit.fits.size(), 1u);
+  const ImageRGB& a = fit.fits[0];
   EXPECT_NEAR(RelativeRmse(a, v), fit.final_relative_rmse, 1e-5 * fit.final_relative_rmse);
   eo.render_spp = 1024;
   const EstimateResult traced = Estimate(b, eo);
