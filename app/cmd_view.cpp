@@ -26,10 +26,9 @@ ui::ViewerOptions DefaultViewerOptions() {
                                 const EstimateResult& result) {
     WriteEstimateOutputs(dir, bundle, options, result, result.total_seconds);
   };
-  // The window is interactive: the relit keyframes are the fit itself (no clean render yet:
-  // issue 44's progressive render in the viewer).
+  // The window is interactive: the relit keyframes are the fit until the job's clean render
+  // has its first pass (EstimateJob::CleanRender).
   o.estimate.render_spp = 0;
-  o.estimate.render_noise = 0;
   return o;
 }
 

@@ -523,7 +523,7 @@ std::vector<ImageRGB> Estimator::CleanRender(const CellSampler& sampler, TracerO
       opt_.render_seconds > 0 ? opt_.render_seconds : std::max(kMinCleanRenderSeconds, clock_.Seconds());
   const Stopwatch clock;
   std::vector<ImageRGB> clean = ProgressiveRender(*scene_, env_, res_.lighting, sampler, bundle_.views, topt, opt_.render_noise,
-                           seconds, kMaxCleanRenderSpp, &res_.render_passes, [&](const RenderPass& p) {
+                           seconds, kMaxCleanRenderSpp, &res_.render_passes, [&](const RenderPass& p, const std::vector<ImageRGB>&) {
                              CheckCancel();
                              Progress(Fmt("clean render: %d samples per pixel in %.2f s, relative noise %.3g", p.spp,
                                           p.seconds, p.noise));

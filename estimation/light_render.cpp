@@ -64,8 +64,7 @@ void Accumulate(std::vector<ImageRGB>* sum, const std::vector<ImageRGB>& add, do
 std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& env, const Lighting& lighting,
                                         const CellSampler& sampler, const std::vector<View>& views,
                                         const TracerOptions& options, double noise, double seconds, int max_spp,
-                                        std::vector<RenderPass>* passes,
-                                        const std::function<void(const RenderPass&)>& on_pass) {
+                                        std::vector<RenderPass>* passes, const RenderPassCallback& on_pass) {
   Stopwatch clock;
   std::vector<ImageRGB> half[2], mean;
   TracerOptions o = options;
@@ -90,7 +89,7 @@ std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& en
     for (std::size_t v = 0; v < a.size(); ++v)
       for (std::size_t i = 0; i < a[v].data.size(); ++i) mean[v].data[i] = 0.5f * (a[v].data[i] + b[v].data[i]);
     passes->push_back({2 * each, clock.Seconds(), HalvesNoise(a, b, views)});
-    if (on_pass) on_pass(passes->back());
+    if (on_pass) on_pass(passes->back(), mean);
     o.spp *= 2;
     if (passes->back().noise <= noise || clock.Seconds() + 2 * last_pass > seconds || 2 * (each + o.spp) > max_spp)
       return mean;

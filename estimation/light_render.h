@@ -34,12 +34,12 @@ struct RenderPass {
 /// twice the last pass's in each after, until the relative noise of their mean (the RMS of
 /// half their difference over the valid pixels and channels, over the mean's mean there) is
 /// at most `noise`, or the next pass would end past `seconds`, or the samples reach
-/// `max_spp`. Each pass is given to `on_pass` (and kept in `passes`).
+/// `max_spp`. Each pass is given to `on_pass` with the render so far (and kept in `passes`).
+using RenderPassCallback = std::function<void(const RenderPass&, const std::vector<ImageRGB>&)>;
 std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& env, const Lighting& lighting,
                                         const CellSampler& sampler, const std::vector<View>& views,
                                         const TracerOptions& options, double noise, double seconds, int max_spp,
-                                        std::vector<RenderPass>* passes,
-                                        const std::function<void(const RenderPass&)>& on_pass = {});
+                                        std::vector<RenderPass>* passes, const RenderPassCallback& on_pass = {});
 
 /// Renders each view under the lights alone, of any kind (every pixel when `all_pixels`,
 /// else only the valid ones): the forward model of the columns, with options.spp paths per

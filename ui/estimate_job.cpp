@@ -82,6 +82,7 @@ EstimateStatus EstimateJob::status() const {
 /// The estimate's options with the job's cancel token and its live reports.
 EstimateOptions EstimateJob::Callbacks() {
   EstimateOptions options = settings_.options;
+  options.render_noise = 0;  // the relit keyframes are the fit until the job's clean render (CleanRender)
   EstimateJob* self = this;
   options.cancelled = [self] { return self->cancelled(); };
   options.progress = [self](const std::string& line) { self->Update([&](EstimateStatus& s) { s.message = line; }); };
@@ -149,6 +150,41 @@ void EstimateJob::Run(SceneSource source) {
     for (const std::string& w : result->warnings) s.message += "; warning: " + w;
   });
   RefineLit(*scene, *result);
+  CleanRender(*scene, *result);
+}
+
+/// The keyframes' clean render under the estimate, pass by pass (ProgressiveRender, as
+/// `estimate` writes render_view*: until EstimateOptions::render_noise, for as long as the
+/// estimate took by default), each pass shown.
+void EstimateJob::CleanRender(const SceneBundle& scene, const EstimateResult& result) {
+  const EstimateOptions& o = settings_.options;
+  if (!o.render || o.render_spp > 0 || !(o.render_noise > 0) || cancelled()) return;
+  try {
+    Mesh mesh = scene.mesh;
+    if (result.albedo.size() == mesh.positions.size()) mesh.albedo = result.albedo;  // refined
+    const RayTracer tracer(std::move(mesh));
+    TracerOptions t = o.tracer;
+    t.spp = kMaskedRenderSpp / 2;
+    t.seed = o.tracer.seed * 1000003ull + 998;
+    t.cancelled = [this] { return cancelled(); };
+    const double seconds = o.render_seconds > 0 ? o.render_seconds : std::max(kMinCleanRenderSeconds, result.total_seconds);
+    std::vector<RenderPass> passes;
+    ProgressiveRender(tracer, result.env, result.lighting, CellSampler(result.env, result.lighting.map, {}, o.tracer.nee_floor),
+                      scene.views, t, o.render_noise, seconds, kMaxCleanRenderSpp, &passes,
+                      [&](const RenderPass& p, const std::vector<ImageRGB>& so_far) {
+                        if (cancelled()) throw Cancelled();
+                        auto renders = std::make_shared<const std::vector<ImageRGB>>(so_far);
+                        Update([&](EstimateStatus& s) {
+                          s.renders = renders;
+                          s.render_samples = p.spp;
+                          s.render_noise = p.noise;
+                          ++s.render_version;
+                        });
+                      });
+  } catch (const Cancelled&) {
+  } catch (const std::exception& e) {
+    Update([&](EstimateStatus& s) { s.message = std::string("clean render: ") + e.what(); });
+  }
 }
 
 /// Progressive per-vertex radiance under the estimate, then the error against the keyframes.

@@ -2,7 +2,7 @@
 /// One press of Estimate: its own thread, cancel token and status. The estimator thread
 /// (at a lower OS priority, so the window keeps its frame rate) builds the scene from the
 /// snapshot the session's worker took, runs Estimate on it, then refines the lit shading
-/// of its mesh until `lit_samples`. Destroying a job cancels it and joins its thread.
+/// of its mesh until `lit_samples`, then renders its keyframes clean (pass by pass). Destroying a job cancels it and joins its thread.
 #include <atomic>
 #include <memory>
 #include <mutex>
@@ -59,6 +59,7 @@ class EstimateJob {
   std::shared_ptr<const EstimateResult> EstimateScene(SceneSource source, std::shared_ptr<const SceneBundle>* scene);
   EstimateOptions Callbacks();
   void RefineLit(const SceneBundle& scene, const EstimateResult& result);
+  void CleanRender(const SceneBundle& scene, const EstimateResult& result);
   template <typename F>
   void Update(F f) {
     std::lock_guard<std::mutex> lock(mutex_);

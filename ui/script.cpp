@@ -196,6 +196,11 @@ bool WaitLit(const Call& c) {
   return c.v.est.lit_samples >= c.Arg(1, 1);
 }
 
+bool WaitRender(const Call& c) {
+  c.Timeout(c.Arg(2, 300), "the clean render");
+  return c.v.est.render_samples >= c.Arg(1, 1);
+}
+
 bool Export(const Call& c) {
   if (c.first()) {
     std::vector<ExportFormat> formats;  // `export DIR [blender,gltf,sh]`
@@ -299,6 +304,7 @@ const std::map<std::string, Handler>& Handlers() {
       {"wait-estimate", WaitEstimate},
       {"expect-estimate", ExpectEstimate},
       {"wait-lit", WaitLit},
+      {"wait-render", WaitRender},
       {"export", Export},
       {"wait-export", WaitExport},
       {"shading", SetShading},

@@ -27,6 +27,7 @@ const std::map<std::string, ScriptSyntax>& ScriptCommands() {
       {"wait-estimate", {0, 1}},
       {"expect-estimate", {1, 1}},
       {"wait-lit", {1, 2}},
+      {"wait-render", {1, 2}},
       {"export", {1, 2}},
       {"wait-export", {0, 1}},
       {"shading", {1, 1}},

@@ -419,6 +419,11 @@ struct Session::Impl {
         scene = st.scene;
         result = st.result;
         used = st.options;
+        if (result && st.renders) {  // render_view* from the clean render so far
+          auto clean = std::make_shared<EstimateResult>(*result);
+          clean->renders = *st.renders;
+          result = clean;
+        }
       }
     }
     std::string message;

@@ -79,6 +79,13 @@ struct EstimateStatus {
   std::shared_ptr<const std::vector<float>> error;
   int lit_samples = 0;
   std::uint64_t lit_version = 0;
+  /// The keyframes' clean render under the estimate (ProgressiveRender, after the lit
+  /// shading; EstimateOptions::render_noise), the latest pass's: its samples per pixel and
+  /// relative noise; null until its first pass.
+  std::shared_ptr<const std::vector<ImageRGB>> renders;
+  int render_samples = 0;
+  double render_noise = std::nan("");
+  std::uint64_t render_version = 0;
   ExportState export_state = ExportState::kIdle;
   std::string export_message;  ///< the last export's outcome, one line
 };

@@ -783,8 +783,10 @@ void Viewer::PanelKeyframe() {
   if (selected_keyframe_ < 0 || !est_.scene || selected_keyframe_ >= static_cast<int>(est_.scene->views.size()))
     return;
   const View& view = est_.scene->views[selected_keyframe_];
-  const bool have_render = est_.result && selected_keyframe_ < static_cast<int>(est_.result->renders.size());
-  const std::uint64_t version = est_.version * 64 + (have_render ? 1 : 0);
+  // The clean render once it has a pass, else the fit.
+  const std::vector<ImageRGB>* renders = est_.renders ? est_.renders.get() : est_.result ? &est_.result->renders : nullptr;
+  const bool have_render = renders && selected_keyframe_ < static_cast<int>(renders->size());
+  const std::uint64_t version = (est_.version * 4096 + est_.render_version) * 2 + (have_render ? 1 : 0);
   if (compare_keyframe_ != selected_keyframe_ || compare_version_ != version) {
     compare_keyframe_ = selected_keyframe_;
     compare_version_ = version;
@@ -792,7 +794,7 @@ void Viewer::PanelKeyframe() {
     const float white = WhiteLevel(view);
     compare_tex_[0].Upload(EncodeSrgb8(view.image, 1 / white));
     if (have_render) {
-      const ImageRGB& render = est_.result->renders[selected_keyframe_];
+      const ImageRGB& render = (*renders)[selected_keyframe_];
       compare_tex_[1].Upload(EncodeSrgb8(render, 1 / white));
       compare_tex_[2].Upload(Heatmap(render.width, render.height, ErrorImage(render, view), kErrorDisplayFraction * white));
     }
@@ -803,6 +805,13 @@ void Viewer::PanelKeyframe() {
   bool open = true;
   ImGui::Begin("Keyframe", &open, ImGuiWindowFlags_AlwaysAutoResize);
   ImGui::Text("keyframe %d: reference | relit by the estimate | error (0 .. 25 %% of white)", selected_keyframe_);
+  if (est_.renders)
+    ImGui::Text("relit: clean render, %d samples per pixel, noise %.1f %%", est_.render_samples, 100 * est_.render_noise);
+  else if (have_render && est_.options.render_spp > 0)
+    ImGui::Text("relit: traced at %d samples per pixel", est_.options.render_spp);
+  else if (have_render)
+    ImGui::Text(est_.options.render_noise > 0 ? "relit: the fit (the clean render follows the lit shading)"
+                                              : "relit: the fit");
   const float w = 240, h = w * view.camera.height / std::max(1, view.camera.width);
   ImGui::Image(reinterpret_cast<void*>(static_cast<std::intptr_t>(compare_tex_[0].id())), ImVec2(w, h));
   if (have_render) {

@@ -27,7 +27,8 @@ using test::WaitFor;
 /// Everything the estimate panel shows that moves while an estimate runs.
 auto EstimateProgress(const Session& s) {
   const EstimateStatus e = s.estimate();
-  return std::make_tuple(static_cast<int>(e.state), e.rows.size(), e.message, e.lit_samples, e.version, e.lit_version);
+  return std::make_tuple(static_cast<int>(e.state), e.rows.size(), e.message, e.lit_samples, e.version, e.lit_version,
+                         e.render_version);
 }
 
 /// Waits for `done` while the estimate makes progress: the estimator runs at a lower OS
@@ -50,7 +51,7 @@ EstimateOptions Small() {
   o.tracer.spp = 8;
   o.tracer.bounces = 2;
   o.max_rounds = 2;
-  o.render_spp = 4;
+  o.render_noise = 0.1;  // the keyframes' clean render after the lit shading: a few passes
   // The far-light model: the session's mechanics are under test here, not the lamp search
   // (which triples the estimate's time on the demo; viewer_test estimates the demo's lamp).
   o.point_lights.max_lights = 0;
@@ -105,6 +106,16 @@ TEST(Session, ReconstructsTheDemoEstimatesWithALiveLogAndExports) {
   std::size_t seen = 0;
   for (float v : *lit.error) seen += !std::isnan(v);
   EXPECT_GT(seen, lit.error->size() / 4);
+  // Then the keyframes' clean render, pass by pass: one image a keyframe, its noise said; the
+  // estimate's own relit keyframes stay the fit.
+  ASSERT_TRUE(WaitForEstimate(s, [&] { return s.estimate().render_samples > 0; }));
+  const EstimateStatus clean = s.estimate();
+  ASSERT_TRUE(clean.renders);
+  ASSERT_EQ(clean.renders->size(), e.scene->views.size());
+  EXPECT_GE(clean.render_samples, kMaskedRenderSpp);
+  EXPECT_GT(clean.render_noise, 0);
+  EXPECT_EQ(e.result->renders[0].data, e.result->fits[0].data);
+  EXPECT_NE((*clean.renders)[0].data, e.result->fits[0].data);
 
   const fs::path out = TempDir("export");
   s.Export(out.string());
