@@ -6,7 +6,7 @@ exe="$1"; demo="$2"
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 "$exe" estimate "$demo" --out "$out" --quiet --max-rounds 2
-for f in envmap.exr envmap_directions.csv render_view0.exr render_view0.png error_view0.png convergence.csv convergence.png report.json; do
+for f in envmap.exr envmap_directions.csv render_view0.exr render_view0.png fit_view0.exr error_view0.png convergence.csv convergence.png report.json; do
   [ -s "$out/$f" ] || { echo "missing $f"; exit 1; }
 done
 rows=$(($(wc -l <"$out/envmap_directions.csv") - 1))
@@ -29,6 +29,12 @@ assert len(tried) >= 4 and sum(t["chosen"] for t in tried) == 1, tried
 assert all(t["heldout_loss"] > 0 and t["standard_error"] >= 0 for t in tried), tried
 assert [t["alpha"] for t in tried if t["chosen"]] == [p["alpha"]], p
 assert r["seconds"]["prior"] > 0
+# The clean render (render_view*): its passes, each with more samples and less noise, its
+# time outside the estimate's; the fit in fit_view*.
+c = r["clean_render"]
+assert c and all(b["spp"] > a["spp"] and b["relative_noise"] < a["relative_noise"] for a, b in zip(c, c[1:])), c
+assert r["seconds"]["clean_render"] > 0 and r["seconds"]["estimate"] + r["seconds"]["clean_render"] <= r["seconds"]["total"] + 0.1
+assert r["views"][0]["render"] == "render_view0.exr" and r["views"][0]["fit"] == "fit_view0.exr", r["views"][0]
 PY
 if python3 -c 'import json,sys; sys.exit(json.load(open(sys.argv[1]))["prior"]["alpha"] == 3)' "$out/report.json"; then
   grep -q ',prior,' "$out/convergence.csv" || { echo "a prior other than --alpha, and no 'prior' rows in convergence.csv"; exit 1; }
