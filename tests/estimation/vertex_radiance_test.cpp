@@ -191,6 +191,57 @@ TEST(VertexRadiance, RefiningAddsSamplesAndStaysConsistent) {
   EXPECT_NEAR(mean, 0.5, 0.01);
 }
 
+TEST(ProgressiveRender, StopsAtTheNoiseItWasAskedAndSaysItsNoiseHonestly) {
+  // The floor under a square, a lamp beside them and a uniform sky (interreflections: noisy)
+  // seen by a 24x24 camera. Passes double the samples (8 a half, then 16, 32, ...: 16, 48,
+  // 112 in all) and the noise falls; it stops at the first pass under the noise asked; the
+  // noise it reports is the RMS of the render against an independent one at the same samples
+  // over sqrt 2 (their difference holds both noises), within 25 %; no light: no noise, one
+  // pass; the samples never exceed the most asked.
+  const RayTracer scene(FloorUnderASquare());
+  const EnvMap env(7, Eigen::Vector3d::UnitZ());
+  PointLight lamp;
+  lamp.position = {0.9, 0.3, 0.35};
+  lamp.intensity = {1.0, 0.8, 0.6};
+  const Lighting lighting{std::vector<double>(3 * env.size(), 0.2), {lamp}};
+  const CellSampler sampler(env, lighting.map, {}, 0.2);
+  const std::vector<View> views{test::BlankView(test::LookAt({0.2, -0.9, 0.6}, {0, 0, 0}, 24, 24, 20))};
+  TracerOptions t;
+  t.spp = 8;
+  t.bounces = 4;
+  std::vector<RenderPass> passes;
+  const std::vector<ImageRGB> a = ProgressiveRender(scene, env, lighting, sampler, views, t, 0.02, 1e9, 1 << 20, &passes);
+  ASSERT_GE(passes.size(), 2u);
+  for (std::size_t k = 0; k < passes.size(); ++k) {
+    EXPECT_EQ(passes[k].spp, 16 * ((1 << (k + 1)) - 1)) << k;
+    if (k > 0) EXPECT_LT(passes[k].noise, passes[k - 1].noise) << k;
+  }
+  EXPECT_LE(passes.back().noise, 0.02);
+  EXPECT_GT(passes[passes.size() - 2].noise, 0.02);
+  t.seed = 99;
+  std::vector<RenderPass> other_passes;
+  const std::vector<ImageRGB> b = ProgressiveRender(scene, env, lighting, sampler, views, t, 0.02, 1e9, 1 << 20, &other_passes);
+  ASSERT_EQ(other_passes.back().spp, passes.back().spp);
+  double d2 = 0, sum = 0;
+  for (std::size_t i = 0; i < a[0].data.size(); ++i) {
+    d2 += (a[0].data[i] - b[0].data[i]) * (a[0].data[i] - b[0].data[i]);
+    sum += 0.5 * (a[0].data[i] + b[0].data[i]);
+  }
+  const double measured = std::sqrt(d2 / a[0].data.size()) / (sum / a[0].data.size()) / std::sqrt(2.0);
+  std::printf("%zu passes, %d samples: noise said %.4f and %.4f, measured %.4f\n", passes.size(), passes.back().spp,
+              passes.back().noise, other_passes.back().noise, measured);
+  EXPECT_NEAR(measured, passes.back().noise, 0.25 * passes.back().noise);
+  // At most 100 samples: 16 and 48; the next pass would make 112.
+  ProgressiveRender(scene, env, lighting, sampler, views, t, 0, 1e9, 100, &passes);
+  ASSERT_EQ(passes.size(), 2u);
+  EXPECT_EQ(passes.back().spp, 48);
+  // No light: nothing to be noisy, one pass.
+  ProgressiveRender(scene, env, {std::vector<double>(3 * env.size(), 0.0), {}}, sampler, views, t, 0.02, 1e9, 1 << 20,
+                    &passes);
+  ASSERT_EQ(passes.size(), 1u);
+  EXPECT_EQ(passes[0].noise, 0);
+}
+
 TEST(VertexPhotometricError, ComparesWithTheNearestViewThatSeesTheVertex) {
   // A plane seen from above by a near view (image 0.2) and a far one (image 0.9); a
   // vertex under an occluding square is seen by neither.
