@@ -200,10 +200,7 @@ TEST(ProgressiveRender, StopsAtTheNoiseItWasAskedAndSaysItsNoiseHonestly) {
   // pass; the samples never exceed the most asked.
   const RayTracer scene(FloorUnderASquare());
   const EnvMap env(7, Eigen::Vector3d::UnitZ());
-  PointLight lamp;
-  lamp.position = {0.9, 0.3, 0.35};
-  lamp.intensity = {1.0, 0.8, 0.6};
-  const Lighting lighting{std::vector<double>(3 * env.size(), 0.2), {lamp}};
+  const Lighting lighting{std::vector<double>(3 * env.size(), 0.2), {PointLight{{0.9, 0.3, 0.35}, {1.0, 0.8, 0.6}, 0}}};
   const CellSampler sampler(env, lighting.map, {}, 0.2);
   const std::vector<View> views{test::BlankView(test::LookAt({0.2, -0.9, 0.6}, {0, 0, 0}, 24, 24, 20))};
   TracerOptions t;
