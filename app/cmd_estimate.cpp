@@ -85,6 +85,18 @@ static void WriteConvergencePlot(const fs::path& path, const std::vector<Converg
   WritePlotPng(path, "lightprobe estimate: error against run time", panels, static_cast<int>(panels.size()));
 }
 
+/// clean_render.png: the clean render's relative noise against its seconds (log-log), each
+/// pass a point, the noise asked a dashed line; none when there was no clean render.
+static void WriteCleanRenderPlot(const fs::path& out, const EstimateOptions& o, const EstimateResult& r) {
+  if (r.render_passes.empty()) return;
+  PlotSeries noise{"relative noise", {}, {}};
+  for (const RenderPass& p : r.render_passes) noise.x.push_back(p.seconds), noise.y.push_back(p.noise);
+  PlotPanel panel{"render_view*, pass by pass", "seconds", "relative noise"};
+  panel.series.push_back(noise);
+  panel.reference_y.push_back(o.render_noise);
+  WritePlotPng(out / "clean_render.png", "the clean render's noise", {panel}, 1);
+}
+
 /// envmap.exr, envmap.png (scaled to the brightest cell) and envmap_directions.csv.
 static void WriteEnvMap(const fs::path& out, const EstimateResult& r) {
   const EnvMap& env = r.env;
@@ -342,6 +354,7 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
   rep["settings"] = SettingsJson(o, r);
   rep["seconds"] = SecondsJson(r, command_seconds);
   rep["albedo"] = WriteAlbedo(out, bundle, r);
+  WriteCleanRenderPlot(out, o, r);
   rep["clean_render"] = json::array();  // its passes: error (noise) against run time
   for (const RenderPass& p : r.render_passes)
     rep["clean_render"].push_back({{"spp", p.spp}, {"seconds", p.seconds}, {"relative_noise", p.noise}});
@@ -404,8 +417,8 @@ Run AddEstimate(CLI::App& app) {
     if (std::isfinite(r.final_position_error_m))
       std::printf("; the lamp is %.1f cm from the true one (%.1f %% of its distance from the scene)",
                   100 * r.final_position_error_m, 100 * r.final_position_error_share);
-    std::printf("\nresults in %s (lights.json, envmap.exr, envmap_directions.csv, render_view*.png, error_view*.png, "
-                "convergence.csv/.png, report.json%s)\n",
+    std::printf("\nresults in %s (lights.json, envmap.exr, envmap_directions.csv, render_view*.png, fit_view*.exr, "
+                "clean_render.png, error_view*.png, convergence.csv/.png, report.json%s)\n",
                 fs::absolute(*out).lexically_normal().c_str(), r.albedo.empty() ? "" : ", albedo_mesh.ply");
     std::fflush(stdout);
     for (const std::string& w : r.warnings) std::fprintf(stderr, "warning: %s\n", w.c_str());

@@ -6,7 +6,7 @@ exe="$1"; demo="$2"
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 "$exe" estimate "$demo" --out "$out" --quiet --max-rounds 2
-for f in envmap.exr envmap_directions.csv render_view0.exr render_view0.png fit_view0.exr error_view0.png convergence.csv convergence.png report.json; do
+for f in envmap.exr envmap_directions.csv render_view0.exr render_view0.png fit_view0.exr clean_render.png error_view0.png convergence.csv convergence.png report.json; do
   [ -s "$out/$f" ] || { echo "missing $f"; exit 1; }
 done
 rows=$(($(wc -l <"$out/envmap_directions.csv") - 1))
