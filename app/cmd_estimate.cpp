@@ -91,7 +91,10 @@ static void WriteCleanRenderPlot(const fs::path& out, const EstimateOptions& o, 
   if (r.render_passes.empty()) return;
   PlotSeries noise{"relative noise", {}, {}};
   for (const RenderPass& p : r.render_passes) noise.x.push_back(p.seconds), noise.y.push_back(p.noise);
-  PlotPanel panel{"render_view*, pass by pass", "seconds", "relative noise"};
+  PlotPanel panel;
+  panel.title = "render_view*, pass by pass";
+  panel.x_label = "seconds";
+  panel.y_label = "relative noise";
   panel.series.push_back(noise);
   panel.reference_y.push_back(o.render_noise);
   WritePlotPng(out / "clean_render.png", "the clean render's noise", {panel}, 1);

@@ -501,7 +501,7 @@ void Estimator::RenderFittedViews() {
     topt.spp = opt_.render_spp;
     res_.renders = RenderLighting(*scene_, env_, res_.lighting, sampler, bundle_.views, topt, true);
   } else if (opt_.render_noise > 0) {
-    res_.renders = CleanRender(sampler, topt);
+    res_.renders = CleanRender(sampler);
   } else {
     res_.renders = res_.fits;
   }
@@ -514,20 +514,16 @@ void Estimator::RenderFittedViews() {
                                           : std::string("the render is the fit)")));
 }
 
-/// The clean render (ProgressiveRender from kMaskedRenderSpp samples a half): its passes in
-/// res_.render_passes and the progress lines.
-std::vector<ImageRGB> Estimator::CleanRender(const CellSampler& sampler, TracerOptions topt) {
-  topt.seed = opt_.tracer.seed * 1000003ull + 998;
-  topt.spp = kMaskedRenderSpp / 2;
-  const double seconds =
-      opt_.render_seconds > 0 ? opt_.render_seconds : std::max(kMinCleanRenderSeconds, clock_.Seconds());
+/// The clean render (lp::CleanRender): its passes in res_.render_passes and the progress lines.
+std::vector<ImageRGB> Estimator::CleanRender(const CellSampler& sampler) {
   const Stopwatch clock;
-  std::vector<ImageRGB> clean = ProgressiveRender(*scene_, env_, res_.lighting, sampler, bundle_.views, topt, opt_.render_noise,
-                           seconds, kMaxCleanRenderSpp, &res_.render_passes, [&](const RenderPass& p, const std::vector<ImageRGB>&) {
-                             CheckCancel();
-                             Progress(Fmt("clean render: %d samples per pixel in %.2f s, relative noise %.3g", p.spp,
-                                          p.seconds, p.noise));
-                           });
+  std::vector<ImageRGB> clean =
+      lp::CleanRender(*scene_, env_, res_.lighting, sampler, bundle_.views, opt_, clock_.Seconds(), &res_.render_passes,
+                      [&](const RenderPass& p, const std::vector<ImageRGB>&) {
+                        CheckCancel();
+                        Progress(Fmt("clean render: %d samples per pixel in %.2f s, relative noise %.3g", p.spp,
+                                     p.seconds, p.noise));
+                      });
   res_.clean_render_seconds = clock.Seconds();
   return clean;
 }
@@ -556,6 +552,19 @@ void Estimator::PutFit(std::vector<ImageRGB>* renders) {
 }  // namespace lp::detail
 
 namespace lp {
+
+std::vector<ImageRGB> CleanRender(const RayTracer& scene, const EnvMap& env, const Lighting& lighting,
+                                  const CellSampler& sampler, const std::vector<View>& views,
+                                  const EstimateOptions& options, double estimate_seconds,
+                                  std::vector<RenderPass>* passes, const RenderPassCallback& on_pass) {
+  TracerOptions t = options.tracer;
+  t.seed = options.tracer.seed * 1000003ull + 998;
+  t.spp = kMaskedRenderSpp / 2;  // a half's
+  const double seconds =
+      options.render_seconds > 0 ? options.render_seconds : std::max(kMinCleanRenderSeconds, estimate_seconds);
+  return ProgressiveRender(scene, env, lighting, sampler, views, t, options.render_noise, seconds, kMaxCleanRenderSpp,
+                           passes, on_pass);
+}
 
 EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& options) {
   // A reconstructed mesh's albedo (the colours seen) at the scale of real albedos first.

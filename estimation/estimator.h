@@ -188,6 +188,15 @@ struct EstimateResult {
   double albedo_scale = 1;
 };
 
+/// The clean render of `views` under `lighting` as EstimateOptions asks it (render_noise; for
+/// render_seconds, or by default as long as the estimate took, `estimate_seconds`, at least
+/// kMinCleanRenderSeconds): ProgressiveRender from kMaskedRenderSpp samples, its own seeds.
+/// What Estimate writes as render_view*, and the viewer's job shows pass by pass.
+std::vector<ImageRGB> CleanRender(const RayTracer& scene, const EnvMap& env, const Lighting& lighting,
+                                  const CellSampler& sampler, const std::vector<View>& views,
+                                  const EstimateOptions& options, double estimate_seconds,
+                                  std::vector<RenderPass>* passes, const RenderPassCallback& on_pass = {});
+
 /// Runs the estimate on a loaded bundle. Throws InputError when nothing usable is
 /// observed (every pixel masked/invalid, or a black image).
 EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& options);

@@ -155,7 +155,7 @@ class Estimator {
   void FitSky();
   /// Relit renders of the fitted views under the estimate (EstimateOptions::render_spp).
   void RenderFittedViews();
-  std::vector<ImageRGB> CleanRender(const CellSampler& sampler, TracerOptions topt);
+  std::vector<ImageRGB> CleanRender(const CellSampler& sampler);
   EstimateResult TakeResult() {
     res_.total_seconds = clock_.Seconds() - res_.clean_render_seconds;
     return std::move(res_);

@@ -29,21 +29,25 @@ std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, 
 
 namespace {
 
-/// Half the difference of two renders' means (sums over `n` samples each), relative: the RMS
-/// over the views' valid pixels and channels, over the mean of their mean there.
-double HalvesNoise(const std::vector<ImageRGB>& a, const std::vector<ImageRGB>& b, const std::vector<View>& views) {
+/// The mean of two halves' sums over `n` samples each into `mean`, and its relative noise:
+/// the RMS of half their means' difference over the views' valid pixels and channels, over
+/// the mean's mean there.
+double MeanAndNoise(const std::vector<ImageRGB>& a, const std::vector<ImageRGB>& b, int n,
+                    const std::vector<View>& views, std::vector<ImageRGB>* mean) {
+  *mean = a;
   double sq = 0, sum = 0;
   std::size_t count = 0;
   for (std::size_t v = 0; v < views.size(); ++v)
-    for (std::size_t p = 0; p < a[v].pixels(); ++p) {
-      if (!views[v].valid.empty() && !views[v].valid[p]) continue;
+    for (std::size_t p = 0; p < a[v].pixels(); ++p)
       for (int c = 0; c < 3; ++c) {
-        const double x = a[v].data[3 * p + c], y = b[v].data[3 * p + c];
+        const std::size_t i = 3 * p + c;
+        const double x = a[v].data[i] / n, y = b[v].data[i] / n;
+        (*mean)[v].data[i] = static_cast<float>(0.5 * (x + y));
+        if (!views[v].valid.empty() && !views[v].valid[p]) continue;
         sq += 0.25 * (x - y) * (x - y);
         sum += 0.5 * (x + y);
         ++count;
       }
-    }
   return count > 0 && sum > 0 ? std::sqrt(sq / count) / (sum / count) : 0.0;
 }
 
@@ -79,16 +83,8 @@ std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& en
     }
     each += o.spp;
     last_pass = clock.Seconds() - start;
-    std::vector<ImageRGB> a = half[0], b = half[1];
-    for (std::size_t v = 0; v < a.size(); ++v)
-      for (std::size_t i = 0; i < a[v].data.size(); ++i) {
-        a[v].data[i] /= static_cast<float>(each);
-        b[v].data[i] /= static_cast<float>(each);
-      }
-    mean = a;
-    for (std::size_t v = 0; v < a.size(); ++v)
-      for (std::size_t i = 0; i < a[v].data.size(); ++i) mean[v].data[i] = 0.5f * (a[v].data[i] + b[v].data[i]);
-    passes->push_back({2 * each, clock.Seconds(), HalvesNoise(a, b, views)});
+    const double noise_now = MeanAndNoise(half[0], half[1], each, views, &mean);
+    passes->push_back({2 * each, clock.Seconds(), noise_now});
     if (on_pass) on_pass(passes->back(), mean);
     o.spp *= 2;
     if (passes->back().noise <= noise || clock.Seconds() + 2 * last_pass > seconds || 2 * (each + o.spp) > max_spp)

@@ -149,38 +149,37 @@ void EstimateJob::Run(SceneSource source) {
     s.message = "done in " + std::to_string(t).substr(0, 5) + " s";
     for (const std::string& w : result->warnings) s.message += "; warning: " + w;
   });
-  RefineLit(*scene, *result);
-  CleanRender(*scene, *result);
+  try {  // the estimate's scene, its refined albedo, traced by both steps after it
+    Mesh mesh = scene->mesh;
+    if (result->albedo.size() == mesh.positions.size()) mesh.albedo = result->albedo;
+    const RayTracer tracer(std::move(mesh));
+    RefineLit(tracer, *scene, *result);
+    CleanRender(tracer, *scene, *result);
+  } catch (const std::exception& e) {
+    Update([&](EstimateStatus& s) { s.message = std::string("lit shading: ") + e.what(); });
+  }
 }
 
 /// The keyframes' clean render under the estimate, pass by pass (ProgressiveRender, as
 /// `estimate` writes render_view*: until EstimateOptions::render_noise, for as long as the
 /// estimate took by default), each pass shown.
-void EstimateJob::CleanRender(const SceneBundle& scene, const EstimateResult& result) {
+void EstimateJob::CleanRender(const RayTracer& tracer, const SceneBundle& scene, const EstimateResult& result) {
   const EstimateOptions& o = settings_.options;
   if (!o.render || o.render_spp > 0 || !(o.render_noise > 0) || cancelled()) return;
   try {
-    Mesh mesh = scene.mesh;
-    if (result.albedo.size() == mesh.positions.size()) mesh.albedo = result.albedo;  // refined
-    const RayTracer tracer(std::move(mesh));
-    TracerOptions t = o.tracer;
-    t.spp = kMaskedRenderSpp / 2;
-    t.seed = o.tracer.seed * 1000003ull + 998;
-    t.cancelled = [this] { return cancelled(); };
-    const double seconds = o.render_seconds > 0 ? o.render_seconds : std::max(kMinCleanRenderSeconds, result.total_seconds);
     std::vector<RenderPass> passes;
-    ProgressiveRender(tracer, result.env, result.lighting, CellSampler(result.env, result.lighting.map, {}, o.tracer.nee_floor),
-                      scene.views, t, o.render_noise, seconds, kMaxCleanRenderSpp, &passes,
-                      [&](const RenderPass& p, const std::vector<ImageRGB>& so_far) {
-                        if (cancelled()) throw Cancelled();
-                        auto renders = std::make_shared<const std::vector<ImageRGB>>(so_far);
-                        Update([&](EstimateStatus& s) {
-                          s.renders = renders;
-                          s.render_samples = p.spp;
-                          s.render_noise = p.noise;
-                          ++s.render_version;
-                        });
+    lp::CleanRender(tracer, result.env, result.lighting, CellSampler(result.env, result.lighting.map, {}, o.tracer.nee_floor),
+                    scene.views, o, result.total_seconds, &passes,
+                    [&](const RenderPass& p, const std::vector<ImageRGB>& so_far) {
+                      if (cancelled()) throw Cancelled();
+                      auto renders = std::make_shared<const std::vector<ImageRGB>>(so_far);
+                      Update([&](EstimateStatus& s) {
+                        s.renders = renders;
+                        s.render_samples = p.spp;
+                        s.render_noise = p.noise;
+                        ++s.render_version;
                       });
+                    });
   } catch (const Cancelled&) {
   } catch (const std::exception& e) {
     Update([&](EstimateStatus& s) { s.message = std::string("clean render: ") + e.what(); });
@@ -188,11 +187,8 @@ void EstimateJob::CleanRender(const SceneBundle& scene, const EstimateResult& re
 }
 
 /// Progressive per-vertex radiance under the estimate, then the error against the keyframes.
-void EstimateJob::RefineLit(const SceneBundle& scene, const EstimateResult& result) {
+void EstimateJob::RefineLit(const RayTracer& tracer, const SceneBundle& scene, const EstimateResult& result) {
   try {
-    Mesh mesh = scene.mesh;
-    if (result.albedo.size() == mesh.positions.size()) mesh.albedo = result.albedo;  // refined
-    const RayTracer tracer(std::move(mesh));
     VertexRadiance radiance(tracer, result.env, result.lighting, std::max(1, settings_.options.tracer.bounces), 1);
     const int target = settings_.lit_samples;
     int step = 2;

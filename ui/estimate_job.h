@@ -58,8 +58,8 @@ class EstimateJob {
   /// Builds the scene (a snapshot is finished here) and estimates it; null when it ended.
   std::shared_ptr<const EstimateResult> EstimateScene(SceneSource source, std::shared_ptr<const SceneBundle>* scene);
   EstimateOptions Callbacks();
-  void RefineLit(const SceneBundle& scene, const EstimateResult& result);
-  void CleanRender(const SceneBundle& scene, const EstimateResult& result);
+  void RefineLit(const RayTracer& tracer, const SceneBundle& scene, const EstimateResult& result);
+  void CleanRender(const RayTracer& tracer, const SceneBundle& scene, const EstimateResult& result);
   template <typename F>
   void Update(F f) {
     std::lock_guard<std::mutex> lock(mutex_);
