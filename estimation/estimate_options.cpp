@@ -28,6 +28,10 @@ std::vector<EstimateOption> RenderOptions() {
       {"render-seconds", "render_seconds",
        "the clean render's passes stop before this many seconds; 0 = as long as the estimate took (at least 2)",
        Type::kReal, 0, kInf, false, LP_GET(render_seconds), LP_SET(render_seconds, double), "", 0, 0, {}},
+      {"render-denoise", "render_denoise",
+       "the clean render's noise smoothed out over the pixels that see the same surface (its albedo kept sharp); the "
+       "passes stop at the denoised render's noise",
+       Type::kBool, 0, 1, false, LP_GET(render_denoise), LP_SET(render_denoise, bool), "", 0, 0, {}},
   };
 }
 

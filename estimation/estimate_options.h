@@ -187,6 +187,9 @@ struct EstimateOptions {
   /// The clean render's time; 0 (the default): as long as the estimate took, at least
   /// kMinCleanRenderSeconds.
   double render_seconds = 0;
+  /// The clean render's noise smoothed out, guided by what each pixel sees
+  /// (estimation/render_denoise.h); its stop and its noise are the denoised render's.
+  bool render_denoise = true;
   bool render = true;
   /// Wall-clock origin for the convergence log (seconds already spent before Estimate).
   double time_offset = 0;

@@ -563,7 +563,7 @@ std::vector<ImageRGB> CleanRender(const RayTracer& scene, const EnvMap& env, con
   const double seconds =
       options.render_seconds > 0 ? options.render_seconds : std::max(kMinCleanRenderSeconds, estimate_seconds);
   return ProgressiveRender(scene, env, lighting, sampler, views, t, options.render_noise, seconds, kMaxCleanRenderSpp,
-                           passes, on_pass);
+                           passes, on_pass, options.render_denoise);
 }
 
 EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& options) {

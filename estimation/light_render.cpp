@@ -6,6 +6,7 @@
 #include "common/timer.h"
 #include "estimation/lights/light.h"
 #include "estimation/pixel_loop.h"
+#include "estimation/render_denoise.h"
 
 namespace lp {
 
@@ -68,8 +69,21 @@ void Accumulate(std::vector<ImageRGB>* sum, const std::vector<ImageRGB>& add, do
 std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& env, const Lighting& lighting,
                                         const CellSampler& sampler, const std::vector<View>& views,
                                         const TracerOptions& options, double noise, double seconds, int max_spp,
-                                        std::vector<RenderPass>* passes, const RenderPassCallback& on_pass) {
+                                        std::vector<RenderPass>* passes, const RenderPassCallback& on_pass,
+                                        bool denoise) {
   Stopwatch clock;
+  std::vector<PixelGuide> guides;
+  if (denoise)
+    for (const View& v : views) guides.push_back(GuideOf(scene, v.camera, lighting.lights));
+  const auto denoised = [&](const std::vector<ImageRGB>& sums, int n) {  // sums over n samples
+    std::vector<ImageRGB> out = sums;
+    for (std::size_t v = 0; v < sums.size(); ++v) {
+      for (float& x : out[v].data) x /= static_cast<float>(n);
+      out[v] = Denoise(out[v], guides[v], views[v].camera.center());
+      for (float& x : out[v].data) x *= static_cast<float>(n);
+    }
+    return out;
+  };
   std::vector<ImageRGB> half[2], mean;
   TracerOptions o = options;
   int each = 0;  // samples per pixel in each half so far
@@ -83,7 +97,8 @@ std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& en
     }
     each += o.spp;
     last_pass = clock.Seconds() - start;
-    const double noise_now = MeanAndNoise(half[0], half[1], each, views, &mean);
+    const double noise_now = denoise ? MeanAndNoise(denoised(half[0], each), denoised(half[1], each), each, views, &mean)
+                                     : MeanAndNoise(half[0], half[1], each, views, &mean);
     passes->push_back({2 * each, clock.Seconds(), noise_now});
     if (on_pass) on_pass(passes->back(), mean);
     o.spp *= 2;

@@ -35,11 +35,15 @@ struct RenderPass {
 /// half their difference over the valid pixels and channels, over the mean's mean there) is
 /// at most `noise`, or the next pass would end past `seconds`, or the samples reach
 /// `max_spp`. Each pass is given to `on_pass` with the render so far (and kept in `passes`).
+/// With `denoise`, both halves are denoised alike (Denoise, estimation/render_denoise.h, one
+/// guide a view) before the mean and its noise are formed: the noise said is the denoised
+/// render's (the denoiser's blur is not in it).
 using RenderPassCallback = std::function<void(const RenderPass&, const std::vector<ImageRGB>&)>;
 std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& env, const Lighting& lighting,
                                         const CellSampler& sampler, const std::vector<View>& views,
                                         const TracerOptions& options, double noise, double seconds, int max_spp,
-                                        std::vector<RenderPass>* passes, const RenderPassCallback& on_pass = {});
+                                        std::vector<RenderPass>* passes, const RenderPassCallback& on_pass = {},
+                                        bool denoise = false);
 
 /// Renders each view under the lights alone, of any kind (every pixel when `all_pixels`,
 /// else only the valid ones): the forward model of the columns, with options.spp paths per

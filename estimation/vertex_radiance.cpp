@@ -9,6 +9,7 @@
 #include "estimation/path_tracer.h"
 #include "estimation/lights/light.h"
 #include "estimation/sampling.h"
+#include "scene/surface_filter.h"
 
 namespace lp {
 
@@ -21,6 +22,7 @@ VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, Lighti
   sampler_ = std::make_unique<CellSampler>(env, map, std::vector<std::uint8_t>{}, 0.05);
   LP_CHECK(bounces >= 1, "bounces " << bounces);
   sum_.assign(scene.mesh().positions.size(), Eigen::Vector3d::Zero());
+  odd_ = sum_;
 }
 
 VertexRadiance::~VertexRadiance() = default;
@@ -43,15 +45,16 @@ void VertexRadiance::Refine(int samples) {
         Eigen::Vector3d origin = mesh.positions[v].cast<double>() + n0 * (4 * scene_.epsilon());
         Eigen::Vector3d n = n0, geometric = n0, throughput = Eigen::Vector3d::Ones();
         const std::vector<double>& map = lighting_.map;
+        Eigen::Vector3d got = Eigen::Vector3d::Zero();  // this path's incident radiance
         auto cell = [&](int j) { return Eigen::Vector3d(map[3 * j], map[3 * j + 1], map[3 * j + 2]); };
         for (int bounce = 0; bounce < bounces_; ++bounce) {
           const NextEvent ne = SampleNextEvent(scene_, env_, *sampler_, n, geometric, origin, rng);
-          if (ne.visible) sum_[v] += throughput.cwiseProduct(cell(ne.cell)) * ne.weight;
+          if (ne.visible) got += throughput.cwiseProduct(cell(ne.cell)) * ne.weight;
           if (!lighting_.lights.empty()) {  // the lights' irradiance / pi
             const std::uint64_t key = (static_cast<std::uint64_t>(v) << 24) ^ (static_cast<std::uint64_t>(s) << 4) ^
                                       static_cast<std::uint64_t>(bounce);
             std::int64_t rays = 0;
-            sum_[v] += throughput.cwiseProduct(lp::Irradiance(scene_, lighting_.lights, origin, n, geometric, key, &rays)) *
+            got += throughput.cwiseProduct(lp::Irradiance(scene_, lighting_.lights, origin, n, geometric, key, &rays)) *
                        kInvPi;
           }
           const double u1 = rng.Uniform(), u2 = rng.Uniform();
@@ -60,7 +63,7 @@ void VertexRadiance::Refine(int samples) {
           SurfacePoint hit;
           if (!scene_.Intersect(origin, dir, &hit)) {
             const int j = env_.Lookup(dir);
-            sum_[v] += throughput.cwiseProduct(cell(j)) * EscapeWeight(env_, *sampler_, j, n.dot(dir));
+            got += throughput.cwiseProduct(cell(j)) * EscapeWeight(env_, *sampler_, j, n.dot(dir));
             break;
           }
           // Cosine sampling cancels cos/pi against the Lambertian albedo/pi: the weight is the albedo.
@@ -70,6 +73,8 @@ void VertexRadiance::Refine(int samples) {
           geometric = hit.geometric;
           origin = hit.position + hit.geometric * (4 * scene_.epsilon());
         }
+        sum_[v] += got;
+        if (s & 1) odd_[v] += got;
       }
     }
   });
@@ -82,6 +87,36 @@ std::vector<Eigen::Vector3f> VertexRadiance::Radiance() const {
   if (samples_ == 0) return out;
   for (std::size_t v = 0; v < out.size(); ++v)
     out[v] = (mesh.albedo[v].cast<double>().cwiseProduct(sum_[v]) / samples_).cast<float>();
+  return out;
+}
+
+LitShading VertexRadiance::Clean(const SurfaceFilter& filter) const {
+  LP_CHECK(samples_ >= 2 && samples_ % 2 == 0, "VertexRadiance::Clean: " << samples_ << " samples (an even count)");
+  const Mesh& mesh = scene_.mesh();
+  const std::size_t n = sum_.size();
+  const double half = samples_ / 2;
+  std::vector<Eigen::Vector3f> even(n), odd(n);
+  for (std::size_t v = 0; v < n; ++v) {
+    odd[v] = (odd_[v] / half).cast<float>();
+    even[v] = ((sum_[v] - odd_[v]) / half).cast<float>();
+  }
+  even = SmoothOverSurface(mesh, even, filter);
+  odd = SmoothOverSurface(mesh, odd, filter);
+  LitShading out;
+  out.radiance.resize(n);
+  double diff2 = 0, level = 0;
+  std::size_t counted = 0;
+  const auto luminance = [](const Eigen::Vector3f& c) { return 0.2126 * c.x() + 0.7152 * c.y() + 0.0722 * c.z(); };
+  for (std::size_t v = 0; v < n; ++v) {
+    const Eigen::Vector3f& a = mesh.albedo[v];
+    out.radiance[v] = a.cwiseProduct(0.5f * (even[v] + odd[v]));
+    if (v >= mesh.normals.size() || !(mesh.normals[v].squaredNorm() > 0.5)) continue;  // never traced
+    const double d = luminance(a.cwiseProduct(0.5f * (even[v] - odd[v])));
+    diff2 += d * d;
+    level += luminance(out.radiance[v]);
+    ++counted;
+  }
+  out.noise = level > 0 ? std::sqrt(diff2 / counted) / (level / counted) : 0;
   return out;
 }
 

@@ -19,6 +19,17 @@
 namespace lp {
 
 class CellSampler;
+struct SurfaceFilter;
+
+/// The lit shading as shown: per vertex radiance with its Monte Carlo noise smoothed out
+/// over the surface, and how much noise is left.
+struct LitShading {
+  std::vector<Eigen::Vector3f> radiance;  ///< albedo times the smoothed incident radiance
+  /// The relative noise left: the RMS over the traced vertices of half the difference of
+  /// the two halves' smoothed radiances (the even and the odd samples, independent: the
+  /// noise of their mean), over the mean radiance. The smoothing's blur is not in it.
+  double noise = 0;
+};
 
 class VertexRadiance {
  public:
@@ -38,6 +49,10 @@ class VertexRadiance {
   /// Mean incident radiance per vertex over the cosine-weighted hemisphere, as a grey
   /// level (the mean of its channels): irradiance / pi.
   std::vector<float> Irradiance() const;
+  /// Radiance() with the incident radiance smoothed over the surface (SmoothOverSurface:
+  /// shadows' edges blur by a few `filter.spacing`s) and its noise left, from the even and
+  /// the odd samples apart. Needs an even samples() >= 2.
+  LitShading Clean(const SurfaceFilter& filter) const;
   int samples() const { return samples_; }
 
  private:
@@ -49,6 +64,7 @@ class VertexRadiance {
   int samples_ = 0;
   std::unique_ptr<CellSampler> sampler_;  ///< NEE over cells, by the estimate's brightness
   std::vector<Eigen::Vector3d> sum_;  ///< per vertex, incident radiance summed over samples
+  std::vector<Eigen::Vector3d> odd_;  ///< the same over the odd samples only
 };
 
 /// Per vertex: PixelError(radiance, observed) / WhiteLevel(view) against the nearest view

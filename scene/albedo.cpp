@@ -5,6 +5,7 @@
 #include <numeric>
 
 #include "common/error.h"
+#include "scene/surface_filter.h"
 
 namespace lp {
 
@@ -136,6 +137,28 @@ AlbedoOptions DelitAlbedoOptions() {
   return o;
 }
 
+namespace {
+
+/// The vertices no segment flattened (label -1: a segment too small, a shadow's rim, a dark
+/// box's face) keep their own de-lit colour: divided by the irradiance smoothed over the
+/// surface (SmoothOverSurface), since a vertex's Monte Carlo noise would be its albedo's
+/// (speckle on the lit mesh). The flattened segments' means average that noise out already.
+void KeepSmoothlyDelit(Mesh* mesh, const std::vector<float>& irradiance, float floor, const std::vector<int>& labels) {
+  const std::size_t n = mesh->positions.size();
+  std::vector<Eigen::Vector3f> grey(n);
+  bool any = false;
+  for (std::size_t v = 0; v < n; ++v) {
+    grey[v] = Eigen::Vector3f::Constant(std::isfinite(irradiance[v]) ? std::max(floor, irradiance[v]) : floor);
+    any = any || labels[v] < 0;
+  }
+  if (!any) return;
+  grey = SmoothOverSurface(*mesh, grey);
+  for (std::size_t v = 0; v < n; ++v)
+    if (labels[v] < 0) mesh->albedo[v] = mesh->shaded[v] / grey[v].x();
+}
+
+}  // namespace
+
 int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const AlbedoOptions& options, double scale,
                   double median, std::vector<int>* labels) {
   const std::size_t n = mesh->positions.size();
@@ -155,7 +178,10 @@ int DelightAlbedo(Mesh* mesh, const std::vector<float>& irradiance, const Albedo
     const float e = std::isfinite(irradiance[v]) ? std::max(floor, irradiance[v]) : floor;
     mesh->albedo[v] = mesh->shaded[v] / e;  // grey: the colour seen keeps its chromaticity
   }
+  std::vector<int> own_labels;
+  if (!labels) labels = &own_labels;
   const int segments = FlattenAlbedo(mesh, options, labels);  // keeps each segment's sum: after > 0
+  KeepSmoothlyDelit(mesh, irradiance, floor, *labels);
   for (const Eigen::Vector3f& a : mesh->albedo) after += a.sum();
   // The scale sets the interreflections. The rule the albedo was scaled by before (the
   // median): the mean colour seen, which flattening keeps, has the light's fall-off in it,

@@ -8,6 +8,7 @@
 #include "estimation/truth.h"
 #include "estimation/truth_scorer.h"
 #include "estimation/vertex_radiance.h"
+#include "scene/surface_filter.h"
 #include "scene/ray_tracer.h"
 
 namespace lp::ui {
@@ -186,21 +187,26 @@ void EstimateJob::CleanRender(const RayTracer& tracer, const SceneBundle& scene,
   }
 }
 
-/// Progressive per-vertex radiance under the estimate, then the error against the keyframes.
+/// Progressive per-vertex radiance under the estimate, its noise smoothed out over the
+/// surface (VertexRadiance::Clean), until its noise is lit_noise or it has lit_samples;
+/// then the error against the keyframes.
 void EstimateJob::RefineLit(const RayTracer& tracer, const SceneBundle& scene, const EstimateResult& result) {
   try {
     VertexRadiance radiance(tracer, result.env, result.lighting, std::max(1, settings_.options.tracer.bounces), 1);
-    const int target = settings_.lit_samples;
+    const int target = settings_.lit_samples + settings_.lit_samples % 2;  // Clean needs an even count
     int step = 2;
     // The error shading follows the radiance's noise down: recomputed at 2 samples, then
     // each time they have grown 4-fold, and at the end.
     int error_at = 2;
-    while (radiance.samples() < target && !cancelled()) {
+    bool done = false;
+    while (!done && !cancelled()) {
       radiance.Refine(std::min(step, target - radiance.samples()));
       step = std::min(step * 2, 32);
-      auto lit = std::make_shared<const std::vector<Eigen::Vector3f>>(radiance.Radiance());
+      LitShading clean = radiance.Clean(SurfaceFilter{});
+      done = radiance.samples() >= target || clean.noise <= settings_.lit_noise;
+      auto lit = std::make_shared<const std::vector<Eigen::Vector3f>>(std::move(clean.radiance));
       std::shared_ptr<const std::vector<float>> error;
-      if (radiance.samples() >= target || radiance.samples() >= error_at) {
+      if (done || radiance.samples() >= error_at) {
         error = std::make_shared<const std::vector<float>>(VertexPhotometricError(tracer, scene.views, *lit));
         error_at = 4 * radiance.samples();
       }
@@ -209,6 +215,8 @@ void EstimateJob::RefineLit(const RayTracer& tracer, const SceneBundle& scene, c
         s.lit = lit;
         if (error) s.error = error;
         s.lit_samples = samples;
+        s.lit_noise = clean.noise;
+        s.lit_done = done;
         ++s.lit_version;
       });
     }

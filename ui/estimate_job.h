@@ -25,7 +25,8 @@ class EstimateJob {
  public:
   struct Settings {
     EstimateOptions options;
-    int lit_samples = 256;        ///< the lit shading stops refining here
+    int lit_samples = 256;        ///< the lit shading stops refining here at the latest
+    double lit_noise = 0.01;      ///< ... or once its relative noise (LitShading::noise) is this
     const Stopwatch* clock = nullptr;  ///< the session's clock (outlives the job)
     double pressed_at = 0;        ///< on `clock`: when Estimate was pressed
     /// Where the status's version counters start (the window re-uploads what changed).

@@ -78,6 +78,8 @@ struct EstimateStatus {
   std::shared_ptr<const std::vector<Eigen::Vector3f>> lit;
   std::shared_ptr<const std::vector<float>> error;
   int lit_samples = 0;
+  double lit_noise = std::nan("");  ///< LitShading::noise of `lit` (its Monte Carlo noise, smoothed)
+  bool lit_done = false;            ///< the lit shading stopped refining (its noise or its samples reached)
   std::uint64_t lit_version = 0;
   /// The keyframes' clean render under the estimate (ProgressiveRender, after the lit
   /// shading; EstimateOptions::render_noise), the latest pass's: its samples per pixel and

@@ -842,7 +842,7 @@ void Viewer::ShadingBar() {
     ImGui::SetNextItemWidth(120);
     ImGui::SliderFloat("exposure", &exposure_, 0.1f, 8.f, "%.2f", ImGuiSliderFlags_Logarithmic);
     ImGui::SameLine();
-    ImGui::Text("%d samples/vertex", est_.lit_samples);
+    ImGui::Text("%d samples/vertex, noise %.1f %%", est_.lit_samples, 100 * est_.lit_noise);
   } else if (shading_ == Shading::kAlbedo) {
     ImGui::Checkbox("headlight", &headlight_);
   }
@@ -945,9 +945,8 @@ void Viewer::WriteState(const std::string& path) const {
   j["frames_read"] = live_.frames_read;
   j["frames_tracked"] = live_.frames_tracked;
   j["frames_lost"] = live_.frames_lost;
-  j["record"] = {{"recording", live_.recording},
-                 {"recorded_frames", live_.recorded_frames},
-                 {"message", live_.record_message}};
+  j["record"] = {
+      {"recording", live_.recording}, {"recorded_frames", live_.recorded_frames}, {"message", live_.record_message}};
   j["model_triangles"] = live_.model ? live_.model->triangles.size() : 0;
   j["shown_triangles"] = mesh_.triangles();
   j["shading"] = ToString(shading_);
@@ -958,6 +957,7 @@ void Viewer::WriteState(const std::string& path) const {
                    {"albedo_refined", est_.result && !est_.result->albedo.empty()},
                    {"albedo_shading_refined", shading_ == Shading::kAlbedo && shown_refined_albedo_},
                    {"lit_samples", est_.lit_samples},
+                   {"lit_noise", std::isnan(est_.lit_noise) ? json() : json(est_.lit_noise)},
                    {"seconds_to_first", std::isnan(est_.seconds_to_first) ? json() : json(est_.seconds_to_first)},
                    {"seconds_total", std::isnan(est_.seconds_total) ? json() : json(est_.seconds_total)},
                    {"export", est_.export_message},
