@@ -6,7 +6,8 @@
 /// plane, normals alike), and multiplied back by the pixel's own albedo: texture, edges and
 /// the map seen directly stay sharp. The lights' direct light (sharp shadows) is taken out
 /// before and put back after, traced for the guide with 16 shadow rays a pixel: what is
-/// smoothed is the map's and the bounces' light, whose shadows are soft. (The map's
+/// smoothed is the map's and the bounces' light, whose shadows are soft. Pixels on a sharp
+/// shadow's edge are kept as traced (the guide's coverage of the edge is rough). (The map's
 /// brightest cells taken out as discs too made it worse: a disc's few shadow rays are noise
 /// in the guide, put back unsmoothed and common to both halves, so unseen by the noise said.)
 #include <cstdint>
@@ -41,7 +42,8 @@ struct DenoiseOptions {
   double min_normal_cosine = 0.9;    ///< ... and one whose normal turns more is too
 };
 
-/// `image` (a mean radiance) with each wholly covered pixel's light but the lights' direct
+/// `image` (a mean radiance) with each wholly covered pixel off a shadow's edge (its direct
+/// irradiance within a tenth of its 8 neighbours') given its light but the lights' direct
 /// light, over its albedo (per channel), averaged over its window's pixels on the same
 /// surface, times its albedo again, plus the guide's direct light. Pixels not wholly on
 /// the mesh, or of albedo below 1e-3 in a channel, keep their value there. Affine in

@@ -334,7 +334,7 @@ TEST(Cycles, AnHdrWorldRelightsWithinTheTruthsError) {
 TEST(Cycles, TheCleanRenderIsFreeOfVisibleNoiseAndSaysHowNoisyItIs) {
   const SceneBundle bundle = LoadSceneBundle(CyclesDir("cornerbox_one_light"));
   EstimateOptions o;
-  o.render_seconds = 0;  // as long as the estimate took (denoised: 192 spp, 1.24 % said; 448 spp and 2.4 % not denoised)
+  o.render_seconds = 0;  // as long as the estimate took (denoised: 192 spp, 1.59 % said; 448 spp and 2.4 % not denoised)
   const EstimateResult r = Estimate(bundle, o);
   ASSERT_EQ(r.renders.size(), 1u);
   ASSERT_EQ(r.fits.size(), 1u);
@@ -358,7 +358,9 @@ TEST(Cycles, TheCleanRenderIsFreeOfVisibleNoiseAndSaysHowNoisyItIs) {
   EXPECT_LT(clean, 0.03);
   EXPECT_LT(clean, fit / 3);
   EXPECT_GT(clean, 0.7 * expected);
-  EXPECT_LT(clean, 1.4 * expected);
+  // Within 10 %: the denoiser's bias is small against its noise (smoothing across the lamp's
+  // shadow edges made it 1.16x).
+  EXPECT_LT(clean, 1.1 * expected);
 }
 
 /// Mean of one channel of an image over a block of pixels [x0, x1) x [y0, y1).
