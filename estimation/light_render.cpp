@@ -75,12 +75,11 @@ std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& en
   std::vector<PixelGuide> guides;
   if (denoise)
     for (const View& v : views) guides.push_back(GuideOf(scene, v.camera, lighting.lights));
-  const auto denoised = [&](const std::vector<ImageRGB>& sums, int n) {  // sums over n samples
+  const auto denoised_mean = [&](const std::vector<ImageRGB>& sums, int n) {  // sums over n samples
     std::vector<ImageRGB> out = sums;
     for (std::size_t v = 0; v < sums.size(); ++v) {
       for (float& x : out[v].data) x /= static_cast<float>(n);
       out[v] = Denoise(out[v], guides[v], views[v].camera.center());
-      for (float& x : out[v].data) x *= static_cast<float>(n);
     }
     return out;
   };
@@ -97,7 +96,7 @@ std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& en
     }
     each += o.spp;
     last_pass = clock.Seconds() - start;
-    const double noise_now = denoise ? MeanAndNoise(denoised(half[0], each), denoised(half[1], each), each, views, &mean)
+    const double noise_now = denoise ? MeanAndNoise(denoised_mean(half[0], each), denoised_mean(half[1], each), 1, views, &mean)
                                      : MeanAndNoise(half[0], half[1], each, views, &mean);
     passes->push_back({2 * each, clock.Seconds(), noise_now});
     if (on_pass) on_pass(passes->back(), mean);

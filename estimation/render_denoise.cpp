@@ -100,13 +100,16 @@ ImageRGB Denoise(const ImageRGB& image, const PixelGuide& g, const Eigen::Vector
       for (int c = 0; c < 3; ++c)
         if (g.albedo[i][c] >= 1e-3f) irradiance[i][c] = (image.data[3 * i + c] - g.direct[i][c]) / g.albedo[i][c];
   const std::vector<std::uint8_t> edge = ShadowEdges(g, whole);
+  std::vector<Eigen::Vector3f> unit(n);  // the normals, each normalized once
+  for (std::size_t i = 0; i < n; ++i) unit[i] = g.normal[i].normalized();
   ImageRGB out = image;
   const double inv = 1 / (2 * o.sigma * o.sigma);
   ParallelForChunks(0, n, 256, [&](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i) {
       if (!whole(i) || edge[i]) continue;
       const int x = static_cast<int>(i % g.width), y = static_cast<int>(i / g.width);
-      const Eigen::Vector3f nrm = g.normal[i].normalized(), p = g.position[i];
+      const Eigen::Vector3f& nrm = unit[i];
+      const Eigen::Vector3f& p = g.position[i];
       const double tolerance = o.max_plane_distance * (p.cast<double>() - camera_centre).norm();
       Eigen::Vector3d sum = Eigen::Vector3d::Zero(), weight = sum;
       for (int dy = -o.radius; dy <= o.radius; ++dy)
@@ -114,7 +117,7 @@ ImageRGB Denoise(const ImageRGB& image, const PixelGuide& g, const Eigen::Vector
           const int xx = x + dx, yy = y + dy;
           if (xx < 0 || yy < 0 || xx >= g.width || yy >= g.height) continue;
           const std::size_t j = static_cast<std::size_t>(yy) * g.width + xx;
-          if (!whole(j) || edge[j] || g.normal[j].normalized().dot(nrm) < o.min_normal_cosine ||
+          if (!whole(j) || edge[j] || unit[j].dot(nrm) < o.min_normal_cosine ||
               std::abs(nrm.dot(g.position[j] - p)) > tolerance)
             continue;
           const double w = std::exp(-(dx * dx + dy * dy) * inv);

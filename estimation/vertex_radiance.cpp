@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include "common/color.h"
 #include "common/error.h"
 #include "common/parallel.h"
 #include "common/rng.h"
@@ -106,7 +107,7 @@ LitShading VertexRadiance::Clean(const SurfaceFilter& filter) const {
   out.radiance.resize(n);
   double diff2 = 0, level = 0;
   std::size_t counted = 0;
-  const auto luminance = [](const Eigen::Vector3f& c) { return 0.2126 * c.x() + 0.7152 * c.y() + 0.0722 * c.z(); };
+  const auto luminance = [](const Eigen::Vector3f& c) { return Luminance(c.x(), c.y(), c.z()); };
   for (std::size_t v = 0; v < n; ++v) {
     const Eigen::Vector3f& a = mesh.albedo[v];
     out.radiance[v] = a.cwiseProduct(0.5f * (even[v] + odd[v]));

@@ -2,7 +2,8 @@
 /// One press of Estimate: its own thread, cancel token and status. The estimator thread
 /// (at a lower OS priority, so the window keeps its frame rate) builds the scene from the
 /// snapshot the session's worker took, runs Estimate on it, then refines the lit shading
-/// of its mesh until `lit_samples`, then renders its keyframes clean (pass by pass). Destroying a job cancels it and joins its thread.
+/// of its mesh until its noise is `lit_noise` (or it has `lit_samples`), then renders its
+/// keyframes clean (pass by pass). Destroying a job cancels it and joins its thread.
 #include <atomic>
 #include <memory>
 #include <mutex>
