@@ -13,6 +13,7 @@
 #include "common/parallel.h"
 #include "common/plot.h"
 #include "common/timer.h"
+#include "estimation/envmap.h"
 #include "estimation/error_display.h"
 #include "estimation/lights_file.h"
 #include "estimation/truth_scorer.h"
@@ -382,6 +383,33 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
   WriteTextAtomically(out / "report.json", rep.dump(2) + "\n");
 }
 
+namespace {
+
+/// `--warm DIR`: an earlier estimate's lighting (lights.json, its envmap.exr, and from
+/// report.json the map's rings and up) as the start of this one.
+std::shared_ptr<const WarmStart> ReadWarmStart(const fs::path& dir) {
+  const fs::path lights_path = dir / "lights.json", report_path = dir / "report.json";
+  const LightsFile file = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
+  auto warm = std::make_shared<WarmStart>();
+  warm->lighting.lights = file.lights;
+  try {
+    const json report = json::parse(ReadTextFile(report_path));
+    warm->rings = report.at("settings").at("rings").get<int>();
+    const auto up = report.at("envmap_frame").at("up").get<std::vector<double>>();
+    if (up.size() != 3) throw InputError(report_path.string(), "envmap_frame.up is not 3 numbers");
+    warm->up = Eigen::Vector3d(up[0], up[1], up[2]);
+  } catch (const json::exception& e) {
+    throw InputError(report_path.string(), std::string("cannot read the map's rings and up: ") + e.what());
+  }
+  if (!(warm->rings >= kMinRings && warm->rings <= kMaxRings) || !(warm->up.norm() > 0.5))
+    throw InputError(report_path.string(), "the map's rings or up are out of range");
+  if (!file.environment.empty())
+    warm->lighting.map = EnvMap(warm->rings, warm->up.normalized()).FromEquirect(ReadEquirectMap(dir / file.environment));
+  return warm;
+}
+
+}  // namespace
+
 Run AddEstimate(CLI::App& app) {
   auto* cmd = app.add_subcommand("estimate", "estimate the environment lighting of a scene bundle");
   auto scene = std::make_shared<std::string>();
@@ -393,6 +421,10 @@ Run AddEstimate(CLI::App& app) {
   cmd->add_option("--out", *out, "output directory")->required();
   AddEstimateOptions(*cmd, o.get(), threads.get());
   cmd->add_flag("--quiet", *quiet, "no progress lines");
+  auto warm = std::make_shared<std::string>();
+  cmd->add_option("--warm", *warm,
+                  "start from an earlier estimate's output directory (its map as the first round's, its lamps as the "
+                  "search's first candidates), as a live estimate does");
   return [=] {
     Stopwatch sw;
     ThreadLimit limit(*threads);
@@ -409,6 +441,7 @@ Run AddEstimate(CLI::App& app) {
       std::fprintf(stderr, "  mesh: %zu vertices, %zu triangles (%d degenerate removed)\n",
                    bundle.mesh.positions.size(), bundle.mesh.triangles.size(), bundle.degenerate_triangles_removed);
     }
+    if (!warm->empty()) o->warm = ReadWarmStart(*warm);
     o->time_offset = sw.Seconds();
     o->scorer = TruthScorer::FromBundle(bundle, o->point_lights.far);  // truth.json's errors, when it has one
     EstimateResult r = Estimate(bundle, *o);

@@ -10,6 +10,7 @@
 #include "common/error.h"
 #include "estimation/estimator.h"
 #include "estimation/path_tracer.h"
+#include "reconstruction/live_trigger.h"
 #include "reconstruction/reconstruction_run.h"
 #include "ui/viewer.h"
 
@@ -56,6 +57,15 @@ ReconstructionRunOptions MakeRunOptions(const ReconstructSettings& settings, con
 /// Reconstructs `input` (an .oni recording or a frame directory) into the bundle `out`,
 /// with progress on stderr and a summary on stdout.
 void Reconstruct(const std::string& input, const std::string& out, const ReconstructSettings& settings);
+/// `--headless --live`'s settings.
+struct LiveSettings {
+  double speed = 1;  ///< times the recorded rate (0: as fast as frames are processed, none dropped)
+  LiveTriggerOptions trigger;
+};
+/// `lightprobe --headless INPUT --out DIR --live`: the input played at its recorded rate,
+/// reconstructed, and estimated while it plays (app/headless_live.cpp).
+void RunLive(const std::string& input, const std::string& out, const ReconstructSettings& settings,
+             const LiveSettings& live);
 /// `lightprobe --headless INPUT --out DIR ...` (args without the program name).
 int RunHeadless(const std::vector<std::string>& args);
 

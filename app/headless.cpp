@@ -37,6 +37,22 @@ int RunHeadless(const std::vector<std::string>& args) {
   app.add_option("--headless", input, "an .oni recording or a frame directory")->required();
   app.add_option("--out", out, "DIR/scene (the bundle) and DIR/estimate (the lighting)")->required();
   AddReconstructOptions(app, &settings);
+  bool live = false;
+  LiveSettings live_settings;
+  app.add_flag("--live", live,
+               "estimate while the input plays at its recorded rate: each finished estimate in DIR/live/NNN/, the "
+               "latest in DIR/estimate, live.csv logging them");
+  app.add_option("--live-speed", live_settings.speed, "with --live: times the recorded rate (0: as fast as read)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 100.0));
+  app.add_option("--live-growth", live_settings.trigger.growth,
+                 "with --live: a new estimate once the model grew by this share of its voxel blocks")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 100.0));
+  app.add_option("--live-travel", live_settings.trigger.travel,
+                 "with --live: ... or the camera moved this far (m, plus 0.5 m per radian turned)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 100.0));
   std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 takes them reversed
   try {
     app.parse(reversed);
@@ -44,6 +60,11 @@ int RunHeadless(const std::vector<std::string>& args) {
     throw InputError(std::string("--headless: ") + e.what() +
                      " (usage: lightprobe --headless INPUT --out DIR [reconstruct's options: --poses FILE, "
                      "--calibration FILE, --voxel M, --keyframes N, ...])");
+  }
+  if (live) {
+    if (!app.count("--fuse-every")) settings.options.fuse_every = ReconstructionOptions{}.fuse_every;  // a camera's pace
+    RunLive(input, out, settings, live_settings);
+    return 0;
   }
   const std::string scene = (std::filesystem::path(out) / "scene").string();
   const std::string estimate = (std::filesystem::path(out) / "estimate").string();

@@ -134,7 +134,9 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
     InitOpenNi();
     Open();
   }
-  ~OniFileSource() override { CloseDevice(); }
+  ~OniFileSource() override {
+    if (open_) CloseDevice();
+  }
 
   std::string Describe() const override {
     return ".oni file " + path_ + ", " + std::to_string(count_) + " frames" +
@@ -145,7 +147,12 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
   SourceStatus Next(RgbdFrame* out, double timeout_seconds) override {
     // No end-of-file signal in OpenNI2's playback: stop on the recorded frame counts.
     if (depth_read_ >= depth_count_ || color_read_ >= color_count_) {
-      if (!options_.loop) return SourceStatus::kEnd;
+      if (!options_.loop) {
+        // Past its last frame OpenNI2's player thread spins on a whole core: closed here,
+        // reopened by Rewind or Seek.
+        if (open_) CloseDevice(), open_ = false;
+        return SourceStatus::kEnd;
+      }
       Rewind();
     }
     openni::VideoFrameRef d, c;
@@ -162,7 +169,7 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
 
   /// OpenNI2's seek crashes: rewind by reopening the file.
   void Rewind() override {
-    CloseDevice();
+    if (open_) CloseDevice(), open_ = false;
     Open();
   }
 
@@ -186,6 +193,7 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
   void SetPaused(bool paused) override {
     paused_ = paused;
     if (!options_.real_time) return;
+    if (!open_) return;  // at its end: Rewind or Seek reopens it at the speed chosen
     if (openni::PlaybackControl* pc = device_.getPlaybackControl()) pc->setSpeed(paused ? -1.0f : 1.0f);
   }
 
@@ -193,6 +201,7 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
   void Open() {
     if (device_.open(path_.c_str()) != openni::STATUS_OK)
       throw InputError(path_, "OpenNI2 cannot open it: " + OpenNiError());
+    open_ = true;
     openni::PlaybackControl* pc = device_.getPlaybackControl();
     if (!pc) throw InputError(path_, "not a recording");
     pc->setSpeed(options_.real_time && !seeking_ && !paused_ ? 1.0f : -1.0f);  // -1: manual, one frame per read, none lost
@@ -235,6 +244,7 @@ class OniFileSource : public FrameSource, private OpenNiStreams {
   std::string intrinsics_note_;  ///< which source gave the intrinsics, when not the streams' own
   bool seeking_ = false;
   bool paused_ = false;  // SetPaused: a seek or a reopen keeps it
+  bool open_ = false;    // the device is open (closed at the end: Next)
   double side_exposure_ = 0, side_gain_ = 0;
   int depth_count_ = 0, color_count_ = 0, depth_read_ = 0, color_read_ = 0;
   std::int64_t count_ = 0, produced_ = 0;

@@ -9,6 +9,8 @@
 #include <sstream>
 #include <system_error>
 
+#include <fcntl.h>
+#include <stdio.h>
 #include <unistd.h>
 
 #include "common/error.h"
@@ -35,6 +37,20 @@ void WriteAtomically(const fs::path& path, const std::function<void(const fs::pa
     fs::remove(tmp, ec);
     throw InputError(path.string(), "cannot rename into place: " + ec.message());
   }
+}
+
+void ReplaceDirectory(const fs::path& dir, const fs::path& complete) {
+  std::error_code ec;
+  if (!fs::exists(dir, ec)) {
+    fs::rename(complete, dir, ec);
+    if (ec) throw InputError(dir.string(), "cannot move into place: " + ec.message());
+    return;
+  }
+  if (::renameat2(AT_FDCWD, complete.c_str(), AT_FDCWD, dir.c_str(), RENAME_EXCHANGE) != 0) {
+    const int saved = errno;
+    throw InputError(dir.string(), std::string("cannot replace: ") + std::strerror(saved));
+  }
+  fs::remove_all(complete, ec);  // now the old one
 }
 
 std::string WriteFailure(const fs::path& dir, int saved_errno) {

@@ -14,6 +14,13 @@ namespace lp {
 void WriteAtomically(const std::filesystem::path& path,
                      const std::function<void(const std::filesystem::path& tmp)>& write);
 
+/// Puts the complete directory `complete` in place of `dir` (created or replaced) in one
+/// step: where `dir` exists the two are exchanged atomically (Linux renameat2
+/// RENAME_EXCHANGE: a reader sees the old directory or the new one, never neither nor a
+/// mix) and the old one is removed. Both must be on one file system. Throws InputError
+/// when it cannot; `dir` is then as it was.
+void ReplaceDirectory(const std::filesystem::path& dir, const std::filesystem::path& complete);
+
 /// Why a write into `dir` failed, from the OS: "no space left on device" when `saved_errno`
 /// is ENOSPC or the file system has no space left, else the errno's message (lower case);
 /// empty when the OS said nothing. Save errno right after the failing write.

@@ -18,6 +18,7 @@ namespace lp {
 struct ConvergenceRow;
 struct RoundInfo;
 class EnvMap;
+struct WarmStart;
 class TruthScorer;
 
 /// EstimateOptions::objective.alpha is per this many observed pixels (one 160x120 view),
@@ -206,6 +207,10 @@ struct EstimateOptions {
   /// Scores every convergence row and the result against a ground truth (their angular and
   /// position errors; NaN without one): TruthScorer::FromBundle(bundle) where truth.json is.
   std::shared_ptr<const TruthScorer> scorer;
+  /// A live estimate's start (estimator.h's WarmStart: the last estimate's lighting): its map
+  /// as the first round's map (its importance and the solver's start), its lamps as the
+  /// search's first candidates. Null: from nothing.
+  std::shared_ptr<const WarmStart> warm;
 };
 
 /// One option of an estimate as every interface shows it.

@@ -43,6 +43,28 @@ Estimator::Estimator(const SceneBundle& bundle, const EstimateOptions& options, 
   // Start dark and uniform (paper): every cell equally likely to be sampled.
   lambda_.assign(3 * cells_, 1e-3);
   reachable_.assign(cells_, 1);
+  if (opt_.warm) StartWarm(*opt_.warm);
+}
+
+/// A live estimate's first map (WarmStart): the last one's, each cell from the cell of the
+/// last map its direction falls in, each directional light's irradiance in its cell as
+/// radiance (E = L x the cell's solid angle), over this estimate's image mean (the rounds'
+/// units), at least the cold start's 1e-3.
+void Estimator::StartWarm(const WarmStart& warm) {
+  const EnvMap before(std::clamp(warm.rings, kMinRings, kMaxRings), warm.up.normalized());
+  if (warm.lighting.map.size() != 3 * static_cast<std::size_t>(before.size())) return;
+  std::vector<double> map = warm.lighting.map;
+  for (const DirectionalLight& d : warm.lighting.Of<DirectionalLight>()) {
+    const int j = before.Lookup(d.direction);
+    for (int c = 0; c < 3; ++c) map[3 * j + c] += d.irradiance[c] / before.solid_angle(j);
+  }
+  for (int j = 0; j < cells_; ++j) {
+    const int k = before.Lookup(env_.direction(j));
+    for (int c = 0; c < 3; ++c) lambda_[3 * j + c] = std::max(1e-3, map[3 * k + c] / res_.image_mean);
+  }
+  warm_ = true;
+  Progress(Fmt("warm start: the last estimate's map (%d cells) and %zu light(s)", before.size(),
+               warm.lighting.lights.size()));
 }
 
 /// The bundle's mesh, clustered on a grid of opt_.trace_pixels pixels where it is finer
@@ -170,7 +192,7 @@ void Estimator::RunRounds() {
 /// with the rounds before under the same albedo, and makes the round's problem.
 RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   Stopwatch ts;
-  CellSampler sampler(env_, round == 1 ? std::vector<double>() : lambda_, reachable_, opt_.tracer.nee_floor);
+  CellSampler sampler(env_, round == 1 && !warm_ ? std::vector<double>() : lambda_, reachable_, opt_.tracer.nee_floor);
   TracerOptions topt = opt_.tracer;
   topt.seed = opt_.tracer.seed * 1000003ull + round;
   topt.cancelled = opt_.cancelled;  // a cancelled trace stops within 64 pixels
@@ -564,6 +586,14 @@ std::vector<ImageRGB> CleanRender(const RayTracer& scene, const EnvMap& env, con
       options.render_seconds > 0 ? options.render_seconds : std::max(kMinCleanRenderSeconds, estimate_seconds);
   return ProgressiveRender(scene, env, lighting, sampler, views, t, options.render_noise, seconds, kMaxCleanRenderSpp,
                            passes, on_pass, options.render_denoise);
+}
+
+std::shared_ptr<const WarmStart> WarmStartOf(const EstimateResult& result) {
+  auto warm = std::make_shared<WarmStart>();
+  warm->lighting = result.lighting;
+  warm->rings = result.env.rings();
+  warm->up = result.env.up();
+  return warm;
 }
 
 EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& options) {

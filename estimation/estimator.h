@@ -54,6 +54,16 @@ struct ConvergenceRow {
   const char* step = "solve";
 };
 
+/// Where a live estimate starts (EstimateOptions::warm): the last estimate's lighting and
+/// the layout of its map (rings, up). The map is resampled onto the new estimate's cells
+/// when the up moved (a new snapshot's up comes from its own mesh), and each directional
+/// light's irradiance is put into its cell as radiance, so the first round samples there.
+struct WarmStart {
+  Lighting lighting;
+  int rings = 0;
+  Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
+};
+
 struct RoundInfo {
   int round = 0;
   int spp = 0;  ///< the map's samples per pixel this round (EstimateOptions::tracer.spp, or fewer)
@@ -196,6 +206,9 @@ std::vector<ImageRGB> CleanRender(const RayTracer& scene, const EnvMap& env, con
                                   const CellSampler& sampler, const std::vector<View>& views,
                                   const EstimateOptions& options, double estimate_seconds,
                                   std::vector<RenderPass>* passes, const RenderPassCallback& on_pass = {});
+
+/// The start of a live estimate from the last one's lighting and map.
+std::shared_ptr<const WarmStart> WarmStartOf(const EstimateResult& result);
 
 /// Runs the estimate on a loaded bundle. Throws InputError when nothing usable is
 /// observed (every pixel masked/invalid, or a black image).

@@ -173,6 +173,7 @@ class Estimator {
   static std::vector<View> UnusedPixels(std::vector<View> views);
   void PutFit(std::vector<ImageRGB>* renders);
   void Observe();
+  void StartWarm(const WarmStart& warm);
   void UseViews(int stride);
   int FirstRoundStride() const;
   int MapSamples(int round) const;
@@ -343,6 +344,7 @@ class Estimator {
   std::vector<View> views_;
   int stride_ = 0;
   int after_grid_ = 0;  ///< the first round on every pixel after round 1's grid (0: none)
+  bool warm_ = false;  ///< round 1 starts from a live estimate's map (EstimateOptions::warm)
   /// The share of the rendered light that is the map's (the rest the lights'), after the last round.
   double map_share_ = 1;
   std::vector<double> y_;  ///< their observations over the mean of all the valid pixels'

@@ -72,7 +72,11 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
   topt.spp = opt_.point_lights.candidate_spp;
   topt.seed = opt_.tracer.seed * 1000003ull + 400;
   const ShadingVertices coarse = GatherShadingVertices(*scene_, views_, topt);
-  const std::vector<Eigen::Vector3d> positions = CandidatePositions(centre_, radius_, bundle_.up);
+  // A live estimate's lamps first (EstimateOptions::warm), then the grid around the scene.
+  std::vector<Eigen::Vector3d> positions;
+  if (opt_.warm)
+    for (const PointLight& l : opt_.warm->lighting.Of<PointLight>()) positions.push_back(l.position);
+  for (const Eigen::Vector3d& p : CandidatePositions(centre_, radius_, bundle_.up)) positions.push_back(p);
   std::vector<std::vector<float>> columns(positions.size());
   for (std::size_t i = 0; i < positions.size(); ++i) {
     CheckCancel();

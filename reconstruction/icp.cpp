@@ -100,6 +100,11 @@ Eigen::Matrix4d Exp(const Eigen::Matrix<double, 6, 1>& xi) {
 
 }  // namespace
 
+double PoseDistance(const Eigen::Matrix4d& a, const Eigen::Matrix4d& b) {
+  const Eigen::Matrix4d d = a.inverse() * b;
+  return d.block<3, 1>(0, 3).norm() + 0.5 * RotationAngle(d);
+}
+
 double RotationAngle(const Eigen::Matrix4d& t) {
   return std::acos(std::clamp((t.block<3, 3>(0, 0).trace() - 1) / 2, -1.0, 1.0));
 }

@@ -35,6 +35,9 @@ struct ModelMaps {
 
 /// The rotation angle of a rigid transform's rotation part, radians.
 double RotationAngle(const Eigen::Matrix4d& transform);
+/// The distance between two camera poses as the keyframes are spread (and a live estimate
+/// is triggered): metres plus 0.5 m per radian of the rotation between them.
+double PoseDistance(const Eigen::Matrix4d& a, const Eigen::Matrix4d& b);
 
 /// Model maps for `levels` pyramid levels from a raycast (world frame) made at pyramid
 /// level `first_level` of the frame (0 = full size, 1 = half): levels up to first_level

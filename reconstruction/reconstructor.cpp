@@ -37,12 +37,6 @@ bool GoodIntrinsics(const Camera& k) {
          k.fy > 0 && k.width > 0 && k.height > 0;
 }
 
-/// Distance between two camera poses for keyframe spreading: metres plus 0.5 m per radian.
-double PoseDistance(const Eigen::Matrix4d& a, const Eigen::Matrix4d& b) {
-  const Eigen::Matrix4d d = a.inverse() * b;
-  return d.block<3, 1>(0, 3).norm() + 0.5 * RotationAngle(d);
-}
-
 /// Averages a view down by `f` x `f` blocks (linear radiance: the mean is what a camera
 /// with bigger pixels would see). A block is valid only if all its pixels are valid and
 /// none is saturated (a mean over clipped pixels is biased low).

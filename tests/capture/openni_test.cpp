@@ -1,5 +1,6 @@
 // Through the real OpenNI2 stack, no camera: the project's synthetic driver serves frames,
 // OpenNI2's Recorder writes an .oni, its OniFile driver plays it back.
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -20,6 +21,7 @@
 #include <gtest/gtest.h>
 
 #include "capture/capture_thread.h"
+#include "capture/frame_source.h"
 #include "capture/openni.h"
 #include "capture/trajectory.h"
 #include "common/color.h"
@@ -968,6 +970,34 @@ TEST(DemoRecording, RealTimeSeekWhilePausedLandsOnTheFrameAndStaysPaused) {
   auto f = queue->Pop(kFrameWait);
   ASSERT_TRUE(f);
   EXPECT_EQ(f->depth.data, file[25].depth.data) << "the seek did not land on frame 25 (or playback ran on while paused)";
+}
+
+// A recording played to its end leaves the CPU to the rest of the process: OpenNI2's
+// player thread, at manual speed past the last frame, took a whole core (the live
+// estimate behind it ran at half speed), so the source closes the file at its end.
+TEST_F(OpenNi, ARecordingAtItsEndLeavesTheCpuIdle) {
+  auto source = OpenFrameSource(std::string(LIGHTPROBE_SOURCE_DIR) + "/assets/demo-recording/demo.oni");
+  RgbdFrame f;
+  int frames = 0;
+  while (source->Next(&f, 5.0) == SourceStatus::kFrame) ++frames;
+  EXPECT_EQ(frames, 40);
+  const auto cpu = [] {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return u.ru_utime.tv_sec + u.ru_stime.tv_sec + 1e-6 * (u.ru_utime.tv_usec + u.ru_stime.tv_usec);
+  };
+  const double before = cpu();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  const double used = cpu() - before;
+  std::printf("CPU used in 0.5 s at the end: %.3f s\n", used);
+  EXPECT_LT(used, 0.1);
+  // It still rewinds and plays again, the same frames.
+  source->Rewind();
+  frames = 0;
+  while (source->Next(&f, 5.0) == SourceStatus::kFrame) ++frames;
+  EXPECT_EQ(frames, 40);
+  source->Seek(30);
+  EXPECT_EQ(source->Next(&f, 5.0), SourceStatus::kFrame);
 }
 
 }  // namespace
