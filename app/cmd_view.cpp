@@ -29,6 +29,7 @@ ui::ViewerOptions DefaultViewerOptions() {
   // The window is interactive: the relit keyframes are the fit until the job's clean render
   // has its first pass (EstimateJob::CleanRender).
   o.estimate.render_spp = 0;
+  o.session.live = true;  // the lights follow the scan
   return o;
 }
 
@@ -42,6 +43,10 @@ Run AddView(CLI::App& app) {
   cmd->add_option("--script", o->script, "a command file to run in the window (tests, benchmarks; docs/viewer.md)");
   cmd->add_option("--size", o->width, "window width (the height is 9/16 of it)")->capture_default_str();
   cmd->add_option("--rings", o->estimate.rings, "the Estimate panel's default rings")->capture_default_str();
+  cmd->add_option("--live", o->session.live,
+                  "1: estimate by itself while a camera or a file is reconstructed (the panel's live switch), 0: "
+                  "only when Estimate is pressed")
+      ->capture_default_str();
   auto calibration = std::make_shared<std::string>();
   cmd->add_option("--calibration", *calibration,
                   "calibration file (lightprobe calibrate) for the reconstruction, as reconstruct takes it");

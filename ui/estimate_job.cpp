@@ -14,6 +14,27 @@
 namespace lp::ui {
 
 EstimateJob::EstimateJob(Settings settings) : settings_(std::move(settings)) {
+  if (const EstimateStatus* last = settings_.shown.get()) {  // shown until this job has its own
+    status_.lighting = last->lighting;
+    status_.env = last->env;
+    status_.dominant = last->dominant;
+    status_.scene = last->scene;
+    status_.result = last->result;
+    status_.lit = last->lit;
+    status_.error = last->error;
+    status_.lit_samples = last->lit_samples;
+    status_.lit_noise = last->lit_noise;
+    status_.lit_done = last->lit_done;
+    status_.renders = last->renders;
+    status_.render_samples = last->render_samples;
+    status_.render_noise = last->render_noise;
+    status_.finished_at = last->finished_at;
+  }
+  settings_.shown.reset();
+  status_.live = settings_.live;
+  status_.live_index = settings_.live_index;
+  status_.warm = settings_.options.warm != nullptr;
+  status_.started_at = settings_.pressed_at;
   status_.state = EstimateState::kPreparing;
   status_.message = "taking a snapshot of the scene";
   status_.version = settings_.version;
@@ -95,7 +116,8 @@ EstimateOptions EstimateJob::Callbacks() {
     auto dominant = DominantDirections(env, info.lighting.map, 2);
     const double t = self->SincePressed();
     self->Update([&](EstimateStatus& s) {
-      if (!s.env) s.env = std::make_shared<const EnvMap>(env);
+      if (!s.env || s.env->up() != env.up() || s.env->rings() != env.rings())
+        s.env = std::make_shared<const EnvMap>(env);
       s.lighting = info.lighting;
       s.dominant = dominant;
       ++s.version;
@@ -116,6 +138,17 @@ std::shared_ptr<const EstimateResult> EstimateJob::EstimateScene(SceneSource sou
       if (s.state == EstimateState::kCancelled) return;
       s.state = EstimateState::kRunning;
       s.message = "tracing round 1";
+      if (s.scene != *scene) {  // the last estimate's pictures belong to its own scene
+        s.result.reset();
+        s.lit.reset();
+        s.error.reset();
+        s.renders.reset();
+        s.lit_samples = s.render_samples = 0;
+        s.lit_noise = s.render_noise = std::nan("");
+        s.lit_done = false;
+        ++s.lit_version;
+        ++s.render_version;
+      }
       s.scene = *scene;
     });
     EstimateOptions options = Callbacks();
@@ -144,9 +177,11 @@ void EstimateJob::Run(SceneSource source) {
     s.result = result;
     s.lighting = result->lighting;
     s.dominant = result->dominant;
-    if (!s.env) s.env = std::make_shared<const EnvMap>(result->env);
+    if (!s.env || s.env->up() != result->env.up() || s.env->rings() != result->env.rings())
+      s.env = std::make_shared<const EnvMap>(result->env);
     ++s.version;
     s.seconds_total = t;
+    s.finished_at = settings_.clock->Seconds();
     s.message = "done in " + std::to_string(t).substr(0, 5) + " s";
     for (const std::string& w : result->warnings) s.message += "; warning: " + w;
   });

@@ -32,6 +32,11 @@ class EstimateJob {
     double pressed_at = 0;        ///< on `clock`: when Estimate was pressed
     /// Where the status's version counters start (the window re-uploads what changed).
     std::uint64_t version = 0, lit_version = 0;
+    /// A live estimate (Session::SetLive): what the last job shows (its lights, map, scene,
+    /// lit shading and result), shown until this one has its own (null: nothing).
+    std::shared_ptr<const EstimateStatus> shown;
+    bool live = false;
+    int live_index = 0;
   };
 
   /// A job waiting for its scene: kPreparing, "taking a snapshot of the scene".

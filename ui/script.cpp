@@ -168,6 +168,25 @@ bool StartEstimate(const Call& c) {
   return true;
 }
 
+/// `live on|off [key=value ...]`: the live switch, the live estimates' settings as `estimate`'s.
+bool SetLive(const Call& c) {
+  if (c.word(1) != "on" && c.word(1) != "off") c.Fail("live takes on or off: " + c.word(1));
+  EstimateOptions o = c.v.settings;
+  for (std::size_t i = 2; i < c.line.words.size(); ++i) ApplySetting(c, c.word(i), &o);
+  c.v.settings = o;
+  c.v.session.SetLive(c.word(1) == "on", o);
+  return true;
+}
+
+/// `wait-live N [timeout]`: until the N-th live estimate (or a later one) has its result.
+bool WaitLive(const Call& c) {
+  c.Timeout(c.Arg(2, 600), "the live estimates");
+  if (c.v.est.state == EstimateState::kFailed) c.Fail(c.v.est.message);
+  const EstimateStatus& e = c.v.est;
+  const bool finished = !std::isnan(e.finished_at) && e.finished_at >= e.started_at;  // its own, not the last's
+  return e.live && (e.live_index > c.Arg(1, 1) || (e.live_index == c.Arg(1, 1) && finished));
+}
+
 bool Cancel(const Call& c) {
   c.v.session.CancelEstimate();
   return true;
@@ -300,6 +319,8 @@ const std::map<std::string, Handler>& Handlers() {
       {"wait-record", WaitRecord},
       {"estimate", StartEstimate},
       {"cancel", Cancel},
+      {"live", SetLive},
+      {"wait-live", WaitLive},
       {"wait-first", WaitFirst},
       {"wait-estimate", WaitEstimate},
       {"expect-estimate", ExpectEstimate},

@@ -23,6 +23,8 @@ const std::map<std::string, ScriptSyntax>& ScriptCommands() {
       {"wait-record", {0, 1}},
       {"estimate", {0, 20}},
       {"cancel", {0, 0}},
+      {"live", {1, 20}},
+      {"wait-live", {1, 2}},
       {"wait-first", {0, 1}},
       {"wait-estimate", {0, 1}},
       {"expect-estimate", {1, 1}},

@@ -78,6 +78,12 @@ struct Session::Impl {
   std::unique_ptr<EstimateJob> job;
   std::vector<std::unique_ptr<EstimateJob>> retired;
   EstimateStatus idle;  // what estimate() shows without a job (its counters go on)
+  // Live estimation (SetLive; worker-owned but for the flag, read by the main thread too).
+  std::atomic<bool> live_on{false};
+  EstimateOptions live_options;  // under `mutex`
+  LiveTrigger trigger;
+  Eigen::Matrix4d live_pose = Eigen::Matrix4d::Identity();  // the last tracked pose
+  int live_started = 0;
   // Export: one at a time, on its own thread.
   std::thread exporter;
   std::atomic<bool> exporting{false};
@@ -151,6 +157,8 @@ struct Session::Impl {
     ClearEstimate();
     run.reset();
     fused_any = false;
+    trigger = LiveTrigger(options.live_trigger);
+    live_started = 0;
     try {
       run = std::make_unique<ReconstructionRun>(rec_options);
     } catch (const std::exception& e) {
@@ -308,6 +316,10 @@ struct Session::Impl {
       }
     }
     if (processed) CountRate(&processed_times, clock.Seconds());
+    if (processed && report.state == TrackingState::kTracking) {
+      live_pose = report.world_from_camera;
+      MaybeStartLive();
+    }
     const std::int64_t dropped = capture ? capture->stats().queue.dropped : 0;
     UpdateLive([&](LiveStatus& l) {
       l.frame = shared;
@@ -389,6 +401,39 @@ struct Session::Impl {
     if (!run || !fused_any)
       throw InputError("nothing reconstructed yet: start the reconstruction and play some frames first");
     return run->Snapshot();
+  }
+
+  /// On the worker, after a tracked frame: a live estimate, when live estimation is on, the
+  /// model has changed enough since the last one's snapshot, and the last one has its
+  /// result (or failed, or none runs); warm-started from that result.
+  void MaybeStartLive() {
+    if (!live_on || !run || !fused_any || !trigger.Due(*run, live_pose)) return;
+    EstimateJob* started;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      EstimateStatus last = job ? job->status() : idle;
+      const bool running = last.state == EstimateState::kPreparing || last.state == EstimateState::kRunning;
+      if (running && !last.result) return;  // the last one still estimating
+      EstimateJob::Settings settings;
+      settings.options = live_options;
+      if (last.result) settings.options.warm = WarmStartOf(*last.result);
+      settings.lit_samples = options.lit_samples;
+      settings.clock = &clock;
+      settings.pressed_at = clock.Seconds();
+      const EstimateStatus fresh = Fresh();
+      settings.version = fresh.version;
+      settings.lit_version = fresh.lit_version;
+      settings.shown = std::make_shared<const EstimateStatus>(std::move(last));
+      settings.live = true;
+      settings.live_index = live_started + 1;
+      auto next = std::make_unique<EstimateJob>(std::move(settings));
+      started = next.get();
+      ReplaceJob(std::move(next));
+    }
+    trigger.Taken(*run, live_pose);
+    ++live_started;
+    UpdateLive([&](LiveStatus& l) { l.live_estimates = live_started; });
+    StartJob(started);
   }
 
   /// On the worker: starts `target` (if it is still the current job) on a snapshot.
@@ -478,6 +523,9 @@ struct Session::Impl {
 Session::Session(SessionOptions options) : impl_(std::make_unique<Impl>()) {
   impl_->options = std::move(options);
   impl_->rec_options = impl_->options.reconstruction;
+  impl_->trigger = LiveTrigger(impl_->options.live_trigger);
+  impl_->live_on = impl_->options.live;
+  impl_->live.live_estimation = impl_->options.live;
   impl_->worker = std::thread([this] { impl_->Run(); });
 }
 
@@ -591,6 +639,15 @@ void Session::Estimate(const EstimateOptions& options) {
   m.Post([this, started] { impl_->StartJob(started); });
 }
 
+void Session::SetLive(bool on, const EstimateOptions& options) {
+  {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    impl_->live_options = options;
+    impl_->live.live_estimation = on;
+  }
+  impl_->live_on = on;
+}
+
 void Session::CancelEstimate() {
   std::lock_guard<std::mutex> lock(impl_->mutex);
   if (impl_->job) impl_->job->Cancel();
@@ -626,6 +683,8 @@ EstimateStatus Session::estimate() const {
   s.export_message = impl_->export_message;
   return s;
 }
+
+double Session::seconds() const { return impl_->clock.Seconds(); }
 
 bool Session::busy() const { return impl_->pending.load() > 0; }
 

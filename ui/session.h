@@ -18,6 +18,7 @@
 #include "estimation/estimator.h"
 #include "exports/export_scene.h"
 #include "ui/status.h"
+#include "reconstruction/live_trigger.h"
 #include "reconstruction/reconstruction_run.h"
 
 namespace lp::ui {
@@ -32,6 +33,10 @@ struct SessionOptions {
   ReconstructionRunOptions reconstruction;
   EstimateWriter write_estimate;  ///< used by Export
   int lit_samples = 256;          ///< lit shading stops refining here
+  /// Live estimation (SetLive) at the start: estimates start by themselves while a camera
+  /// or a file is reconstructed. The window turns it on; off for a bare session (tests).
+  bool live = false;
+  LiveTriggerOptions live_trigger;
 };
 
 class Session {
@@ -68,6 +73,11 @@ class Session {
   /// its lighting on a background thread; an estimate still running is cancelled first.
   void Estimate(const EstimateOptions& options);
   void CancelEstimate();
+  /// Live estimation: while frames are reconstructed, whenever the model has changed enough
+  /// (reconstruction/live_trigger.h) and the last estimate has its result (or none runs), a
+  /// new one starts on a fresh snapshot with `options`, warm-started from the last
+  /// (EstimateOptions::warm). The shown estimate stays until the new one's first round.
+  void SetLive(bool on, const EstimateOptions& options);
   /// Writes DIR/scene (the bundle: mesh with albedo, keyframes; from a reconstruction also
   /// its log, trajectory and calibration, as `reconstruct` writes them) and DIR/estimate
   /// (envmap.exr, convergence.csv, ...) of the last finished estimate, on a background
@@ -77,6 +87,8 @@ class Session {
 
   LiveStatus live() const;
   EstimateStatus estimate() const;
+  /// Seconds on the session's clock (EstimateStatus::started_at and finished_at are on it).
+  double seconds() const;
   /// True while a command is queued or being handled by the worker (for scripts).
   bool busy() const;
 

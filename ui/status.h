@@ -47,6 +47,8 @@ struct LiveStatus {
   double recorded_seconds = 0;
   std::string record_message;     ///< the last recording's outcome, one line
   Eigen::Matrix4d camera_pose = Eigen::Matrix4d::Identity();  ///< world_from_camera of the latest frame
+  bool live_estimation = false;  ///< Session::SetLive: estimates start by themselves
+  int live_estimates = 0;        ///< how many it started since the source opened
 };
 
 enum class EstimateState { kIdle, kPreparing, kRunning, kDone, kCancelled, kFailed };
@@ -72,6 +74,12 @@ struct EstimateStatus {
   /// Seconds from pressing Estimate to the first finished round (the first usable
   /// estimate) and to the end; NaN until then.
   double seconds_to_first = std::nan(""), seconds_total = std::nan("");
+  /// On the session's clock: when the job started and when its result came (NaN until
+  /// then): the panel says how old the shown estimate is. `live`: started by live estimation.
+  double started_at = std::nan(""), finished_at = std::nan("");
+  bool live = false;
+  int live_index = 0;  ///< which live estimate since the source opened (1 = the first)
+  bool warm = false;   ///< warm-started from the last estimate
   /// Lit shading of the snapshot's mesh under the estimate (per vertex, image units),
   /// refined progressively after the estimate; photometric error per vertex against the
   /// nearest keyframe that sees it (|lit - observed| / mean observed; NaN = unseen).

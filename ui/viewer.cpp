@@ -136,6 +136,7 @@ Viewer::Viewer(const ViewerOptions& options, GLFWwindow* window)
       mesh_program_(MeshProgram()),
       line_program_(LineProgram()) {
   if (!options.script.empty()) script_ = std::make_unique<ScriptRunner>(options.script, this);
+  session_.SetLive(options.session.live, settings_);
   session_.Open(options.input.empty() ? "auto" : options.input);
 }
 
@@ -671,7 +672,15 @@ void Viewer::PanelEstimate() {
   ImGui::SetNextWindowSize(ImVec2(kPanelWidth, static_cast<float>(win_h) - 330));
   ImGui::Begin("Estimate", nullptr, ImGuiWindowFlags_NoMove | ImGuiWindowFlags_NoResize | ImGuiWindowFlags_NoCollapse);
   const bool running = est_.state == EstimateState::kRunning || est_.state == EstimateState::kPreparing;
-  if (ImGui::Button("Estimate", ImVec2(100, 0))) session_.Estimate(settings_);
+  if (ImGui::Button("Estimate", ImVec2(100, 0))) {
+    session_.Estimate(settings_);
+    if (live_.live_estimation) session_.SetLive(true, settings_);  // the live ones take these settings too
+  }
+  ImGui::SameLine();
+  bool live = live_.live_estimation;
+  if (ImGui::Checkbox("live", &live)) session_.SetLive(live, settings_);
+  if (ImGui::IsItemHovered())
+    ImGui::SetTooltip("estimate by itself while the scan grows, each estimate warm-started from the last");
   ImGui::SameLine();
   if (running && ImGui::Button("Cancel")) session_.CancelEstimate();
   if (!running) {
@@ -700,6 +709,12 @@ void Viewer::PanelEstimate() {
   if (!std::isnan(est_.seconds_to_first))
     ImGui::Text("first estimate after %.2f s%s", est_.seconds_to_first,
                 std::isnan(est_.seconds_total) ? "" : (", done after " + std::to_string(est_.seconds_total).substr(0, 5) + " s").c_str());
+  if (est_.live)
+    ImGui::Text("live estimate %d (%s)%s", est_.live_index, est_.warm ? "warm" : "cold",
+                std::isnan(est_.finished_at)
+                    ? ""
+                    : (", the one shown from " + std::to_string(session_.seconds() - est_.finished_at).substr(0, 4) +
+                       " s ago").c_str());
   PlotConvergence(kPanelWidth - 16, 110);
   LightsList();
   if (!est_.export_message.empty()) ImGui::TextWrapped("%s", est_.export_message.c_str());
@@ -961,7 +976,13 @@ void Viewer::WriteState(const std::string& path) const {
                    {"seconds_to_first", std::isnan(est_.seconds_to_first) ? json() : json(est_.seconds_to_first)},
                    {"seconds_total", std::isnan(est_.seconds_total) ? json() : json(est_.seconds_total)},
                    {"export", est_.export_message},
-                   {"export_state", ToString(est_.export_state)}};
+                   {"export_state", ToString(est_.export_state)},
+                   {"live", est_.live},
+                   {"live_index", est_.live_index},
+                   {"warm", est_.warm},
+                   {"age_seconds", std::isnan(est_.finished_at) ? json() : json(session_.seconds() - est_.finished_at)}};
+  j["live_estimation"] = live_.live_estimation;
+  j["live_estimates"] = live_.live_estimates;
   if (est_.result && !std::isnan(est_.result->final_angular_error_deg))
     j["estimate"]["angular_error_deg"] = est_.result->final_angular_error_deg;
   // Where the panels must show the estimate: its dominant directions (world) and the map's

@@ -1,9 +1,13 @@
 // End to end on synthetic scenes lit by spherical area lights (not the env-map model).
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <memory>
 
 #include <gtest/gtest.h>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 
 #include "common/color.h"
 #include "common/parallel.h"
@@ -233,6 +237,56 @@ TEST(EstimateEndToEnd, SameSeedBitIdenticalForAnyThreadCount) {
   eo.tracer.seed = 2;
   const EstimateResult other = Estimate(b, eo);
   EXPECT_NE(other.lighting.map, one.lighting.map);
+}
+
+}  // namespace
+}  // namespace lp
+
+namespace lp {
+namespace {
+
+/// `warm`'s map moved onto an EnvMap of the same rings about `up` (each new cell takes the
+/// old cell its direction falls in): the same light, laid out on another up.
+WarmStart OnUp(const EstimateResult& r, const Eigen::Vector3d& up) {
+  WarmStart w;
+  w.lighting = r.lighting;
+  w.rings = r.env.rings();
+  w.up = up;
+  const EnvMap moved(w.rings, up);
+  w.lighting.map.assign(3 * moved.size(), 0.0);
+  for (int j = 0; j < moved.size(); ++j)
+    for (int c = 0; c < 3; ++c) w.lighting.map[3 * j + c] = r.lighting.map[3 * r.env.Lookup(moved.direction(j)) + c];
+  return w;
+}
+
+// A live estimate starts from the last one (EstimateOptions::warm): round 1's first solve
+// starts at its map, in this estimate's units (image units over its image mean) and resampled
+// onto this estimate's cells when the up moved (a new snapshot's up comes from its own mesh).
+// Its first row is then near the cold estimate's end; the cold start's first row is far from it.
+TEST(EstimateEndToEnd, AWarmStartBeginsAtTheLastEstimateWhereverItsUpPoints) {
+  const SceneBundle b = LoadSceneBundle(std::string(LIGHTPROBE_SOURCE_DIR) + "/assets/demo");
+  EstimateOptions eo;
+  eo.render = false;
+  const EstimateResult cold = Estimate(b, eo);
+  const Eigen::Vector3d tilted = Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitX()) * b.up;
+  for (const Eigen::Vector3d& up : {b.up, tilted}) {
+    // The images 3x as bright: the map given in the last estimate's image units is put in this one's.
+    SceneBundle brighter = b;
+    for (View& v : brighter.views)
+      for (float& x : v.image.data) x *= 3;
+    WarmStart w = OnUp(cold, up);
+    for (double& x : w.lighting.map) x *= 3;
+    eo.warm = std::make_shared<const WarmStart>(w);
+    const EstimateResult warm = Estimate(brighter, eo);
+    const double first_cold = cold.convergence.front().relative_rmse,
+                 first_warm = warm.convergence.front().relative_rmse, end = cold.final_relative_rmse;
+    std::printf("up tilted %.0f deg: first row %.4f warm, %.4f cold; the cold estimate ends at %.4f, the warm at %.4f\n",
+                std::acos(std::clamp(up.dot(b.up), -1.0, 1.0)) * 180 / M_PI, first_warm, first_cold, end,
+                warm.final_relative_rmse);
+    EXPECT_GT(first_cold, 3 * end);
+    EXPECT_LT(first_warm, 1.5 * end);
+    EXPECT_LT(warm.final_relative_rmse, 1.1 * end);
+  }
 }
 
 }  // namespace
