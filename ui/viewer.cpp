@@ -949,6 +949,27 @@ bool Viewer::Frame() {
 
 void Viewer::Screenshot(const std::string& path) { pending_screenshot_ = path; }
 
+/// The estimate's part of WriteState: its state, progress, timings, and the live switch's.
+nlohmann::json Viewer::EstimateStateJson() const {
+  using nlohmann::json;
+  return {{"state", ToString(est_.state)},
+          {"message", est_.message},
+          {"rows", est_.rows.size()},
+          {"rounds", est_.result ? est_.result->rounds.size() : 0},
+          {"albedo_refined", est_.result && !est_.result->albedo.empty()},
+          {"albedo_shading_refined", shading_ == Shading::kAlbedo && shown_refined_albedo_},
+          {"lit_samples", est_.lit_samples},
+          {"lit_noise", std::isnan(est_.lit_noise) ? json() : json(est_.lit_noise)},
+          {"seconds_to_first", std::isnan(est_.seconds_to_first) ? json() : json(est_.seconds_to_first)},
+          {"seconds_total", std::isnan(est_.seconds_total) ? json() : json(est_.seconds_total)},
+          {"export", est_.export_message},
+          {"export_state", ToString(est_.export_state)},
+          {"live", est_.live},
+          {"live_index", est_.live_index},
+          {"warm", est_.warm},
+          {"age_seconds", std::isnan(est_.finished_at) ? json() : json(session_.seconds() - est_.finished_at)}};
+}
+
 void Viewer::WriteState(const std::string& path) const {
   using nlohmann::json;
   auto rect = [](const Rect& r) { return json::array({r.x, r.y, r.w, r.h}); };
@@ -965,22 +986,7 @@ void Viewer::WriteState(const std::string& path) const {
   j["model_triangles"] = live_.model ? live_.model->triangles.size() : 0;
   j["shown_triangles"] = mesh_.triangles();
   j["shading"] = ToString(shading_);
-  j["estimate"] = {{"state", ToString(est_.state)},
-                   {"message", est_.message},
-                   {"rows", est_.rows.size()},
-                   {"rounds", est_.result ? est_.result->rounds.size() : 0},
-                   {"albedo_refined", est_.result && !est_.result->albedo.empty()},
-                   {"albedo_shading_refined", shading_ == Shading::kAlbedo && shown_refined_albedo_},
-                   {"lit_samples", est_.lit_samples},
-                   {"lit_noise", std::isnan(est_.lit_noise) ? json() : json(est_.lit_noise)},
-                   {"seconds_to_first", std::isnan(est_.seconds_to_first) ? json() : json(est_.seconds_to_first)},
-                   {"seconds_total", std::isnan(est_.seconds_total) ? json() : json(est_.seconds_total)},
-                   {"export", est_.export_message},
-                   {"export_state", ToString(est_.export_state)},
-                   {"live", est_.live},
-                   {"live_index", est_.live_index},
-                   {"warm", est_.warm},
-                   {"age_seconds", std::isnan(est_.finished_at) ? json() : json(session_.seconds() - est_.finished_at)}};
+  j["estimate"] = EstimateStateJson();
   j["live_estimation"] = live_.live_estimation;
   j["live_estimates"] = live_.live_estimates;
   if (est_.result && !std::isnan(est_.result->final_angular_error_deg))

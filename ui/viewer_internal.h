@@ -7,6 +7,7 @@
 #include <vector>
 
 #include <Eigen/Core>
+#include <nlohmann/json.hpp>
 
 #include "ui/gl.h"
 #include "ui/script_syntax.h"
@@ -75,6 +76,7 @@ class Viewer {
   void PlotConvergence(float width, float height);
   void ResetCamera();
   void WriteState(const std::string& path) const;
+  nlohmann::json EstimateStateJson() const;
   void Screenshot(const std::string& path);
 
   ViewerOptions options_;
