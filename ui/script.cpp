@@ -187,6 +187,9 @@ bool WaitLive(const Call& c) {
   return e.live && (e.live_index > c.Arg(1, 1) || (e.live_index == c.Arg(1, 1) && finished));
 }
 
+/// `sleep S`: S seconds pass, the window and the workers going on.
+bool Sleep(const Call& c) { return c.waited >= c.Arg(1, 0); }
+
 bool Cancel(const Call& c) {
   c.v.session.CancelEstimate();
   return true;
@@ -321,6 +324,7 @@ const std::map<std::string, Handler>& Handlers() {
       {"cancel", Cancel},
       {"live", SetLive},
       {"wait-live", WaitLive},
+      {"sleep", Sleep},
       {"wait-first", WaitFirst},
       {"wait-estimate", WaitEstimate},
       {"expect-estimate", ExpectEstimate},

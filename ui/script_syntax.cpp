@@ -36,6 +36,7 @@ const std::map<std::string, ScriptSyntax>& ScriptCommands() {
       {"keyframe", {1, 1}},
       {"orbit", {2, 2}},
       {"frames", {1, 1}},
+      {"sleep", {1, 1}},
       {"screenshot", {1, 1}},
       {"bench-frames", {1, 2}},
       {"state", {1, 1}},

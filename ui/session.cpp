@@ -413,7 +413,9 @@ struct Session::Impl {
       std::lock_guard<std::mutex> lock(mutex);
       EstimateStatus last = job ? job->status() : idle;
       const bool running = last.state == EstimateState::kPreparing || last.state == EstimateState::kRunning;
-      if (running && !last.result) return;  // the last one still estimating
+      // Its own result (a live job shows the last one's until it has its own).
+      const bool has_result = last.result && !(last.finished_at < last.started_at);
+      if (running && !has_result) return;  // the last one still estimating
       EstimateJob::Settings settings;
       settings.options = live_options;
       if (last.result) settings.options.warm = WarmStartOf(*last.result);

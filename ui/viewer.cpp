@@ -1,5 +1,7 @@
 #include "ui/viewer.h"
 
+#include <unistd.h>
+
 #include <imgui.h>
 #include <imgui_impl_glfw.h>
 #include <imgui_impl_opengl3.h>
@@ -949,6 +951,18 @@ bool Viewer::Frame() {
 
 void Viewer::Screenshot(const std::string& path) { pending_screenshot_ = path; }
 
+namespace {
+
+/// This process's resident memory now (Linux /proc/self/statm), MiB; 0 where unknown.
+double ResidentMegabytes() {
+  std::ifstream statm("/proc/self/statm");
+  double pages = 0, resident = 0;
+  if (!(statm >> pages >> resident)) return 0;
+  return resident * static_cast<double>(sysconf(_SC_PAGESIZE)) / 1048576.0;
+}
+
+}  // namespace
+
 /// The estimate's part of WriteState: its state, progress, timings, and the live switch's.
 nlohmann::json Viewer::EstimateStateJson() const {
   using nlohmann::json;
@@ -987,6 +1001,9 @@ void Viewer::WriteState(const std::string& path) const {
   j["shown_triangles"] = mesh_.triangles();
   j["shading"] = ToString(shading_);
   j["estimate"] = EstimateStateJson();
+  j["seconds"] = session_.seconds();  // the session's clock
+  j["dropped"] = live_.dropped;
+  j["rss_mb"] = ResidentMegabytes();
   j["live_estimation"] = live_.live_estimation;
   j["live_estimates"] = live_.live_estimates;
   if (est_.result && !std::isnan(est_.result->final_angular_error_deg))

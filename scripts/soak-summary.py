@@ -1,0 +1,58 @@
+#!/usr/bin/env python3
+"""Summarises a soak's state files (scripts/soak-live.sh): a table over time and the
+verdict. Exit 1 when memory grew more than --max-growth (0.10) after the first fifth of the
+run (at least the first minute), when resident memory ever passed --max-mb (none), or when
+fewer than --min-finished (1) live estimates finished."""
+import argparse
+import glob
+import json
+import os
+import sys
+
+parser = argparse.ArgumentParser()
+parser.add_argument("out")
+parser.add_argument("--min-finished", type=int, default=1)
+parser.add_argument("--max-growth", type=float, default=0.10)
+parser.add_argument("--max-mb", type=float, default=float("inf"))
+args = parser.parse_args()
+out = args.out
+states = [json.load(open(f)) for f in sorted(glob.glob(os.path.join(out, "state-*.json")))]
+if not states:
+    sys.exit("soak: no state written")
+
+
+def finished(s):
+    e = s["estimate"]
+    if not e.get("live"):
+        return 0
+    return e["live_index"] if e["state"] == "done" else e["live_index"] - 1
+
+
+print("| seconds | frames read | dropped | live estimates started | finished | resident MiB |")
+print("| --- | --- | --- | --- | --- | --- |")
+for s in states:
+    print("| %.0f | %d | %d | %d | %d | %.0f |" % (s["seconds"], s["frames_read"], s["dropped"],
+                                               s["live_estimates"], finished(s), s["rss_mb"]))
+last = states[-1]
+settle = max(60.0, 0.2 * last["seconds"])
+after = [s for s in states if s["seconds"] >= settle] or [last]
+base = after[0]["rss_mb"]
+peak = max(s["rss_mb"] for s in after)
+growth = peak / base - 1 if base > 0 else float("nan")
+done = finished(last)
+minutes = last["seconds"] / 60
+print("soak: %.1f minutes, %d frames read, %d dropped (%.1f %%), %d live estimates finished (%.2f a minute), "
+      "resident %.0f MiB after %.0f s, at most %.0f MiB after (%+.1f %%)"
+      % (minutes, last["frames_read"], last["dropped"], 100.0 * last["dropped"] / max(1, last["frames_read"] + last["dropped"]),
+         done, done / max(minutes, 1e-9), base, after[0]["seconds"], peak, 100 * growth))
+most = max(s["rss_mb"] for s in states)
+problems = []
+if done < args.min_finished:
+    problems.append("%d live estimates finished, fewer than %d" % (done, args.min_finished))
+if not growth <= args.max_growth:
+    problems.append("memory grew %.1f %% after the first minutes (at most %.0f %%)" % (100 * growth, 100 * args.max_growth))
+if most > args.max_mb:
+    problems.append("resident memory reached %.0f MiB (at most %.0f)" % (most, args.max_mb))
+print("soak: " + ("passed" if not problems else "FAILED: " + "; ".join(problems)))
+ok = not problems
+sys.exit(0 if ok else 1)
