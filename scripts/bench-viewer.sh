@@ -26,6 +26,7 @@ EOS
 xvfb-run -a -s "-screen 0 1280x720x24 -noreset" $exe view "$out/scene200k" --script "$out/frames.txt" >"$out/frames.log" 2>&1
 cat >"$out/first.txt" <<EOS
 wait-open 120
+live off
 speed 0
 reconstruct start
 play
