@@ -71,7 +71,11 @@ class LiveEstimates {
     csv << "estimate,frame,started_s,scene_s,finished_s,estimate_s,vertices,keyframes,lights,rounds,relative_rmse,"
            "warm,position_error_share,error\n";
   }
-  ~LiveEstimates() { Wait(); }
+  /// An estimate still running (the run ended with an error) stops at its next check.
+  ~LiveEstimates() {
+    stop_ = true;
+    Wait();
+  }
   bool busy() const { return busy_; }
   int finished() const { return finished_; }
   void Wait() {
@@ -106,7 +110,7 @@ class LiveEstimates {
   const Stopwatch& clock_;
   std::shared_ptr<const WarmStart> warm_;  // the thread's alone (one estimate at a time)
   std::thread thread_;
-  std::atomic<bool> busy_{false};
+  std::atomic<bool> busy_{false}, stop_{false};
   std::atomic<int> finished_{0};
   int started_ = 0;
 };
@@ -125,6 +129,7 @@ void LiveEstimates::Run(const std::function<SceneBundle()>& make_scene, std::int
     const double scened = clock_.Seconds();
     EstimateOptions o = options_;
     o.warm = warm_;
+    o.cancelled = [this] { return stop_.load(); };
     if (intermediate) o.render_noise = 0;
     o.scorer = TruthScorer::FromBundle(scene, o.point_lights.far);  // truth.json's errors, when it has one
     const EstimateResult r = Estimate(scene, o);

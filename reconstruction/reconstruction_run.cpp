@@ -25,11 +25,13 @@ ReconstructionRun::ReconstructionRun(ReconstructionRunOptions options)
 FrameReport ReconstructionRun::Process(const RgbdFrame& frame) {
   std::optional<RgbdFrame> posed;  // a copy only when the pose comes from the given ones
   if (!options_.poses.empty()) {
-    if (static_cast<std::size_t>(frames_) >= options_.poses.size())
-      throw InputError(options_.poses_name,
-                       "has " + std::to_string(options_.poses.size()) + " poses, fewer than the frames");
+    // The pose of the source's frame, whichever frames came before (a live run drops some).
+    if (frame.index < 0 || static_cast<std::size_t>(frame.index) >= options_.poses.size())
+      throw InputError(options_.poses_name, "has " + std::to_string(options_.poses.size()) +
+                                                " poses, fewer than the frames (none for frame " +
+                                                std::to_string(frame.index) + ")");
     posed = frame;
-    posed->world_from_camera = options_.poses[static_cast<std::size_t>(frames_)];
+    posed->world_from_camera = options_.poses[static_cast<std::size_t>(frame.index)];
   }
   const RgbdFrame& f = posed ? *posed : frame;
   if (frames_ == 0) clock_.Reset();  // the log's seconds count from the first frame

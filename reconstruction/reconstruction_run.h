@@ -52,8 +52,9 @@ class ReconstructionRun {
   /// Throws InputError for options out of range (as Reconstructor).
   explicit ReconstructionRun(ReconstructionRunOptions options);
 
-  /// Gives the frame its true pose (the next given one), tracks and fuses it, and logs it.
-  /// Throws InputError when the given poses run out, or as Reconstructor::Process.
+  /// Gives the frame its true pose (the given one of its index in the source: frames may
+  /// be skipped), tracks and fuses it, and logs it. Throws InputError when no pose is given
+  /// for its index, or as Reconstructor::Process.
   FrameReport Process(const RgbdFrame& frame);
 
   /// The bundle (Reconstructor::Finish) with the log, the trajectory and the calibration

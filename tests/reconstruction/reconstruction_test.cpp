@@ -215,6 +215,33 @@ TEST(TsdfVolume, UnregisteredColourIsTakenThroughColourFromDepth) {
   EXPECT_GT(without.wrong, 0.1);
 }
 
+// Given poses go with the source's frame index, not with the count of frames processed: a
+// live run (--headless --live) drops the frames it is too busy for, and a frame fused with
+// the pose of the one before it would double every wall.
+TEST(ReconstructionRun, AGivenPoseIsTheFramesOwnWhenFramesWereSkipped) {
+  SynthOptions so;
+  so.width = 160;
+  so.height = 120;
+  so.spp = 1;
+  std::vector<RgbdFrame> frames = ToRgbdFrames(RenderSynthFrames("one-light", so, "", 6));
+  ReconstructionRunOptions o;
+  o.reconstruction.tsdf.truncation = 4 * o.reconstruction.tsdf.voxel;
+  o.reconstruction.use_source_poses = true;
+  for (const RgbdFrame& f : frames) o.poses.push_back(*f.world_from_camera);
+  o.poses_name = "poses";
+  ReconstructionRun run(o);
+  for (int k : {0, 2, 5}) {
+    RgbdFrame f = frames.at(k);
+    f.world_from_camera.reset();  // the given poses only
+    const FrameReport r = run.Process(f);
+    EXPECT_LT((r.world_from_camera - o.poses[k]).norm(), 1e-9) << "frame " << k;
+  }
+  EXPECT_GT((o.poses[5] - o.poses[3]).norm(), 1e-3) << "the poses differ, so the test can fail";
+  RgbdFrame beyond = frames.at(5);
+  beyond.index = 6;
+  EXPECT_THROW(run.Process(beyond), InputError);
+}
+
 // Unregistered depth from a device whose factory transform the source knows (an OpenNI
 // recording or camera: capture/openni_runtime.cpp) is fused through that transform, with a
 // warning naming it; a calibration's extrinsics win; without either, the old warning.
