@@ -377,6 +377,11 @@ float TsdfVolume::SignedDistance(const Eigen::Vector3f& p) const {
 namespace {
 
 constexpr int kTile = 8;
+/// Rays stop this far from the camera (metres along its axis): twice a depth camera's
+/// range. A volume with blocks far apart (a bad pose fused far away) would otherwise have
+/// every ray march the whole way between them (a soak's reconstruction stalled for minutes
+/// in one raycast).
+constexpr float kMaxRayDepth = 10.0f;
 
 /// Depth range per 8x8 tile of the image where a ray may meet the model.
 struct TileRanges {
@@ -582,8 +587,8 @@ void TsdfVolume::Raycast(const Camera& k, const Eigen::Matrix4d& world_from_came
     for (int y = static_cast<int>(y0); y < static_cast<int>(y1); ++y)
       for (int x = 0; x < w; ++x) {
         const std::size_t tile = ranges.Tile(x, y);
-        if (ranges.zmax[tile] <= 0) continue;
-        march.Cast(x, y, ranges.zmin[tile], ranges.zmax[tile], out);
+        if (ranges.zmax[tile] <= 0 || ranges.zmin[tile] >= kMaxRayDepth) continue;
+        march.Cast(x, y, ranges.zmin[tile], std::min(ranges.zmax[tile], kMaxRayDepth), out);
       }
   });
 }

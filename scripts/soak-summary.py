@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Summarises a soak's state files (scripts/soak-live.sh): a table over time and the
 verdict. Exit 1 when memory grew more than --max-growth (0.10) after the first fifth of the
-run (at least the first minute), when resident memory ever passed --max-mb (none), or when
-fewer than --min-finished (1) live estimates finished."""
+run (at least the first minute), when resident memory ever passed --max-mb (none), when
+fewer than --min-finished (1) live estimates finished, or when no frame was read over the
+last two intervals (a stalled reconstruction)."""
 import argparse
 import glob
 import json
@@ -51,6 +52,8 @@ if done < args.min_finished:
     problems.append("%d live estimates finished, fewer than %d" % (done, args.min_finished))
 if not growth <= args.max_growth:
     problems.append("memory grew %.1f %% after the first minutes (at most %.0f %%)" % (100 * growth, 100 * args.max_growth))
+if len(states) >= 3 and not states[-1]["frames_read"] > states[-3]["frames_read"]:
+    problems.append("no frame read from %.0f s on (the reconstruction stalled)" % states[-3]["seconds"])
 if most > args.max_mb:
     problems.append("resident memory reached %.0f MiB (at most %.0f)" % (most, args.max_mb))
 print("soak: " + ("passed" if not problems else "FAILED: " + "; ".join(problems)))

@@ -215,15 +215,20 @@ TEST(TsdfVolume, UnregisteredColourIsTakenThroughColourFromDepth) {
   EXPECT_GT(without.wrong, 0.1);
 }
 
-// Given poses go with the source's frame index, not with the count of frames processed: a
-// live run (--headless --live) drops the frames it is too busy for, and a frame fused with
-// the pose of the one before it would double every wall.
-TEST(ReconstructionRun, AGivenPoseIsTheFramesOwnWhenFramesWereSkipped) {
+/// `n` frames of synth's one-light room at 160 x 120, one sample per pixel.
+std::vector<RgbdFrame> SmallOneLightFrames(int n) {
   SynthOptions so;
   so.width = 160;
   so.height = 120;
   so.spp = 1;
-  std::vector<RgbdFrame> frames = ToRgbdFrames(RenderSynthFrames("one-light", so, "", 6));
+  return ToRgbdFrames(RenderSynthFrames("one-light", so, "", n));
+}
+
+// Given poses go with the source's frame index, not with the count of frames processed: a
+// live run (--headless --live) drops the frames it is too busy for, and a frame fused with
+// the pose of the one before it would double every wall.
+TEST(ReconstructionRun, AGivenPoseIsTheFramesOwnWhenFramesWereSkipped) {
+  std::vector<RgbdFrame> frames = SmallOneLightFrames(6);
   ReconstructionRunOptions o;
   o.reconstruction.tsdf.truncation = 4 * o.reconstruction.tsdf.voxel;
   o.reconstruction.use_source_poses = true;
@@ -246,11 +251,7 @@ TEST(ReconstructionRun, AGivenPoseIsTheFramesOwnWhenFramesWereSkipped) {
 // recording or camera: capture/openni_runtime.cpp) is fused through that transform, with a
 // warning naming it; a calibration's extrinsics win; without either, the old warning.
 TEST(ReconstructionRun, UnregisteredDepthTakesTheDevicesFactoryTransformUnlessCalibrated) {
-  SynthOptions so;
-  so.width = 160;
-  so.height = 120;
-  so.spp = 1;
-  std::vector<RgbdFrame> frames = ToRgbdFrames(RenderSynthFrames("one-light", so, "", 1));
+  std::vector<RgbdFrame> frames = SmallOneLightFrames(1);
   Eigen::Matrix4d factory = Eigen::Matrix4d::Identity();
   factory(0, 3) = -0.025;
   RgbdFrame f = frames.at(0);
