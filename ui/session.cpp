@@ -125,6 +125,26 @@ struct Session::Impl {
     }
     job = std::move(next);
   }
+  /// A new job's settings (under `mutex`): `estimate`, started now, its status's counters
+  /// going on from the current job's.
+  EstimateJob::Settings JobSettings(const EstimateOptions& estimate) const {
+    EstimateJob::Settings settings;
+    settings.options = estimate;
+    settings.lit_samples = options.lit_samples;
+    settings.clock = &clock;
+    settings.pressed_at = clock.Seconds();
+    const EstimateStatus fresh = Fresh();
+    settings.version = fresh.version;
+    settings.lit_version = fresh.lit_version;
+    return settings;
+  }
+  /// A job of `settings` replaces the current one (under `mutex`); returns it.
+  EstimateJob* ReplaceJob(EstimateJob::Settings settings) {
+    auto next = std::make_unique<EstimateJob>(std::move(settings));
+    EstimateJob* started = next.get();
+    ReplaceJob(std::move(next));
+    return started;
+  }
   /// Forgets the estimate (a new source or a reset model): the 3D view shows the live model.
   void ClearEstimate() {
     std::lock_guard<std::mutex> lock(mutex);
@@ -416,21 +436,12 @@ struct Session::Impl {
       // Its own result (a live job shows the last one's until it has its own).
       const bool has_result = last.result && !(last.finished_at < last.started_at);
       if (running && !has_result) return;  // the last one still estimating
-      EstimateJob::Settings settings;
-      settings.options = live_options;
+      EstimateJob::Settings settings = JobSettings(live_options);
       if (last.result) settings.options.warm = WarmStartOf(*last.result);
-      settings.lit_samples = options.lit_samples;
-      settings.clock = &clock;
-      settings.pressed_at = clock.Seconds();
-      const EstimateStatus fresh = Fresh();
-      settings.version = fresh.version;
-      settings.lit_version = fresh.lit_version;
       settings.shown = std::make_shared<const EstimateStatus>(std::move(last));
       settings.live = true;
       settings.live_index = live_started + 1;
-      auto next = std::make_unique<EstimateJob>(std::move(settings));
-      started = next.get();
-      ReplaceJob(std::move(next));
+      started = ReplaceJob(std::move(settings));
     }
     trigger.Taken(*run, live_pose);
     ++live_started;
@@ -626,17 +637,7 @@ void Session::Estimate(const EstimateOptions& options) {
   EstimateJob* started;
   {
     std::lock_guard<std::mutex> lock(m.mutex);
-    EstimateJob::Settings settings;
-    settings.options = options;
-    settings.lit_samples = m.options.lit_samples;
-    settings.clock = &m.clock;
-    settings.pressed_at = m.clock.Seconds();
-    const EstimateStatus fresh = m.Fresh();
-    settings.version = fresh.version;
-    settings.lit_version = fresh.lit_version;
-    auto job = std::make_unique<EstimateJob>(std::move(settings));
-    started = job.get();
-    m.ReplaceJob(std::move(job));  // a running estimate stops at its next check
+    started = m.ReplaceJob(m.JobSettings(options));  // a running estimate stops at its next check
   }
   m.Post([this, started] { impl_->StartJob(started); });
 }
