@@ -126,11 +126,13 @@ static std::string Fmt(const char* fmt, double a, double b, double c, double d, 
   return buf;
 }
 
-/// lights.json: the map (when it lights anything), the point lights and the directional ones.
+/// lights.json: the map (when it lights anything), the point lights, the directional ones
+/// and the emitters (their triangles first, in emitters.ply: a reader of lights.json finds them).
 static void WriteLights(const fs::path& out, const EstimateResult& r) {
   LightsFile lights{"", r.lighting.lights, r.uncertainty};
   for (double v : r.lighting.map)
     if (v > 0) lights.environment = "envmap.exr";
+  WriteEmittersPly(out / "emitters.ply", r.lighting.lights);
   WriteTextAtomically(out / "lights.json", LightsJson(lights));
 }
 
@@ -389,7 +391,7 @@ namespace {
 /// report.json the map's rings and up) as the start of this one.
 std::shared_ptr<const WarmStart> ReadWarmStart(const fs::path& dir) {
   const fs::path lights_path = dir / "lights.json", report_path = dir / "report.json";
-  const LightsFile file = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
+  const LightsFile file = ReadLightsFile(lights_path);
   auto warm = std::make_shared<WarmStart>();
   warm->lighting.lights = file.lights;
   try {

@@ -82,7 +82,7 @@ Run AddRender(CLI::App& app) {
     Stopwatch sw;
     ThreadLimit limit(*threads);
     LightsFile file;  // read first: the cheap input's errors come before the bundle's work
-    if (!lights->empty()) file = ParseLightsJson(ReadTextFile(*lights), *lights);
+    if (!lights->empty()) file = ReadLightsFile(*lights);
     SceneBundle b = LoadSceneBundle(*scene);
     // An estimate's lights go with the albedo it was made under: its albedo_mesh.ply beside
     // lights.json, when it wrote one (refined or scaled), unless --mesh names another.

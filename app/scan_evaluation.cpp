@@ -386,7 +386,7 @@ ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int s
     s.mesh = CompareMeshes(bundle.mesh, truth, cameras);
   }
   const fs::path lights_path = estimate_dir / "lights.json";
-  const LightsFile lights = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
+  const LightsFile lights = ReadLightsFile(lights_path);
   ScoreLamps(truth, OfKind<PointLight>(lights.lights), &s);
   if (!has_lights) s.spurious_share = NAN;  // no truth: no lamp is known spurious
   ScoreSuns(truth, OfKind<DirectionalLight>(lights.lights), &s);

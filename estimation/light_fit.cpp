@@ -155,6 +155,7 @@ LightFitSubset::LightFitSubset(const LightFitProblem& full, std::size_t max_rows
       vertices.normal.push_back(v.normal[k]);
       vertices.geometric.push_back(v.geometric[k]);
       vertices.weight.push_back(v.weight[k]);
+      if (v.camera.size() == v.size()) vertices.camera.push_back(v.camera[k]);
     }
     vertices.row_start.push_back(static_cast<std::int64_t>(vertices.position.size()));
     for (int c = 0; c < 3; ++c) {

@@ -25,7 +25,10 @@ std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, 
     lamps = [&](const SurfacePoint& hit, const Eigen::Vector3d& off, std::uint64_t key, std::int64_t& rays) {
       return Irradiance(scene, lighting.lights, off, hit.shading, hit.geometric, key, &rays);
     };
-  return RenderEnvironment(scene, env, views, lighting.map, sampler, options, all_pixels, lamps, stats);
+  SeenLight seen;
+  if (lighting.Count<EmitterLight>() > 0)
+    seen = [&](const SurfacePoint& hit) { return Emission(lighting.lights, hit.position, hit.geometric); };
+  return RenderEnvironment(scene, env, views, lighting.map, sampler, options, all_pixels, lamps, stats, seen);
 }
 
 namespace {
@@ -120,8 +123,11 @@ std::vector<ImageRGB> RenderLights(const RayTracer& scene, const std::vector<Vie
     for (int s = 0; s < opt.spp; ++s) {
       Rng rng(opt.seed, px.view, px.pixel, s);
       std::uint64_t key = (static_cast<std::uint64_t>(px.pixel) << 32) ^ (static_cast<std::uint64_t>(s) << 8);
+      bool first = true;
       WalkPath(scene, cam, x, y, rng, opt, cnt,
                [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
+                 if (first) sum += Emission(lights, hit.position, hit.geometric);
+                 first = false;
                  sum += w.cwiseProduct(
                      Irradiance(scene, lights, off, hit.shading, hit.geometric, ++key, &cnt.rays));
                });

@@ -6,12 +6,15 @@
 
 #include "common/error.h"
 #include "common/image_io.h"
+#include "common/atomic_file.h"
+#include "scene/mesh.h"
 
 namespace lp {
 using nlohmann::json;
 
 const char* LightsKey(const PointLight&) { return "point_lights"; }
 const char* LightsKey(const DirectionalLight&) { return "directional_lights"; }
+const char* LightsKey(const EmitterLight&) { return "emitters"; }
 
 namespace {
 
@@ -22,6 +25,10 @@ json ToJson(const PointLight& l) {
 }
 json ToJson(const DirectionalLight& l) {
   return {{"direction", Vec(l.direction)}, {"irradiance", Vec(l.irradiance)}, {"angular_radius", l.angular_radius}};
+}
+json ToJson(const EmitterLight& l) {
+  return {{"id", l.id}, {"radiance", Vec(l.radiance)}, {"power", Vec(l.Power())}, {"area", l.Area()},
+          {"two_sided", false}};
 }
 
 /// A number, or null where it is not finite (JSON has no infinity).
@@ -40,6 +47,7 @@ struct UncertaintyKeys {
 };
 UncertaintyKeys KeysOf(const PointLight&) { return {"position_covariance", "intensity_sigma"}; }
 UncertaintyKeys KeysOf(const DirectionalLight&) { return {"direction_covariance", "irradiance_sigma"}; }
+UncertaintyKeys KeysOf(const EmitterLight&) { return {nullptr, "radiance_sigma"}; }  // (no shape to be unsure of)
 
 /// Reads one light's fields, each error a one-line InputError naming the file.
 struct FieldReader {
@@ -65,7 +73,7 @@ struct FieldReader {
     LightUncertainty u;
     u.shape_covariance.setConstant(INFINITY);
     u.scale_sigma.setConstant(INFINITY);
-    if (l.contains(keys.shape)) {
+    if (keys.shape && l.contains(keys.shape)) {
       const json& m = l[keys.shape];
       if (!m.is_array() || m.size() != 3)
         throw InputError(name, std::string("\"") + keys.shape + "\" must be 3 rows of 3 numbers");
@@ -113,6 +121,16 @@ void Read(const json& l, const FieldReader& r, DirectionalLight* d) {
   if (l.contains("angular_radius")) d->angular_radius = r.Number(l, "directional light", "angular_radius", M_PI / 2);
 }
 
+void Read(const json& l, const FieldReader& r, EmitterLight* e) {
+  if (!l.is_object()) throw InputError(r.name, "an emitter must be an object");
+  if (!l.contains("id") || !l["id"].is_number_integer() || l["id"].get<long long>() < 0 ||
+      l["id"].get<long long>() > 1000000)
+    throw InputError(r.name, "an emitter's \"id\" must be a whole number from 0");
+  e->id = l["id"].get<int>();
+  e->radiance = r.Vec3(l, "emitter", "radiance");
+  if (e->radiance.minCoeff() < 0) throw InputError(r.name, "an emitter's radiance is negative");
+}
+
 }  // namespace
 
 std::string LightsJson(const LightsFile& lights) {
@@ -127,7 +145,7 @@ std::string LightsJson(const LightsFile& lights) {
           json entry = ToJson(l);
           if (!lights.uncertainty.empty()) {
             const UncertaintyKeys keys = KeysOf(l);
-            entry[keys.shape] = Matrix(lights.uncertainty[k].shape_covariance);
+            if (keys.shape) entry[keys.shape] = Matrix(lights.uncertainty[k].shape_covariance);
             entry[keys.scale] = Sigma(lights.uncertainty[k].scale_sigma);
           }
           j[LightsKey(l)].push_back(entry);
@@ -160,7 +178,7 @@ LightsFile ParseLightsJson(const std::string& text, const std::string& name) {
       Read(l, reader, &light);
       out.lights.push_back(light);
       const UncertaintyKeys keys = KeysOf(light);
-      if (l.contains(keys.shape) || l.contains(keys.scale)) {
+      if ((keys.shape && l.contains(keys.shape)) || l.contains(keys.scale)) {
         out.uncertainty.resize(out.lights.size() - 1, reader.Uncertainty(json::object(), keys));
         out.uncertainty.push_back(reader.Uncertainty(l, keys));
       }
@@ -173,6 +191,56 @@ LightsFile ParseLightsJson(const std::string& text, const std::string& name) {
     out.uncertainty.resize(out.lights.size(), unknown);
   }
   return out;
+}
+
+LightsFile ReadLightsFile(const std::filesystem::path& path) {
+  LightsFile file = ParseLightsJson(ReadTextFile(path), path.string());
+  bool any = false;
+  for (const Light& l : file.lights) any |= std::holds_alternative<EmitterLight>(l);
+  if (!any) return file;
+  const std::filesystem::path ply = path.parent_path() / "emitters.ply";
+  if (!std::filesystem::exists(ply)) throw InputError(ply.string(), "missing: lights.json names emitters");
+  const Mesh mesh = ReadPly(ply);
+  if (mesh.label.size() != mesh.positions.size()) throw InputError(ply.string(), "its vertices have no \"emitter\" id");
+  std::map<int, std::vector<int>> triangles;  // per id
+  std::map<int, std::vector<Eigen::Vector3f>> facing;
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    const int v = mesh.triangles[t][0];
+    triangles[mesh.label[v]].push_back(static_cast<int>(t));
+    facing[mesh.label[v]].push_back(mesh.normals.empty() ? Eigen::Vector3f::Zero() : mesh.normals[v]);
+  }
+  for (Light& l : file.lights)
+    if (EmitterLight* e = std::get_if<EmitterLight>(&l)) {
+      if (!triangles.count(e->id))
+        throw InputError(ply.string(), "has no triangles of emitter " + std::to_string(e->id));
+      e->shape = MakeEmitterShape(mesh, triangles[e->id], facing[e->id]);
+    }
+  return file;
+}
+
+void WriteEmittersPly(const std::filesystem::path& file, const std::vector<Light>& lights) {
+  Mesh out;
+  for (const Light& l : lights) {
+    const EmitterLight* e = std::get_if<EmitterLight>(&l);
+    if (!e || !e->shape) continue;
+    const EmitterShape& s = *e->shape;
+    const double top = std::max(e->radiance.maxCoeff(), 1e-30);
+    const Eigen::Vector3f look = (e->radiance / top).cast<float>();
+    for (std::size_t t = 0; t < s.a.size(); ++t) {
+      const int base = static_cast<int>(out.positions.size());
+      for (const Eigen::Vector3f& p : {s.a[t], s.b[t], s.c[t]}) {
+        out.positions.push_back(p);
+        out.normals.push_back(s.normal[t]);
+        out.albedo.push_back(look);
+        out.label.push_back(e->id);
+        out.emission.push_back(e->radiance.cast<float>());
+      }
+      // (wound so that its normal is the side that emits)
+      const bool along = (s.b[t] - s.a[t]).cross(s.c[t] - s.a[t]).dot(s.normal[t]) >= 0;
+      out.triangles.emplace_back(base, along ? base + 1 : base + 2, along ? base + 2 : base + 1);
+    }
+  }
+  if (!out.triangles.empty()) WritePly(file, out);
 }
 
 ImageRGB ReadEquirectMap(const std::filesystem::path& file) {

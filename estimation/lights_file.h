@@ -3,6 +3,7 @@
 /// environment map (far) by file, the point lights (near) and the directional lights (a
 /// sun) by value.
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -29,6 +30,7 @@ struct LightsFile {
 /// The file's key for the lights of each kind ("point_lights", "directional_lights").
 const char* LightsKey(const PointLight&);
 const char* LightsKey(const DirectionalLight&);
+const char* LightsKey(const EmitterLight&);
 
 /// The file's text (JSON, 2-space indent, a final newline; every kind's key, an empty
 /// array for a kind without lights).
@@ -39,6 +41,15 @@ std::string LightsJson(const LightsFile& lights);
 /// irradiance, an angular radius outside [0, pi/2)). A file without "directional_lights"
 /// (written before they existed) has none.
 LightsFile ParseLightsJson(const std::string& text, const std::string& name);
+
+/// ParseLightsJson of the file at `path`, each emitter given its triangles from the
+/// emitters.ply beside it (InputError when an emitter has none there or the file is missing).
+LightsFile ReadLightsFile(const std::filesystem::path& path);
+
+/// emitters.ply (docs/formats.md): the emitters' triangles, three vertices each, with the
+/// normal of the side that emits, a colour to look at, the `emitter` id and the
+/// `radiance_r/g/b` they emit. Written atomically; none when `lights` has no emitter.
+void WriteEmittersPly(const std::filesystem::path& file, const std::vector<Light>& lights);
 
 /// Reads an equirectangular map file (.exr/.pfm/.png linear, or Radiance .hdr: lights.json's
 /// `environment`, `render --envmap`). Throws InputError naming the file when it is not

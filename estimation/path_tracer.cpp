@@ -203,7 +203,7 @@ std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& en
 std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
                                         const std::vector<double>& lambda, const CellSampler& sampler,
                                         const TracerOptions& opt, bool all_pixels, const VertexLight& lights,
-                                        TraceStats* stats) {
+                                        TraceStats* stats, const SeenLight& seen) {
   detail::CheckPathOptions(opt);
   LP_CHECK(lambda.size() == 3 * static_cast<std::size_t>(env.size()), "lambda size");
   Stopwatch sw;
@@ -219,14 +219,17 @@ std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& en
       const auto cell = [&](int j, const Eigen::Vector3d& wgt) {
         sum += wgt.cwiseProduct(Eigen::Vector3d(lambda[3 * j], lambda[3 * j + 1], lambda[3 * j + 2]));
       };
-      if (!lights) {
+      if (!lights && !seen) {
         TracePath(scene, env, sampler, cam, x, y, rng, opt, cnt, cell, NoVertex);
         continue;
       }
       std::uint64_t key = (static_cast<std::uint64_t>(px.pixel) << 32) ^ (static_cast<std::uint64_t>(s) << 8);
+      bool first = true;
       TracePath(scene, env, sampler, cam, x, y, rng, opt, cnt, cell,
                 [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
-                  sum += w.cwiseProduct(lights(hit, off, ++key, cnt.rays));
+                  if (first && seen) sum += seen(hit);
+                  first = false;
+                  if (lights) sum += w.cwiseProduct(lights(hit, off, ++key, cnt.rays));
                 });
     }
     float* p = out[px.view].at(x, y);

@@ -99,11 +99,16 @@ std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& en
 using VertexLight = std::function<Eigen::Vector3d(const SurfacePoint& hit, const Eigen::Vector3d& origin,
                                                   std::uint64_t key, std::int64_t& rays)>;
 
+/// The radiance the camera sees leave the surface it hits by the surface's own glow (an
+/// emitter's; the hit's geometric normal faces the camera).
+using SeenLight = std::function<Eigen::Vector3d(const SurfacePoint& hit)>;
+
 /// The same render with `lights` added at every vertex of the same paths (one pass for the
-/// map and the lights; see RenderLighting in light_render.h).
+/// map and the lights; see RenderLighting in light_render.h), and `seen` at each path's
+/// first vertex.
 std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,
                                         const std::vector<double>& lambda, const CellSampler& sampler,
                                         const TracerOptions& options, bool all_pixels, const VertexLight& lights,
-                                        TraceStats* stats = nullptr);
+                                        TraceStats* stats = nullptr, const SeenLight& seen = SeenLight());
 
 }  // namespace lp

@@ -17,6 +17,7 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
   CheckPathOptions(opt);
   struct Vertex {
     Eigen::Vector3f p, n, g, w;
+    float camera;
   };
   const std::vector<PixelRef> pixels = PixelsToTrace(views, all_pixels);
   std::vector<std::vector<Vertex>> rows(pixels.size());
@@ -26,10 +27,12 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
     const int x = px.pixel % cam.width, y = px.pixel / cam.width;
     for (int s = 0; s < opt.spp; ++s) {
       Rng rng(opt.seed, px.view, px.pixel, s);
+      float camera = inv;  // the path's first vertex only
       WalkPath(scene, cam, x, y, rng, opt, cnt,
                [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
                  rows[i].push_back({off.cast<float>(), hit.shading.cast<float>(), hit.geometric.cast<float>(),
-                                    w.cast<float>() * inv});
+                                    w.cast<float>() * inv, camera});
+                 camera = 0;
                });
     }
   });
@@ -41,12 +44,14 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
   out.normal.reserve(n);
   out.geometric.reserve(n);
   out.weight.reserve(n);
+  out.camera.reserve(n);
   for (auto& r : rows) {
     for (const Vertex& v : r) {
       out.position.push_back(v.p);
       out.normal.push_back(v.n);
       out.geometric.push_back(v.g);
       out.weight.push_back(v.w);
+      out.camera.push_back(v.camera);
     }
     out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
     std::vector<Vertex>().swap(r);
@@ -67,6 +72,8 @@ ShadingVertices Combine(const ShadingVertices& a, double a_samples, const Shadin
   out.normal.reserve(total);
   out.geometric.reserve(total);
   out.weight.reserve(total);
+  const bool camera = a.camera.size() == a.size() && b.camera.size() == b.size();
+  if (camera) out.camera.reserve(total);
   for (std::size_t r = 0; r < a.rows(); ++r) {
     for (const auto& [v, w] : {std::pair<const ShadingVertices*, float>{&a, wa}, {&b, wb}})
       for (std::int64_t k = v->row_start[r]; k < v->row_start[r + 1]; ++k) {
@@ -74,6 +81,7 @@ ShadingVertices Combine(const ShadingVertices& a, double a_samples, const Shadin
         out.normal.push_back(v->normal[k]);
         out.geometric.push_back(v->geometric[k]);
         out.weight.push_back(v->weight[k] * w);
+        if (camera) out.camera.push_back(v->camera[k] * w);
       }
     out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
   }

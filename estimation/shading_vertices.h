@@ -24,6 +24,10 @@ struct ShadingVertices {
   /// Path throughput x albedo / (pi x samples per pixel): the pixel receives
   /// weight x cos / d^2 x I from a point light of intensity I at distance d.
   std::vector<Eigen::Vector3f> weight;
+  /// The weight the camera sees the vertex itself with: 1 / samples per pixel for a path's
+  /// first vertex (the surface the pixel sees), 0 for the vertices after it (a glowing
+  /// surface's own radiance reaches the pixel with it: EmitterLight). Empty: not kept.
+  std::vector<float> camera;
   std::size_t rows() const { return row_start.size() - 1; }
   std::size_t size() const { return position.size(); }
 };

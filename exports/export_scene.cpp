@@ -17,7 +17,7 @@ namespace fs = std::filesystem;
 
 ExportScene LoadExportScene(const fs::path& scene_dir, const fs::path& estimate_dir) {
   const fs::path lights_path = estimate_dir / "lights.json";
-  const LightsFile lights = ParseLightsJson(ReadTextFile(lights_path), lights_path.string());
+  const LightsFile lights = ReadLightsFile(lights_path);
   ExportScene s;
   s.lights = lights.lights;
   s.uncertainty = lights.uncertainty;

@@ -20,6 +20,12 @@ void Mesh::Append(const Mesh& other) {
   else shaded.clear();
   if (normals_ok) normals.insert(normals.end(), other.normals.begin(), other.normals.end());
   else normals.clear();
+  const bool label_ok = label.size() + other.label.size() == positions.size();  // (positions already appended)
+  const bool emission_ok = emission.size() + other.emission.size() == positions.size();
+  if (label_ok) label.insert(label.end(), other.label.begin(), other.label.end());
+  else label.clear();
+  if (emission_ok) emission.insert(emission.end(), other.emission.begin(), other.emission.end());
+  else emission.clear();
   for (const auto& t : other.triangles) triangles.push_back(t + Eigen::Vector3i::Constant(offset));
 }
 

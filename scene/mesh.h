@@ -18,6 +18,11 @@ struct Mesh {
   /// de-lights it under its estimate to refine the albedo (scene/albedo.h); empty when
   /// the albedo is known.
   std::vector<Eigen::Vector3f> shaded;
+  /// Optional, per vertex (emitters.ply, docs/formats.md): the glowing surface it belongs
+  /// to (`emitter`, -1: none) and the radiance it emits (`radiance_r/g/b`, linear, image
+  /// units); empty in other meshes.
+  std::vector<int> label;
+  std::vector<Eigen::Vector3f> emission;
   std::vector<Eigen::Vector3i> triangles;  ///< vertex indices
 
   /// Appends another mesh (indices shifted).

@@ -179,6 +179,7 @@ Header ParseHeader(const std::string& bytes, const std::string& name) {
 struct VertexLayout {
   int x = -1, y = -1, z = -1, nx = -1, ny = -1, nz = -1, r = -1, g = -1, b = -1;
   int sr = -1, sg = -1, sb = -1;  ///< shaded_red ...: the colour seen, linear float
+  int label = -1, er = -1, eg = -1, eb = -1;  ///< emitter, radiance_r ...: emitters.ply's
   int face = -1;                  ///< a face element's vertex index list
 
   explicit VertexLayout(const Element& e) {
@@ -195,6 +196,8 @@ struct VertexLayout {
       else if (n == "green" || n == "g" || n == "diffuse_green") g = i;
       else if (n == "blue" || n == "b" || n == "diffuse_blue") b = i;
       else if (n == "shaded_red") sr = i; else if (n == "shaded_green") sg = i; else if (n == "shaded_blue") sb = i;
+      else if (n == "emitter") label = i;
+      else if (n == "radiance_r") er = i; else if (n == "radiance_g") eg = i; else if (n == "radiance_b") eb = i;
     }
   }
 };
@@ -205,6 +208,7 @@ void ReadVertices(const Element& e, Reader& r, Mesh* mesh) {
   const bool has_n = l.nx >= 0 && l.ny >= 0 && l.nz >= 0;
   const bool has_c = l.r >= 0 && l.g >= 0 && l.b >= 0;
   const bool has_s = l.sr >= 0 && l.sg >= 0 && l.sb >= 0;
+  const bool has_e = l.er >= 0 && l.eg >= 0 && l.eb >= 0;
   if (has_s) mesh->shaded.reserve(e.count);
   mesh->positions.reserve(e.count);
   if (has_n) mesh->normals.reserve(e.count);
@@ -225,6 +229,12 @@ void ReadVertices(const Element& e, Reader& r, Mesh* mesh) {
     mesh->positions.emplace_back(vals[l.x], vals[l.y], vals[l.z]);
     if (has_n) mesh->normals.emplace_back(vals[l.nx], vals[l.ny], vals[l.nz]);
     if (has_s) mesh->shaded.emplace_back(vals[l.sr], vals[l.sg], vals[l.sb]);
+    if (l.label >= 0) {
+      const double v = vals[l.label];
+      if (!(v >= -1 && v <= 1e6) || v != std::floor(v)) r.Fail("an emitter id must be a whole number from -1");
+      mesh->label.push_back(static_cast<int>(v));
+    }
+    if (has_e) mesh->emission.emplace_back(vals[l.er], vals[l.eg], vals[l.eb]);
     if (!has_c) {
       mesh->albedo.emplace_back(0.5f, 0.5f, 0.5f);
       continue;
@@ -325,6 +335,10 @@ void WritePly(const std::filesystem::path& path, const Mesh& mesh) {
   LP_CHECK(mesh.shaded.empty() || mesh.shaded.size() == mesh.positions.size(), "shaded size");
   os << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
   if (!mesh.shaded.empty()) os << "property float shaded_red\nproperty float shaded_green\nproperty float shaded_blue\n";
+  LP_CHECK(mesh.label.empty() || mesh.label.size() == mesh.positions.size(), "label size");
+  LP_CHECK(mesh.emission.empty() || mesh.emission.size() == mesh.positions.size(), "emission size");
+  if (!mesh.label.empty()) os << "property int emitter\n";
+  if (!mesh.emission.empty()) os << "property float radiance_r\nproperty float radiance_g\nproperty float radiance_b\n";
   os
      << "element face " << mesh.triangles.size() << "\nproperty list uchar int vertex_indices\nend_header\n";
   std::string data = os.str();
@@ -337,6 +351,8 @@ void WritePly(const std::filesystem::path& path, const Mesh& mesh) {
       put(&u, 1);
     }
     if (!mesh.shaded.empty()) put(mesh.shaded[i].data(), 12);
+    if (!mesh.label.empty()) put(&mesh.label[i], 4);
+    if (!mesh.emission.empty()) put(mesh.emission[i].data(), 12);
   }
   for (const auto& t : mesh.triangles) {
     const unsigned char three = 3;

@@ -10,4 +10,11 @@ Eigen::Vector3d Irradiance(const RayTracer& scene, const std::vector<Light>& lig
   return sum;
 }
 
+Eigen::Vector3d Emission(const std::vector<Light>& lights, const Eigen::Vector3d& point,
+                         const Eigen::Vector3d& towards_viewer) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const Light& light : lights) sum += Emission(light, point, towards_viewer);
+  return sum;
+}
+
 }  // namespace lp

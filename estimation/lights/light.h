@@ -14,11 +14,12 @@
 #include <Eigen/Core>
 
 #include "estimation/lights/directional_light.h"
+#include "estimation/lights/emitter_light.h"
 #include "estimation/lights/point_light.h"
 
 namespace lp {
 
-using Light = std::variant<PointLight, DirectionalLight>;
+using Light = std::variant<PointLight, DirectionalLight, EmitterLight>;
 
 /// The light's column of unit scale on shading vertices (3 per row), and its derivative
 /// with respect to the shape (9 per row: [9*row + 3*c + k], the kind's 3 raw coordinates;
@@ -83,6 +84,16 @@ inline Eigen::Vector3d Irradiance(const RayTracer& scene, const Light& light, co
 Eigen::Vector3d Irradiance(const RayTracer& scene, const std::vector<Light>& lights, const Eigen::Vector3d& origin,
                            const Eigen::Vector3d& n, const Eigen::Vector3d& g, std::uint64_t key,
                            std::int64_t* rays);
+
+/// The radiance a viewer (`towards_viewer`, unit) sees leave a surface point by a light's
+/// own glow: an emitter's where the point is on it, else 0.
+inline Eigen::Vector3d Emission(const Light& light, const Eigen::Vector3d& point, const Eigen::Vector3d& towards_viewer) {
+  if (const EmitterLight* e = std::get_if<EmitterLight>(&light)) return Emission(*e, point, towards_viewer);
+  return Eigen::Vector3d::Zero();
+}
+/// The same summed over `lights`.
+Eigen::Vector3d Emission(const std::vector<Light>& lights, const Eigen::Vector3d& point,
+                         const Eigen::Vector3d& towards_viewer);
 
 /// The lights of a list of one kind as `Light`s, and back (those of kind T).
 template <class T>

@@ -1,0 +1,132 @@
+#include "estimation/lights/emitter_light.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "common/parallel.h"
+#include "estimation/lights/sphere_frame.h"
+#include "estimation/sampling.h"
+
+namespace lp {
+namespace {
+
+std::uint64_t CellKey(const Eigen::Vector3d& p, double cell) {
+  const auto index = [&](double x) {
+    return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(x / cell)) + (1 << 20)) & 0x1FFFFF;
+  };
+  return index(p.x()) | index(p.y()) << 21 | index(p.z()) << 42;
+}
+
+/// A point of the shape drawn by area from `u` (uniform in [0, 1)) and `v` (another).
+Eigen::Vector3d PointOn(const EmitterShape& s, double u, double v, int* triangle) {
+  const double at = u * s.area;
+  const int t = static_cast<int>(
+      std::min<std::ptrdiff_t>(std::upper_bound(s.cumulative.begin(), s.cumulative.end(), at) - s.cumulative.begin(),
+                               static_cast<std::ptrdiff_t>(s.cumulative.size()) - 1));
+  const double before = t > 0 ? s.cumulative[t - 1] : 0.0, own = s.cumulative[t] - before;
+  const double w = own > 0 ? std::clamp((at - before) / own, 0.0, 1.0) : 0.5;  // re-used: uniform again
+  const double r = std::sqrt(w);
+  *triangle = t;
+  return ((1 - r) * s.a[t].cast<double>() + r * (1 - v) * s.b[t].cast<double>() + r * v * s.c[t].cast<double>());
+}
+
+/// The light a unit-radiance emitter sends to p (normals n, g) through the point q of
+/// triangle t: cos at p x cos at q / d^2, shadowed (the ray stops a cell short of q: the
+/// traced surface may lie a little off the emitter's triangles), 0 behind either side.
+double Transfer(const RayTracer& scene, const EmitterShape& s, const Eigen::Vector3d& p, const Eigen::Vector3d& n,
+                const Eigen::Vector3d& g, const Eigen::Vector3d& q, int t) {
+  const Eigen::Vector3d r = q - p;
+  const double d2 = r.squaredNorm();
+  if (!(d2 > 0)) return 0;
+  const double d = std::sqrt(d2);
+  const Eigen::Vector3d l = r / d;
+  const double cx = n.dot(l), ce = -s.normal[t].cast<double>().dot(l);
+  if (!(cx > 0 && g.dot(l) > 0 && ce > 0)) return 0;
+  const double reach = d - s.cell;
+  if (reach > 0 && scene.Occluded(p, l, reach)) return 0;
+  return cx * ce / d2;
+}
+
+}  // namespace
+
+std::shared_ptr<const EmitterShape> MakeEmitterShape(const Mesh& mesh, const std::vector<int>& triangles,
+                                                     const std::vector<Eigen::Vector3f>& facing) {
+  auto s = std::make_shared<EmitterShape>();
+  for (std::size_t i = 0; i < triangles.size(); ++i) {
+    const Eigen::Vector3i& f = mesh.triangles[triangles[i]];
+    const Eigen::Vector3f a = mesh.positions[f[0]], b = mesh.positions[f[1]], c = mesh.positions[f[2]];
+    Eigen::Vector3f n = (b - a).cross(c - a);
+    const double area = 0.5 * n.norm();
+    if (!(area > 0) || !std::isfinite(area)) continue;
+    n.normalize();
+    if (i < facing.size() && n.dot(facing[i]) < 0) n = -n;
+    s->a.push_back(a);
+    s->b.push_back(b);
+    s->c.push_back(c);
+    s->normal.push_back(n);
+    s->area += area;
+    s->cumulative.push_back(s->area);
+    // Its cells: points of the triangle no more than half a cell apart, and a cell either
+    // side along its normal.
+    const int steps = std::max(1, static_cast<int>(std::ceil(2 * std::max({(b - a).norm(), (c - a).norm(), (c - b).norm()}) / s->cell)));
+    for (int i1 = 0; i1 <= steps; ++i1)
+      for (int i2 = 0; i1 + i2 <= steps; ++i2) {
+        const Eigen::Vector3d p = (a + (b - a) * (float(i1) / steps) + (c - a) * (float(i2) / steps)).cast<double>();
+        for (int side = -1; side <= 1; ++side) {
+          auto [it, fresh] = s->cells.try_emplace(CellKey(p + side * s->cell * n.cast<double>(), s->cell), n);
+          if (!fresh) it->second += n;
+        }
+      }
+  }
+  for (auto& [key, n] : s->cells) n.normalize();
+  return s;
+}
+
+bool OnEmitter(const EmitterShape& shape, const Eigen::Vector3d& point, const Eigen::Vector3d& towards_viewer) {
+  const auto it = shape.cells.find(CellKey(point, shape.cell));
+  return it != shape.cells.end() && it->second.cast<double>().dot(towards_viewer) > 0;
+}
+
+Eigen::Vector3d EmitterLight::Power() const { return kPi * radiance * Area(); }
+
+void UnitColumn(const RayTracer& scene, const ShadingVertices& v, const EmitterLight& light, std::vector<float>* out,
+                std::vector<float>* jacobian) {
+  const std::size_t rows = v.rows();
+  out->assign(3 * rows, 0.0f);
+  if (jacobian) jacobian->assign(9 * rows, 0.0f);
+  if (!light.shape || !(light.shape->area > 0)) return;
+  const EmitterShape& s = *light.shape;
+  const bool seen = v.camera.size() == v.size();
+  ParallelForChunks(0, rows, 64, [&](std::size_t b, std::size_t e) {
+    for (std::size_t r = b; r < e; ++r) {
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
+        const Eigen::Vector3d p = v.position[k].cast<double>(), n = v.normal[k].cast<double>(),
+                              g = v.geometric[k].cast<double>();
+        if (seen && v.camera[k] > 0 && OnEmitter(s, p, g)) sum += Eigen::Vector3d::Constant(v.camera[k]);
+        const double turn = HashUnit(static_cast<std::uint64_t>(k) * 0x9E3779B9ull + 17);
+        double e_sum = 0;
+        for (int i = 0; i < kEmitterShadowRays; ++i) {
+          int t = 0;
+          const Eigen::Vector3d q =
+              PointOn(s, (i + turn) / kEmitterShadowRays, HashUnit(static_cast<std::uint64_t>(k) << 3 ^ i), &t);
+          e_sum += Transfer(scene, s, p, n, g, q, t);
+        }
+        sum += v.weight[k].cast<double>() * (e_sum * s.area / kEmitterShadowRays);
+      }
+      for (int c = 0; c < 3; ++c) (*out)[3 * r + c] = static_cast<float>(sum[c]);
+    }
+  });
+}
+
+Eigen::Vector3d Irradiance(const RayTracer& scene, const EmitterLight& light, const Eigen::Vector3d& origin,
+                           const Eigen::Vector3d& n, const Eigen::Vector3d& g, std::uint64_t key,
+                           std::int64_t* rays) {
+  if (!light.shape || !(light.shape->area > 0)) return Eigen::Vector3d::Zero();
+  int t = 0;
+  const Eigen::Vector3d q = PointOn(*light.shape, HashUnit(key * 0x9E3779B9ull + 5), HashUnit(key ^ 0x5DEECE66Dull), &t);
+  ++*rays;
+  return light.radiance * (Transfer(scene, *light.shape, origin, n, g, q, t) * light.shape->area);
+}
+
+}  // namespace lp

@@ -1,0 +1,100 @@
+#pragma once
+/// A glowing surface of the scan (a lamp's shade, a frosted window, a screen): triangles of
+/// the mesh that emit light of their own, diffusely, on the side the cameras saw them from.
+/// lights.json's "emitters" with their triangles in emitters.ply (docs/formats.md). What only
+/// this kind knows: its unit column (next-event estimation to its triangles from every
+/// shading vertex, and the camera's own view of it: the pixels that see it receive its
+/// radiance directly), the light it sends to a point, the radiance a camera sees on it. It
+/// has no shape to refine: its triangles are where the keyframes saw it glow; its scale, the
+/// unknown, is its mean emitted radiance.
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <unordered_map>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "estimation/shading_vertices.h"
+#include "scene/mesh.h"
+#include "scene/ray_tracer.h"
+
+namespace lp {
+
+/// Shadow rays from a shading vertex to an emitter's triangles (stratified by area).
+constexpr int kEmitterShadowRays = 4;
+
+/// An emitter's triangles, with what sampling them and telling a point on them needs.
+struct EmitterShape {
+  std::vector<Eigen::Vector3f> a, b, c;  ///< each triangle's corners, world frame, metres
+  std::vector<Eigen::Vector3f> normal;   ///< each triangle's unit normal on the side that emits
+  std::vector<double> cumulative;        ///< the areas summed up to each triangle (the last: area)
+  double area = 0;                       ///< m^2
+  /// The cell size of `cells` (metres): a point within about a cell of a triangle is on it.
+  double cell = 0.02;
+  /// Cells of `cell` metres the triangles pass through (a key of the three indices), each
+  /// with the mean normal of the side that emits there.
+  std::unordered_map<std::uint64_t, Eigen::Vector3f> cells;
+};
+
+/// The shape of `triangles` of `mesh`, each emitting on the side of `facing` (one per
+/// triangle, any length > 0: the side its cameras saw it from). Degenerate triangles are
+/// left out.
+std::shared_ptr<const EmitterShape> MakeEmitterShape(const Mesh& mesh, const std::vector<int>& triangles,
+                                                     const std::vector<Eigen::Vector3f>& facing);
+
+/// Whether a surface point lies on the shape, seen from the side of `towards_viewer` (a
+/// unit vector from the point towards whoever looks at it): its cell or a neighbour is
+/// one of the shape's, whose emitting side faces the viewer.
+bool OnEmitter(const EmitterShape& shape, const Eigen::Vector3d& point, const Eigen::Vector3d& towards_viewer);
+
+struct EmitterLight {
+  int id = 0;  ///< its number in lights.json and emitters.ply
+  std::shared_ptr<const EmitterShape> shape;
+  /// Mean emitted radiance, image units (W/(m^2 sr) when the images are radiance), the same
+  /// in every direction on its emitting side.
+  Eigen::Vector3d radiance = Eigen::Vector3d::Zero();
+  double Area() const { return shape ? shape->area : 0.0; }
+  /// pi x radiance x area: what it emits (image units x m^2 x sr; W when the images are
+  /// radiance).
+  Eigen::Vector3d Power() const;
+};
+
+/// The column of the emitter at unit radiance: out[3*row + c], the light its triangles send
+/// to each row's shading vertices (kEmitterShadowRays each, shadowed, one-sided) plus the
+/// camera's direct view of it (ShadingVertices::camera of the vertices on it). It has no
+/// shape: a `jacobian` is all zeros.
+void UnitColumn(const RayTracer& scene, const ShadingVertices& vertices, const EmitterLight& light,
+                std::vector<float>* out, std::vector<float>* jacobian = nullptr);
+
+/// The irradiance (image units) the emitter sends to a surface point `origin` of shading
+/// normal `n` and geometric normal `g`: one shadow ray to a point of its triangles drawn by
+/// area from `key`, counted in `rays`.
+Eigen::Vector3d Irradiance(const RayTracer& scene, const EmitterLight& light, const Eigen::Vector3d& origin,
+                           const Eigen::Vector3d& n, const Eigen::Vector3d& g, std::uint64_t key,
+                           std::int64_t* rays);
+
+/// The radiance a viewer sees leave `point` (on a surface, `towards_viewer` unit) by the
+/// emitter's own light: its radiance there, else 0.
+inline Eigen::Vector3d Emission(const EmitterLight& light, const Eigen::Vector3d& point,
+                                const Eigen::Vector3d& towards_viewer) {
+  if (!light.shape || !OnEmitter(*light.shape, point, towards_viewer)) return Eigen::Vector3d::Zero();
+  return light.radiance;
+}
+
+inline bool SameShape(const EmitterLight& a, const EmitterLight& b) { return a.shape == b.shape; }
+inline Eigen::Vector3d& Scale(EmitterLight& l) { return l.radiance; }
+inline const Eigen::Vector3d& Scale(const EmitterLight& l) { return l.radiance; }
+/// No shape coordinates: its triangles stay where the keyframes saw them glow.
+inline int ShapeDims(const EmitterLight&) { return 0; }
+inline Eigen::Matrix3d ShapeBasis(const EmitterLight&) { return Eigen::Matrix3d::Identity(); }
+inline EmitterLight Moved(EmitterLight l, const double*) { return l; }
+inline int CompassMoves(const EmitterLight&) { return 0; }
+inline double CompassUnit(const EmitterLight&, const Eigen::Vector3d&) { return 1.0; }
+inline EmitterLight CompassMove(EmitterLight l, int, double) { return l; }
+/// 0 for the same triangles, else infinite (two emitters are never moved into each other).
+inline double ShapeDistance(const EmitterLight& now, const EmitterLight& was, const Eigen::Vector3d&) {
+  return now.shape == was.shape ? 0.0 : std::numeric_limits<double>::infinity();
+}
+
+}  // namespace lp

@@ -1,0 +1,145 @@
+// A glowing surface (estimation/lights/emitter_light.h): its column against the closed form
+// of a uniform rectangle's irradiance, the camera's own view of it, its back side, its
+// shadow, a render that sees it, and lights.json + emitters.ply read back.
+#include <cmath>
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+#include "common/atomic_file.h"
+#include "estimation/light_render.h"
+#include "estimation/lights/light.h"
+#include "estimation/lights_file.h"
+#include "estimation/sampling.h"
+#include "tests/test_util.h"
+
+namespace lp {
+namespace {
+
+/// The form factor from a point to a rectangle X x Y (in units of its distance h) parallel to
+/// its surface, the point under one corner (Howell's catalogue, B-3).
+double CornerFormFactor(double X, double Y) {
+  const double a = std::sqrt(1 + X * X), b = std::sqrt(1 + Y * Y);
+  return (X / a * std::atan(Y / a) + Y / b * std::atan(X / b)) / (2 * kPi);
+}
+
+/// A 4 m floor (albedo 0.5) and a 0.6 m square at 0.8 m above its centre that glows
+/// downwards (albedo 0: what the camera sees of it is its own light).
+struct FloorAndPanel {
+  FloorAndPanel() {
+    const Mesh floor = test::Plane(4, 0.5), panel = test::Square(0, 0, 0.8, 0.3, 0.0);
+    mesh = test::Merge(floor, panel);
+    const int first = static_cast<int>(floor.triangles.size());
+    light.shape = MakeEmitterShape(mesh, {first, first + 1}, {Eigen::Vector3f(0, 0, -1), Eigen::Vector3f(0, 0, -1)});
+    light.radiance = Eigen::Vector3d(2, 1, 0.5);
+  }
+  Mesh mesh;
+  EmitterLight light;
+};
+
+/// One row per point: `n` vertices at `p` (normal `normal`), weights summing to 1, and the
+/// first of them seen by the camera with weight `camera`.
+void AddRow(ShadingVertices* v, const Eigen::Vector3f& p, const Eigen::Vector3f& normal, int n, float camera = 0,
+            float weight = 1) {
+  for (int k = 0; k < n; ++k) {
+    v->position.push_back(p);
+    v->normal.push_back(normal);
+    v->geometric.push_back(normal);
+    v->weight.push_back(Eigen::Vector3f::Constant(weight / n));
+    v->camera.push_back(k == 0 ? camera : 0.0f);
+  }
+  v->row_start.push_back(static_cast<std::int64_t>(v->position.size()));
+}
+
+TEST(EmitterLight, ItsColumnIsTheRectanglesIrradianceInClosedForm) {
+  FloorAndPanel s;
+  EXPECT_NEAR(s.light.Area(), 0.36, 1e-6);
+  EXPECT_NEAR(s.light.Power()[0], kPi * 2 * 0.36, 1e-5);
+  const RayTracer scene(s.mesh);
+  ShadingVertices v;
+  const Eigen::Vector3f up(0, 0, 1), down(0, 0, -1);
+  AddRow(&v, {0, 0, 1e-3f}, up, 4096);        // under its centre
+  AddRow(&v, {0.3f, 0.3f, 1e-3f}, up, 4096);  // under a corner
+  AddRow(&v, {0, 0, 1.2f}, down, 256);        // above it: its back
+  AddRow(&v, {0.1f, 0.1f, 0.8f - 1e-3f}, down, 1, 0.25f, 0.0f);  // the camera sees it
+  AddRow(&v, {1.5f, 1.5f, 1e-3f}, up, 1, 0.25f, 0.0f);           // the camera sees the floor
+  std::vector<float> column, jacobian;
+  UnitColumn(scene, v, Light(s.light), &column, &jacobian);
+  const double centre = 4 * kPi * CornerFormFactor(0.3 / 0.8, 0.3 / 0.8);
+  const double corner = kPi * CornerFormFactor(0.6 / 0.8, 0.6 / 0.8);
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(column[c], centre, 0.01 * centre) << "channel " << c;
+    EXPECT_NEAR(column[3 + c], corner, 0.01 * corner);
+    EXPECT_EQ(column[6 + c], 0.0f) << "its back does not glow";
+    EXPECT_NEAR(column[9 + c], 0.25, 1e-6) << "the pixel that sees it receives its radiance";
+    EXPECT_EQ(column[12 + c], 0.0f);
+  }
+  for (float j : jacobian) EXPECT_EQ(j, 0.0f);  // no shape
+  // The irradiance the renderers take (one shadow ray a call) averages to the same.
+  double mean = 0;
+  std::int64_t rays = 0;
+  const int n = 20000;
+  for (int k = 0; k < n; ++k)
+    mean += Irradiance(scene, Light(s.light), {0, 0, 1e-3}, {0, 0, 1}, {0, 0, 1}, k, &rays)[1] / n;
+  EXPECT_NEAR(mean, centre * 1.0, 0.02 * centre);
+  EXPECT_EQ(rays, n);
+}
+
+TEST(EmitterLight, WhatStandsBetweenShadowsIt) {
+  FloorAndPanel s;
+  const Mesh blocker = test::Square(0, 0, 0.4, 0.5, 0.5);  // wider than the panel, between
+  const RayTracer scene(test::Merge(s.mesh, blocker));
+  ShadingVertices v;
+  AddRow(&v, {0, 0, 1e-3f}, {0, 0, 1}, 256);
+  std::vector<float> column;
+  UnitColumn(scene, v, s.light, &column);
+  EXPECT_EQ(column[0], 0.0f);
+}
+
+TEST(EmitterLight, ARenderSeesItsRadianceAndTheFloorItLights) {
+  FloorAndPanel s;
+  const RayTracer scene(s.mesh);
+  // Looking up at the panel from beside it, and down at the floor under it.
+  const std::vector<View> views{test::BlankView(test::LookAt({0, -0.05, 0.2}, {0, 0, 0.8}, 8, 8, 20)),
+                                test::BlankView(test::LookAt({0, -0.05, 0.6}, {0, 0, 0}, 8, 8, 10))};
+  TracerOptions o;
+  o.spp = 64;
+  o.bounces = 1;
+  const std::vector<ImageRGB> im = RenderLights(scene, views, {Light(s.light)}, o, true);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(im[0].at(4, 4)[c], s.light.radiance[c], 1e-6);
+  // The floor: albedo / pi x its irradiance (the closed form), a bounce of its light.
+  const double e = 4 * kPi * CornerFormFactor(0.3 / 0.8, 0.3 / 0.8);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(im[1].at(4, 4)[c], 0.5 / kPi * e * s.light.radiance[c], 0.05 * 0.5 / kPi * e * s.light.radiance[c]);
+}
+
+TEST(EmitterLight, LightsJsonAndEmittersPlyGiveItBack) {
+  FloorAndPanel s;
+  s.light.id = 3;
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "lp_emitter_light_test";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::vector<Light> lights{PointLight{{1, 2, 3}, {4, 4, 4}, 0}, s.light};
+  WriteEmittersPly(dir / "emitters.ply", lights);
+  WriteTextAtomically(dir / "lights.json", LightsJson({"", lights, {}}));
+  const LightsFile back = ReadLightsFile(dir / "lights.json");
+  ASSERT_EQ(back.lights.size(), 2u);
+  const EmitterLight& e = std::get<EmitterLight>(back.lights[1]);
+  EXPECT_EQ(e.id, 3);
+  EXPECT_EQ(e.radiance, s.light.radiance);
+  EXPECT_NEAR(e.Area(), 0.36, 1e-6);
+  const RayTracer scene(s.mesh);
+  ShadingVertices v;
+  AddRow(&v, {0.2f, -0.1f, 1e-3f}, {0, 0, 1}, 64);
+  AddRow(&v, {0.1f, 0.1f, 0.8f - 1e-3f}, {0, 0, -1}, 1, 0.5f, 0.0f);
+  std::vector<float> a, b;
+  UnitColumn(scene, v, s.light, &a);
+  UnitColumn(scene, v, e, &b);
+  for (std::size_t i = 0; i < a.size(); ++i) EXPECT_NEAR(a[i], b[i], 1e-6 * (1 + std::abs(a[i])));
+  // lights.json without its emitters.ply: one clear error.
+  std::filesystem::remove(dir / "emitters.ply");
+  EXPECT_NE(test::ErrorOf([&] { ReadLightsFile(dir / "lights.json"); }).find("emitters.ply: missing"), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+}  // namespace
+}  // namespace lp
