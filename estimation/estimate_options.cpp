@@ -100,6 +100,10 @@ std::vector<EstimateOption> MakeTable() {
        "try a directional light (a sun: sharp shadows) where the map concentrates its power; 0 = never",
        Type::kBool, 0, 1, false, LP_GET(directional_lights), LP_SET(directional_lights, bool),
        "directional light (a sun)", 0, 1, {}},
+      {"emitters", "emitters",
+       "look for glowing surfaces (lamp shades, frosted windows, screens) where the views see pixels brighter than "
+       "a white surface under the lights; 0 = never",
+       Type::kBool, 0, 1, false, LP_GET(emitters), LP_SET(emitters, bool), "", 0, 0, {}},
       {"seed", "seed", "random seed (same seed => same result for any thread count)", Type::kInt, 0, 9007199254740992.0,
        false, LP_GET(tracer.seed), LP_SET(tracer.seed, std::uint64_t), "", 0, 0, {}},
   };

@@ -124,6 +124,10 @@ struct EstimateOptions {
   /// says, on the shading vertices gathered for it.
   bool directional_lights = true;
   DirectionalLightOptions directional;
+  /// Glowing surfaces of the mesh (docs/method.md, "Glowing surfaces"): where the views see
+  /// pixels brighter than a white surface under the lights so far, after the lamps and the
+  /// sun were sought; kept when the held-out pixels say so.
+  bool emitters = true;
   /// The mesh the estimator traces (docs/method.md, "The traced mesh"): the bundle's mesh
   /// clustered on a grid of this many pixels, a pixel being what one spans on the nearest
   /// tenth of the surfaces the views see (PixelFootprints), when that grid is at least

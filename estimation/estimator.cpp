@@ -424,6 +424,10 @@ std::vector<double> Estimator::TakeSolution(const RoundProblem& rp, const SolveR
 
   lambda_.swap(next);
   if (rp.Has<DirectionalLight>()) suns_ = rp.Lit<DirectionalLight>(full, cells_);
+  if (rp.Has<EmitterLight>()) {
+    emitters_ = rp.Lit<EmitterLight>(full, cells_);
+    BoundEmitters();
+  }
   return full;
 }
 
@@ -432,6 +436,7 @@ std::vector<double> Estimator::TakeSolution(const RoundProblem& rp, const SolveR
 void Estimator::FitLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info) {
   if (NearLights() && (info->round == 1 || !points_.empty())) info->lights_moved = FitPointLights(rp, full, info);
   if (SunRound(info->round) && FitDirectionalLight(info)) info->lights_moved = true;
+  if (EmitterRound() && ProposeEmitters(info)) info->lights_moved = true;
 }
 
 /// The round's record (in image units), its callback and its progress line.
@@ -455,6 +460,13 @@ void Estimator::Conclude() {
   for (int j = 0; j < cells_; ++j) res_.left_out[j] = !reachable_[j];
   res_.lighting = InImageUnits();
   res_.uncertainty = Uncertainty();
+  if (!res_.uncertainty.empty())  // (the glowing surfaces' not yet said: unknown)
+    for (std::size_t k = res_.uncertainty.size(); k < res_.lighting.lights.size(); ++k) {
+      LightUncertainty unknown;
+      unknown.shape_covariance.setConstant(INFINITY);
+      unknown.scale_sigma.setConstant(INFINITY);
+      res_.uncertainty.push_back(unknown);
+    }
   for (LightUncertainty& u : res_.uncertainty) u.scale_sigma *= res_.image_mean;
   res_.final_relative_rmse = res_.convergence.empty() ? 0 : res_.convergence.back().relative_rmse;
   res_.final_rmse = res_.final_relative_rmse * res_.image_mean;

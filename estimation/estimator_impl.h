@@ -9,6 +9,7 @@
 #include <cstdarg>
 #include <cstdio>
 #include <cmath>
+#include <map>
 #include <memory>
 #include <sstream>
 
@@ -130,8 +131,12 @@ class Estimator {
   /// De-lights the colours seen by the estimate's irradiance and segments them again into
   /// the albedo the next rounds run under; false when there is nothing to divide by.
   bool RefineAlbedo(int pass);
-  /// The lights as they stand (directional lights first, then lamps).
-  std::vector<Light> Lights() const { return Joined(suns_, points_); }
+  /// The lights as they stand (directional lights first, then lamps, then glowing surfaces).
+  std::vector<Light> Lights() const {
+    std::vector<Light> out = Joined(suns_, points_);
+    out.insert(out.end(), emitters_.begin(), emitters_.end());
+    return out;
+  }
   /// Whether the lights moved no more than albedo_settle since `before` (Lights() then): the
   /// largest, over the lights, of a lamp's distance from the nearest lamp before over that
   /// one's distance from the scene's centre, and a directional light's angle to the nearest
@@ -265,7 +270,7 @@ class Estimator {
   }
   /// The estimate so far in image units: the map `lambda_` and the lights.
   Lighting InImageUnits() const {
-    Lighting out{lambda_, Joined(suns_, points_)};
+    Lighting out{lambda_, Lights()};
     for (double& v : out.map) v *= res_.image_mean;
     for (Light& l : out.lights) Scale(l) *= res_.image_mean;
     return out;
@@ -307,6 +312,22 @@ class Estimator {
     LightFitLog log;
   };
   bool FitDirectionalLight(RoundInfo* info);
+  // Glowing surfaces (docs/method.md, "Glowing surfaces"; estimator_emitters.cpp).
+  /// Whether `round` looks for them: the first on every pixel, once, after the lamps and the sun.
+  bool EmitterRound() const { return opt_.emitters && !emitters_sought_ && stride_ == 1 && !vertices_.camera.empty(); }
+  bool ProposeEmitters(RoundInfo* info);
+  /// Keeps `candidate` beside `kept` when the objective and the held-out loss say so (both
+  /// updated then).
+  bool TryEmitter(const EmitterLight& candidate, std::vector<EmitterLight>* kept, double* objective, double* held);
+  /// The round's whole objective solved again with `emitters` (left as emitters_) beside the map and the lights.
+  double ObjectiveWith(const std::vector<EmitterLight>& emitters);
+  /// The traced mesh's segments the views see brighter than a white surface under the
+  /// lights so far (at least kMinEmitterPixels each), as emitters of a first radiance.
+  std::vector<EmitterLight> GlowingSegments();
+  struct Glow;
+  Glow GlowingTriangles();
+  /// Raises each emitter's radiance to what its clipped pixels show at least (emitter_floor_).
+  void BoundEmitters();
   bool ProposeDirectionalLight(DirectionalProposal* out);
   bool ShapeDirectionalLight(DirectionalProposal* proposal, SunFit* fit);
   void SettleDirectionalLight(DirectionalProposal* proposal, SunFit* fit, RoundInfo* info);
@@ -370,6 +391,10 @@ class Estimator {
   // Near lights.
   std::vector<PointLight> points_;  ///< the point lights so far, normalized units
   std::vector<DirectionalLight> suns_;  ///< the directional lights so far, normalized units
+  std::vector<EmitterLight> emitters_;  ///< the glowing surfaces so far, normalized units
+  bool emitters_sought_ = false;
+  /// Per emitter (its triangles): the least radiance its clipped pixels show (normalized).
+  std::map<const EmitterShape*, Eigen::Vector3d> emitter_floor_;
   ShadingVertices vertices_;        ///< the rounds', for the lights' columns and positions
   /// The last few columns on vertices_ (Column), cleared when vertices_ change.
   struct CachedColumn {

@@ -18,6 +18,7 @@ RoundProblem Estimator::WithLights(const std::vector<PointLight>& lights) {
 std::vector<Light> Estimator::ColumnOrder(const std::vector<PointLight>& lights) const {
   std::vector<Light> out = AsLights(lights);
   for (const DirectionalLight& d : suns_) out.push_back(d);
+  for (const EmitterLight& e : emitters_) out.push_back(e);
   return out;
 }
 
@@ -288,6 +289,8 @@ void Estimator::SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info
   std::vector<double> full = rp.Scatter(sr.lambda, cells_);
   *lights = rp.Lit<PointLight>(full, cells_);
   suns_ = rp.Lit<DirectionalLight>(full, cells_);
+  emitters_ = rp.Lit<EmitterLight>(full, cells_);
+  BoundEmitters();
   full.resize(3 * cells_);
   for (int j = 0; j < cells_; ++j)  // cells this problem did not reach keep their value
     if (reachable_[j]) std::copy(&full[3 * j], &full[3 * j] + 3, &lambda_[3 * j]);
@@ -306,6 +309,10 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
       map_penalty += res_.objective_params.alpha * env_.solid_angle(j) / kAlphaReferenceSolidAngle *
                      std::log1p(res_.objective_params.beta *
                                 std::max(0.0, lambda_[3 * j] + lambda_[3 * j + 1] + lambda_[3 * j + 2]));
+  for (const EmitterLight& e : emitters_)  // (held fixed too, with the lights' weight)
+    map_penalty += res_.objective_params.alpha * opt_.point_lights.weight *
+                   std::max(1.0, opt_.objective.alpha / alpha_) *
+                   std::log1p(res_.objective_params.beta * std::max(0.0, e.radiance.sum()));
   std::vector<double> base = Plus(A_.Multiply(lambda_), LightsRender({}, suns_));
   const LightFitProblem fit = FitProblem(&base);
   // One convergence row; on a share of the rows (every stride-th) E and the squared
@@ -421,6 +428,10 @@ std::vector<double> Estimator::LightsRender(const std::vector<PointLight>& point
     col = Column(d);
     for (std::size_t e = 0; e < out.size(); ++e) out[e] += d.irradiance[e % 3] * col[e];
   }
+  for (const EmitterLight& g : emitters_) {  // (always: the rest of the image for every other light)
+    col = Column(g);
+    for (std::size_t e = 0; e < out.size(); ++e) out[e] += g.radiance[e % 3] * col[e];
+  }
   return out;
 }
 
@@ -453,6 +464,7 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
                               bool traced) {
   std::vector<Light> all = AsLights(lights);
   if (directional) all.push_back(*directional);
+  for (const EmitterLight& e : emitters_) all.push_back(e);  // (the glowing surfaces so far beside them)
   std::vector<std::vector<float>> columns;
   for (const Light& l : all) columns.push_back(Column(l));
   std::vector<double> y_fit, y_held;

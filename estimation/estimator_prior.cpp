@@ -118,7 +118,9 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   else alone_alphas.erase(alone_alphas.begin());
   const std::vector<int> block = RowBlocks(kPriorBlocksAcross);
   const PriorFolds with = PriorLosses(lights, with_alphas, block);
-  const PriorFolds alone = alone_alphas.empty() ? PriorFolds() : PriorLosses({}, alone_alphas, block);
+  // (the glowing surfaces stay with the map alone: the pixels that see them are theirs)
+  const std::vector<Light> glowing(emitters_.begin(), emitters_.end());
+  const PriorFolds alone = alone_alphas.empty() ? PriorFolds() : PriorLosses(glowing, alone_alphas, block);
   if (with.loss.empty() || (!alone_alphas.empty() && alone.loss.empty())) {
     pc.why = "a fold of the views' blocks has no pixels (too few valid pixels): the given --alpha";
     return false;

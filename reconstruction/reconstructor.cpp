@@ -39,27 +39,29 @@ bool GoodIntrinsics(const Camera& k) {
 
 /// Averages a view down by `f` x `f` blocks (linear radiance: the mean is what a camera
 /// with bigger pixels would see). A block is valid only if all its pixels are valid and
-/// none is saturated (a mean over clipped pixels is biased low).
+/// none is saturated (a mean over clipped pixels is biased low); a block whose pixels are
+/// all inside the mask and one of them saturated is `clipped` (its mean a lower bound).
 void Downsample(View* v, int f) {
   if (f <= 1) return;
   Camera& c = v->camera;
   const int w = c.width / f, h = c.height / f;
   ImageRGB image(w, h);
-  std::vector<std::uint8_t> valid(static_cast<std::size_t>(w) * h, 0);
+  std::vector<std::uint8_t> valid(static_cast<std::size_t>(w) * h, 0), clipped(valid.size(), 0);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       float sum[3] = {0, 0, 0};
-      bool ok = true;
+      bool inside = true, saturated = false;
       for (int dy = 0; dy < f; ++dy)
         for (int dx = 0; dx < f; ++dx) {
           const int sx = x * f + dx, sy = y * f + dy;
           const float* p = v->image.at(sx, sy);
-          ok = ok && v->valid[static_cast<std::size_t>(sy) * c.width + sx] &&
-               std::max({p[0], p[1], p[2]}) < v->saturation;
+          inside = inside && v->valid[static_cast<std::size_t>(sy) * c.width + sx];
+          saturated = saturated || std::max({p[0], p[1], p[2]}) >= v->saturation;
           for (int ch = 0; ch < 3; ++ch) sum[ch] += p[ch];
         }
       for (int ch = 0; ch < 3; ++ch) image.at(x, y)[ch] = sum[ch] / (f * f);
-      valid[static_cast<std::size_t>(y) * w + x] = ok;
+      valid[static_cast<std::size_t>(y) * w + x] = inside && !saturated;
+      clipped[static_cast<std::size_t>(y) * w + x] = inside && saturated;
     }
   // Pixel centres at integers: block x covers source pixels [f x, f x + f - 1].
   c.cx = (c.cx + 0.5) / f - 0.5;
@@ -70,6 +72,7 @@ void Downsample(View* v, int f) {
   c.height = h;
   v->image = std::move(image);
   v->valid = std::move(valid);
+  v->clipped = std::move(clipped);
 }
 
 }  // namespace

@@ -69,6 +69,10 @@ SceneBundle ParseSceneJson(const std::string& text, const std::string& name) {
       if (!v["mask"].is_string()) throw InputError(name, where + " \"mask\" must be a string");
       view.mask_file = v["mask"].get<std::string>();
     }
+    if (v.contains("clipped")) {
+      if (!v["clipped"].is_string()) throw InputError(name, where + " \"clipped\" must be a string");
+      view.clipped_file = v["clipped"].get<std::string>();
+    }
     Camera& c = view.camera;
     const double w = Number(v, "width", name, where), h = Number(v, "height", name, where);
     if (w < 1 || h < 1 || w > 16384 || h > 16384 || w != std::floor(w) || h != std::floor(h))
@@ -115,6 +119,8 @@ void MarkUnusablePixels(View* view) {
     } else if (p[0] >= v.saturation || p[1] >= v.saturation || p[2] >= v.saturation) {
       v.valid[i] = 0;
       ++v.saturated;
+      if (v.clipped.size() != v.image.pixels()) v.clipped.assign(v.image.pixels(), 0);
+      v.clipped[i] = 1;
     }
   }
 }
@@ -146,6 +152,15 @@ SceneBundle LoadSceneBundle(const fs::path& dir) {
         throw InputError(mp.string(), "mask size does not match the image");
       for (std::size_t i = 0; i < m.data.size(); ++i)
         if (!m.data[i]) { v.valid[i] = 0; ++v.masked_out; }
+    }
+    if (!v.clipped_file.empty()) {
+      const fs::path cp = dir / v.clipped_file;
+      Mask m = ReadMask(cp);
+      if (m.width != v.image.width || m.height != v.image.height)
+        throw InputError(cp.string(), "clipped mask size does not match the image");
+      v.clipped.assign(m.data.size(), 0);
+      for (std::size_t i = 0; i < m.data.size(); ++i)
+        if (m.data[i]) v.clipped[i] = 1, v.valid[i] = 0;
     }
     MarkUnusablePixels(&v);
   }
@@ -179,6 +194,13 @@ void WriteSceneBundle(const fs::path& dir, const SceneBundle& bundle) {
         m.data.resize(v.valid.size());
         for (std::size_t i = 0; i < v.valid.size(); ++i) m.data[i] = v.valid[i] ? 255 : 0;
         WriteMask(tmp / jv["mask"].get<std::string>(), m);
+      }
+      if (std::find(v.clipped.begin(), v.clipped.end(), 1) != v.clipped.end()) {
+        jv["clipped"] = "clipped" + std::to_string(k) + ".png";
+        Mask m{c.width, c.height, {}};
+        m.data.resize(v.clipped.size());
+        for (std::size_t i = 0; i < v.clipped.size(); ++i) m.data[i] = v.clipped[i] ? 255 : 0;
+        WriteMask(tmp / jv["clipped"].get<std::string>(), m);
       }
       if (std::isfinite(v.saturation)) jv["saturation"] = v.saturation;
       jv["width"] = c.width;

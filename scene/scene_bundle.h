@@ -24,7 +24,11 @@ struct View {
   Camera camera;
   ImageRGB image;               ///< linear RGB
   std::vector<std::uint8_t> valid;  ///< width*height, 1 = use
-  std::string image_file, mask_file;  ///< as named in scene.json (relative)
+  /// Per pixel (width*height), or empty (none known): 1 where the camera clipped it (a
+  /// channel at `saturation`, or a keyframe's block holding such a pixel): its value is then a
+  /// lower bound (a block's mean over its clipped pixels), and it is not `valid`.
+  std::vector<std::uint8_t> clipped;
+  std::string image_file, mask_file, clipped_file;  ///< as named in scene.json (relative)
   /// Pixels with any channel at or above this are clipped by the camera and not used
   /// (scene.json "saturation"; an 8-bit or 16-bit PNG defaults to its top code, 1.0).
   double saturation = std::numeric_limits<double>::infinity();
@@ -36,6 +40,7 @@ struct View {
 
 /// Clears `valid` for the pixels of `view` that are non-finite, negative or saturated (in
 /// any channel) and adds them to the counts; pixels already invalid are not counted again.
+/// Saturated pixels inside the mask are marked `clipped`.
 void MarkUnusablePixels(View* view);
 
 struct SceneBundle {

@@ -13,6 +13,9 @@
 #             irradiance on an open floor is 1/20 of the lamp's at that centre;
 #   two-lamps a warm lamp (140 W, 1.73 m from the centre) and a cool one half as strong (70 W,
 #             1.65 m) on either side of the corner, 5 cm each, no sky (issue 42's valley);
+#   glow      a frosted window: a 0.8 x 0.8 m pane in the wall x = 0 that glows (a diffuse
+#             emitter of radiance GLOW_RADIANCE, reflecting like the wall too), no other
+#             light and no sky (issue 43: a glowing surface the cameras see);
 #   hdr       Poly Haven's studio_small_03 (assets/hdri, CC0) as the world, as lightprobe
 #             reads an equirect map (`lightprobe render --envmap` of the same file is its truth);
 #             each view's mask0.png keeps the pixels whose ray hits the room.
@@ -32,8 +35,8 @@ argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 out_dir = os.path.abspath(argv[0] if argv else "tests/data/cycles/sun")
 spp = int(argv[1]) if len(argv) > 1 else 1024
 KIND = argv[2] if len(argv) > 2 else "sun"
-if KIND not in ("sun", "sky", "lamp-sky", "two-lamps", "hdr"):
-    raise SystemExit("KIND is sun, sky, lamp-sky, two-lamps or hdr, not " + KIND)
+if KIND not in ("sun", "sky", "lamp-sky", "two-lamps", "hdr", "glow"):
+    raise SystemExit("KIND is sun, sky, lamp-sky, two-lamps, hdr or glow, not " + KIND)
 HDR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "assets", "hdri", "studio_small_03_1k.hdr")
 W, H = 160, 120
 SUN_DIRECTION = mathutils.Vector((0.55, 0.35, 0.76)).normalized()  # towards the sun
@@ -49,8 +52,11 @@ if KIND == "sky":
     SKY_RADIANCE = 1.0 / math.pi
 elif KIND == "lamp-sky":
     SKY_RADIANCE = LAMP_INTENSITY / (LAMP_POSITION - CENTRE).length_squared / 20 / math.pi
-elif KIND == "two-lamps":
+elif KIND in ("two-lamps", "glow"):
     SKY_RADIANCE = 0.0
+# glow: the pane in the wall x = 0 (y, z ranges) and the radiance it emits (W/(m^2 sr), linear RGB).
+PANE_Y, PANE_Z = (1.2, 2.0), (0.5, 1.3)
+GLOW_RADIANCE = (3.0, 2.7, 2.25)
 # (name, position, power in W, colour): the lamps of KIND lamp-sky and two-lamps.
 LAMPS = {"lamp-sky": [("lamp", LAMP_POSITION, LAMP_POWER, (1.0, 1.0, 1.0))],
          "two-lamps": [("warm", mathutils.Vector((2.3, 1.0, 1.95)), 140.0, (1.0, 0.8, 0.6)),
@@ -83,7 +89,17 @@ def box(x0, x1, y0, y1, z1, colour):
 # The corner: floor z = 0 over [0, 3]^2, walls at x = 0 and y = 0, 1.6 m high; the sun comes
 # from +x +y above, so both walls are lit and the objects cast shadows towards them.
 quad((0, 0, 0), (3, 0, 0), (3, 3, 0), (0, 3, 0), WALL)
-quad((0, 0, 0), (0, 3, 0), (0, 3, 1.6), (0, 0, 1.6), WALL)
+if KIND == "glow":  # the wall x = 0 around the pane, then the pane (its own quad, of the wall's albedo)
+    (y0, y1), (z0, z1) = PANE_Y, PANE_Z
+    quad((0, 0, 0), (0, 3, 0), (0, 3, z0), (0, 0, z0), WALL)
+    quad((0, 0, z1), (0, 3, z1), (0, 3, 1.6), (0, 0, 1.6), WALL)
+    quad((0, 0, z0), (0, y0, z0), (0, y0, z1), (0, 0, z1), WALL)
+    quad((0, y1, z0), (0, 3, z0), (0, 3, z1), (0, y1, z1), WALL)
+    PANE = len(quads)
+    quad((0, y0, z0), (0, y1, z0), (0, y1, z1), (0, y0, z1), WALL)
+else:
+    PANE = -1
+    quad((0, 0, 0), (0, 3, 0), (0, 3, 1.6), (0, 0, 1.6), WALL)
 quad((0, 0, 0), (0, 0, 1.6), (3, 0, 1.6), (3, 0, 0), WALL)
 box(0.9, 1.5, 0.8, 1.4, 0.5, BOX)
 box(1.9, 2.2, 1.7, 2.0, 1.1, BLOCK)
@@ -128,8 +144,23 @@ bpy.context.scene.collection.objects.link(obj)
 order = [WALL, BOX, BLOCK]
 for c in order:
     obj.data.materials.append(materials[c])
-for poly, c in zip(mesh.polygons, face_colour):
-    poly.material_index = order.index(c)
+if PANE >= 0:  # the pane: the wall's diffuse reflection plus its own light
+    m = bpy.data.materials.new("pane")
+    m.use_nodes = True
+    nodes = m.node_tree.nodes
+    nodes.clear()
+    bsdf, emit, add = nodes.new("ShaderNodeBsdfDiffuse"), nodes.new("ShaderNodeEmission"), nodes.new("ShaderNodeAddShader")
+    bsdf.inputs["Color"].default_value = [srgb_to_linear(c) for c in WALL] + [1.0]
+    bsdf.inputs["Roughness"].default_value = 0.0
+    emit.inputs["Color"].default_value = list(GLOW_RADIANCE) + [1.0]
+    emit.inputs["Strength"].default_value = 1.0  # radiance = colour x strength
+    out = nodes.new("ShaderNodeOutputMaterial")
+    m.node_tree.links.new(bsdf.outputs["BSDF"], add.inputs[0])
+    m.node_tree.links.new(emit.outputs["Emission"], add.inputs[1])
+    m.node_tree.links.new(add.outputs["Shader"], out.inputs["Surface"])
+    obj.data.materials.append(m)
+for k, (poly, c) in enumerate(zip(mesh.polygons, face_colour)):
+    poly.material_index = len(order) if k == PANE else order.index(c)
     poly.use_smooth = False
 
 world = bpy.data.worlds.new("sky")
@@ -172,6 +203,15 @@ for name, position, power, colour in LAMPS:
                          "radius": LAMP_RADIUS, "color": list(colour), "power_W": power,
                          "radiant_intensity_rgb_W_per_sr": intensity, "intensity_image_units": intensity,
                          "distance_from_centre": (position - CENTRE).length})
+
+if PANE >= 0:
+    area = (PANE_Y[1] - PANE_Y[0]) * (PANE_Z[1] - PANE_Z[0])
+    truth_emitters = [{"name": "pane", "corners": [list(p) for p in quads[PANE][0]], "normal": [1, 0, 0],
+                       "radiance": list(GLOW_RADIANCE), "area": area,
+                       "power": [math.pi * r * area for r in GLOW_RADIANCE]}]
+else:
+    truth_emitters = []
+
 
 def write_room_mask(path, eye, R, fx, width, height):
     """mask0.png: 255 where the pixel centre's ray (OpenCV camera, R its world-from-camera
@@ -237,6 +277,7 @@ bpy.context.scene.collection.objects.link(cam)
 scene.camera = cam
 truth = {"scene": "cycles-" + KIND, "blender_version": bpy.app.version_string, "spp": spp,
          "lights": truth_lights,
+         "emitters": truth_emitters,
          "world": {"type": "uniform", "radiance": [SKY_RADIANCE] * 3},
          "render": {"engine": "CYCLES", "max_bounces": 64, "diffuse_bounces": 64, "pixel_filter": "BOX",
                     "filter_width_px": 1.0, "view_transform": "Standard", "denoising": False,

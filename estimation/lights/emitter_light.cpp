@@ -66,25 +66,41 @@ std::shared_ptr<const EmitterShape> MakeEmitterShape(const Mesh& mesh, const std
     s->normal.push_back(n);
     s->area += area;
     s->cumulative.push_back(s->area);
-    // Its cells: points of the triangle no more than half a cell apart, and a cell either
-    // side along its normal.
+    // Its cells: points of the triangle no more than half a cell apart, and half a cell
+    // either side along its normal.
+    const int t = static_cast<int>(s->a.size()) - 1;
     const int steps = std::max(1, static_cast<int>(std::ceil(2 * std::max({(b - a).norm(), (c - a).norm(), (c - b).norm()}) / s->cell)));
     for (int i1 = 0; i1 <= steps; ++i1)
       for (int i2 = 0; i1 + i2 <= steps; ++i2) {
         const Eigen::Vector3d p = (a + (b - a) * (float(i1) / steps) + (c - a) * (float(i2) / steps)).cast<double>();
         for (int side = -1; side <= 1; ++side) {
-          auto [it, fresh] = s->cells.try_emplace(CellKey(p + side * s->cell * n.cast<double>(), s->cell), n);
-          if (!fresh) it->second += n;
+          std::vector<int>& in = s->cells[CellKey(p + side * 0.5 * s->cell * n.cast<double>(), s->cell)];
+          if (in.empty() || in.back() != t) in.push_back(t);
         }
       }
   }
-  for (auto& [key, n] : s->cells) n.normalize();
   return s;
 }
 
 bool OnEmitter(const EmitterShape& shape, const Eigen::Vector3d& point, const Eigen::Vector3d& towards_viewer) {
   const auto it = shape.cells.find(CellKey(point, shape.cell));
-  return it != shape.cells.end() && it->second.cast<double>().dot(towards_viewer) > 0;
+  if (it == shape.cells.end()) return false;
+  constexpr double kEdge = 1e-3;  // metres inside a triangle's edges
+  for (int t : it->second) {
+    const Eigen::Vector3d n = shape.normal[t].cast<double>(), a = shape.a[t].cast<double>();
+    if (n.dot(towards_viewer) <= 0 || std::abs(n.dot(point - a)) > 0.5 * shape.cell) continue;
+    // Inside each edge (by kEdge), in the triangle's plane.
+    const Eigen::Vector3d corner[3] = {a, shape.b[t].cast<double>(), shape.c[t].cast<double>()};
+    bool inside = true;
+    for (int e = 0; e < 3 && inside; ++e) {
+      const Eigen::Vector3d edge = corner[(e + 1) % 3] - corner[e], out = edge.cross(n).normalized();
+      // (`out` points away from the triangle when the corners run counter-clockwise about n)
+      const double side = (corner[(e + 2) % 3] - corner[e]).dot(out) > 0 ? -1.0 : 1.0;
+      inside = side * out.dot(point - corner[e]) <= kEdge;
+    }
+    if (inside) return true;
+  }
+  return false;
 }
 
 Eigen::Vector3d EmitterLight::Power() const { return kPi * radiance * Area(); }

@@ -30,11 +30,12 @@ struct EmitterShape {
   std::vector<Eigen::Vector3f> normal;   ///< each triangle's unit normal on the side that emits
   std::vector<double> cumulative;        ///< the areas summed up to each triangle (the last: area)
   double area = 0;                       ///< m^2
-  /// The cell size of `cells` (metres): a point within about a cell of a triangle is on it.
+  /// The cell size of `cells` (metres), and how far off a triangle's plane a point on it
+  /// may lie (half a cell: a traced mesh lies a little off the one the triangles came from).
   double cell = 0.02;
-  /// Cells of `cell` metres the triangles pass through (a key of the three indices), each
-  /// with the mean normal of the side that emits there.
-  std::unordered_map<std::uint64_t, Eigen::Vector3f> cells;
+  /// Cells of `cell` metres the triangles pass through or lie within half a cell of (a key of
+  /// the three indices), each with those triangles.
+  std::unordered_map<std::uint64_t, std::vector<int>> cells;
 };
 
 /// The shape of `triangles` of `mesh`, each emitting on the side of `facing` (one per
@@ -44,8 +45,8 @@ std::shared_ptr<const EmitterShape> MakeEmitterShape(const Mesh& mesh, const std
                                                      const std::vector<Eigen::Vector3f>& facing);
 
 /// Whether a surface point lies on the shape, seen from the side of `towards_viewer` (a
-/// unit vector from the point towards whoever looks at it): its cell or a neighbour is
-/// one of the shape's, whose emitting side faces the viewer.
+/// unit vector from the point towards whoever looks at it): within half a cell of a
+/// triangle's plane, inside its edges (by a millimetre), on the side that emits.
 bool OnEmitter(const EmitterShape& shape, const Eigen::Vector3d& point, const Eigen::Vector3d& towards_viewer);
 
 struct EmitterLight {

@@ -24,7 +24,7 @@ namespace {
 
 constexpr double kKktTolerance = 1e-4;  // relative natural residual (Objective::KktViolation)
 
-void ExpectHealthy(const EstimateResult& r) {
+void ExpectHealthy(const EstimateResult& r, bool light_rows = true) {
   for (double v : r.lighting.map) {
     ASSERT_TRUE(std::isfinite(v));
     ASSERT_GE(v, 0.0);
@@ -40,11 +40,20 @@ void ExpectHealthy(const EstimateResult& r) {
     // A directional light's refinement ("sun") leaves the map's penalty out, so its rows
     // and the solve after them start new descents too.
     // The solve at the map's prior the data chose ("prior") minimizes another function (the
-    // penalty's weight changed): its rows fall among themselves.
-    const bool new_prior = std::string(b.step) == "prior" && std::string(a.step) != "prior";
+    // penalty's weight changed): its rows fall among themselves; so does the solve with the
+    // glowing surfaces found ("emitters": more unknowns, started from their first guess).
+    const bool new_prior = (std::string(b.step) == "prior" && std::string(a.step) != "prior") ||
+                           (std::string(b.step) == "emitters" && std::string(a.step) != "emitters");
+    // A lamp's refinement ("lights") logs the objective as estimated on shares of the rows
+    // (every stride-th, times the stride; the Levenberg-Marquardt's and the compass search's
+    // shares, and the whole objective its steps are accepted by): with `light_rows` false
+    // they are not compared (the glowing-panel room below: a few very bright pixels make the
+    // shares' estimates differ by up to 18 %, with or without its emitters).
+    const bool lights = std::string(a.step) == "lights" || std::string(b.step) == "lights";
     if (a.round == b.round && std::string(b.step) != "search" && a.point_lights == b.point_lights &&
-        a.sigma == b.sigma && std::string(a.step) != "sun" && std::string(b.step) != "sun" && !new_prior) {
-      EXPECT_LE(b.objective, a.objective * (1 + 1e-12)) << "round " << b.round << " it " << b.iteration;
+        a.sigma == b.sigma && std::string(a.step) != "sun" && std::string(b.step) != "sun" && !new_prior &&
+        (light_rows || !lights)) {
+      EXPECT_LE(b.objective, a.objective * (1 + 1e-12)) << "round " << b.round << " it " << b.iteration << " " << a.step << " -> " << b.step;
     }
   }
   for (const RoundInfo& ri : r.rounds) EXPECT_LE(ri.kkt_violation, kKktTolerance) << "round " << ri.round;
@@ -777,6 +786,115 @@ TEST(Stability, ALampOnTheCameraIsFound) {
   const double error = (r.lighting.Of<PointLight>()[0].position - eye).norm();
   std::printf("headlight: %.3f m off (%.2f m from the scene centre)\n", error, (eye - r.scene_centre).norm());
   EXPECT_LT(error, 0.1 * (eye - r.scene_centre).norm());
+}
+
+
+// Glowing surfaces (issue 43): a floor and a wall 1 m behind the origin, facing the camera,
+// with glowing panels just in front of it, lit by them and a dim sky; one view.
+struct Panel {
+  double x, z, half;  ///< its centre on the wall and half its side (metres)
+  Eigen::Vector3d radiance;
+};
+struct PanelScene {
+  SceneBundle bundle;
+  std::vector<EmitterLight> panels;
+};
+PanelScene PanelRoom(const std::vector<Panel>& panels, int w = 96, int h = 72, double saturation = INFINITY) {
+  PanelScene out;
+  Mesh mesh = test::Plane(4, 0.5);
+  Mesh wall;  // the plane y = 1, from z = 0 to 2, facing -y
+  wall.positions = {{-2, 1, 0}, {2, 1, 0}, {2, 1, 2}, {-2, 1, 2}};
+  wall.albedo.assign(4, Eigen::Vector3f::Constant(0.6f));
+  wall.triangles = {{0, 2, 1}, {0, 3, 2}};
+  mesh = test::Merge(mesh, wall);
+  for (const Panel& p : panels) {
+    Mesh quad;
+    const float x0 = p.x - p.half, x1 = p.x + p.half, z0 = p.z - p.half, z1 = p.z + p.half, y = 0.999f;
+    quad.positions = {{x0, y, z0}, {x1, y, z0}, {x1, y, z1}, {x0, y, z1}};
+    quad.albedo.assign(4, Eigen::Vector3f::Constant(0.5f));
+    quad.triangles = {{0, 2, 1}, {0, 3, 2}};
+    const int first = static_cast<int>(mesh.triangles.size());
+    mesh = test::Merge(mesh, quad);
+    EmitterLight e;
+    e.id = static_cast<int>(out.panels.size());
+    e.shape = MakeEmitterShape(mesh, {first, first + 1}, {Eigen::Vector3f(0, -1, 0), Eigen::Vector3f(0, -1, 0)});
+    e.radiance = p.radiance;
+    out.panels.push_back(e);
+  }
+  ComputeVertexNormals(&mesh);
+  out.bundle.mesh = mesh;
+  out.bundle.dir = "panel-room";
+  out.bundle.views.push_back(test::BlankView(test::LookAt({0, -2, 1}, {0, 1, 0.8}, w, h, 60)));
+  const EnvMap env(9, Eigen::Vector3d::UnitZ());
+  const std::vector<double> sky(3 * env.size(), 0.02);
+  RayTracer scene(mesh);
+  TracerOptions t;
+  t.spp = 256;
+  t.bounces = 3;
+  t.seed = 5;
+  const Lighting truth{sky, AsLights(out.panels)};
+  out.bundle.views[0].image = RenderLighting(scene, env, truth, CellSampler(env, sky, {}, 0.2), out.bundle.views, t, true)[0];
+  for (float& v : out.bundle.views[0].image.data) v = std::min<float>(v, saturation);  // (a camera's top code)
+  out.bundle.views[0].saturation = saturation;
+  MarkUnusablePixels(&out.bundle.views[0]);
+  return out;
+}
+
+/// The emitter of `r` nearest (by its area's centre) to `panel`, or null.
+const EmitterLight* NearestEmitter(const EstimateResult& r, const EmitterLight& panel) {
+  const auto centre = [](const EmitterShape& s) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (std::size_t t = 0; t < s.a.size(); ++t) {
+      const double w = (t ? s.cumulative[t] - s.cumulative[t - 1] : s.cumulative[0]) / s.area;
+      c += w * (s.a[t] + s.b[t] + s.c[t]).cast<double>() / 3;
+    }
+    return c;
+  };
+  const EmitterLight* best = nullptr;
+  for (const Light& l : r.lighting.lights)
+    if (const EmitterLight* e = std::get_if<EmitterLight>(&l))
+      if (!best || (centre(*e->shape) - centre(*panel.shape)).norm() < (centre(*best->shape) - centre(*panel.shape)).norm())
+        best = e;
+  return best;
+}
+
+TEST(Stability, TwoGlowingPanelsSideBySideAreEachFound) {
+  const PanelScene s = PanelRoom({{-0.35, 1.0, 0.25, {2, 2, 2}}, {0.35, 1.0, 0.25, {0.5, 1.0, 1.5}}});
+  const EstimateResult r = Estimate(s.bundle, Small());
+  ExpectHealthy(r, false);
+  ASSERT_EQ(r.lighting.Count<EmitterLight>(), 2u);
+  for (const EmitterLight& panel : s.panels) {
+    const EmitterLight* e = NearestEmitter(r, panel);
+    ASSERT_NE(e, nullptr);
+    std::printf("panel radiance %.3f %.3f %.3f: found %.3f %.3f %.3f, power %.3f of %.3f\n", panel.radiance.x(),
+                panel.radiance.y(), panel.radiance.z(), e->radiance.x(), e->radiance.y(), e->radiance.z(),
+                e->Power().sum(), panel.Power().sum());
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(e->Power()[c], panel.Power()[c], 0.25 * panel.Power()[c]) << c;
+  }
+}
+
+TEST(Stability, APanelSeenByOnePixelIsNotAnEmitter) {
+  // 2 cm across at 3 m: under one pixel of 96 across 60 degrees (~3.6 cm).
+  const PanelScene s = PanelRoom({{0.0, 1.0, 0.01, {40, 40, 40}}});
+  const EstimateResult r = Estimate(s.bundle, Small());
+  ExpectHealthy(r, false);
+  EXPECT_EQ(r.lighting.Count<EmitterLight>(), 0u);
+}
+
+TEST(Stability, APanelClippedEverywhereIsBoundedBelowNotFitted) {
+  // The panel fills most of the view and every pixel of it is clipped (saturation 1 against
+  // its radiance 4): what the camera saw of it says only "at least 1"; its light on the floor
+  // says the rest.
+  const PanelScene s = PanelRoom({{0.0, 1.0, 0.9, {4, 4, 4}}}, 96, 72, 1.0);
+  int clipped = 0;
+  for (std::uint8_t c : s.bundle.views[0].clipped) clipped += c;
+  ASSERT_GT(clipped, 96 * 72 / 3);
+  const EstimateResult r = Estimate(s.bundle, Small());
+  ExpectHealthy(r, false);
+  ASSERT_EQ(r.lighting.Count<EmitterLight>(), 1u);
+  const EmitterLight e = r.lighting.Of<EmitterLight>()[0];
+  std::printf("clipped panel: radiance %.3f %.3f %.3f (truth 4; at least 1)\n", e.radiance.x(), e.radiance.y(), e.radiance.z());
+  for (int c = 0; c < 3; ++c) EXPECT_GE(e.radiance[c], 1.0 - 1e-9);
 }
 
 }  // namespace

@@ -337,6 +337,52 @@ TEST(Ply, ShadedColoursRoundTripAndAreOptional) {
   EXPECT_EQ(both.shaded.back(), m.shaded.back());
 }
 
+TEST(Bundle, ClippedPixelsRoundTripAsLowerBoundsNotUsed) {
+  // A pixel the camera clipped (a keyframe's block that held one) is written in
+  // clipped<k>.png, read back as clipped and not valid; a saturated pixel of the image itself
+  // inside the mask is clipped too, one outside the mask is not.
+  const fs::path d = TempDir("clipped") / "scene";
+  SceneBundle b = SmallBundle();
+  b.views[0].clipped.assign(b.views[0].valid.size(), 0);
+  b.views[0].clipped[5] = 1;
+  b.views[0].valid[5] = 0;
+  b.views[0].valid[7] = 0;  // masked out
+  b.views[0].image.data[3 * 7] = 2.0f;
+  b.views[0].image.data[3 * 9 + 1] = 2.0f;
+  b.views[0].saturation = 1.5;
+  WriteSceneBundle(d, b);
+  EXPECT_TRUE(fs::exists(d / "clipped0.png"));
+  const SceneBundle r = LoadSceneBundle(d);
+  const View& v = r.views[0];
+  ASSERT_EQ(v.clipped.size(), v.valid.size());
+  EXPECT_EQ(v.clipped[5], 1);
+  EXPECT_EQ(v.valid[5], 0);
+  EXPECT_EQ(v.clipped[7], 0) << "outside the mask";
+  EXPECT_EQ(v.clipped[9], 1) << "saturated in the image";
+  EXPECT_EQ(v.valid[9], 0);
+  EXPECT_EQ(v.saturated, 1);
+  int clipped = 0;
+  for (std::uint8_t c : v.clipped) clipped += c;
+  EXPECT_EQ(clipped, 2);
+  // A bundle with none writes no file.
+  SceneBundle none = SmallBundle();
+  WriteSceneBundle(d, none);
+  EXPECT_FALSE(fs::exists(d / "clipped0.png"));
+  EXPECT_TRUE(LoadSceneBundle(d).views[0].clipped.empty());
+}
+
+TEST(Ply, EmittersLabelAndRadianceRoundTrip) {
+  Mesh m = UvSphere({0, 0, 0}, 1, {0.4f, 0.5f, 0.6f}, 6, 8);
+  for (std::size_t v = 0; v < m.positions.size(); ++v) {
+    m.label.push_back(static_cast<int>(v % 3) - 1);
+    m.emission.push_back({0.5f * v, 2.5f, 1e-3f});
+  }
+  const Mesh b = ReadPlyBack(m);
+  EXPECT_EQ(b.label, m.label);
+  EXPECT_EQ(b.emission, m.emission);
+  EXPECT_TRUE(ReadPlyBack(UvSphere({0, 0, 0}, 1, {0.4f, 0.5f, 0.6f}, 6, 8)).label.empty());
+}
+
 TEST(Ply, ReadsTheRealFragment) {
   const fs::path ply = fs::path(LIGHTPROBE_SOURCE_DIR) / "assets" / "mesh" / "frag_115.ply";
   Mesh m = ReadPly(ply);

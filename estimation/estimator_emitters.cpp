@@ -1,0 +1,239 @@
+// The estimator's glowing surfaces (docs/method.md, "Glowing surfaces"): the segments of the
+// traced mesh that the views see brighter than a white surface would be under the lights so
+// far, each proposed as an emitter whose radiance is one more unknown of the linear problem,
+// kept when the held-out pixels are fitted better with them.
+#include <algorithm>
+#include <map>
+#include <numeric>
+#include <unordered_map>
+
+#include "estimation/estimator_impl.h"
+
+namespace lp::detail {
+namespace {
+
+/// A pixel glows when its colour is this many times the render so far and, times its
+/// surface's albedo (its de-lit albedo), too: twice as bright as a white surface could be
+/// under the lights so far (a scan's albedo comes from the colours seen, and the lights so
+/// far from an estimate: a margin against both).
+constexpr double kGlowAlbedo = 2.0;
+/// ... and it is brighter than this share of the images' mean (a dim surface the estimate
+/// leaves dark is not a light).
+constexpr double kGlowBrightness = 0.5;
+/// Full-resolution pixels a segment must cover to be an emitter (one pixel is noise).
+constexpr int kMinEmitterPixels = 16;
+/// The segments tried, strongest first, and the share of the held-out loss each must take
+/// off to be kept (as the map's prior asks of a weaker weight).
+constexpr std::size_t kMaxEmitterCandidates = 6;
+/// Glowing triangles whose centres lie in neighbouring cells of this size (metres) are one
+/// segment.
+constexpr float kJoinCell = 0.05f;
+constexpr double kEmitterGain = 0.03;
+
+int Root(std::vector<int>& parent, int i) {
+  while (parent[i] != i) i = parent[i] = parent[parent[i]];
+  return i;
+}
+
+}  // namespace
+
+/// Per triangle of the traced mesh: the pixels seen glowing on it, the side they saw it
+/// from, what they lack over the render (summed) and the least radiance its clipped pixels show.
+struct Estimator::Glow {
+  explicit Glow(std::size_t triangles)
+      : seen(triangles, 0), facing(triangles, Eigen::Vector3f::Zero()), glow(triangles, 0.0),
+        floor(triangles, Eigen::Vector3d::Zero()) {}
+  void Add(const SurfacePoint& hit, const Eigen::Vector3d& dir, double lack) {
+    ++seen[hit.triangle];
+    facing[hit.triangle] -= dir.cast<float>();
+    glow[hit.triangle] += lack;
+  }
+  std::vector<int> seen;
+  std::vector<Eigen::Vector3f> facing;
+  std::vector<double> glow;
+  std::vector<Eigen::Vector3d> floor;
+};
+
+Estimator::Glow Estimator::GlowingTriangles() {
+  const std::vector<double> render = Plus(A_.Multiply(lambda_), LightsRender(points_, suns_));
+  Glow g(scene_->mesh().triangles.size());
+  for (std::size_t r = 0; r < A_.rows(); ++r) {
+    const double y = (y_[3 * r] + y_[3 * r + 1] + y_[3 * r + 2]) / 3,
+                 f = std::max(0.0, (render[3 * r] + render[3 * r + 1] + render[3 * r + 2]) / 3);
+    if (!(y > kGlowBrightness) || !(y > kGlowAlbedo * f)) continue;
+    const Camera& cam = views_[A_.row_view[r]].camera;
+    const Eigen::Vector3d dir = cam.RayDirection(A_.row_pixel[r] % cam.width, A_.row_pixel[r] / cam.width);
+    SurfacePoint hit;
+    if (!scene_->Intersect(cam.center(), dir, &hit) || hit.triangle < 0) continue;
+    if (hit.albedo.mean() * y > kGlowAlbedo * f) g.Add(hit, dir, y - f);
+  }
+  // Pixels the camera clipped glow whatever the render: at least their value (a lower bound
+  // on the radiance of what they see).
+  for (const View& v : views_) {
+    if (v.clipped.size() != v.image.pixels()) continue;
+    const Camera& cam = v.camera;
+    for (std::size_t p = 0; p < v.clipped.size(); ++p) {
+      if (!v.clipped[p]) continue;
+      const int x = static_cast<int>(p % cam.width), y = static_cast<int>(p / cam.width);
+      const Eigen::Vector3d dir = cam.RayDirection(x, y);
+      SurfacePoint hit;
+      if (!scene_->Intersect(cam.center(), dir, &hit) || hit.triangle < 0) continue;
+      const float* c = v.image.at(x, y);
+      const Eigen::Vector3d value = Eigen::Vector3d(c[0], c[1], c[2]) / res_.image_mean;
+      g.Add(hit, dir, value.mean());
+      g.floor[hit.triangle] = g.floor[hit.triangle].cwiseMax(value);
+    }
+  }
+  return g;
+}
+
+namespace {
+
+/// Per triangle of `mesh`: its segment (a root triangle), -1 for none. The `seen` triangles
+/// joined where they share a vertex or lie within a cell of kJoinCell of each other (a scan's
+/// glowing surface is often in pieces: glass and bright cloth return depth in patches), and
+/// one ring of triangles around them (the pixels' centres miss some of a segment's small
+/// triangles).
+std::vector<int> Segments(const Mesh& mesh, const std::vector<int>& seen) {
+  const std::size_t triangles = mesh.triangles.size();
+  std::vector<int> parent(triangles), by_vertex(mesh.positions.size(), -1);
+  std::iota(parent.begin(), parent.end(), 0);
+  const auto join = [&](int a, int b) { parent[Root(parent, a)] = Root(parent, b); };
+  std::unordered_map<std::uint64_t, int> by_cell;  // a seen triangle in each cell of its centroid
+  const auto cell = [](const Eigen::Vector3f& p, int dx, int dy, int dz) {
+    const auto index = [](float x, int d) {
+      return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(x / kJoinCell)) + d + (1 << 20)) & 0x1FFFFF;
+    };
+    return index(p.x(), dx) | index(p.y(), dy) << 21 | index(p.z(), dz) << 42;
+  };
+  for (std::size_t t = 0; t < triangles; ++t) {
+    if (!seen[t]) continue;
+    for (int c = 0; c < 3; ++c) {
+      int& v = by_vertex[mesh.triangles[t][c]];
+      if (v < 0) v = static_cast<int>(t);
+      else join(static_cast<int>(t), v);
+    }
+    const Eigen::Vector3i& f = mesh.triangles[t];
+    const Eigen::Vector3f centroid = (mesh.positions[f[0]] + mesh.positions[f[1]] + mesh.positions[f[2]]) / 3;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz)
+          if (const auto it = by_cell.find(cell(centroid, dx, dy, dz)); it != by_cell.end()) join(static_cast<int>(t), it->second);
+    by_cell.emplace(cell(centroid, 0, 0, 0), static_cast<int>(t));
+  }
+  std::vector<int> segment(triangles, -1);
+  for (std::size_t t = 0; t < triangles; ++t) {
+    if (seen[t]) {
+      segment[t] = Root(parent, static_cast<int>(t));
+      continue;
+    }
+    for (int c = 0; c < 3 && segment[t] < 0; ++c)
+      if (const int v = by_vertex[mesh.triangles[t][c]]; v >= 0) segment[t] = Root(parent, v);
+  }
+  return segment;
+}
+
+}  // namespace
+
+std::vector<EmitterLight> Estimator::GlowingSegments() {
+  const Mesh& mesh = scene_->mesh();
+  const Glow glow = GlowingTriangles();
+  const std::vector<int> segment = Segments(mesh, glow.seen);
+  struct Gathered {
+    std::vector<int> triangles;
+    std::vector<Eigen::Vector3f> facing;
+    int pixels = 0;
+    double glow = 0;
+    Eigen::Vector3f mean_facing = Eigen::Vector3f::Zero();
+    Eigen::Vector3d floor = Eigen::Vector3d::Zero();
+  };
+  std::map<int, Gathered> found;
+  for (std::size_t t = 0; t < segment.size(); ++t)
+    if (segment[t] >= 0) {
+      Gathered& g = found[segment[t]];
+      g.triangles.push_back(static_cast<int>(t));
+      g.facing.push_back(glow.facing[t]);
+      g.pixels += glow.seen[t];
+      g.glow += glow.glow[t];
+      g.mean_facing += glow.facing[t];
+      g.floor = g.floor.cwiseMax(glow.floor[t]);
+    }
+  // Each segment with enough pixels (a grid's pixel stands for stride^2) an emitter.
+  std::vector<EmitterLight> out;
+  for (auto& [root, g] : found) {
+    if (g.pixels * stride_ * stride_ < kMinEmitterPixels) continue;
+    for (Eigen::Vector3f& f : g.facing)
+      if (f.isZero()) f = g.mean_facing;  // (the ring around: the segment's side)
+    EmitterLight e;
+    e.id = static_cast<int>(out.size());
+    e.shape = MakeEmitterShape(mesh, g.triangles, g.facing);
+    e.radiance = Eigen::Vector3d::Constant(g.glow / g.pixels).cwiseMax(g.floor);  // a first guess
+    if (!(e.Area() > 0)) continue;
+    if (!g.floor.isZero()) emitter_floor_[e.shape.get()] = g.floor;
+    out.push_back(e);
+  }
+  return out;
+}
+
+void Estimator::BoundEmitters() {
+  for (EmitterLight& e : emitters_)
+    if (const auto it = emitter_floor_.find(e.shape.get()); it != emitter_floor_.end())
+      e.radiance = e.radiance.cwiseMax(it->second);
+}
+
+double Estimator::ObjectiveWith(const std::vector<EmitterLight>& emitters) {
+  emitters_ = emitters;
+  const RoundProblem rp = WithLights(points_);
+  SolverOptions so;
+  so.max_iterations = 50;
+  return lp::Solve(opt_.solver, Objective(*rp.problem, CellWeights(*rp.problem, res_.objective_params)), rp.init, so)
+      .objective;
+}
+
+bool Estimator::TryEmitter(const EmitterLight& candidate, std::vector<EmitterLight>* kept, double* objective,
+                           double* held) {
+  CheckCancel();
+  std::vector<EmitterLight> with = *kept;
+  with.push_back(candidate);
+  const double objective_with = ObjectiveWith(with), held_with = HoldoutLoss(points_);
+  const bool keep = objective_with < (1 - kEmitterGain) * *objective && held_with < (1 + kEmitterGain) * *held;
+  const std::string line = Fmt("glowing surface of %.3g m^2 (seen brighter than a white surface under the lights): "
+                               "objective %.6g with it, %.6g without; held-out loss %.6g with it, %.6g without: %s",
+                               candidate.Area(), objective_with, *objective, held_with, *held, keep ? "kept" : "left out");
+  res_.point_light_choices.push_back(line);
+  Progress(line);
+  if (!keep) return false;
+  *kept = with;
+  kept->back().id = static_cast<int>(kept->size()) - 1;
+  *objective = objective_with;
+  *held = held_with;
+  return true;
+}
+
+bool Estimator::ProposeEmitters(RoundInfo* info) {
+  emitters_sought_ = true;
+  // One at a time, brightest first (the most each pixel lacks: a lamp's shade before the
+  // wall it lights), each kept when, beside those kept before, the whole objective (every
+  // pixel, the activation penalty included) falls by kEmitterGain and the held-out pixels
+  // are fitted no worse by that much; once one is kept the lights are solved with it and the
+  // glowing pixels sought again (a wall the kept one lights glows no more).
+  std::vector<EmitterLight> kept;
+  double objective = ObjectiveWith({}), held = HoldoutLoss(points_);
+  for (std::size_t k = 0; k < kMaxEmitterCandidates; ++k) {
+    std::vector<EmitterLight> found = GlowingSegments();
+    std::sort(found.begin(), found.end(),
+              [](const EmitterLight& a, const EmitterLight& b) { return a.radiance.sum() > b.radiance.sum(); });
+    bool more = false;
+    for (std::size_t i = 0; i < found.size() && i < kMaxEmitterCandidates && !more; ++i)
+      more = TryEmitter(found[i], &kept, &objective, &held);
+    emitters_ = kept;
+    if (!more) break;
+    solve_step_ = "emitters";  // (a new model: a new descent)
+    SolveWithLights(&points_, info, false);  // their radiance beside the map and the other lights
+    solve_step_ = "solve";
+    kept = emitters_;
+  }
+  return !kept.empty();
+}
+
+}  // namespace lp::detail
