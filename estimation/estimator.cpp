@@ -460,13 +460,7 @@ void Estimator::Conclude() {
   for (int j = 0; j < cells_; ++j) res_.left_out[j] = !reachable_[j];
   res_.lighting = InImageUnits();
   res_.uncertainty = Uncertainty();
-  if (!res_.uncertainty.empty())  // (the glowing surfaces' not yet said: unknown)
-    for (std::size_t k = res_.uncertainty.size(); k < res_.lighting.lights.size(); ++k) {
-      LightUncertainty unknown;
-      unknown.shape_covariance.setConstant(INFINITY);
-      unknown.scale_sigma.setConstant(INFINITY);
-      res_.uncertainty.push_back(unknown);
-    }
+  OnBundleMesh(&res_.lighting.lights);
   for (LightUncertainty& u : res_.uncertainty) u.scale_sigma *= res_.image_mean;
   res_.final_relative_rmse = res_.convergence.empty() ? 0 : res_.convergence.back().relative_rmse;
   res_.final_rmse = res_.final_relative_rmse * res_.image_mean;
@@ -497,7 +491,7 @@ std::vector<int> Estimator::RowBlocks(int across) const {
 }
 
 std::vector<LightUncertainty> Estimator::Uncertainty() {
-  const std::vector<Light> lights = Joined(suns_, points_);
+  const std::vector<Light> lights = Lights();
   if (lights.empty() || vertices_.rows() * 3 != y_.size() || A_.rows() * 3 != y_.size()) return {};
   CheckCancel();
   Stopwatch us;
@@ -513,6 +507,9 @@ std::vector<LightUncertainty> Estimator::Uncertainty() {
     Region95(out[k].shape_covariance, ShapeDims(lights[k]), &semi, &axes);
     Progress(std::holds_alternative<PointLight>(lights[k])
                  ? Fmt("point light %zu: its place within %.3g m (the 95 %% region's longest semi-axis)", k, semi[2])
+             : std::holds_alternative<EmitterLight>(lights[k])
+                 ? Fmt("emitter %zu: its radiance within %.3g of %.3g (95 %%, the green channel)", k,
+                       1.96 * out[k].scale_sigma[1], Scale(lights[k])[1])
                  : Fmt("directional light %zu: its direction within %.3g degrees (95 %%)", k, semi[2] * 180 / kPi));
   }
   Progress(Fmt("the lights' uncertainty in %.2f s", us.Seconds()));

@@ -175,6 +175,31 @@ std::vector<EmitterLight> Estimator::GlowingSegments() {
   return out;
 }
 
+void Estimator::OnBundleMesh(std::vector<Light>* lights) const {
+  if (cluster_.empty()) return;  // (the bundle's mesh is the traced one)
+  const Mesh& full = mesh_.positions.empty() ? bundle_.mesh : mesh_;
+  for (Light& l : *lights) {
+    EmitterLight* e = std::get_if<EmitterLight>(&l);
+    if (!e || !e->shape) continue;
+    std::vector<int> triangles;
+    std::vector<Eigen::Vector3f> facing;
+    for (std::size_t t = 0; t < full.triangles.size(); ++t) {
+      const Eigen::Vector3i& f = full.triangles[t];
+      const Eigen::Vector3d centroid =
+          ((full.positions[f[0]] + full.positions[f[1]] + full.positions[f[2]]) / 3).cast<double>();
+      if (const int on = EmitterTriangleAt(*e->shape, centroid); on >= 0) {
+        triangles.push_back(static_cast<int>(t));
+        facing.push_back(e->shape->normal[on]);
+      }
+    }
+    if (triangles.empty()) continue;  // (keeps the traced mesh's)
+    const double area = e->Area();
+    e->shape = MakeEmitterShape(full, triangles, facing);
+    Progress(Fmt("emitter %d: %zu triangles of the bundle's mesh, %.4g m^2 (%.4g on the traced mesh)", e->id,
+                 triangles.size(), e->Area(), area));
+  }
+}
+
 void Estimator::BoundEmitters() {
   for (EmitterLight& e : emitters_)
     if (const auto it = emitter_floor_.find(e.shape.get()); it != emitter_floor_.end())

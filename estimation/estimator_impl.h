@@ -148,8 +148,8 @@ class Estimator {
   Mesh WithAlbedoOf(const Mesh& full, const std::vector<float>& irradiance) const;
   /// The estimate in image units, its scores and what the user should know about it.
   void Conclude();
-  /// How well the images fix each light (Joined(suns_, points_)'s order, normalized units),
-  /// on the last round's rows; empty without lights or shading vertices.
+  /// How well the images fix each light (Lights()' order, normalized units), on the last
+  /// round's rows; empty without lights or shading vertices.
   std::vector<LightUncertainty> Uncertainty();
   /// The map's prior chosen by the data (docs/method.md, "The map's prior"; res_.prior says
   /// how): where it is weaker than the given one, the round's map and lights' intensities
@@ -328,6 +328,9 @@ class Estimator {
   Glow GlowingTriangles();
   /// Raises each emitter's radiance to what its clipped pixels show at least (emitter_floor_).
   void BoundEmitters();
+  /// The emitters of `lights` on the bundle's own mesh (its triangles on the traced mesh's
+  /// emitter), as emitters.ply holds them; as they are when the mesh is traced as it is.
+  void OnBundleMesh(std::vector<Light>* lights) const;
   bool ProposeDirectionalLight(DirectionalProposal* out);
   bool ShapeDirectionalLight(DirectionalProposal* proposal, SunFit* fit);
   void SettleDirectionalLight(DirectionalProposal* proposal, SunFit* fit, RoundInfo* info);

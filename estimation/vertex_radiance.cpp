@@ -118,6 +118,11 @@ LitShading VertexRadiance::Clean(const SurfaceFilter& filter) const {
     ++counted;
   }
   out.noise = level > 0 ? std::sqrt(diff2 / counted) / (level / counted) : 0;
+  // A glowing surface's own light, seen from the side its normal faces (not noise).
+  if (lighting_.Count<EmitterLight>() > 0)
+    for (std::size_t v = 0; v < n && v < mesh.normals.size(); ++v)
+      out.radiance[v] += Emission(lighting_.lights, mesh.positions[v].cast<double>(), mesh.normals[v].cast<double>())
+                             .cast<float>();
   return out;
 }
 

@@ -24,7 +24,9 @@ struct SurfaceFilter;
 /// The lit shading as shown: per vertex radiance with its Monte Carlo noise smoothed out
 /// over the surface, and how much noise is left.
 struct LitShading {
-  std::vector<Eigen::Vector3f> radiance;  ///< albedo times the smoothed incident radiance
+  /// Albedo times the smoothed incident radiance, plus a glowing surface's own (an emitter's
+  /// radiance on the side of the vertex's normal).
+  std::vector<Eigen::Vector3f> radiance;
   /// The relative noise left: the RMS over the traced vertices of half the difference of
   /// the two halves' smoothed radiances (the even and the odd samples, independent: the
   /// noise of their mean), over the mean radiance. The smoothing's blur is not in it.

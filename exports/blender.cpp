@@ -65,6 +65,30 @@ std::string DataBlock(const ExportScene& s, bool has_world) {
        << ", \"strength\": " << Num(e) << ", \"angle\": " << Num(2 * d.angular_radius) << "},\n";
   }
   py << "]\n"
+     << "# Glowing surfaces: emission strength x colour = the radiance (W/(m^2 sr)) on the side that\n"
+     << "# emits; each triangle's corners (x, y, z three times), lifted 2 mm off the mesh on that side.\n"
+     << "EMITTERS = [\n";
+  for (const EmitterLight& e : OfKind<EmitterLight>(s.lights)) {
+    if (!e.shape) continue;
+    Eigen::Vector3d colour;
+    const double strength = SplitColour(e.radiance, &colour);
+    py << "    {\"color\": " << List(colour) << ", \"strength\": " << Num(strength) << ", \"triangles\": [";
+    const EmitterShape& sh = *e.shape;
+    for (std::size_t t = 0; t < sh.a.size(); ++t) {
+      const Eigen::Vector3d lift = 0.002 * sh.normal[t].cast<double>();
+      for (const Eigen::Vector3f& corner : {sh.a[t], sh.b[t], sh.c[t]}) {
+        const Eigen::Vector3d p = R * (corner.cast<double>() + lift);
+        py << Num(p.x()) << ", " << Num(p.y()) << ", " << Num(p.z()) << ", ";  // (Python takes the last comma)
+      }
+    }
+    py << "],\n     \"normal_side\": [";
+    for (std::size_t t = 0; t < sh.a.size(); ++t) {
+      const bool along = (sh.b[t] - sh.a[t]).cross(sh.c[t] - sh.a[t]).dot(sh.normal[t]) >= 0;
+      py << (along ? "1, " : "0, ");
+    }
+    py << "]},\n";
+  }
+  py << "]\n"
      << "# One camera per keyframe (keyframe 0 active): Blender's camera looks down its -Z, +Y up.\n"
      << "CAMERAS = [\n";
   for (const Camera& c : s.cameras) {

@@ -160,6 +160,44 @@ def add_lights(scene):
         scene.collection.objects.link(obj)
 
 
+def add_emitters(scene):
+    # Each glowing surface a mesh just off the surface it glows on: on its emitting side its
+    # light added to what shows through it (the surface's own reflection), its back see-through.
+    for k, e in enumerate(EMITTERS):
+        corners = np.array(e["triangles"], dtype=np.float32).reshape(-1, 3)
+        t = len(corners) // 3
+        order = np.arange(3 * t, dtype=np.int32).reshape(-1, 3)
+        flip = np.array(e["normal_side"]) == 0  # wound so that the face's normal is the side that emits
+        order[flip] = order[flip][:, [0, 2, 1]]
+        me = bpy.data.meshes.new("emitter_%d" % k)
+        me.vertices.add(3 * t)
+        me.vertices.foreach_set("co", corners.ravel())
+        me.loops.add(3 * t)
+        me.loops.foreach_set("vertex_index", order.ravel())
+        me.polygons.add(t)
+        me.polygons.foreach_set("loop_start", np.arange(0, 3 * t, 3, dtype=np.int32))
+        me.polygons.foreach_set("loop_total", np.full(t, 3, dtype=np.int32))
+        me.update()
+        material = bpy.data.materials.new("emitter_%d" % k)
+        material.use_nodes = True
+        nodes, links = material.node_tree.nodes, material.node_tree.links
+        nodes.clear()
+        emission, through, back = nodes.new("ShaderNodeEmission"), nodes.new("ShaderNodeBsdfTransparent"), nodes.new("ShaderNodeBsdfTransparent")
+        emission.inputs["Color"].default_value = list(e["color"]) + [1.0]
+        emission.inputs["Strength"].default_value = e["strength"]
+        front, side = nodes.new("ShaderNodeAddShader"), nodes.new("ShaderNodeMixShader")
+        geometry, output = nodes.new("ShaderNodeNewGeometry"), nodes.new("ShaderNodeOutputMaterial")
+        links.new(emission.outputs["Emission"], front.inputs[0])
+        links.new(through.outputs["BSDF"], front.inputs[1])
+        links.new(geometry.outputs["Backfacing"], side.inputs["Fac"])
+        links.new(front.outputs["Shader"], side.inputs[1])
+        links.new(back.outputs["BSDF"], side.inputs[2])
+        links.new(side.outputs["Shader"], output.inputs["Surface"])
+        me.materials.append(material)
+        obj = bpy.data.objects.new(me.name, me)
+        scene.collection.objects.link(obj)
+
+
 def add_cameras(scene):
     objects = []
     for k, c in enumerate(CAMERAS):
@@ -214,6 +252,7 @@ def main():
     add_mesh(scene)
     set_world(scene)
     add_lights(scene)
+    add_emitters(scene)
     cameras = add_cameras(scene)
     set_camera(scene, cameras, args["camera"])
     set_render(scene, args["samples"], args["seed"])

@@ -82,25 +82,39 @@ std::shared_ptr<const EmitterShape> MakeEmitterShape(const Mesh& mesh, const std
   return s;
 }
 
+namespace {
+
+/// Whether `point` lies within half a cell of triangle t's plane, inside its edges (by a millimetre).
+bool OnTriangle(const EmitterShape& shape, int t, const Eigen::Vector3d& point) {
+  constexpr double kEdge = 1e-3;  // metres inside a triangle's edges
+  const Eigen::Vector3d n = shape.normal[t].cast<double>(), a = shape.a[t].cast<double>();
+  if (std::abs(n.dot(point - a)) > 0.5 * shape.cell) return false;
+  const Eigen::Vector3d corner[3] = {a, shape.b[t].cast<double>(), shape.c[t].cast<double>()};
+  for (int e = 0; e < 3; ++e) {
+    const Eigen::Vector3d edge = corner[(e + 1) % 3] - corner[e], out = edge.cross(n).normalized();
+    // (`out` points away from the triangle when the corners run counter-clockwise about n)
+    const double side = (corner[(e + 2) % 3] - corner[e]).dot(out) > 0 ? -1.0 : 1.0;
+    if (side * out.dot(point - corner[e]) > kEdge) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
 bool OnEmitter(const EmitterShape& shape, const Eigen::Vector3d& point, const Eigen::Vector3d& towards_viewer) {
   const auto it = shape.cells.find(CellKey(point, shape.cell));
   if (it == shape.cells.end()) return false;
-  constexpr double kEdge = 1e-3;  // metres inside a triangle's edges
-  for (int t : it->second) {
-    const Eigen::Vector3d n = shape.normal[t].cast<double>(), a = shape.a[t].cast<double>();
-    if (n.dot(towards_viewer) <= 0 || std::abs(n.dot(point - a)) > 0.5 * shape.cell) continue;
-    // Inside each edge (by kEdge), in the triangle's plane.
-    const Eigen::Vector3d corner[3] = {a, shape.b[t].cast<double>(), shape.c[t].cast<double>()};
-    bool inside = true;
-    for (int e = 0; e < 3 && inside; ++e) {
-      const Eigen::Vector3d edge = corner[(e + 1) % 3] - corner[e], out = edge.cross(n).normalized();
-      // (`out` points away from the triangle when the corners run counter-clockwise about n)
-      const double side = (corner[(e + 2) % 3] - corner[e]).dot(out) > 0 ? -1.0 : 1.0;
-      inside = side * out.dot(point - corner[e]) <= kEdge;
-    }
-    if (inside) return true;
-  }
+  for (int t : it->second)
+    if (shape.normal[t].cast<double>().dot(towards_viewer) > 0 && OnTriangle(shape, t, point)) return true;
   return false;
+}
+
+int EmitterTriangleAt(const EmitterShape& shape, const Eigen::Vector3d& point) {
+  const auto it = shape.cells.find(CellKey(point, shape.cell));
+  if (it == shape.cells.end()) return -1;
+  for (int t : it->second)
+    if (OnTriangle(shape, t, point)) return t;
+  return -1;
 }
 
 Eigen::Vector3d EmitterLight::Power() const { return kPi * radiance * Area(); }

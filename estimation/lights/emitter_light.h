@@ -48,6 +48,8 @@ std::shared_ptr<const EmitterShape> MakeEmitterShape(const Mesh& mesh, const std
 /// unit vector from the point towards whoever looks at it): within half a cell of a
 /// triangle's plane, inside its edges (by a millimetre), on the side that emits.
 bool OnEmitter(const EmitterShape& shape, const Eigen::Vector3d& point, const Eigen::Vector3d& towards_viewer);
+/// The shape's triangle `point` lies on (as OnEmitter, either side), or -1.
+int EmitterTriangleAt(const EmitterShape& shape, const Eigen::Vector3d& point);
 
 struct EmitterLight {
   int id = 0;  ///< its number in lights.json and emitters.ply

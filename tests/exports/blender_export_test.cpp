@@ -222,5 +222,41 @@ TEST(GltfExport, ACyclesRenderThroughBlendersGltfImporterMatchesLightprobesRende
   ExpectSamePicture(ReadImageLinear(f.root / "cycles1.exr"), ReadImageLinear(f.root / "cycles2.exr"), f);
 }
 
+// Issue 43: a glowing surface in the Blender export. The Cycles frosted window
+// (tests/data/cycles/glow: its view rendered by Cycles from the original scene, a pane of
+// radiance (3, 2.7, 2.25) in a wall, no other light) with the true pane as the estimate's
+// emitter: scene.py must build a scene whose Cycles render is the original's (the emitter
+// just off the wall, glowing on its side, the wall's own reflection showing through it).
+TEST(BlenderExport, AGlowingSurfaceRendersAsTheOriginalCyclesScene) {
+  const fs::path root = Scratch("glow"), glow = fs::path(LIGHTPROBE_SOURCE_DIR) / "tests" / "data" / "cycles" / "glow";
+  const fs::path estimate = root / "estimate";
+  fs::create_directories(estimate);
+  Mesh quad;  // the pane of truth.json: x = 0, y 1.2-2.0, z 0.5-1.3, glowing towards +x
+  quad.positions = {{0, 1.2f, 0.5f}, {0, 2.0f, 0.5f}, {0, 2.0f, 1.3f}, {0, 1.2f, 1.3f}};
+  quad.albedo.assign(4, Eigen::Vector3f::Zero());
+  quad.triangles = {{0, 1, 2}, {0, 2, 3}};
+  EmitterLight pane;
+  pane.shape = MakeEmitterShape(quad, {0, 1}, {Eigen::Vector3f::UnitX(), Eigen::Vector3f::UnitX()});
+  pane.radiance = {3.0, 2.7, 2.25};
+  const std::vector<Light> lights{pane};
+  WriteEmittersPly(estimate / "emitters.ply", lights);
+  WriteTextAtomically(estimate / "lights.json", LightsJson({"", lights, {}}));
+  const fs::path out = root / "blender";
+  WriteExport(LoadExportScene(glow, estimate), ExportFormat::kBlender, out);
+  ASSERT_NO_FATAL_FAILURE(RunBlender("--python '" + (out / "scene.py").string() + "' -- --samples 256 --render '" +
+                                         (root / "cycles.exr").string() + "'",
+                                     root / "render.log"));
+  const ImageRGB ours = ReadImageLinear(root / "cycles.exr"), original = LoadSceneBundle(glow).views[0].image;
+  ASSERT_EQ(ours.width, original.width);
+  const double error = Rmse(ours, original);
+  double mean_o = 0, mean_e = 0;
+  for (std::size_t i = 0; i < ours.data.size(); ++i) mean_e += ours.data[i], mean_o += original.data[i];
+  std::printf("the export's Cycles render against the original's: relative RMSE %.4f, mean %.5f vs %.5f\n", error,
+              mean_e / ours.data.size(), mean_o / ours.data.size());
+  EXPECT_LT(error, 0.08);
+  EXPECT_NEAR(mean_e / mean_o, 1.0, 0.03);
+  fs::remove_all(root);
+}
+
 }  // namespace
 }  // namespace lp
