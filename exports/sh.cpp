@@ -89,10 +89,30 @@ MainLight FindMainLight(const ExportScene& s) {
   return m;
 }
 
+/// Calls f(direction, radiance x solid angle) for each piece of the emitter's triangles seen
+/// from `at` on its emitting side (each triangle in 16 pieces, each at its own direction).
+template <class F>
+void ForEachEmitterPiece(const EmitterLight& light, const Eigen::Vector3d& at, F&& f) {
+  if (!light.shape) return;
+  constexpr int kSplit = 4;
+  const EmitterShape& s = *light.shape;
+  for (std::size_t t = 0; t < s.a.size(); ++t) {
+    const Eigen::Vector3d a = s.a[t].cast<double>() - at, b = s.b[t].cast<double>() - at, c = s.c[t].cast<double>() - at;
+    if (s.normal[t].cast<double>().dot((a + b + c) / 3) >= 0) continue;  // seen from behind: dark
+    const auto corner = [&](int i, int j) { return a + (b - a) * (double(i) / kSplit) + (c - a) * (double(j) / kSplit); };
+    for (int i = 0; i < kSplit; ++i)
+      for (int j = 0; i + j < kSplit; ++j)
+        for (int flip = 0; flip < (i + j + 1 < kSplit ? 2 : 1); ++flip) {
+          const Eigen::Vector3d p = flip ? corner(i + 1, j + 1) : corner(i, j), q = corner(i + 1, j), r = corner(i, j + 1);
+          f(((p + q + r) / 3).normalized(), Eigen::Vector3d(light.radiance * TriangleSolidAngle(p, q, r)));
+        }
+  }
+}
+
 /// The order-2 irradiance's relative error against the exact one over normals spread evenly
 /// over the sphere (Fibonacci points): RMS and largest, relative to the largest irradiance.
 std::pair<double, double> TruncationError(const ExportScene& s, const std::vector<DirectionalLight>& in_sh,
-                                          const Sh9& irradiance) {
+                                          const Eigen::Vector3d& centre, const Sh9& irradiance) {
   constexpr int kNormals = 256;
   double top = 0, sum2 = 0, worst = 0;
   std::vector<double> err;
@@ -101,6 +121,8 @@ std::pair<double, double> TruncationError(const ExportScene& s, const std::vecto
     ForEachSample(s.environment, s.up, 1, [&](const Eigen::Vector3d& d, const Eigen::Vector3d& L, double omega) {
       samples.emplace_back(d, L * omega);
     });
+  for (const EmitterLight& e : OfKind<EmitterLight>(s.lights))
+    ForEachEmitterPiece(e, centre, [&](const Eigen::Vector3d& d, const Eigen::Vector3d& power) { samples.emplace_back(d, power); });
   for (int k = 0; k < kNormals; ++k) {
     const double z = 1 - (2 * k + 1.0) / kNormals, r = std::sqrt(1 - z * z), phi = k * kPi * (3 - std::sqrt(5.0));
     const Eigen::Vector3d n(r * std::cos(phi), r * std::sin(phi), z);
@@ -138,6 +160,20 @@ Sh9 ProjectMap(const ImageRGB& map, const Eigen::Vector3d& up, const Eigen::Matr
 void AddDirectional(const DirectionalLight& light, const Eigen::Matrix3d& frame_from_world, Sh9* sh) {
   const auto y = ShBasis(frame_from_world * light.direction.normalized());
   for (int i = 0; i < 9; ++i) (*sh)[i] += light.irradiance * y[i];
+}
+
+double TriangleSolidAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const double la = a.norm(), lb = b.norm(), lc = c.norm();
+  const double numerator = a.dot(b.cross(c));
+  const double denominator = la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la;
+  return std::abs(2 * std::atan2(numerator, denominator));
+}
+
+void AddEmitter(const EmitterLight& light, const Eigen::Vector3d& at, const Eigen::Matrix3d& frame_from_world, Sh9* sh) {
+  ForEachEmitterPiece(light, at, [&](const Eigen::Vector3d& d, const Eigen::Vector3d& power) {
+    const auto y = ShBasis(frame_from_world * d);
+    for (int k = 0; k < 9; ++k) (*sh)[k] += power * y[k];
+  });
 }
 
 Sh9 IrradianceFromRadiance(const Sh9& radiance) {
@@ -202,6 +238,10 @@ std::vector<std::string> WriteShExport(const ExportScene& s, const fs::path& dir
   // engine adds that one itself); a main light taken from the map is a summary of what the SH hold.
   std::vector<DirectionalLight> in_sh;
   const std::vector<DirectionalLight> suns = OfKind<DirectionalLight>(s.lights);
+  // Glowing surfaces as seen from the centre of the mesh's bounding box.
+  Eigen::Vector3d low = Eigen::Vector3d::Constant(INFINITY), high = -low;
+  for (const Eigen::Vector3f& p : s.mesh.positions) low = low.cwiseMin(p.cast<double>()), high = high.cwiseMax(p.cast<double>());
+  const Eigen::Vector3d centre = s.mesh.positions.empty() ? Eigen::Vector3d::Zero() : Eigen::Vector3d(0.5 * (low + high));
   for (std::size_t k = 0; k < suns.size(); ++k)
     if (static_cast<int>(k) != main.directional_index) in_sh.push_back(suns[k]);
   auto radiance_in = [&](const Eigen::Matrix3d& frame) {
@@ -209,11 +249,12 @@ std::vector<std::string> WriteShExport(const ExportScene& s, const fs::path& dir
     if (s.environment.height) sh = ProjectMap(s.environment, s.up, frame);
     else sh.fill(Eigen::Vector3d::Zero());
     for (const DirectionalLight& d : in_sh) AddDirectional(d, frame, &sh);
+    for (const EmitterLight& e : OfKind<EmitterLight>(s.lights)) AddEmitter(e, centre, frame, &sh);
     return sh;
   };
   const Sh9 radiance = radiance_in(I), radiance_y_up = radiance_in(G);
   const Sh9 irradiance = IrradianceFromRadiance(radiance);
-  const auto [rms, worst] = TruncationError(s, in_sh, irradiance);
+  const auto [rms, worst] = TruncationError(s, in_sh, centre, irradiance);
   json j;
   j["frame"] = {
       {"world", "the scene bundle's world frame"},
@@ -227,9 +268,11 @@ std::vector<std::string> WriteShExport(const ExportScene& s, const fs::path& dir
                      "E(n) = sum_i sh9_irradiance[i] Y_i(n) of a surface with normal n; a Lambertian surface of "
                      "albedo rho shows rho / pi x E(n)"},
       {"contents", main.directional_index >= 0
-                       ? "the map and the directional lights except the main light (point lights: by value only)"
-                       : "the map and every directional light (the main light summarizes the map's brightest "
-                         "region; point lights: by value only)"}};
+                       ? "the map, the directional lights except the main light, and the emitters as seen from the "
+                         "centre of the mesh's bounding box (point lights: by value only)"
+                       : "the map, every directional light and the emitters as seen from the centre of the mesh's "
+                         "bounding box (the main light summarizes the map's brightest region; point lights: by value "
+                         "only)"}};
   j["sh9_radiance"] = Coefficients(radiance);
   j["sh9_irradiance"] = Coefficients(irradiance);
   j["y_up"] = {{"sh9_radiance", Coefficients(radiance_y_up)},

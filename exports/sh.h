@@ -11,6 +11,7 @@
 
 #include "common/image.h"
 #include "estimation/lights/directional_light.h"
+#include "estimation/lights/emitter_light.h"
 #include "exports/export_scene.h"
 
 namespace lp {
@@ -30,6 +31,11 @@ std::array<double, 9> ShBasis(const Eigen::Vector3d& d);
 Sh9 ProjectMap(const ImageRGB& map, const Eigen::Vector3d& up, const Eigen::Matrix3d& frame_from_world, int sub = 4);
 /// Adds a directional light (a delta of its irradiance along its direction) to `sh`.
 void AddDirectional(const DirectionalLight& light, const Eigen::Matrix3d& frame_from_world, Sh9* sh);
+/// Adds a glowing surface as seen from `at` (its radiance over the solid angle of each of its
+/// triangles' pieces on the side that emits; nothing in between is taken to block it).
+void AddEmitter(const EmitterLight& light, const Eigen::Vector3d& at, const Eigen::Matrix3d& frame_from_world, Sh9* sh);
+/// The solid angle of triangle (a, b, c) seen from the origin (Van Oosterom and Strackee 1983).
+double TriangleSolidAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c);
 /// Irradiance coefficients: the radiance's convolved with the clamped cosine (Ramamoorthi
 /// and Hanrahan 2001): times pi (l = 0), 2pi/3 (l = 1), pi/4 (l = 2).
 Sh9 IrradianceFromRadiance(const Sh9& radiance);

@@ -176,6 +176,39 @@ TEST(Sh, ASmallCellIsItsRadianceTimesSolidAngleTimesTheBasis) {
   for (int i = 0; i < 9; ++i) EXPECT_NEAR(L[i].y(), 3 * omega * Y[i], 2e-3 * 3 * omega) << i;
 }
 
+TEST(Sh, AGlowingRectanglesCoefficientsAreItsSolidAngleAndIrradianceInClosedForm) {
+  // A 0.8 x 0.5 m rectangle 1.2 m above the origin, facing it, radiance (2, 1, 0.5): its
+  // L_00 is Y_00 L Omega with Omega = 4 arcsin(ab / sqrt((a^2 + d^2)(b^2 + d^2))) (a, b the
+  // half-sides), its L_1,0 is Y_1 times the irradiance at the origin facing it, 4 pi L F with
+  // F the corner form factor of each quarter (Howell's B-3). Seen from behind it adds nothing.
+  const double a = 0.4, b = 0.25, d = 1.2;
+  Mesh quad;
+  quad.positions = {{-0.4f, -0.25f, 1.2f}, {0.4f, -0.25f, 1.2f}, {0.4f, 0.25f, 1.2f}, {-0.4f, 0.25f, 1.2f}};
+  quad.albedo.assign(4, Eigen::Vector3f::Zero());
+  quad.triangles = {{0, 1, 2}, {0, 2, 3}};
+  EmitterLight e;
+  e.shape = MakeEmitterShape(quad, {0, 1}, {-Eigen::Vector3f::UnitZ(), -Eigen::Vector3f::UnitZ()});
+  e.radiance = {2, 1, 0.5};
+  Sh9 sh;
+  sh.fill(Eigen::Vector3d::Zero());
+  AddEmitter(e, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Identity(), &sh);
+  const double omega = 4 * std::asin(a * b / std::sqrt((a * a + d * d) * (b * b + d * d)));
+  const auto corner = [](double X, double Y) {
+    const double p = std::sqrt(1 + X * X), q = std::sqrt(1 + Y * Y);
+    return (X / p * std::atan(Y / p) + Y / q * std::atan(X / q)) / (2 * M_PI);
+  };
+  const double irradiance = 4 * M_PI * corner(a / d, b / d);  // per unit radiance
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_NEAR(sh[0][c], 0.282094791773878 * e.radiance[c] * omega, 1e-6 * sh[0][c]) << c;  // (corners as floats)
+    EXPECT_NEAR(sh[2][c], 0.488602511902920 * e.radiance[c] * irradiance, 5e-3 * 0.4886 * e.radiance[c] * irradiance) << c;
+    EXPECT_NEAR(sh[1][c], 0.0, 1e-9) << "symmetric about the axis";
+  }
+  Sh9 behind;
+  behind.fill(Eigen::Vector3d::Zero());
+  AddEmitter(e, Eigen::Vector3d(0, 0, 2.4), Eigen::Matrix3d::Identity(), &behind);
+  EXPECT_EQ(behind[0], Eigen::Vector3d::Zero());
+}
+
 TEST(Sh, TheBasisIsTheRealOrthonormalOneInThreeJsOrder) {
   // Each of the nine functions against its closed form (constants from their definitions,
   // not the code's decimals), in three.js's SphericalHarmonics3 order, at a generic direction.
