@@ -508,8 +508,8 @@ std::vector<LightUncertainty> Estimator::Uncertainty() {
     Progress(std::holds_alternative<PointLight>(lights[k])
                  ? Fmt("point light %zu: its place within %.3g m (the 95 %% region's longest semi-axis)", k, semi[2])
              : std::holds_alternative<EmitterLight>(lights[k])
-                 ? Fmt("emitter %zu: its radiance within %.3g of %.3g (95 %%, the green channel)", k,
-                       1.96 * out[k].scale_sigma[1], Scale(lights[k])[1])
+                 ? Fmt("emitter %zu: its radiance within %.3g of %.3g (95 %%, the green channel, image units)", k,
+                       1.96 * out[k].scale_sigma[1] * res_.image_mean, Scale(lights[k])[1] * res_.image_mean)
                  : Fmt("directional light %zu: its direction within %.3g degrees (95 %%)", k, semi[2] * 180 / kPi));
   }
   Progress(Fmt("the lights' uncertainty in %.2f s", us.Seconds()));
