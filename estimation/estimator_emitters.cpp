@@ -22,12 +22,13 @@ constexpr double kGlowAlbedo = 2.0;
 constexpr double kGlowBrightness = 0.5;
 /// Full-resolution pixels a segment must cover to be an emitter (one pixel is noise).
 constexpr int kMinEmitterPixels = 16;
-/// The segments tried, strongest first, and the share of the held-out loss each must take
-/// off to be kept (as the map's prior asks of a weaker weight).
-constexpr std::size_t kMaxEmitterCandidates = 6;
 /// Glowing triangles whose centres lie in neighbouring cells of this size (metres) are one
 /// segment.
 constexpr float kJoinCell = 0.05f;
+/// The emitters kept at most (and the candidates tried each time), and the share of the
+/// whole objective each must take off, the held-out loss rising by no more (as the map's
+/// prior asks of a weaker weight).
+constexpr std::size_t kMaxEmitterCandidates = 6;
 constexpr double kEmitterGain = 0.03;
 
 int Root(std::vector<int>& parent, int i) {
@@ -169,7 +170,7 @@ std::vector<EmitterLight> Estimator::GlowingSegments() {
     e.shape = MakeEmitterShape(mesh, g.triangles, g.facing);
     e.radiance = Eigen::Vector3d::Constant(g.glow / g.pixels).cwiseMax(g.floor);  // a first guess
     if (!(e.Area() > 0)) continue;
-    if (!g.floor.isZero()) emitter_floor_[e.shape.get()] = g.floor;
+    if (!g.floor.isZero()) emitter_floor_[e.shape] = g.floor;
     out.push_back(e);
   }
   return out;
@@ -202,7 +203,7 @@ void Estimator::OnBundleMesh(std::vector<Light>* lights) const {
 
 void Estimator::BoundEmitters() {
   for (EmitterLight& e : emitters_)
-    if (const auto it = emitter_floor_.find(e.shape.get()); it != emitter_floor_.end())
+    if (const auto it = emitter_floor_.find(e.shape); it != emitter_floor_.end())
       e.radiance = e.radiance.cwiseMax(it->second);
 }
 
@@ -258,6 +259,10 @@ bool Estimator::ProposeEmitters(RoundInfo* info) {
     solve_step_ = "solve";
     kept = emitters_;
   }
+  for (auto it = emitter_floor_.begin(); it != emitter_floor_.end();)  // (the candidates left out)
+    it = std::any_of(kept.begin(), kept.end(), [&](const EmitterLight& e) { return e.shape == it->first; })
+             ? std::next(it)
+             : emitter_floor_.erase(it);
   return !kept.empty();
 }
 

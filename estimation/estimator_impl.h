@@ -397,7 +397,8 @@ class Estimator {
   std::vector<EmitterLight> emitters_;  ///< the glowing surfaces so far, normalized units
   bool emitters_sought_ = false;
   /// Per emitter (its triangles): the least radiance its clipped pixels show (normalized).
-  std::map<const EmitterShape*, Eigen::Vector3d> emitter_floor_;
+  /// (Held by the shape itself: a candidate's freed address could not come back with another's floor.)
+  std::map<std::shared_ptr<const EmitterShape>, Eigen::Vector3d> emitter_floor_;
   ShadingVertices vertices_;        ///< the rounds', for the lights' columns and positions
   /// The last few columns on vertices_ (Column), cleared when vertices_ change.
   struct CachedColumn {
