@@ -1,5 +1,6 @@
 #include "exports/gltf.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 
@@ -8,6 +9,7 @@
 
 #include "common/atomic_file.h"
 #include "common/image_io.h"
+#include "estimation/lights/emitter_light.h"
 #include "exports/axes.h"
 
 namespace lp {
@@ -71,6 +73,44 @@ json ColumnMajor(const Eigen::Matrix4d& m) {
   return a;
 }
 
+/// Which of `emitters` each triangle of the mesh lies on (its centroid on the emitter's
+/// triangles, either side), -1 for none.
+std::vector<int> EmitterOfTriangle(const Mesh& mesh, const std::vector<EmitterLight>& emitters) {
+  std::vector<int> of(mesh.triangles.size(), -1);
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    const Eigen::Vector3i& tri = mesh.triangles[t];
+    const Eigen::Vector3d centroid =
+        ((mesh.positions[tri[0]] + mesh.positions[tri[1]] + mesh.positions[tri[2]]) / 3.0f).cast<double>();
+    for (std::size_t e = 0; e < emitters.size() && of[t] < 0; ++e)
+      if (emitters[e].shape && EmitterTriangleAt(*emitters[e].shape, centroid) >= 0) of[t] = static_cast<int>(e);
+  }
+  return of;
+}
+
+/// Lambertian: the vertex colour is the albedo (base colour x COLOR_0), no metal, fully
+/// rough, no specular layer.
+json AlbedoMaterial(const std::string& name) {
+  return {{"name", name},
+          {"pbrMetallicRoughness", {{"baseColorFactor", {1, 1, 1, 1}}, {"metallicFactor", 0.0}, {"roughnessFactor", 1.0}}},
+          {"extensions", {{"KHR_materials_specular", {{"specularFactor", 0.0}}}}}};
+}
+
+/// A glowing surface's material: its albedo as every other face's, and its radiance as the
+/// emission, in nits (cd/m^2, at the lights' 683 lm/W): a colour whose largest channel is 1
+/// times KHR_materials_emissive_strength. One-sided, as the emitter is.
+json EmitterMaterial(const EmitterLight& e) {
+  json m = AlbedoMaterial("emitter_" + std::to_string(e.id));
+  Eigen::Vector3d colour;
+  const double strength = SplitColour(e.radiance, &colour);
+  m["emissiveFactor"] = Vec(colour);
+  m["extensions"]["KHR_materials_emissive_strength"] = {{"emissiveStrength", kLumensPerWatt * strength}};
+  m["doubleSided"] = false;
+  m["extras"] = {{"radiance", Vec(e.radiance)}, {"power", Vec(e.Power())}, {"area", e.Area()}};
+  return m;
+}
+
+/// The mesh as one primitive per material: the faces that glow (each emitter's) apart from
+/// the rest, all sharing the vertices.
 void AddMesh(const ExportScene& s, const Eigen::Matrix3f& G, Buffer* buffer, json* gltf) {
   std::vector<Eigen::Vector3f> positions, normals;
   positions.reserve(s.mesh.positions.size());
@@ -79,16 +119,22 @@ void AddMesh(const ExportScene& s, const Eigen::Matrix3f& G, Buffer* buffer, jso
   json attributes = {{"POSITION", buffer->AddVec3(positions, true, gltf)},
                      {"NORMAL", buffer->AddVec3(normals, false, gltf)},
                      {"COLOR_0", buffer->AddVec3(s.mesh.albedo, false, gltf)}};  // linear, as glTF's are
-  (*gltf)["meshes"].push_back(
-      {{"name", "lightprobe"},
-       {"primitives", {{{"attributes", attributes}, {"indices", buffer->AddIndices(s.mesh.triangles, gltf)},
-                        {"material", 0}, {"mode", 4}}}}});
-  // Lambertian: the vertex colour is the albedo (base colour x COLOR_0), no metal, fully rough,
-  // no specular layer.
-  (*gltf)["materials"].push_back(
-      {{"name", "albedo"},
-       {"pbrMetallicRoughness", {{"baseColorFactor", {1, 1, 1, 1}}, {"metallicFactor", 0.0}, {"roughnessFactor", 1.0}}},
-       {"extensions", {{"KHR_materials_specular", {{"specularFactor", 0.0}}}}}});
+  const std::vector<EmitterLight> emitters = OfKind<EmitterLight>(s.lights);
+  const std::vector<int> of = EmitterOfTriangle(s.mesh, emitters);
+  json primitives = json::array();
+  for (int e = -1; e < static_cast<int>(emitters.size()); ++e) {
+    std::vector<Eigen::Vector3i> triangles;
+    for (std::size_t t = 0; t < of.size(); ++t)
+      if (of[t] == e) triangles.push_back(s.mesh.triangles[t]);
+    if (triangles.empty() && (e >= 0 || !emitters.empty())) continue;  // a mesh keeps one primitive
+    (*gltf)["materials"].push_back(e < 0 ? AlbedoMaterial("albedo") : EmitterMaterial(emitters[e]));
+    primitives.push_back({{"attributes", attributes}, {"indices", buffer->AddIndices(triangles, gltf)},
+                          {"material", static_cast<int>((*gltf)["materials"].size()) - 1}, {"mode", 4}});
+    json& used = (*gltf)["extensionsUsed"];
+    if (e >= 0 && std::find(used.begin(), used.end(), "KHR_materials_emissive_strength") == used.end())
+      used.push_back("KHR_materials_emissive_strength");
+  }
+  (*gltf)["meshes"].push_back({{"name", "lightprobe"}, {"primitives", primitives}});
   (*gltf)["nodes"].push_back({{"name", "lightprobe_mesh"}, {"mesh", 0}});
 }
 

@@ -1,6 +1,7 @@
 #pragma once
-/// The glTF export: DIR/scene.gltf + DIR/scene.bin (the mesh with vertex colours, a camera
-/// per keyframe, point and directional lights through KHR_lights_punctual) and
+/// The glTF export: DIR/scene.gltf + DIR/scene.bin (the mesh with vertex colours, its glowing
+/// faces with an emissive material (KHR_materials_emissive_strength), a camera per keyframe,
+/// point and directional lights through KHR_lights_punctual) and
 /// DIR/environment.hdr (the map, equirectangular in glTF's frame as three.js maps it).
 /// docs/formats.md, "Exports".
 #include <filesystem>

@@ -222,14 +222,10 @@ TEST(GltfExport, ACyclesRenderThroughBlendersGltfImporterMatchesLightprobesRende
   ExpectSamePicture(ReadImageLinear(f.root / "cycles1.exr"), ReadImageLinear(f.root / "cycles2.exr"), f);
 }
 
-// Issue 43: a glowing surface in the Blender export. The Cycles frosted window
-// (tests/data/cycles/glow: its view rendered by Cycles from the original scene, a pane of
-// radiance (3, 2.7, 2.25) in a wall, no other light) with the true pane as the estimate's
-// emitter: scene.py must build a scene whose Cycles render is the original's (the emitter
-// just off the wall, glowing on its side, the wall's own reflection showing through it).
-TEST(BlenderExport, AGlowingSurfaceRendersAsTheOriginalCyclesScene) {
-  const fs::path root = Scratch("glow"), glow = fs::path(LIGHTPROBE_SOURCE_DIR) / "tests" / "data" / "cycles" / "glow";
-  const fs::path estimate = root / "estimate";
+/// The Cycles frosted window (tests/data/cycles/glow: its view rendered by Cycles from the
+/// original scene, a pane of radiance (3, 2.7, 2.25) in a wall, no other light) with the
+/// true pane as an estimate's only light, written into `estimate`.
+fs::path TruePaneEstimate(const fs::path& estimate) {
   fs::create_directories(estimate);
   Mesh quad;  // the pane of truth.json: x = 0, y 1.2-2.0, z 0.5-1.3, glowing towards +x
   quad.positions = {{0, 1.2f, 0.5f}, {0, 2.0f, 0.5f}, {0, 2.0f, 1.3f}, {0, 1.2f, 1.3f}};
@@ -241,12 +237,12 @@ TEST(BlenderExport, AGlowingSurfaceRendersAsTheOriginalCyclesScene) {
   const std::vector<Light> lights{pane};
   WriteEmittersPly(estimate / "emitters.ply", lights);
   WriteTextAtomically(estimate / "lights.json", LightsJson({"", lights, {}}));
-  const fs::path out = root / "blender";
-  WriteExport(LoadExportScene(glow, estimate), ExportFormat::kBlender, out);
-  ASSERT_NO_FATAL_FAILURE(RunBlender("--python '" + (out / "scene.py").string() + "' -- --samples 256 --render '" +
-                                         (root / "cycles.exr").string() + "'",
-                                     root / "render.log"));
-  const ImageRGB ours = ReadImageLinear(root / "cycles.exr"), original = LoadSceneBundle(glow).views[0].image;
+  return fs::path(LIGHTPROBE_SOURCE_DIR) / "tests" / "data" / "cycles" / "glow";
+}
+
+/// A Cycles render of the export against the original scene's view 0.
+void ExpectTheOriginalGlow(const ImageRGB& ours, const fs::path& glow) {
+  const ImageRGB original = LoadSceneBundle(glow).views[0].image;
   ASSERT_EQ(ours.width, original.width);
   const double error = Rmse(ours, original);
   double mean_o = 0, mean_e = 0;
@@ -255,6 +251,34 @@ TEST(BlenderExport, AGlowingSurfaceRendersAsTheOriginalCyclesScene) {
               mean_e / ours.data.size(), mean_o / ours.data.size());
   EXPECT_LT(error, 0.08);
   EXPECT_NEAR(mean_e / mean_o, 1.0, 0.03);
+}
+
+// Issue 43: a glowing surface in the Blender export. With the true pane as the estimate's
+// emitter, scene.py must build a scene whose Cycles render is the original's (the emitter
+// just off the wall, glowing on its side, the wall's own reflection showing through it).
+TEST(BlenderExport, AGlowingSurfaceRendersAsTheOriginalCyclesScene) {
+  const fs::path root = Scratch("glow"), estimate = root / "estimate";
+  const fs::path glow = TruePaneEstimate(estimate);
+  const fs::path out = root / "blender";
+  WriteExport(LoadExportScene(glow, estimate), ExportFormat::kBlender, out);
+  ASSERT_NO_FATAL_FAILURE(RunBlender("--python '" + (out / "scene.py").string() + "' -- --samples 256 --render '" +
+                                         (root / "cycles.exr").string() + "'",
+                                     root / "render.log"));
+  ExpectTheOriginalGlow(ReadImageLinear(root / "cycles.exr"), glow);
+  fs::remove_all(root);
+}
+
+// The same through glTF: the wall's faces on the pane get the emissive material (the pane's
+// radiance in nits), and Blender's glTF importer builds the original scene from it.
+TEST(GltfExport, AGlowingSurfaceRendersAsTheOriginalCyclesScene) {
+  const fs::path root = Scratch("glow_gltf"), estimate = root / "estimate";
+  const fs::path glow = TruePaneEstimate(estimate);
+  const fs::path out = root / "gltf";
+  WriteExport(LoadExportScene(glow, estimate), ExportFormat::kGltf, out);
+  ASSERT_NO_FATAL_FAILURE(RunBlender("--python '" + (fs::path(LIGHTPROBE_SOURCE_DIR) / "tests/exports/render_gltf.py").string() +
+                                         "' -- '" + out.string() + "' '" + (root / "cycles").string() + "' 256 1",
+                                     root / "render.log"));
+  ExpectTheOriginalGlow(ReadImageLinear(root / "cycles1.exr"), glow);
   fs::remove_all(root);
 }
 

@@ -8,7 +8,11 @@
 # Two things the test sets that glTF cannot carry: the point lights' radius and the suns'
 # angle (from the lights' extras, which the importer keeps as custom properties), and the
 # material: glTF's metallic-roughness BSDF is not Lambertian, so the importer's Principled
-# BSDF is swapped for a Diffuse BSDF fed by the same colour (the vertex colours).
+# BSDF is swapped for a Diffuse BSDF fed by the same colour (the vertex colours), plus an
+# Emission shader where the material glows. Blender 3.4's importer takes
+# KHR_materials_emissive_strength (nits, cd/m^2, as the glTF extension defines it) as its
+# own Emission Strength without the 683 lm/W it divides the lights' candela and lux by: the
+# strength is divided by it here, as it is for the lights.
 import math
 import os
 import sys
@@ -20,6 +24,8 @@ import numpy
 # removed: give the alias back, as a user on Debian must (README, "Exports").
 if not hasattr(numpy, "bool") or "bool" in getattr(numpy, "__former_attrs__", {}):
     numpy.bool = bool
+
+WATTS_TO_LUMENS = 683.0
 
 argv = sys.argv[sys.argv.index("--") + 1:]
 directory, prefix, samples, seeds = argv[0], argv[1], int(argv[2]), [int(s) for s in argv[3:]]
@@ -48,8 +54,18 @@ for material in bpy.data.materials:
             tree.links.new(base.links[0].from_socket, diffuse.inputs["Color"])
         else:
             diffuse.inputs["Color"].default_value = base.default_value
+        shader = diffuse.outputs["BSDF"]
+        strength = node.inputs["Emission Strength"].default_value
+        if strength > 0 and max(node.inputs["Emission"].default_value[:3]) > 0:
+            emission = tree.nodes.new("ShaderNodeEmission")
+            emission.inputs["Color"].default_value = node.inputs["Emission"].default_value
+            emission.inputs["Strength"].default_value = strength / WATTS_TO_LUMENS
+            add = tree.nodes.new("ShaderNodeAddShader")
+            tree.links.new(shader, add.inputs[0])
+            tree.links.new(emission.outputs["Emission"], add.inputs[1])
+            shader = add.outputs["Shader"]
         for link in list(node.outputs["BSDF"].links):
-            tree.links.new(diffuse.outputs["BSDF"], link.to_socket)
+            tree.links.new(shader, link.to_socket)
         tree.nodes.remove(node)
 
 world = bpy.data.worlds.new("environment")
