@@ -321,6 +321,7 @@ void Viewer::DrawScene(const Rect& r) {
   glDisable(GL_DEPTH_TEST);
   lines_.Clear();
   AddLampMarkers(size);
+  AddEmitterOutlines();
   AddSunMarkers(size);
   AddRegions();
   lines_.Draw();
@@ -355,6 +356,20 @@ void Viewer::AddLampMarkers(float size) {
       for (int b = a + 1; b < 3; ++b)
         for (int i = 0; i < 2; ++i)
           for (int j = 0; j < 2; ++j) lines_.Add(tip[2 * a + i], tip[2 * b + j], color);
+  }
+}
+
+/// Each glowing surface's outline, in its colour (brightest channel at full scale), a
+/// centimetre off the surface on the side that glows.
+void Viewer::AddEmitterOutlines() {
+  for (const EmitterLight& e : est_.lighting.Of<EmitterLight>()) {
+    if (!e.shape) continue;
+    const double peak = e.radiance.maxCoeff();
+    Eigen::Vector3f color = Eigen::Vector3f::Ones();
+    if (peak > 0) color = (e.radiance / peak).cast<float>();
+    color = color.cwiseMax(0.15f);
+    for (const OutlineEdge& edge : Outline(*e.shape))
+      lines_.Add(edge.from + 0.01f * edge.normal, edge.to + 0.01f * edge.normal, color);
   }
 }
 
@@ -606,19 +621,29 @@ void Viewer::PlotConvergence(float width, float height) {
   dl->AddText(ImVec2(p0.x + 3, p1.y - 14), IM_COL32(200, 200, 200, 255), "0 s");
 }
 
-/// The estimated lamps and suns, one line each (world frame, image units).
+namespace {
+
+/// A small square of a light's colour (its brightest channel at full scale), the line's
+/// text after it.
+void Swatch(const std::string& id, const Eigen::Vector3d& rgb) {
+  const double peak = std::max(1e-30, rgb.maxCoeff());
+  ImGui::ColorButton(id.c_str(),
+                     ImVec4(static_cast<float>(rgb.x() / peak), static_cast<float>(rgb.y() / peak),
+                            static_cast<float>(rgb.z() / peak), 1.f),
+                     ImGuiColorEditFlags_NoTooltip, ImVec2(12, 12));
+  ImGui::SameLine();
+}
+
+}  // namespace
+
+/// The estimated lamps, suns and glowing surfaces, one line each (world frame, image units).
 void Viewer::LightsList() {
   const std::vector<PointLight> lamps = est_.lighting.Of<PointLight>();
   if (!lamps.empty()) {
     ImGui::Text("lamps (point lights), world frame:");
     for (std::size_t k = 0; k < lamps.size(); ++k) {
       const PointLight& l = lamps[k];
-      const double peak = std::max(1e-30, l.intensity.maxCoeff());
-      ImGui::ColorButton(("##lamp" + std::to_string(k)).c_str(),
-                         ImVec4(static_cast<float>(l.intensity.x() / peak), static_cast<float>(l.intensity.y() / peak),
-                                static_cast<float>(l.intensity.z() / peak), 1.f),
-                         ImGuiColorEditFlags_NoTooltip, ImVec2(12, 12));
-      ImGui::SameLine();
+      Swatch("##lamp" + std::to_string(k), l.intensity);
       ImGui::Text("(%.2f, %.2f, %.2f) m  I %.3g %.3g %.3g", l.position.x(), l.position.y(), l.position.z(),
                   l.intensity.x(), l.intensity.y(), l.intensity.z());
     }
@@ -629,6 +654,16 @@ void Viewer::LightsList() {
     if (k == 0) ImGui::Text("sun (directional light), towards it in the world frame:");
     ImGui::Text("(%.3f, %.3f, %.3f)  E %.3g %.3g %.3g", l.direction.x(), l.direction.y(), l.direction.z(),
                 l.irradiance.x(), l.irradiance.y(), l.irradiance.z());
+  }
+  const std::vector<EmitterLight> emitters = est_.lighting.Of<EmitterLight>();
+  for (std::size_t k = 0; k < emitters.size(); ++k) {
+    const EmitterLight& e = emitters[k];
+    if (!e.shape) continue;
+    if (k == 0) ImGui::Text("glowing surfaces (outlined), centre, area, radiance:");
+    Swatch("##emitter" + std::to_string(k), e.radiance);
+    const Eigen::Vector3d c = Centroid(*e.shape);
+    ImGui::Text("(%.2f, %.2f, %.2f) m  %.3g m^2  L %.3g %.3g %.3g", c.x(), c.y(), c.z(), e.Area(), e.radiance.x(),
+                e.radiance.y(), e.radiance.z());
   }
 }
 
@@ -1026,6 +1061,12 @@ void Viewer::WriteState(const std::string& path) const {
   };
   j["estimate"]["point_lights"] = json::array();
   j["estimate"]["directional_lights"] = json::array();  // and where the 3D view draws each
+  j["estimate"]["emitters"] = json::array();
+  for (const EmitterLight& e : est_.lighting.Of<EmitterLight>())
+    if (e.shape)
+      j["estimate"]["emitters"].push_back({{"id", e.id}, {"radiance", vec(e.radiance)}, {"area", e.Area()},
+                                           {"centroid", vec(Centroid(*e.shape))},
+                                           {"outline_edges", Outline(*e.shape).size()}});
   for (std::size_t k = 0; k < est_.lighting.lights.size(); ++k) {
     if (const PointLight* l = std::get_if<PointLight>(&est_.lighting.lights[k]))
       j["estimate"]["point_lights"].push_back(

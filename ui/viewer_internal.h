@@ -54,6 +54,7 @@ class Viewer {
   void SyncShading();
   void DrawScene(const Rect& r);
   void AddLampMarkers(float size);
+  void AddEmitterOutlines();
   /// Light k of est_.lighting's uncertainty, when the finished estimate shown has one
   /// (null while an estimate runs, or where it does not).
   const LightUncertainty* UncertaintyOf(std::size_t k) const;

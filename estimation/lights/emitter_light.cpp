@@ -1,7 +1,9 @@
 #include "estimation/lights/emitter_light.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <map>
 
 #include "common/parallel.h"
 #include "estimation/lights/sphere_frame.h"
@@ -115,6 +117,36 @@ int EmitterTriangleAt(const EmitterShape& shape, const Eigen::Vector3d& point) {
   for (int t : it->second)
     if (OnTriangle(shape, t, point)) return t;
   return -1;
+}
+
+Eigen::Vector3d Centroid(const EmitterShape& s) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double previous = 0;
+  for (std::size_t t = 0; t < s.a.size(); ++t) {
+    sum += (s.cumulative[t] - previous) * ((s.a[t] + s.b[t] + s.c[t]) / 3.0f).cast<double>();
+    previous = s.cumulative[t];
+  }
+  return s.area > 0 ? Eigen::Vector3d(sum / s.area) : Eigen::Vector3d::Zero();
+}
+
+std::vector<OutlineEdge> Outline(const EmitterShape& s) {
+  using Corner = std::array<float, 3>;
+  const auto corner = [](const Eigen::Vector3f& p) { return Corner{p.x(), p.y(), p.z()}; };
+  std::map<std::pair<Corner, Corner>, std::pair<int, OutlineEdge>> edges;  // each edge, both ways the same key
+  for (std::size_t t = 0; t < s.a.size(); ++t) {
+    const Eigen::Vector3f* v[3] = {&s.a[t], &s.b[t], &s.c[t]};
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3f &p = *v[k], &q = *v[(k + 1) % 3];
+      const Corner cp = corner(p), cq = corner(q);
+      auto [it, added] = edges.try_emplace(cp < cq ? std::make_pair(cp, cq) : std::make_pair(cq, cp), 0,
+                                           OutlineEdge{p, q, s.normal[t]});
+      ++it->second.first;
+    }
+  }
+  std::vector<OutlineEdge> outline;
+  for (const auto& [key, edge] : edges)
+    if (edge.first == 1) outline.push_back(edge.second);
+  return outline;
 }
 
 Eigen::Vector3d EmitterLight::Power() const { return kPi * radiance * Area(); }

@@ -51,6 +51,16 @@ bool OnEmitter(const EmitterShape& shape, const Eigen::Vector3d& point, const Ei
 /// The shape's triangle `point` lies on (as OnEmitter, either side), or -1.
 int EmitterTriangleAt(const EmitterShape& shape, const Eigen::Vector3d& point);
 
+/// The shape's centre: its triangles' centroids weighted by their areas.
+Eigen::Vector3d Centroid(const EmitterShape& shape);
+/// The shape's outline: the edges of its triangles that no other of its triangles shares
+/// (corners compared exactly: triangles cut from one mesh share theirs), each with the
+/// normal of the triangle it bounds.
+struct OutlineEdge {
+  Eigen::Vector3f from, to, normal;
+};
+std::vector<OutlineEdge> Outline(const EmitterShape& shape);
+
 struct EmitterLight {
   int id = 0;  ///< its number in lights.json and emitters.ply
   std::shared_ptr<const EmitterShape> shape;

@@ -238,24 +238,26 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
 }
 
 /// Opens `input` in the window, estimates it with `settings` (the script's key=value words),
-/// waits for the lit shading, takes `dir`/lit.png and returns the window's state then.
-nlohmann::json EstimateInTheWindow(const fs::path& dir, const std::string& input, const std::string& settings) {
+/// shows `shading` (for the lit shading, waits for it), takes `dir`/SHADING.png and returns
+/// the window's state then.
+nlohmann::json EstimateInTheWindow(const fs::path& dir, const std::string& input, const std::string& settings,
+                                   const std::string& shading = "lit") {
   std::ofstream(dir / "script.txt") << "wait-open 60\n"
                                        "estimate " << settings << "\n"
                                        "wait-estimate 1200\n"
                                        "expect-estimate done\n"
-                                       "shading lit\n"
-                                       "wait-lit 8 900\n"
-                                       "frames 3\n"
-                                       "screenshot " << (dir / "lit.png").string() << "\n"
-                                       "state " << (dir / "lit.json").string() << "\n"
+                                       "shading " << shading << "\n"
+                                    << (shading == "lit" ? "wait-lit 8 900\n" : "")
+                                    << "frames 3\n"
+                                       "screenshot " << (dir / (shading + ".png")).string() << "\n"
+                                       "state " << (dir / (shading + ".json")).string() << "\n"
                                        "quit\n";
   ViewerOptions o = app::DefaultViewerOptions();
   o.input = input;
   o.script = (dir / "script.txt").string();
   o.session.lit_samples = 8;
   EXPECT_EQ(RunViewer(o), 0);
-  return ReadJson(dir / "lit.json");
+  return ReadJson(dir / (shading + ".json"));
 }
 
 /// Synth's scene `name` at 96 x 72 (64 spp), written as a bundle to dir/scene (dir emptied).
@@ -344,6 +346,34 @@ TEST(Viewer, ALampIsDrawnAtItsPosition) {
   const double m = (along.array() / semi.array()).square().sum() * 7.814727903251178;  // (semi = sqrt(7.81 eig))
   std::printf("the lamp's 95 %% region: semi-axes %.3g %.3g %.3g m; the truth at a squared distance %.2f\n", semi[0],
               semi[1], semi[2], m);
+}
+
+// A glowing surface (issue 43): Cycles' frosted window (tests/data/cycles/glow, the true
+// mesh) estimated in the window comes back as one emitter on the pane; the window lists it
+// and draws its outline in its (near-white) colour around the pane, seen here over the
+// normals shading, where the wall is pink and nothing else is white.
+TEST(Viewer, AGlowingPaneIsListedAndOutlined) {
+  const fs::path a = kArtifacts / "glow";
+  fs::remove_all(a);
+  fs::create_directories(a);
+  const nlohmann::json state =
+      EstimateInTheWindow(a, (fs::path(LIGHTPROBE_SOURCE_DIR) / "tests" / "data" / "cycles" / "glow").string(),
+                          "rings=9 spp=16 bounces=2 rounds=2 render-spp=8 albedo-passes=0", "normals");
+  ASSERT_EQ(state["estimate"]["emitters"].size(), 1u) << state["estimate"].dump();
+  const nlohmann::json& e = state["estimate"]["emitters"][0];
+  const Eigen::Vector3d centre(e["centroid"][0], e["centroid"][1], e["centroid"][2]);
+  EXPECT_NEAR(e["area"].get<double>(), 0.64, 0.064) << "the 0.8 m pane";
+  EXPECT_LT((centre - Eigen::Vector3d(0, 1.6, 0.9)).norm(), 0.05) << centre.transpose();
+  EXPECT_GE(e["outline_edges"].get<int>(), 4);
+  // The pane's edges, a centimetre off the wall: x = 0.01, y 1.2-2.0, z 0.5-1.3.
+  const ImageRgb8 shot = ReadRgb8(a / "normals.png");
+  for (const Eigen::Vector3d& mid : {Eigen::Vector3d(0.01, 1.6, 0.5), Eigen::Vector3d(0.01, 1.6, 1.3),
+                                     Eigen::Vector3d(0.01, 1.2, 0.9), Eigen::Vector3d(0.01, 2.0, 0.9)}) {
+    const auto [x, y] = ViewPixel(state, mid);
+    EXPECT_GE(WhiteAround(shot, x, y, 3), 2) << "no outline at (" << x << ", " << y << ")";
+  }
+  const auto [cx, cy] = ViewPixel(state, Eigen::Vector3d(0.01, 1.6, 0.9));
+  EXPECT_EQ(WhiteAround(shot, cx, cy, 3), 0) << "the pane's middle is the wall's normals colour";
 }
 
 // A sun (synth's sun-and-sky, 96 x 72): the estimate takes it as a directional light within

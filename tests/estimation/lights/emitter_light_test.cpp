@@ -141,5 +141,37 @@ TEST(EmitterLight, LightsJsonAndEmittersPlyGiveItBack) {
   std::filesystem::remove_all(dir);
 }
 
+// What the viewer draws of an emitter: an L of eight 10 cm squares (a 3 x 3 grid without a
+// corner, two triangles each): its centre and its outline in closed form.
+TEST(EmitterLight, AnLShapesCentreAndOutline) {
+  Mesh grid;
+  for (int j = 0; j <= 3; ++j)
+    for (int i = 0; i <= 3; ++i) grid.positions.emplace_back(0.1f * i, 0.1f * j, 0.0f);
+  std::vector<int> triangles;
+  for (int j = 0; j < 3; ++j)
+    for (int i = 0; i < 3; ++i) {
+      if (i == 2 && j == 2) continue;
+      const int v = 4 * j + i;
+      grid.triangles.push_back({v, v + 1, v + 5});
+      grid.triangles.push_back({v, v + 5, v + 4});
+    }
+  grid.albedo.assign(grid.positions.size(), Eigen::Vector3f::Zero());
+  for (std::size_t t = 0; t < grid.triangles.size(); ++t) triangles.push_back(static_cast<int>(t));
+  const auto shape = MakeEmitterShape(grid, triangles, std::vector<Eigen::Vector3f>(triangles.size(), Eigen::Vector3f::UnitZ()));
+  EXPECT_NEAR(shape->area, 0.08, 1e-7);
+  // The squares' centres (0.05 + 0.1 i, 0.05 + 0.1 j) but (0.25, 0.25): x = y = (1.35 - 0.25) / 8.
+  EXPECT_TRUE(Centroid(*shape).isApprox(Eigen::Vector3d(0.1375, 0.1375, 0), 1e-6)) << Centroid(*shape).transpose();
+  const std::vector<OutlineEdge> outline = Outline(*shape);
+  ASSERT_EQ(outline.size(), 12u) << "a corner taken off a square leaves its perimeter's 12 edges";
+  double length = 0;
+  for (const OutlineEdge& e : outline) {
+    length += (e.to - e.from).norm();
+    EXPECT_TRUE(e.normal.isApprox(Eigen::Vector3f::UnitZ()));
+    const Eigen::Vector3f mid = (e.from + e.to) / 2;
+    EXPECT_FALSE(mid.x() > 0.01f && mid.x() < 0.19f && mid.y() > 0.01f && mid.y() < 0.19f) << "an inner edge";
+  }
+  EXPECT_NEAR(length, 1.2, 1e-5);
+}
+
 }  // namespace
 }  // namespace lp
