@@ -38,18 +38,26 @@ int Root(std::vector<int>& parent, int i) {
 
 }  // namespace
 
-/// Per triangle of the traced mesh: the pixels seen glowing on it, the side they saw it
-/// from, what they lack over the render (summed) and the least radiance its clipped pixels show.
+/// Per triangle of the traced mesh: the pixels seen glowing on it (and all the pixels that
+/// see it), the side they saw it from, what they lack over the render (summed) and the least
+/// radiance its clipped pixels show.
 struct Estimator::Glow {
   explicit Glow(std::size_t triangles)
-      : seen(triangles, 0), facing(triangles, Eigen::Vector3f::Zero()), glow(triangles, 0.0),
+      : seen(triangles, 0), looked(triangles, 0), facing(triangles, Eigen::Vector3f::Zero()), glow(triangles, 0.0),
         floor(triangles, Eigen::Vector3d::Zero()) {}
   void Add(const SurfacePoint& hit, const Eigen::Vector3d& dir, double lack) {
     ++seen[hit.triangle];
     facing[hit.triangle] -= dir.cast<float>();
     glow[hit.triangle] += lack;
   }
-  std::vector<int> seen;
+  /// A triangle glows where most of the pixels that see it do: a few pixels of a large
+  /// triangle (a true mesh's wall or floor) that the lights so far render too dark are not
+  /// its whole surface glowing.
+  void KeepWhereMostGlow() {
+    for (std::size_t t = 0; t < seen.size(); ++t)
+      if (2 * seen[t] < looked[t]) seen[t] = 0, facing[t].setZero(), glow[t] = 0, floor[t].setZero();
+  }
+  std::vector<int> seen, looked;
   std::vector<Eigen::Vector3f> facing;
   std::vector<double> glow;
   std::vector<Eigen::Vector3d> floor;
@@ -61,12 +69,14 @@ Estimator::Glow Estimator::GlowingTriangles() {
   for (std::size_t r = 0; r < A_.rows(); ++r) {
     const double y = (y_[3 * r] + y_[3 * r + 1] + y_[3 * r + 2]) / 3,
                  f = std::max(0.0, (render[3 * r] + render[3 * r + 1] + render[3 * r + 2]) / 3);
-    if (!(y > kGlowBrightness) || !(y > kGlowAlbedo * f)) continue;
     const Camera& cam = views_[A_.row_view[r]].camera;
     const Eigen::Vector3d dir = cam.RayDirection(A_.row_pixel[r] % cam.width, A_.row_pixel[r] / cam.width);
     SurfacePoint hit;
     if (!scene_->Intersect(cam.center(), dir, &hit) || hit.triangle < 0) continue;
-    if (hit.albedo.mean() * y > kGlowAlbedo * f) g.Add(hit, dir, y - f);
+    ++g.looked[hit.triangle];
+    if (!(y > kGlowBrightness) || !(y > kGlowAlbedo * f)) continue;
+    // (>=: a surface that reflects nothing, albedo 0 and rendered black, seen bright glows)
+    if (hit.albedo.mean() * y >= kGlowAlbedo * f) g.Add(hit, dir, y - f);
   }
   // Pixels the camera clipped glow whatever the render: at least their value (a lower bound
   // on the radiance of what they see).
@@ -79,12 +89,14 @@ Estimator::Glow Estimator::GlowingTriangles() {
       const Eigen::Vector3d dir = cam.RayDirection(x, y);
       SurfacePoint hit;
       if (!scene_->Intersect(cam.center(), dir, &hit) || hit.triangle < 0) continue;
+      ++g.looked[hit.triangle];
       const float* c = v.image.at(x, y);
       const Eigen::Vector3d value = Eigen::Vector3d(c[0], c[1], c[2]) / res_.image_mean;
       g.Add(hit, dir, value.mean());
       g.floor[hit.triangle] = g.floor[hit.triangle].cwiseMax(value);
     }
   }
+  g.KeepWhereMostGlow();
   return g;
 }
 

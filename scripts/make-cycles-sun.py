@@ -16,6 +16,13 @@
 #   glow      a frosted window: a 0.8 x 0.8 m pane in the wall x = 0 that glows (a diffuse
 #             emitter of radiance GLOW_RADIANCE, reflecting like the wall too), no other
 #             light and no sky (issue 43: a glowing surface the cameras see);
+#   screen    a screen: a dark 0.8 x 0.45 m panel in the wall y = 0 glowing bluish, no other
+#             light and no sky;
+#   shade     a lamp in a lamp shade: a 16-sided open band (radius 0.15 m, 0.25 m tall, a
+#             Translucent BSDF of colour SHADE_TRANSMISSION, reflecting nothing) around a
+#             40 W warm point light hidden from the camera; the shade glows with the light it
+#             lets through (its power SHADE_TRANSMISSION x the lamp's intensity x the solid
+#             angle the band subtends), the rest leaves through its open top and bottom; no sky;
 #   hdr       Poly Haven's studio_small_03 (assets/hdri, CC0) as the world, as lightprobe
 #             reads an equirect map (`lightprobe render --envmap` of the same file is its truth);
 #             each view's mask0.png keeps the pixels whose ray hits the room.
@@ -35,8 +42,9 @@ argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 out_dir = os.path.abspath(argv[0] if argv else "tests/data/cycles/sun")
 spp = int(argv[1]) if len(argv) > 1 else 1024
 KIND = argv[2] if len(argv) > 2 else "sun"
-if KIND not in ("sun", "sky", "lamp-sky", "two-lamps", "hdr", "glow"):
-    raise SystemExit("KIND is sun, sky, lamp-sky, two-lamps, hdr or glow, not " + KIND)
+KINDS = ("sun", "sky", "lamp-sky", "two-lamps", "hdr", "glow", "screen", "shade")
+if KIND not in KINDS:
+    raise SystemExit("KIND is one of %s, not %s" % (", ".join(KINDS), KIND))
 HDR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "assets", "hdri", "studio_small_03_1k.hdr")
 W, H = 160, 120
 SUN_DIRECTION = mathutils.Vector((0.55, 0.35, 0.76)).normalized()  # towards the sun
@@ -52,15 +60,21 @@ if KIND == "sky":
     SKY_RADIANCE = 1.0 / math.pi
 elif KIND == "lamp-sky":
     SKY_RADIANCE = LAMP_INTENSITY / (LAMP_POSITION - CENTRE).length_squared / 20 / math.pi
-elif KIND in ("two-lamps", "glow"):
+elif KIND in ("two-lamps", "glow", "screen", "shade"):
     SKY_RADIANCE = 0.0
-# glow: the pane in the wall x = 0 (y, z ranges) and the radiance it emits (W/(m^2 sr), linear RGB).
-PANE_Y, PANE_Z = (1.2, 2.0), (0.5, 1.3)
-GLOW_RADIANCE = (3.0, 2.7, 2.25)
+# glow, screen: the pane's wall (the axis it lies across, 0 = x, 1 = y), its ranges along the
+# wall and up, its albedo (sRGB) and the radiance it emits (W/(m^2 sr), linear RGB).
+PANES = {"glow": (0, (1.2, 2.0), (0.5, 1.3), (200, 200, 200), (3.0, 2.7, 2.25)),
+         "screen": (1, (1.7, 2.5), (0.55, 1.0), (20, 20, 24), (1.0, 1.3, 1.8))}
+# shade: the band's axis (x, y), radius, bottom and top, sides, what its Translucent BSDF lets through.
+SHADE_AXIS, SHADE_RADIUS, SHADE_Z, SHADE_SIDES = (2.35, 0.95), 0.15, (1.05, 1.30), 16
+SHADE_TRANSMISSION = (0.7, 0.65, 0.55)
 # (name, position, power in W, colour): the lamps of KIND lamp-sky and two-lamps.
 LAMPS = {"lamp-sky": [("lamp", LAMP_POSITION, LAMP_POWER, (1.0, 1.0, 1.0))],
          "two-lamps": [("warm", mathutils.Vector((2.3, 1.0, 1.95)), 140.0, (1.0, 0.8, 0.6)),
-                       ("cool", mathutils.Vector((0.6, 2.2, 1.7)), 70.0, (0.6, 0.8, 1.0))]}.get(KIND, [])
+                       ("cool", mathutils.Vector((0.6, 2.2, 1.7)), 70.0, (0.6, 0.8, 1.0))],
+         "shade": [("bulb", mathutils.Vector((SHADE_AXIS[0], SHADE_AXIS[1], sum(SHADE_Z) / 2)), 40.0,
+                    (1.0, 0.85, 0.65))]}.get(KIND, [])
 
 
 def srgb_to_linear(c):
@@ -88,19 +102,43 @@ def box(x0, x1, y0, y1, z1, colour):
 
 # The corner: floor z = 0 over [0, 3]^2, walls at x = 0 and y = 0, 1.6 m high; the sun comes
 # from +x +y above, so both walls are lit and the objects cast shadows towards them.
+def wall(axis, pane=None):
+    """The wall across `axis` (0: x = 0, running along y; 1: y = 0, running along x), 1.6 m
+    high, 3 m long; with `pane` ((u0, u1), (z0, z1), albedo), the wall around it and then
+    the pane as its own quad, whose index is returned."""
+    at = (lambda u, z: (0, u, z)) if axis == 0 else (lambda u, z: (u, 0, z))
+    # (the winding the scenes rendered before had: y = 0's corners the other way round)
+    quad = (lambda a, b, c, d, col: quads.append(([a, b, c, d], col))) if axis == 0 else \
+        (lambda a, b, c, d, col: quads.append(([a, d, c, b], col)))
+    if pane is None:
+        quad(at(0, 0), at(3, 0), at(3, 1.6), at(0, 1.6), WALL)
+        return -1
+    (u0, u1), (z0, z1), albedo = pane
+    quad(at(0, 0), at(3, 0), at(3, z0), at(0, z0), WALL)
+    quad(at(0, z1), at(3, z1), at(3, 1.6), at(0, 1.6), WALL)
+    quad(at(0, z0), at(u0, z0), at(u0, z1), at(0, z1), WALL)
+    quad(at(u1, z0), at(3, z0), at(3, z1), at(u1, z1), WALL)
+    quad(at(u0, z0), at(u1, z0), at(u1, z1), at(u0, z1), albedo)
+    return len(quads) - 1
+
+
+# The floor, then the walls (the pane in its wall for glow and screen), then the shade's band.
 quad((0, 0, 0), (3, 0, 0), (3, 3, 0), (0, 3, 0), WALL)
-if KIND == "glow":  # the wall x = 0 around the pane, then the pane (its own quad, of the wall's albedo)
-    (y0, y1), (z0, z1) = PANE_Y, PANE_Z
-    quad((0, 0, 0), (0, 3, 0), (0, 3, z0), (0, 0, z0), WALL)
-    quad((0, 0, z1), (0, 3, z1), (0, 3, 1.6), (0, 0, 1.6), WALL)
-    quad((0, 0, z0), (0, y0, z0), (0, y0, z1), (0, 0, z1), WALL)
-    quad((0, y1, z0), (0, 3, z0), (0, 3, z1), (0, y1, z1), WALL)
-    PANE = len(quads)
-    quad((0, y0, z0), (0, y1, z0), (0, y1, z1), (0, y0, z1), WALL)
-else:
-    PANE = -1
-    quad((0, 0, 0), (0, 3, 0), (0, 3, 1.6), (0, 0, 1.6), WALL)
-quad((0, 0, 0), (0, 0, 1.6), (3, 0, 1.6), (3, 0, 0), WALL)
+PANE_SPEC = PANES.get(KIND)
+PANE = -1
+for axis in (0, 1):
+    on_this = PANE_SPEC is not None and PANE_SPEC[0] == axis
+    k = wall(axis, (PANE_SPEC[1], PANE_SPEC[2], PANE_SPEC[3]) if on_this else None)
+    PANE = k if on_this else PANE
+SHADE = []  # the band's quads, each with its outward normal
+if KIND == "shade":
+    for i in range(SHADE_SIDES):
+        a0, a1 = 2 * math.pi * i / SHADE_SIDES, 2 * math.pi * (i + 1) / SHADE_SIDES
+        p0 = (SHADE_AXIS[0] + SHADE_RADIUS * math.cos(a0), SHADE_AXIS[1] + SHADE_RADIUS * math.sin(a0))
+        p1 = (SHADE_AXIS[0] + SHADE_RADIUS * math.cos(a1), SHADE_AXIS[1] + SHADE_RADIUS * math.sin(a1))
+        SHADE.append((len(quads), (math.cos((a0 + a1) / 2), math.sin((a0 + a1) / 2), 0.0)))
+        quad((p0[0], p0[1], SHADE_Z[0]), (p1[0], p1[1], SHADE_Z[0]), (p1[0], p1[1], SHADE_Z[1]),
+             (p0[0], p0[1], SHADE_Z[1]), (0, 0, 0))
 box(0.9, 1.5, 0.8, 1.4, 0.5, BOX)
 box(1.9, 2.2, 1.7, 2.0, 1.1, BLOCK)
 # --- the scene bundle's mesh (ASCII PLY, sRGB uchar colours) ---
@@ -144,23 +182,34 @@ bpy.context.scene.collection.objects.link(obj)
 order = [WALL, BOX, BLOCK]
 for c in order:
     obj.data.materials.append(materials[c])
-if PANE >= 0:  # the pane: the wall's diffuse reflection plus its own light
+if PANE >= 0:  # the pane: its diffuse reflection plus its own light
     m = bpy.data.materials.new("pane")
     m.use_nodes = True
     nodes = m.node_tree.nodes
     nodes.clear()
     bsdf, emit, add = nodes.new("ShaderNodeBsdfDiffuse"), nodes.new("ShaderNodeEmission"), nodes.new("ShaderNodeAddShader")
-    bsdf.inputs["Color"].default_value = [srgb_to_linear(c) for c in WALL] + [1.0]
+    bsdf.inputs["Color"].default_value = [srgb_to_linear(c) for c in PANE_SPEC[3]] + [1.0]
     bsdf.inputs["Roughness"].default_value = 0.0
-    emit.inputs["Color"].default_value = list(GLOW_RADIANCE) + [1.0]
+    emit.inputs["Color"].default_value = list(PANE_SPEC[4]) + [1.0]
     emit.inputs["Strength"].default_value = 1.0  # radiance = colour x strength
     out = nodes.new("ShaderNodeOutputMaterial")
     m.node_tree.links.new(bsdf.outputs["BSDF"], add.inputs[0])
     m.node_tree.links.new(emit.outputs["Emission"], add.inputs[1])
     m.node_tree.links.new(add.outputs["Shader"], out.inputs["Surface"])
     obj.data.materials.append(m)
+if SHADE:  # the shade: what reaches it passes through, diffusely, tinted; nothing reflected
+    m = bpy.data.materials.new("shade")
+    m.use_nodes = True
+    nodes = m.node_tree.nodes
+    nodes.clear()
+    bsdf = nodes.new("ShaderNodeBsdfTranslucent")
+    bsdf.inputs["Color"].default_value = list(SHADE_TRANSMISSION) + [1.0]
+    out = nodes.new("ShaderNodeOutputMaterial")
+    m.node_tree.links.new(bsdf.outputs["BSDF"], out.inputs["Surface"])
+    obj.data.materials.append(m)
+shade_quads = [k for k, _ in SHADE]
 for k, (poly, c) in enumerate(zip(mesh.polygons, face_colour)):
-    poly.material_index = len(order) if k == PANE else order.index(c)
+    poly.material_index = len(order) if k in [PANE] + shade_quads else order.index(c)
     poly.use_smooth = False
 
 world = bpy.data.worlds.new("sky")
@@ -197,6 +246,7 @@ for name, position, power, colour in LAMPS:
     lamp_data.shadow_soft_size = LAMP_RADIUS
     lamp = bpy.data.objects.new(name, lamp_data)
     lamp.location = position
+    lamp.visible_camera = False  # (the shade's bulb is not seen through its open top)
     bpy.context.scene.collection.objects.link(lamp)
     intensity = [power * c / (4 * math.pi) for c in colour]  # W/sr per channel
     truth_lights.append({"name": name, "type": "point", "blender_type": "POINT", "position": list(position),
@@ -204,13 +254,37 @@ for name, position, power, colour in LAMPS:
                          "radiant_intensity_rgb_W_per_sr": intensity, "intensity_image_units": intensity,
                          "distance_from_centre": (position - CENTRE).length})
 
+def solid_angle(o, corners):
+    """The solid angle of the planar polygon `corners` seen from `o` (its triangles by Van
+    Oosterom and Strackee's formula)."""
+    total = 0.0
+    for i in range(1, len(corners) - 1):
+        a, b, c = (mathutils.Vector(corners[0]) - o, mathutils.Vector(corners[i]) - o, mathutils.Vector(corners[i + 1]) - o)
+        la, lb, lc = a.length, b.length, c.length
+        total += abs(2 * math.atan2(a.dot(b.cross(c)), la * lb * lc + a.dot(b) * lc + a.dot(c) * lb + b.dot(c) * la))
+    return total
+
+
+truth_emitters = []
 if PANE >= 0:
-    area = (PANE_Y[1] - PANE_Y[0]) * (PANE_Z[1] - PANE_Z[0])
-    truth_emitters = [{"name": "pane", "corners": [list(p) for p in quads[PANE][0]], "normal": [1, 0, 0],
-                       "radiance": list(GLOW_RADIANCE), "area": area,
-                       "power": [math.pi * r * area for r in GLOW_RADIANCE]}]
-else:
-    truth_emitters = []
+    area = (PANE_SPEC[1][1] - PANE_SPEC[1][0]) * (PANE_SPEC[2][1] - PANE_SPEC[2][0])
+    truth_emitters = [{"name": KIND == "glow" and "pane" or "screen", "corners": [list(p) for p in quads[PANE][0]],
+                       "normal": [1, 0, 0] if PANE_SPEC[0] == 0 else [0, 1, 0],
+                       "radiance": list(PANE_SPEC[4]), "area": area,
+                       "power": [math.pi * r * area for r in PANE_SPEC[4]]}]
+if SHADE:
+    # What the band lets through: its transmission x the bulb's intensity x the band's solid
+    # angle from the bulb (the 5 cm bulb taken as a point), spread over its outside.
+    bulb = LAMPS[0]
+    intensity = [bulb[2] * c / (4 * math.pi) for c in bulb[3]]
+    omega = sum(solid_angle(bulb[1], quads[k][0]) for k, _ in SHADE)
+    power = [t * i * omega for t, i in zip(SHADE_TRANSMISSION, intensity)]
+    area = sum((mathutils.Vector(quads[k][0][1]) - mathutils.Vector(quads[k][0][0])).length *
+               (SHADE_Z[1] - SHADE_Z[0]) for k, _ in SHADE)
+    truth_emitters = [{"name": "shade", "quads": [{"corners": [list(p) for p in quads[k][0]], "normal": list(n)}
+                                                  for k, n in SHADE],
+                       "solid_angle_sr": omega, "radiance": [p / (math.pi * area) for p in power], "area": area,
+                       "power": power}]
 
 
 def write_room_mask(path, eye, R, fx, width, height):

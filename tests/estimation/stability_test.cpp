@@ -794,6 +794,7 @@ TEST(Stability, ALampOnTheCameraIsFound) {
 struct Panel {
   double x, z, half;  ///< its centre on the wall and half its side (metres)
   Eigen::Vector3d radiance;
+  float albedo = 0.5f;  ///< what it reflects besides
 };
 struct PanelScene {
   SceneBundle bundle;
@@ -811,7 +812,7 @@ PanelScene PanelRoom(const std::vector<Panel>& panels, int w = 96, int h = 72, d
     Mesh quad;
     const float x0 = p.x - p.half, x1 = p.x + p.half, z0 = p.z - p.half, z1 = p.z + p.half, y = 0.999f;
     quad.positions = {{x0, y, z0}, {x1, y, z0}, {x1, y, z1}, {x0, y, z1}};
-    quad.albedo.assign(4, Eigen::Vector3f::Constant(0.5f));
+    quad.albedo.assign(4, Eigen::Vector3f::Constant(p.albedo));
     quad.triangles = {{0, 2, 1}, {0, 3, 2}};
     const int first = static_cast<int>(mesh.triangles.size());
     mesh = test::Merge(mesh, quad);
@@ -871,6 +872,19 @@ TEST(Stability, TwoGlowingPanelsSideBySideAreEachFound) {
                 e->Power().sum(), panel.Power().sum());
     for (int c = 0; c < 3; ++c) EXPECT_NEAR(e->Power()[c], panel.Power()[c], 0.25 * panel.Power()[c]) << c;
   }
+}
+
+TEST(Stability, APanelThatReflectsNothingIsFound) {
+  // A black screen (albedo 0): the render so far leaves it black whatever the lights, and
+  // seen bright it glows (its de-lit albedo is infinite, not undefined).
+  const PanelScene s = PanelRoom({{0.0, 1.0, 0.3, {1.0, 1.3, 1.8}, 0.0f}});
+  const EstimateResult r = Estimate(s.bundle, Small());
+  ExpectHealthy(r, false);
+  ASSERT_EQ(r.lighting.Count<EmitterLight>(), 1u);
+  const EmitterLight e = r.lighting.Of<EmitterLight>()[0];
+  std::printf("black panel: radiance %.3f %.3f %.3f (truth 1.0 1.3 1.8), area %.3f (truth 0.36)\n", e.radiance.x(),
+              e.radiance.y(), e.radiance.z(), e.Area());
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(e.Power()[c], s.panels[0].Power()[c], 0.25 * s.panels[0].Power()[c]) << c;
 }
 
 TEST(Stability, APanelSeenByOnePixelIsNotAnEmitter) {
