@@ -47,6 +47,12 @@ Run AddEvaluate(CLI::App& app) {
       else
         std::printf("sun %zu: no directional light estimated\n", k);
     }
+    for (std::size_t k = 0; k < s.emitters.size(); ++k)
+      std::printf("glowing surface %zu (%.3g m^2): the estimate overlapping it most by IoU %.2f, power x%.2f\n", k,
+                  s.emitters[k].true_area, s.emitters[k].iou, s.emitters[k].power_ratio);
+    if (s.estimated_emitters > 0)
+      std::printf("%d emitter(s) estimated; the largest spurious one emits %.1f %% of their power\n",
+                  s.estimated_emitters, 100 * s.spurious_emitter_share);
     if (std::isfinite(s.spurious_share))
       std::printf("%d lamp(s) estimated; the largest spurious one gives %.1f %% of their light at the centre\n",
                   s.estimated_lamps, 100 * s.spurious_share);

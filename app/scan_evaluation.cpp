@@ -134,6 +134,29 @@ void ScoreLamps(const TrueLamps& truth, const std::vector<PointLight>& estimate,
   s->estimated_lamps = static_cast<int>(estimate.size());
 }
 
+/// Each true emitter against the estimate overlapping it most; the estimates overlapping
+/// none are spurious (their share of the estimated emitters' power).
+void ScoreEmitters(const std::vector<EmitterLight>& truth, const std::vector<EmitterLight>& estimate, ScanScore* s) {
+  std::vector<bool> matched(estimate.size(), false);
+  for (const EmitterLight& t : truth) {
+    EmitterScore es;
+    es.true_area = t.Area();
+    for (std::size_t k = 0; k < estimate.size(); ++k) {
+      if (!estimate[k].shape || !t.shape) continue;
+      const double overlap = estimate[k].Area() * AreaOn(*estimate[k].shape, *t.shape);
+      if (overlap > 0) matched[k] = true;
+      const double iou = overlap / (estimate[k].Area() + t.Area() - overlap);
+      if (iou > es.iou) es.iou = iou, es.power_ratio = Lum(estimate[k].Power()) / Lum(t.Power());
+    }
+    s->emitters.push_back(es);
+  }
+  double total = 0;
+  for (const EmitterLight& e : estimate) total += Lum(e.Power());
+  for (std::size_t k = 0; k < estimate.size(); ++k)
+    if (!matched[k] && total > 0) s->spurious_emitter_share = std::max(s->spurious_emitter_share, Lum(estimate[k].Power()) / total);
+  s->estimated_emitters = static_cast<int>(estimate.size());
+}
+
 /// Each true sun against the nearest estimated directional light.
 void ScoreSuns(const TrueLamps& truth, const std::vector<DirectionalLight>& estimate, ScanScore* s) {
   for (const DirectionalLight& t : truth.suns) {
@@ -390,6 +413,9 @@ ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int s
   ScoreLamps(truth, OfKind<PointLight>(lights.lights), &s);
   if (!has_lights) s.spurious_share = NAN;  // no truth: no lamp is known spurious
   ScoreSuns(truth, OfKind<DirectionalLight>(lights.lights), &s);
+  if (has_lights)
+    ScoreEmitters(ParseTruthEmitters(ReadTextFile(truth_dir / "truth.json"), (truth_dir / "truth.json").string()),
+                  OfKind<EmitterLight>(lights.lights), &s);
   const fs::path albedo_mesh = estimate_dir / "albedo_mesh.ply";
   Mesh lit = fs::exists(albedo_mesh) ? ReadPly(albedo_mesh) : bundle.mesh;
   SanitizeMesh(&lit, albedo_mesh.string());
@@ -426,6 +452,11 @@ json ScoreJson(const ScanScore& s) {
   for (const SunScore& u : s.suns)
     j["suns"].push_back({{"truth", vec(u.truth)}, {"angle_deg", num(u.angle_deg)},
                          {"irradiance_ratio", num(u.irradiance_ratio)}});
+  j["emitters"] = json::array();
+  for (const EmitterScore& e : s.emitters)
+    j["emitters"].push_back({{"true_area_m2", e.true_area}, {"iou", e.iou}, {"power_ratio", num(e.power_ratio)}});
+  j["estimated_emitters"] = s.estimated_emitters;
+  j["spurious_emitter_share"] = num(s.spurious_emitter_share);
   j["estimated_lamps"] = s.estimated_lamps;
   j["spurious_share"] = num(s.spurious_share);
   j["albedo_scale"] = num(s.albedo_scale);

@@ -72,10 +72,23 @@ struct SunScore {
   double irradiance_ratio = NAN;  ///< luminance(estimated) / luminance(true)
 };
 
+/// One true glowing surface (truth.json's "emitters") against the estimated emitter that
+/// overlaps it most.
+struct EmitterScore {
+  double true_area = 0;  ///< m^2
+  double iou = 0;        ///< by area, a point on the other within half its cell (1 cm) of it
+  double power_ratio = NAN;  ///< luminance(estimated power) / luminance(true power)
+};
+
 struct ScanScore {
   std::optional<MeshError> mesh;  ///< when the truth has gt_mesh.ply
   std::vector<LampScore> lamps;
   std::vector<SunScore> suns;
+  std::vector<EmitterScore> emitters;
+  int estimated_emitters = 0;
+  /// The estimated emitters that overlap no true one: their share of all estimated
+  /// emitters' power, the largest (0 without any).
+  double spurious_emitter_share = 0;
   int estimated_lamps = 0;
   /// The estimated lamps that are no true lamp's nearest: their share of the irradiance
   /// all estimated lamps give the room's centre (luminance / d^2), the largest.

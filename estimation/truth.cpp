@@ -17,6 +17,60 @@ double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::acos(c) * 180.0 / 3.14159265358979323846;
 }
 
+namespace {
+
+Eigen::Vector3f TruthPoint(const json& v, const std::string& name) {
+  if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
+    throw InputError(name, "an emitter's corners and normal must be 3 numbers each");
+  return Eigen::Vector3f(v[0].get<float>(), v[1].get<float>(), v[2].get<float>());
+}
+
+/// One emitter's quads into `mesh` (two triangles each) and their normals.
+void AddTruthQuad(const json& q, const std::string& name, Mesh* mesh, std::vector<int>* triangles,
+                  std::vector<Eigen::Vector3f>* facing) {
+  if (!q.contains("corners") || !q["corners"].is_array() || q["corners"].size() != 4 || !q.contains("normal"))
+    throw InputError(name, "an emitter's quad needs 4 \"corners\" and a \"normal\"");
+  const int first = static_cast<int>(mesh->positions.size());
+  for (const json& p : q["corners"]) mesh->positions.push_back(TruthPoint(p, name));
+  mesh->albedo.resize(mesh->positions.size(), Eigen::Vector3f::Zero());
+  const Eigen::Vector3f n = TruthPoint(q["normal"], name);
+  for (const Eigen::Vector3i& t : {Eigen::Vector3i(0, 1, 2), Eigen::Vector3i(0, 2, 3)}) {
+    triangles->push_back(static_cast<int>(mesh->triangles.size()));
+    mesh->triangles.push_back(t + Eigen::Vector3i::Constant(first));
+    facing->push_back(n);
+  }
+}
+
+}  // namespace
+
+std::vector<EmitterLight> ParseTruthEmitters(const std::string& text, const std::string& name) {
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const json::exception& e) {
+    throw InputError(name, std::string("malformed JSON: ") + e.what());
+  }
+  std::vector<EmitterLight> out;
+  if (!j.is_object() || !j.contains("emitters")) return out;
+  if (!j["emitters"].is_array()) throw InputError(name, "\"emitters\" must be a list");
+  for (const json& e : j["emitters"]) {
+    Mesh mesh;
+    std::vector<int> triangles;
+    std::vector<Eigen::Vector3f> facing;
+    if (e.contains("quads") && e["quads"].is_array())
+      for (const json& q : e["quads"]) AddTruthQuad(q, name, &mesh, &triangles, &facing);
+    else
+      AddTruthQuad(e, name, &mesh, &triangles, &facing);
+    if (!e.contains("radiance")) throw InputError(name, "an emitter needs its \"radiance\"");
+    EmitterLight light;
+    light.id = static_cast<int>(out.size());
+    light.shape = MakeEmitterShape(mesh, triangles, facing);
+    light.radiance = TruthPoint(e["radiance"], name).cast<double>();
+    out.push_back(light);
+  }
+  return out;
+}
+
 std::vector<TruthLight> ParseTruthLights(const std::string& text, const std::string& name) {
   json j;
   try {

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 
 #include "estimation/lights/directional_light.h"
+#include "estimation/lights/emitter_light.h"
 #include "estimation/envmap.h"
 #include "estimation/lights/point_light.h"
 
@@ -30,6 +31,12 @@ struct TruthLight {
 /// light given by "radiant_intensity_rgb_W_per_sr" I at distance d from the centre,
 /// luminance(I) / d^2 (its irradiance there).
 std::vector<TruthLight> ParseTruthLights(const std::string& text, const std::string& name);
+
+/// truth.json's "emitters" (none without the key): each a glowing surface given by its
+/// quads, "corners" (4 points, one quad) or "quads" (a list of {"corners", "normal"}), each
+/// glowing on the side of its "normal", at its mean "radiance" (image units). Throws
+/// InputError when malformed.
+std::vector<EmitterLight> ParseTruthEmitters(const std::string& text, const std::string& name);
 
 /// Directions of the truth's lights that have a position, taken again from `centre` (the
 /// estimator's scene centre: the centre of the mesh's bounding box).

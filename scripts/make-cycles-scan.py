@@ -20,7 +20,9 @@
 #
 # KIND: one-lamp, two-lamps (warm 140 W and cool 70 W), lamp-and-sun (a lamp and a sun
 # through the open side), heavy-texture (one lamp, high-contrast checkers on every wall),
-# dark-room (one lamp, no sky). Defaults: 150 frames, 32 spp, 320 px wide (4:3).
+# dark-room (one lamp, no sky), frosted-window (no lamp: a 0.8 x 0.7 m pane in the back wall
+# glowing at PANE_RADIANCE, brighter than the 8-bit frames hold, and the dim sky; issue 43).
+# Defaults: 150 frames, 32 spp, 320 px wide (4:3).
 # (apt-get install blender; Debian 12 has 3.4.1; numpy comes with it.)
 import json
 import math
@@ -40,7 +42,7 @@ FRAMES = int(argv[2]) if len(argv) > 2 else 150
 SPP = int(argv[3]) if len(argv) > 3 else 32
 W = int(argv[4]) if len(argv) > 4 else 320
 H = W * 3 // 4
-KINDS = ("one-lamp", "two-lamps", "lamp-and-sun", "heavy-texture", "dark-room")
+KINDS = ("one-lamp", "two-lamps", "lamp-and-sun", "heavy-texture", "dark-room", "frosted-window")
 if KIND not in KINDS:
     sys.exit("make-cycles-scan: KIND must be one of " + ", ".join(KINDS))
 SEED = 1000 + KINDS.index(KIND)
@@ -97,6 +99,11 @@ box_part("table", 0.45, 1.25, 0.35, 1.05, 0.0, 0.72)
 box_part("box_red", -1.2, -0.75, 0.75, 1.2, 0.0, 0.45)
 box_part("box_blue", 0.75, 1.1, -0.9, -0.55, 0.0, 0.6)
 sphere_part("sphere", (-0.35, 0.9, 0.3), 0.3)
+PANE = (0.45, 1.25, 1.0, 1.7)  # frosted-window: x0, x1, z0, z1 on the back wall, 4 mm in front of it
+PANE_RADIANCE = (1.6, 1.5, 1.35)
+if KIND == "frosted-window":
+    quad_part("pane", (PANE[0], HALF - 0.004, PANE[2]), (PANE[0], HALF - 0.004, PANE[3]),
+              (PANE[1], HALF - 0.004, PANE[3]), (PANE[1], HALF - 0.004, PANE[2]))
 
 # ---------------------------------------------------------------- materials (linear albedo)
 HEAVY = KIND == "heavy-texture"
@@ -111,6 +118,7 @@ MATERIALS = {
     "box_red": ("flat", (0.50, 0.10, 0.07)),
     "box_blue": ("flat", (0.08, 0.20, 0.45)),
     "sphere": ("flat", (0.75, 0.75, 0.75)),
+    "pane": ("glow", (0.70, 0.70, 0.72), PANE_RADIANCE),  # the wall's albedo and its own light
 }
 
 
@@ -126,6 +134,15 @@ def make_material(name, spec):
     kind = spec[0]
     if kind == "flat":
         bsdf.inputs["Color"].default_value = list(spec[1]) + [1.0]
+        return m
+    if kind == "glow":  # diffuse reflection plus a diffuse emitter of radiance spec[2]
+        bsdf.inputs["Color"].default_value = list(spec[1]) + [1.0]
+        emit, add = nodes.new("ShaderNodeEmission"), nodes.new("ShaderNodeAddShader")
+        emit.inputs["Color"].default_value = list(spec[2]) + [1.0]
+        emit.inputs["Strength"].default_value = 1.0
+        links.new(bsdf.outputs["BSDF"], add.inputs[0])
+        links.new(emit.outputs["Emission"], add.inputs[1])
+        links.new(add.outputs["Shader"], out.inputs["Surface"])
         return m
     coords = nodes.new("ShaderNodeTexCoord")
     if kind == "checker":
@@ -166,6 +183,7 @@ LAMPS = {
     "two-lamps": [("warm", (0.8, 0.7, 2.4), 140.0 / 4, (1.0, 0.8, 0.6)),
                   ("cool", (-0.9, -0.2, 2.2), 70.0 / 4, (0.6, 0.75, 1.0))],
     "lamp-and-sun": [("lamp", (-0.6, 0.6, 2.35), 25.0, (1.0, 0.9, 0.78))],
+    "frosted-window": [],
 }[KIND]
 SUN = (mathutils.Vector((0.35, -0.75, 0.55)).normalized(), 2.0, 0.53) if KIND == "lamp-and-sun" else None
 truth_lights = []
@@ -384,6 +402,10 @@ truth = {
     "scene": "scan_" + KIND.replace("-", "_"), "blender_version": bpy.app.version_string,
     "scene_bbox": {"min": [-HALF, -HALF, 0.0], "max": [HALF, HALF, WALL_H], "centre": list(CENTRE)},
     "lights": truth_lights,
+    "emitters": [] if "pane" not in parts else [
+        {"name": "pane", "corners": [list(p) for p in parts["pane"][0]], "normal": [0, -1, 0],
+         "radiance": list(PANE_RADIANCE), "area": (PANE[1] - PANE[0]) * (PANE[3] - PANE[2]),
+         "power": [math.pi * r * (PANE[1] - PANE[0]) * (PANE[3] - PANE[2]) for r in PANE_RADIANCE]}],
     "world": {"type": "uniform", "radiance_rgb": list(SKY)},
     "camera": {"width": W, "height": H, "fx": FOCAL, "fy": FOCAL, "cx": (W - 1) / 2, "cy": (H - 1) / 2,
                "convention": "OpenCV; trajectory.log = world_from_camera, world z up, metres"},
@@ -391,8 +413,8 @@ truth = {
                    "arc_azimuth_deg": [-122.0, -58.0], "step_m": 1.95 * math.radians(64) / max(1, FRAMES - 1)},
     "noise": {"depth_sigma_m": "0.0015 z^2", "quantisation_mm": 1, "range_m": [0.45, 4.5], "dropout": 0.015,
               "edge_holes": "a pixel with a 4-neighbour over max(4 cm, 4 %) away or without depth: 0 with p 0.6"},
-    "materials": {name: {"kind": spec[0], "albedo_linear": [list(c) for c in spec[1:]]}
-                  for name, spec in MATERIALS.items()},
+    "materials": {name: {"kind": spec[0], "albedo_linear": [list(c) for c in spec[1:2 if spec[0] == "glow" else None]]}
+                  for name, spec in MATERIALS.items() if name in parts},
     "render": {"engine": "CYCLES", "samples_per_pixel": SPP, "holdout_spp": 8 * SPP, "max_bounces": 8,
                "diffuse_bounces": 4, "pixel_filter": "BOX", "view_transform": "Standard", "denoising": False,
                "seed": SEED},

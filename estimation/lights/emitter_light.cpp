@@ -149,6 +149,23 @@ std::vector<OutlineEdge> Outline(const EmitterShape& s) {
   return outline;
 }
 
+double AreaOn(const EmitterShape& a, const EmitterShape& b) {
+  constexpr int kGrid = 60;
+  double on = 0, all = 0;
+  for (std::size_t t = 0; t < a.a.size(); ++t) {
+    const Eigen::Vector3d p0 = a.a[t].cast<double>(), e1 = (a.b[t] - a.a[t]).cast<double>(),
+                          e2 = (a.c[t] - a.a[t]).cast<double>(), n = a.normal[t].cast<double>();
+    const double w = e1.cross(e2).norm();
+    for (int i = 0; i < kGrid; ++i)
+      for (int j = 0; i + j < kGrid; ++j) {
+        const Eigen::Vector3d p = p0 + e1 * ((i + 1.0 / 3) / kGrid) + e2 * ((j + 1.0 / 3) / kGrid);
+        all += w;
+        on += w * (OnEmitter(b, p, n) || OnEmitter(b, p, -n));
+      }
+  }
+  return all > 0 ? on / all : 0.0;
+}
+
 Eigen::Vector3d EmitterLight::Power() const { return kPi * radiance * Area(); }
 
 void UnitColumn(const RayTracer& scene, const ShadingVertices& v, const EmitterLight& light, std::vector<float>* out,

@@ -61,6 +61,12 @@ struct OutlineEdge {
 };
 std::vector<OutlineEdge> Outline(const EmitterShape& shape);
 
+/// The share of `a`'s area on `b`: points on a grid of each of a's triangles (60 x 60 / 2 a
+/// triangle, weighted by area) that lie on b (OnEmitter, either side: within half of b's cell
+/// of one of its triangles' planes, inside its edges). An intersection over union by area is
+/// area(a) x AreaOn(a, b) over area(a) + area(b) - that.
+double AreaOn(const EmitterShape& a, const EmitterShape& b);
+
 struct EmitterLight {
   int id = 0;  ///< its number in lights.json and emitters.ply
   std::shared_ptr<const EmitterShape> shape;

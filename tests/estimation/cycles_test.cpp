@@ -447,47 +447,6 @@ TEST(Cycles, TheBounceCapLosesLittleLight) {
 }
 
 
-namespace {
-
-/// The glowing quads of a truth.json's "emitters" as emitters (their corners, normal and radiance).
-std::vector<EmitterLight> TrueEmitters(const nlohmann::json& truth) {
-  std::vector<EmitterLight> out;
-  for (const nlohmann::json& e : truth["emitters"]) {
-    Mesh quad;
-    for (const nlohmann::json& p : e["corners"]) quad.positions.push_back(Vec(p).cast<float>());
-    quad.albedo.assign(4, Eigen::Vector3f::Zero());
-    quad.triangles = {{0, 1, 2}, {0, 2, 3}};
-    const Eigen::Vector3f n = Vec(e["normal"]).cast<float>();
-    EmitterLight light;
-    light.id = static_cast<int>(out.size());
-    light.shape = MakeEmitterShape(quad, {0, 1}, {n, n});
-    light.radiance = Vec(e["radiance"]);
-    out.push_back(light);
-  }
-  return out;
-}
-
-/// The share of `estimated`'s area within `reach` of `truth`'s surface (a point of it drawn
-/// by area on the other's plane within its cells), and of `truth`'s area covered by
-/// `estimated`: the two halves of an intersection over union, by area.
-double AreaOnOther(const EmitterShape& a, const EmitterShape& b) {
-  // Points of a, drawn on a grid of its triangles, that fall in b's cells (either side).
-  double on = 0, all = 0;
-  for (std::size_t t = 0; t < a.a.size(); ++t) {
-    const Eigen::Vector3d p0 = a.a[t].cast<double>(), e1 = (a.b[t] - a.a[t]).cast<double>(), e2 = (a.c[t] - a.a[t]).cast<double>();
-    const int n = 60;
-    for (int i = 0; i < n; ++i)
-      for (int j = 0; i + j < n; ++j) {
-        const Eigen::Vector3d p = p0 + e1 * ((i + 1.0 / 3) / n) + e2 * ((j + 1.0 / 3) / n);
-        const double w = e1.cross(e2).norm();
-        all += w;
-        on += w * (OnEmitter(b, p, a.normal[t].cast<double>()) || OnEmitter(b, p, -a.normal[t].cast<double>()));
-      }
-  }
-  return all > 0 ? on / all : 0.0;
-}
-
-}  // namespace
 
 /// Issue 43's targets on a Cycles scene lit only by one glowing surface (`name`, with the
 /// true mesh and albedo): one emitter on it (its area overlapping the truth's by intersection
@@ -497,14 +456,14 @@ void ExpectTheGlowingSurface(const std::string& name) {
   const char* dir = name.c_str();
   const std::string held_name = name + "_holdout";
   const SceneBundle bundle = LoadSceneBundle(CyclesDir(dir));
-  const nlohmann::json truth = nlohmann::json::parse(ReadTextFile(CyclesDir(dir) / "truth.json"));
+  const fs::path truth_file = CyclesDir(dir) / "truth.json";
   EstimateOptions o;
   o.render = false;
   const EstimateResult r = Estimate(bundle, o);
-  const std::vector<EmitterLight> found = r.lighting.Of<EmitterLight>(), pane = TrueEmitters(truth);
+  const std::vector<EmitterLight> found = r.lighting.Of<EmitterLight>(), pane = ParseTruthEmitters(ReadTextFile(truth_file), truth_file.string());
   ASSERT_EQ(found.size(), 1u);
   ASSERT_EQ(pane.size(), 1u);
-  const double on_pane = AreaOnOther(*found[0].shape, *pane[0].shape), covered = AreaOnOther(*pane[0].shape, *found[0].shape);
+  const double on_pane = AreaOn(*found[0].shape, *pane[0].shape), covered = AreaOn(*pane[0].shape, *found[0].shape);
   const double overlap = found[0].Area() * on_pane, iou = overlap / (found[0].Area() + pane[0].Area() - overlap);
   const Eigen::Vector3d power = found[0].Power(), true_power = pane[0].Power();
   std::printf("emitter: %.3f m^2 (%.0f %% on the truth, %.0f %% of it covered, IoU %.2f), power %.3f %.3f %.3f "

@@ -40,6 +40,28 @@ std::vector<double> OneCell(const EnvMap& env, const Eigen::Vector3d& d, double 
   return lambda;
 }
 
+// truth.json's glowing surfaces (issue 43): one quad ("corners") or several ("quads"), and
+// how much of one lies on another (an intersection over union by area, in closed form).
+TEST(ParseTruthEmitters, QuadsAreasAndOverlapInClosedForm) {
+  const std::string text = R"({"lights": [], "emitters": [
+      {"corners": [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], "normal": [0, 0, 1], "radiance": [2, 2, 2]},
+      {"quads": [{"corners": [[0.5, 0, 0], [1.5, 0, 0], [1.5, 1, 0], [0.5, 1, 0]], "normal": [0, 0, 1]},
+                 {"corners": [[5, 0, 0], [6, 0, 0], [6, 1, 0], [5, 1, 0]], "normal": [0, 0, -1]}],
+       "radiance": [1, 0.5, 0.25]}]})";
+  const std::vector<EmitterLight> e = ParseTruthEmitters(text, "truth.json");
+  ASSERT_EQ(e.size(), 2u);
+  EXPECT_NEAR(e[0].Area(), 1.0, 1e-9);
+  EXPECT_NEAR(e[1].Area(), 2.0, 1e-9);
+  EXPECT_TRUE(e[1].Power().isApprox(kPi * 2.0 * Eigen::Vector3d(1, 0.5, 0.25)));
+  // The first square half on the second's first quad; the second's area a quarter on the first.
+  EXPECT_NEAR(AreaOn(*e[0].shape, *e[1].shape), 0.5, 0.02);
+  EXPECT_NEAR(AreaOn(*e[1].shape, *e[0].shape), 0.25, 0.01);
+  EXPECT_TRUE(ParseTruthEmitters(R"({"lights": []})", "t").empty());
+  EXPECT_THROW(ParseTruthEmitters(R"({"emitters": [{"corners": [[0, 0, 0]], "normal": [0, 0, 1]}]})", "t"), InputError);
+  EXPECT_THROW(ParseTruthEmitters(R"({"emitters": [{"corners": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]], "normal": [0,0,1]}]})", "t"),
+               InputError);  // no radiance
+}
+
 TEST(DominantAngularErrorDeg, AgainstHandComputedCellCentres) {
   // 21 rings: the equator (ring 10) has ceil(2 pi / (pi / 20)) = 40 cells at azimuths
   // (k + 1/2) * 9 degrees from world x (frame_x for up +z). A light along +x falls in the
