@@ -105,9 +105,9 @@ namespace {
 /// Per triangle of `mesh`: its segment (a root triangle), -1 for none. The `seen` triangles
 /// joined where they share a vertex or lie within a cell of kJoinCell of each other (a scan's
 /// glowing surface is often in pieces: glass and bright cloth return depth in patches), and
-/// one ring of triangles around them (the pixels' centres miss some of a segment's small
-/// triangles).
-std::vector<int> Segments(const Mesh& mesh, const std::vector<int>& seen) {
+/// the triangles of one ring around them that no pixel saw (`looked`: the pixels' centres
+/// miss some of a segment's small triangles; one a pixel saw not glowing is not glowing).
+std::vector<int> Segments(const Mesh& mesh, const std::vector<int>& seen, const std::vector<int>& looked) {
   const std::size_t triangles = mesh.triangles.size();
   std::vector<int> parent(triangles), by_vertex(mesh.positions.size(), -1);
   std::iota(parent.begin(), parent.end(), 0);
@@ -140,6 +140,7 @@ std::vector<int> Segments(const Mesh& mesh, const std::vector<int>& seen) {
       segment[t] = Root(parent, static_cast<int>(t));
       continue;
     }
+    if (looked[t]) continue;
     for (int c = 0; c < 3 && segment[t] < 0; ++c)
       if (const int v = by_vertex[mesh.triangles[t][c]]; v >= 0) segment[t] = Root(parent, v);
   }
@@ -151,7 +152,7 @@ std::vector<int> Segments(const Mesh& mesh, const std::vector<int>& seen) {
 std::vector<EmitterLight> Estimator::GlowingSegments() {
   const Mesh& mesh = scene_->mesh();
   const Glow glow = GlowingTriangles();
-  const std::vector<int> segment = Segments(mesh, glow.seen);
+  const std::vector<int> segment = Segments(mesh, glow.seen, glow.looked);
   struct Gathered {
     std::vector<int> triangles;
     std::vector<Eigen::Vector3f> facing;
