@@ -16,7 +16,7 @@ echo "| scene | --emitters 0 s | --emitters 1 s | ratio | emitters | lamps and s
 echo "| --- | --- | --- | --- | --- | --- |${OLD:+ --- | --- |}"
 for s in "${names[@]}"; do
   case "$s" in
-    cornerbox_one_light|glow) d="$root/tests/data/cycles/$s" ;;
+    cornerbox_one_light|glow|screen) d="$root/tests/data/cycles/$s" ;;
     demo) d="$root/assets/demo" ;;
     */*) d="$s" ;;  # a scene bundle's directory (e.g. out/demo/scene, scripts/demo.sh's reconstruction)
     *) "$exe" synth "$s" --out "$tmp/$s" >/dev/null; d="$tmp/$s" ;;
