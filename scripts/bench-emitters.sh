@@ -15,6 +15,7 @@ read -r -a names <<< "${SCENES:-cornerbox_one_light glow demo lamp-1m two-lamps 
 echo "| scene | --emitters 0 s | --emitters 1 s | ratio | emitters | lamps and suns | ${OLD:+older binary s | default / older |}"
 echo "| --- | --- | --- | --- | --- | --- |${OLD:+ --- | --- |}"
 for s in "${names[@]}"; do
+  k=${s//\//_}  # (the scene's name in the temporary files' names)
   case "$s" in
     cornerbox_one_light|glow|screen) d="$root/tests/data/cycles/$s" ;;
     demo) d="$root/assets/demo" ;;
@@ -24,14 +25,14 @@ for s in "${names[@]}"; do
   for ((i = 0; i < ${REPEATS:-2}; ++i)); do
     for e in 0 1; do
       "$exe" estimate "$d" --out "$tmp/o$e" --emitters $e --quiet >/dev/null
-      python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["seconds"]["estimate"])' "$tmp/o$e/report.json" >> "$tmp/t$s$e"
+      python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["seconds"]["estimate"])' "$tmp/o$e/report.json" >> "$tmp/t$k$e"
     done
     if [ -n "${OLD:-}" ]; then
       "$OLD" estimate "$d" --out "$tmp/oo" --quiet >/dev/null
-      python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["seconds"]["estimate"])' "$tmp/oo/report.json" >> "$tmp/t${s}o"
+      python3 -c 'import json,sys; print(json.load(open(sys.argv[1]))["seconds"]["estimate"])' "$tmp/oo/report.json" >> "$tmp/t${k}o"
     fi
   done
-  python3 - "$s" "$tmp/t${s}0" "$tmp/t${s}1" "$tmp/o0/lights.json" "$tmp/o1/lights.json" "$tmp/t${s}o" <<'PY'
+  python3 - "$s" "$tmp/t${k}0" "$tmp/t${k}1" "$tmp/o0/lights.json" "$tmp/o1/lights.json" "$tmp/t${k}o" <<'PY'
 import json, os, sys
 s = sys.argv[1]
 t0, t1 = (min(float(x) for x in open(f)) for f in sys.argv[2:4])
