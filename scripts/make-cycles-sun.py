@@ -18,6 +18,10 @@
 #             light and no sky (issue 43: a glowing surface the cameras see);
 #   screen    a screen: a dark 0.8 x 0.45 m panel in the wall y = 0 glowing bluish, no other
 #             light and no sky;
+#   open-window  an open window: a 0.8 x 0.8 m hole in the wall x = 0 and a world that is
+#             bright (radiance WINDOW_SKY) only behind that wall (directions with x < -0.3),
+#             dark elsewhere, so the room is lit through the hole; each view's mask0.png keeps
+#             the pixels whose ray hits the room (a scan has no depth through a window);
 #   shade     a lamp in a lamp shade: a 16-sided open band (radius 0.15 m, 0.25 m tall, a
 #             Translucent BSDF of colour SHADE_TRANSMISSION, reflecting nothing) around a
 #             40 W warm point light hidden from the camera; the shade glows with the light it
@@ -42,7 +46,7 @@ argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 out_dir = os.path.abspath(argv[0] if argv else "tests/data/cycles/sun")
 spp = int(argv[1]) if len(argv) > 1 else 1024
 KIND = argv[2] if len(argv) > 2 else "sun"
-KINDS = ("sun", "sky", "lamp-sky", "two-lamps", "hdr", "glow", "screen", "shade")
+KINDS = ("sun", "sky", "lamp-sky", "two-lamps", "hdr", "glow", "screen", "shade", "open-window")
 if KIND not in KINDS:
     raise SystemExit("KIND is one of %s, not %s" % (", ".join(KINDS), KIND))
 HDR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "assets", "hdri", "studio_small_03_1k.hdr")
@@ -60,8 +64,9 @@ if KIND == "sky":
     SKY_RADIANCE = 1.0 / math.pi
 elif KIND == "lamp-sky":
     SKY_RADIANCE = LAMP_INTENSITY / (LAMP_POSITION - CENTRE).length_squared / 20 / math.pi
-elif KIND in ("two-lamps", "glow", "screen", "shade"):
+elif KIND in ("two-lamps", "glow", "screen", "shade", "open-window"):
     SKY_RADIANCE = 0.0
+WINDOW_SKY, WINDOW_SKY_X = 2.0, -0.3  # open-window: the world's radiance where direction.x < WINDOW_SKY_X
 # glow, screen: the pane's wall (the axis it lies across, 0 = x, 1 = y), its ranges along the
 # wall and up, its albedo (sRGB) and the radiance it emits (W/(m^2 sr), linear RGB).
 PANES = {"glow": (0, (1.2, 2.0), (0.5, 1.3), (200, 200, 200), (3.0, 2.7, 2.25)),
@@ -118,6 +123,8 @@ def wall(axis, pane=None):
     quad(at(0, z1), at(3, z1), at(3, 1.6), at(0, 1.6), WALL)
     quad(at(0, z0), at(u0, z0), at(u0, z1), at(0, z1), WALL)
     quad(at(u1, z0), at(3, z0), at(3, z1), at(u1, z1), WALL)
+    if albedo is None:  # a hole
+        return -1
     quad(at(u0, z0), at(u1, z0), at(u1, z1), at(u0, z1), albedo)
     return len(quads) - 1
 
@@ -128,6 +135,9 @@ PANE_SPEC = PANES.get(KIND)
 PANE = -1
 for axis in (0, 1):
     on_this = PANE_SPEC is not None and PANE_SPEC[0] == axis
+    if KIND == "open-window" and axis == 0:  # the frosted window's place, open
+        wall(axis, (PANES["glow"][1], PANES["glow"][2], None))
+        continue
     k = wall(axis, (PANE_SPEC[1], PANE_SPEC[2], PANE_SPEC[3]) if on_this else None)
     PANE = k if on_this else PANE
 SHADE = []  # the band's quads, each with its outward normal
@@ -228,6 +238,15 @@ if KIND == "hdr":
     links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
     links.new(tex.outputs["Color"], bg.inputs["Color"])
     bg.inputs["Strength"].default_value = 1.0
+if KIND == "open-window":  # WINDOW_SKY where the direction's x < WINDOW_SKY_X, else black
+    nodes, links = world.node_tree.nodes, world.node_tree.links
+    coord, split, below = nodes.new("ShaderNodeTexCoord"), nodes.new("ShaderNodeSeparateXYZ"), nodes.new("ShaderNodeMath")
+    below.operation = "LESS_THAN"
+    below.inputs[1].default_value = WINDOW_SKY_X
+    links.new(coord.outputs["Generated"], split.inputs["Vector"])
+    links.new(split.outputs["X"], below.inputs[0])
+    links.new(below.outputs["Value"], bg.inputs["Strength"])
+    bg.inputs["Color"].default_value = (WINDOW_SKY, WINDOW_SKY, WINDOW_SKY, 1)
 bpy.context.scene.world = world
 truth_lights = []
 if KIND == "sun":
@@ -352,7 +371,8 @@ scene.camera = cam
 truth = {"scene": "cycles-" + KIND, "blender_version": bpy.app.version_string, "spp": spp,
          "lights": truth_lights,
          "emitters": truth_emitters,
-         "world": {"type": "uniform", "radiance": [SKY_RADIANCE] * 3},
+         "world": {"type": "uniform", "radiance": [SKY_RADIANCE] * 3} if KIND != "open-window" else
+                  {"type": "step", "radiance": [WINDOW_SKY] * 3, "where": "direction x < %g" % WINDOW_SKY_X},
          "render": {"engine": "CYCLES", "max_bounces": 64, "diffuse_bounces": 64, "pixel_filter": "BOX",
                     "filter_width_px": 1.0, "view_transform": "Standard", "denoising": False,
                     "adaptive_sampling": False, "seed": 11},
@@ -375,7 +395,7 @@ for k, (eye, target) in enumerate(VIEWS):
     fx = cam_data.lens / cam_data.sensor_width * W
     view = {"image": "view0.exr", "width": W, "height": H, "fx": fx, "fy": fx, "cx": (W - 1) / 2,
             "cy": (H - 1) / 2, "world_from_camera": wfc}
-    if KIND == "hdr":
+    if KIND in ("hdr", "open-window"):
         # A scan has no depth past the room: only the pixels whose ray hits the mesh are used
         # (mask0.png, 255 there; unmasked, the softboxes seen directly dominate the fit).
         write_room_mask(os.path.join(d, "mask0.png"), eye, R, fx, W, H)
