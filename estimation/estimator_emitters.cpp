@@ -229,12 +229,61 @@ double Estimator::ObjectiveWith(const std::vector<EmitterLight>& emitters) {
       .objective;
 }
 
+namespace {
+
+/// Where a lamp inside a glowing surface would be (a lamp's shade: the bulb behind what
+/// the cameras see glow): behind its centre, against the side it glows on, by half its
+/// extent; a surface seen glowing all round (its sides' normals cancel) has it at its centre.
+Eigen::Vector3d Inside(const EmitterLight& e) {
+  Eigen::Vector3d facing = Eigen::Vector3d::Zero();
+  double previous = 0;
+  for (std::size_t t = 0; t < e.shape->a.size(); ++t) {
+    facing += (e.shape->cumulative[t] - previous) * e.shape->normal[t].cast<double>();
+    previous = e.shape->cumulative[t];
+  }
+  if (!(e.shape->area > 0)) return Centroid(*e.shape);
+  return Centroid(*e.shape) - facing / e.shape->area * 0.5 * std::sqrt(e.Area());
+}
+
+}  // namespace
+
+const EmitterLight* Estimator::ShadeOf(const PointLight& lamp) const {
+  for (const EmitterLight& e : emitters_)
+    if (e.shape && (lamp.position - Inside(e)).norm() <= 0.5 * std::sqrt(e.Area())) return &e;
+  return nullptr;
+}
+
+bool Estimator::LampInside(const EmitterLight& candidate, const std::vector<EmitterLight>& with, double* objective,
+                           double* held) {
+  if (points_.empty()) return false;
+  const Eigen::Vector3d inside = Inside(candidate);
+  std::size_t nearest = 0;
+  for (std::size_t k = 1; k < points_.size(); ++k)
+    if ((points_[k].position - inside).norm() < (points_[nearest].position - inside).norm()) nearest = k;
+  const std::vector<PointLight> before = points_;
+  points_[nearest].position = inside;
+  const double objective_moved = ObjectiveWith(with), held_moved = HoldoutLoss(points_);
+  const bool better = objective_moved < *objective && held_moved < *held;
+  Progress(Fmt("point light %zu moved inside the glowing surface, to (%.3f, %.3f, %.3f): objective %.6g, held-out "
+               "loss %.6g (%.6g, %.6g where it was): %s",
+               nearest, inside.x(), inside.y(), inside.z(), objective_moved, held_moved, *objective, *held,
+               better ? "moved" : "left where it was"));
+  if (!better) {
+    points_ = before;
+    return false;
+  }
+  *objective = objective_moved;
+  *held = held_moved;
+  return true;
+}
+
 bool Estimator::TryEmitter(const EmitterLight& candidate, std::vector<EmitterLight>* kept, double* objective,
                            double* held) {
   CheckCancel();
   std::vector<EmitterLight> with = *kept;
   with.push_back(candidate);
-  const double objective_with = ObjectiveWith(with), held_with = HoldoutLoss(points_);
+  double objective_with = ObjectiveWith(with), held_with = HoldoutLoss(points_);
+  LampInside(candidate, with, &objective_with, &held_with);  // (a bulb behind its shade, if the data says so)
   const bool keep = objective_with < (1 - kEmitterGain) * *objective && held_with < (1 + kEmitterGain) * *held;
   const std::string line = Fmt("glowing surface of %.3g m^2 (seen brighter than a white surface under the lights): "
                                "objective %.6g with it, %.6g without; held-out loss %.6g with it, %.6g without: %s",

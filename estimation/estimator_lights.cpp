@@ -447,13 +447,19 @@ std::vector<float> Estimator::Column(const Light& light) {
   return columns_.back().column;
 }
 
-/// The share of the observed light a point light renders.
+/// The share of the observed light a point light renders; a lamp inside a glowing surface
+/// (a bulb in its shade) with the surface's: the two are one light, most of the bulb's
+/// reaching the room through the shade.
 double Estimator::RenderedShare(const PointLight& light) {
   const std::vector<float> col = Column(light);
   double rendered = 0, seen = 0;
   for (std::size_t e = 0; e < col.size(); ++e) {
     rendered += light.intensity[e % 3] * col[e];
     seen += y_[e];
+  }
+  if (const EmitterLight* shade = ShadeOf(light)) {
+    const std::vector<float> glow = Column(Light(*shade));
+    for (std::size_t e = 0; e < glow.size(); ++e) rendered += shade->radiance[e % 3] * glow[e];
   }
   return seen > 0 ? rendered / seen : 0.0;
 }

@@ -330,6 +330,8 @@ def write_room_mask(path, eye, R, fx, width, height):
 # its -z with +y up. Principal point at the image centre: (W - 1) / 2 with pixel centres at
 # integers. View 0 is fitted, view 1 held out.
 VIEWS = [((4.2, 3.6, 2.2), (1.0, 1.0, 0.35)), ((3.4, 0.9, 1.9), (0.8, 1.6, 0.4))]
+if KIND == "shade":  # a second fitted view from between the walls and the shade: its far side, as a scan would see it
+    VIEWS.append(((0.9, 0.35, 1.7), (2.6, 1.15, 1.0)))
 scene = bpy.context.scene
 scene.render.engine = "CYCLES"
 scene.cycles.device = "CPU"
@@ -377,31 +379,35 @@ truth = {"scene": "cycles-" + KIND, "blender_version": bpy.app.version_string, "
                     "filter_width_px": 1.0, "view_transform": "Standard", "denoising": False,
                     "adaptive_sampling": False, "seed": 11},
          "albedo_srgb": {"walls": WALL, "box": BOX, "block": BLOCK}}
+bundle_views = {}  # each bundle's views (the fitted one's: views 0 and 2)
 for k, (eye, target) in enumerate(VIEWS):
-    d = out_dir if k == 0 else out_dir + "_holdout"
+    d = out_dir if k != 1 else out_dir + "_holdout"
     os.makedirs(d, exist_ok=True)
-    if k > 0:
+    if k == 1:
         with open(os.path.join(out_dir, "mesh.ply")) as src, open(os.path.join(d, "mesh.ply"), "w") as dst:
             dst.write(src.read())
     eye, target = mathutils.Vector(eye), mathutils.Vector(target)
     cam.location = eye
     cam.rotation_euler = (target - eye).to_track_quat("-Z", "Y").to_euler()
     bpy.context.view_layer.update()
-    scene.render.filepath = os.path.join(d, "view0.exr")
+    image = "view%d.exr" % len(bundle_views.get(d, []))
+    scene.render.filepath = os.path.join(d, image)
     bpy.ops.render.render(write_still=True)
     m = cam.matrix_world
     R = m.to_3x3() @ mathutils.Matrix(((1, 0, 0), (0, -1, 0), (0, 0, -1)))  # OpenCV axes
     wfc = [[R[r][0], R[r][1], R[r][2], m[r][3]] for r in range(3)] + [[0, 0, 0, 1]]
     fx = cam_data.lens / cam_data.sensor_width * W
-    view = {"image": "view0.exr", "width": W, "height": H, "fx": fx, "fy": fx, "cx": (W - 1) / 2,
+    view = {"image": image, "width": W, "height": H, "fx": fx, "fy": fx, "cx": (W - 1) / 2,
             "cy": (H - 1) / 2, "world_from_camera": wfc}
     if KIND in ("hdr", "open-window"):
         # A scan has no depth past the room: only the pixels whose ray hits the mesh are used
         # (mask0.png, 255 there; unmasked, the softboxes seen directly dominate the fit).
-        write_room_mask(os.path.join(d, "mask0.png"), eye, R, fx, W, H)
-        view["mask"] = "mask0.png"
+        mask = "mask%d.png" % len(bundle_views.get(d, []))
+        write_room_mask(os.path.join(d, mask), eye, R, fx, W, H)
+        view["mask"] = mask
+    bundle_views.setdefault(d, []).append(view)
     with open(os.path.join(d, "scene.json"), "w") as f:
-        json.dump({"mesh": "mesh.ply", "up": [0, 0, 1], "views": [view]}, f, indent=2)
+        json.dump({"mesh": "mesh.ply", "up": [0, 0, 1], "views": bundle_views[d]}, f, indent=2)
     with open(os.path.join(d, "truth.json"), "w") as f:
-        json.dump(dict(truth, view="fitted" if k == 0 else "held out"), f, indent=2)
+        json.dump(dict(truth, view="held out" if k == 1 else "fitted"), f, indent=2)
 print("wrote", out_dir)
