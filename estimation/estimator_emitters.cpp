@@ -283,8 +283,10 @@ bool Estimator::TryEmitter(const EmitterLight& candidate, std::vector<EmitterLig
   std::vector<EmitterLight> with = *kept;
   with.push_back(candidate);
   double objective_with = ObjectiveWith(with), held_with = HoldoutLoss(points_);
+  const std::vector<PointLight> lamps = points_;
   LampInside(candidate, with, &objective_with, &held_with);  // (a bulb behind its shade, if the data says so)
   const bool keep = objective_with < (1 - kEmitterGain) * *objective && held_with < (1 + kEmitterGain) * *held;
+  if (!keep) points_ = lamps;  // (a lamp moved inside a surface that is not kept goes back)
   const std::string line = Fmt("glowing surface of %.3g m^2 (seen brighter than a white surface under the lights): "
                                "objective %.6g with it, %.6g without; held-out loss %.6g with it, %.6g without: %s",
                                candidate.Area(), objective_with, *objective, held_with, *held, keep ? "kept" : "left out");
