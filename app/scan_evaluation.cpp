@@ -26,9 +26,10 @@ using nlohmann::json;
 
 namespace {
 
-json ReadJsonFile(const fs::path& file) {
+/// `file`'s JSON (its `text` when already read).
+json ReadJsonFile(const fs::path& file, const std::string& text = {}) {
   try {
-    return json::parse(ReadTextFile(file));
+    return json::parse(text.empty() ? ReadTextFile(file) : text);
   } catch (const json::exception& e) {
     throw InputError(file.string(), std::string("malformed JSON: ") + e.what());
   }
@@ -75,11 +76,14 @@ struct TrueLamps {
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   std::vector<PointLight> lamps;
   std::vector<DirectionalLight> suns;  ///< irradiance from "irradiance_rgb_W_per_m2"
+  std::vector<EmitterLight> emitters;  ///< "emitters" (ParseTruthEmitters)
 };
 
 TrueLamps ReadTrueLamps(const fs::path& file) {
-  const json j = ReadJsonFile(file);
+  const std::string text = ReadTextFile(file);
+  const json j = ReadJsonFile(file, text);
   TrueLamps t;
+  t.emitters = ParseTruthEmitters(text, file.string());
   if (j.contains("scene_bbox") && j["scene_bbox"].contains("centre")) t.centre = Vec3(j["scene_bbox"], "centre", file);
   if (!j.contains("lights") || !j["lights"].is_array()) return t;
   for (const json& l : j["lights"]) {
@@ -413,9 +417,7 @@ ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int s
   ScoreLamps(truth, OfKind<PointLight>(lights.lights), &s);
   if (!has_lights) s.spurious_share = NAN;  // no truth: no lamp is known spurious
   ScoreSuns(truth, OfKind<DirectionalLight>(lights.lights), &s);
-  if (has_lights)
-    ScoreEmitters(ParseTruthEmitters(ReadTextFile(truth_dir / "truth.json"), (truth_dir / "truth.json").string()),
-                  OfKind<EmitterLight>(lights.lights), &s);
+  ScoreEmitters(truth.emitters, OfKind<EmitterLight>(lights.lights), &s);
   const fs::path albedo_mesh = estimate_dir / "albedo_mesh.ply";
   Mesh lit = fs::exists(albedo_mesh) ? ReadPly(albedo_mesh) : bundle.mesh;
   SanitizeMesh(&lit, albedo_mesh.string());

@@ -319,12 +319,12 @@ class Estimator {
   /// Keeps `candidate` beside `kept` when the objective and the held-out loss say so (both
   /// updated then).
   bool TryEmitter(const EmitterLight& candidate, std::vector<EmitterLight>* kept, double* objective, double* held);
-  /// Beside a candidate emitter (`with`: the emitters then), the lamp nearest to where one
-  /// inside it would be moved there, and kept there when the objective and the held-out loss
-  /// (given for where it is) both fall; they are then the new ones.
   /// The kept emitter a lamp sits inside (within half its extent of where LampInside puts
   /// one: a bulb in its shade), or null.
   const EmitterLight* ShadeOf(const PointLight& lamp) const;
+  /// Beside a candidate emitter (`with`: the emitters then), the lamp nearest to where one
+  /// inside it would be moved there, and kept there when the objective and the held-out loss
+  /// (given for where it is) both fall; they are then the new ones.
   bool LampInside(const EmitterLight& candidate, const std::vector<EmitterLight>& with, double* objective, double* held);
   /// The round's whole objective solved again with `emitters` (left as emitters_) beside the map and the lights.
   double ObjectiveWith(const std::vector<EmitterLight>& emitters);

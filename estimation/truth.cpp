@@ -19,6 +19,14 @@ double AngleDeg(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 
 namespace {
 
+json ParseJson(const std::string& text, const std::string& name) {
+  try {
+    return json::parse(text);
+  } catch (const json::exception& e) {
+    throw InputError(name, std::string("malformed JSON: ") + e.what());
+  }
+}
+
 Eigen::Vector3f TruthPoint(const json& v, const std::string& name) {
   if (!v.is_array() || v.size() != 3 || !v[0].is_number() || !v[1].is_number() || !v[2].is_number())
     throw InputError(name, "an emitter's corners and normal must be 3 numbers each");
@@ -44,12 +52,7 @@ void AddTruthQuad(const json& q, const std::string& name, Mesh* mesh, std::vecto
 }  // namespace
 
 std::vector<EmitterLight> ParseTruthEmitters(const std::string& text, const std::string& name) {
-  json j;
-  try {
-    j = json::parse(text);
-  } catch (const json::exception& e) {
-    throw InputError(name, std::string("malformed JSON: ") + e.what());
-  }
+  const json j = ParseJson(text, name);
   std::vector<EmitterLight> out;
   if (!j.is_object() || !j.contains("emitters")) return out;
   if (!j["emitters"].is_array()) throw InputError(name, "\"emitters\" must be a list");
@@ -72,12 +75,7 @@ std::vector<EmitterLight> ParseTruthEmitters(const std::string& text, const std:
 }
 
 std::vector<TruthLight> ParseTruthLights(const std::string& text, const std::string& name) {
-  json j;
-  try {
-    j = json::parse(text);
-  } catch (const json::exception& e) {
-    throw InputError(name, std::string("malformed JSON: ") + e.what());
-  }
+  const json j = ParseJson(text, name);
   if (!j.is_object() || !j.contains("lights") || !j["lights"].is_array())
     throw InputError(name, "expected an object with a \"lights\" array");
   const auto vec3 = [&](const json& v, const char* what) {

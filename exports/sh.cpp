@@ -239,9 +239,9 @@ std::vector<std::string> WriteShExport(const ExportScene& s, const fs::path& dir
   std::vector<DirectionalLight> in_sh;
   const std::vector<DirectionalLight> suns = OfKind<DirectionalLight>(s.lights);
   // Glowing surfaces as seen from the centre of the mesh's bounding box.
-  Eigen::Vector3d low = Eigen::Vector3d::Constant(INFINITY), high = -low;
-  for (const Eigen::Vector3f& p : s.mesh.positions) low = low.cwiseMin(p.cast<double>()), high = high.cwiseMax(p.cast<double>());
-  const Eigen::Vector3d centre = s.mesh.positions.empty() ? Eigen::Vector3d::Zero() : Eigen::Vector3d(0.5 * (low + high));
+  Eigen::Vector3f low, high;
+  MeshBounds(s.mesh, &low, &high);
+  const Eigen::Vector3d centre = s.mesh.triangles.empty() ? Eigen::Vector3d::Zero() : Eigen::Vector3d(0.5 * (low + high).cast<double>());
   for (std::size_t k = 0; k < suns.size(); ++k)
     if (static_cast<int>(k) != main.directional_index) in_sh.push_back(suns[k]);
   auto radiance_in = [&](const Eigen::Matrix3d& frame) {

@@ -331,6 +331,18 @@ void Viewer::DrawScene(const Rect& r) {
   ++scene_renders_;
 }
 
+namespace {
+
+/// A light's colour as its marker draws it: its brightest channel at full scale, none below
+/// 0.15 (white for a dark light).
+Eigen::Vector3f MarkerColour(const Eigen::Vector3d& rgb) {
+  const double peak = rgb.maxCoeff();
+  const Eigen::Vector3f colour = peak > 0 ? Eigen::Vector3f((rgb / peak).cast<float>()) : Eigen::Vector3f::Ones();
+  return colour.cwiseMax(0.15f);
+}
+
+}  // namespace
+
 /// Each point light as a small octahedron with its axes, in its colour (brightest channel
 /// at full scale), sized by the square root of its share of the brightest lamp.
 void Viewer::AddLampMarkers(float size) {
@@ -342,10 +354,7 @@ void Viewer::AddLampMarkers(float size) {
     const Eigen::Vector3f p = l.position.cast<float>();
     const double lum = Luminance(l.intensity.x(), l.intensity.y(), l.intensity.z());
     const float s = size * (0.4f + 0.6f * static_cast<float>(std::sqrt(std::max(0.0, lum / top))));
-    const double peak = l.intensity.maxCoeff();
-    Eigen::Vector3f color = Eigen::Vector3f::Ones();
-    if (peak > 0) color = (l.intensity / peak).cast<float>();
-    color = color.cwiseMax(0.15f);
+    const Eigen::Vector3f color = MarkerColour(l.intensity);
     Eigen::Vector3f tip[6];
     for (int a = 0; a < 3; ++a) {
       tip[2 * a] = p + s * Eigen::Vector3f::Unit(a);
@@ -364,13 +373,17 @@ void Viewer::AddLampMarkers(float size) {
 void Viewer::AddEmitterOutlines() {
   for (const EmitterLight& e : est_.lighting.Of<EmitterLight>()) {
     if (!e.shape) continue;
-    const double peak = e.radiance.maxCoeff();
-    Eigen::Vector3f color = Eigen::Vector3f::Ones();
-    if (peak > 0) color = (e.radiance / peak).cast<float>();
-    color = color.cwiseMax(0.15f);
-    for (const OutlineEdge& edge : Outline(*e.shape))
+    const Eigen::Vector3f color = MarkerColour(e.radiance);
+    for (const OutlineEdge& edge : OutlineOf(e.shape))
       lines_.Add(edge.from + 0.01f * edge.normal, edge.to + 0.01f * edge.normal, color);
   }
+}
+
+const std::vector<OutlineEdge>& Viewer::OutlineOf(const std::shared_ptr<const EmitterShape>& shape) const {
+  if (outlines_.size() > 16) outlines_.clear();  // (the shapes of estimates gone)
+  auto [it, added] = outlines_.try_emplace(shape);
+  if (added) it->second = Outline(*shape);
+  return it->second;
 }
 
 const LightUncertainty* Viewer::UncertaintyOf(std::size_t k) const {
@@ -384,11 +397,7 @@ const LightUncertainty* Viewer::UncertaintyOf(std::size_t k) const {
 namespace {
 
 /// The lights' colour as the markers draw it, dimmed.
-Eigen::Vector3f Dimmed(const Eigen::Vector3d& rgb) {
-  const double peak = rgb.maxCoeff();
-  const Eigen::Vector3f colour = peak > 0 ? Eigen::Vector3f((rgb / peak).cast<float>()) : Eigen::Vector3f::Ones();
-  return 0.7f * colour.cwiseMax(0.15f);
-}
+Eigen::Vector3f Dimmed(const Eigen::Vector3d& rgb) { return 0.7f * MarkerColour(rgb); }
 
 }  // namespace
 
@@ -1066,7 +1075,7 @@ void Viewer::WriteState(const std::string& path) const {
     if (e.shape)
       j["estimate"]["emitters"].push_back({{"id", e.id}, {"radiance", vec(e.radiance)}, {"area", e.Area()},
                                            {"centroid", vec(Centroid(*e.shape))},
-                                           {"outline_edges", Outline(*e.shape).size()}});
+                                           {"outline_edges", OutlineOf(e.shape).size()}});
   for (std::size_t k = 0; k < est_.lighting.lights.size(); ++k) {
     if (const PointLight* l = std::get_if<PointLight>(&est_.lighting.lights[k]))
       j["estimate"]["point_lights"].push_back(

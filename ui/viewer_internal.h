@@ -2,6 +2,7 @@
 /// Inside the viewer (ui/ only): the window's state, shared by viewer.cpp (panels, 3D
 /// view) and script.cpp (the command file).
 #include <array>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -55,6 +56,9 @@ class Viewer {
   void DrawScene(const Rect& r);
   void AddLampMarkers(float size);
   void AddEmitterOutlines();
+  /// An emitter's outline (Outline), computed once per shape: drawn every frame.
+  const std::vector<OutlineEdge>& OutlineOf(const std::shared_ptr<const EmitterShape>& shape) const;
+  mutable std::map<std::shared_ptr<const EmitterShape>, std::vector<OutlineEdge>> outlines_;
   /// Light k of est_.lighting's uncertainty, when the finished estimate shown has one
   /// (null while an estimate runs, or where it does not).
   const LightUncertainty* UncertaintyOf(std::size_t k) const;

@@ -843,14 +843,7 @@ PanelScene PanelRoom(const std::vector<Panel>& panels, int w = 96, int h = 72, d
 
 /// The emitter of `r` nearest (by its area's centre) to `panel`, or null.
 const EmitterLight* NearestEmitter(const EstimateResult& r, const EmitterLight& panel) {
-  const auto centre = [](const EmitterShape& s) {
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    for (std::size_t t = 0; t < s.a.size(); ++t) {
-      const double w = (t ? s.cumulative[t] - s.cumulative[t - 1] : s.cumulative[0]) / s.area;
-      c += w * (s.a[t] + s.b[t] + s.c[t]).cast<double>() / 3;
-    }
-    return c;
-  };
+  const auto centre = [](const EmitterShape& s) { return Centroid(s); };
   const EmitterLight* best = nullptr;
   for (const Light& l : r.lighting.lights)
     if (const EmitterLight* e = std::get_if<EmitterLight>(&l))
