@@ -233,9 +233,9 @@ bool Estimator::FitRadii(std::vector<PointLight>* lights) {
     Eigen::Vector3d best_intensity = light.intensity;
     for (int g = 0; g < 6; ++g) {
       const double radius = g == 0 ? 0.0 : 0.004 * radius_ * std::pow(2.0, g);
-      PointLight sized = light;
-      sized.radius = radius;
-      col = Column(sized);
+      // (kSphereShadowRays each: the sizes' columns compared alike; the rounds' are the cache's)
+      if (radius == 0) col = Column(PointLight{light.position, light.intensity, 0});
+      else PointLightColumn(*scene_, vertices_, light.position, &col, nullptr, radius, kSphereShadowRays);
       Eigen::Vector3d intensity = light.intensity;
       double sse = 0;
       const double loss = RefitScale(fit, col, {}, &intensity, &sse);  // its intensity refitted there

@@ -11,17 +11,13 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 exe=${1:-$root/build/app/lightprobe}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
+source "$root/scripts/bench-scene.sh"
 read -r -a names <<< "${SCENES:-cornerbox_one_light glow demo lamp-1m two-lamps lamp-and-sky sun-and-sky lamp-4m}"
 echo "| scene | --emitters 0 s | --emitters 1 s | ratio | emitters | lamps and suns | ${OLD:+older binary s | default / older |}"
 echo "| --- | --- | --- | --- | --- | --- |${OLD:+ --- | --- |}"
 for s in "${names[@]}"; do
   k=${s//\//_}  # (the scene's name in the temporary files' names)
-  case "$s" in
-    cornerbox_one_light|glow|screen) d="$root/tests/data/cycles/$s" ;;
-    demo) d="$root/assets/demo" ;;
-    */*) d="$s" ;;  # a scene bundle's directory (e.g. out/demo/scene, scripts/demo.sh's reconstruction)
-    *) "$exe" synth "$s" --out "$tmp/$s" >/dev/null; d="$tmp/$s" ;;
-  esac
+  d=$(bench_scene "$s" "$exe" "$tmp")
   for ((i = 0; i < ${REPEATS:-2}; ++i)); do
     for e in 0 1; do
       "$exe" estimate "$d" --out "$tmp/o$e" --emitters $e --quiet >/dev/null

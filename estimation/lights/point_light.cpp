@@ -43,7 +43,7 @@ double SphereVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const 
 }
 
 void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& q,
-                      std::vector<float>* out, std::vector<float>* jacobian, double radius) {
+                      std::vector<float>* out, std::vector<float>* jacobian, double radius, int rays) {
   const std::size_t rows = v.rows();
   out->assign(3 * rows, 0.0f);
   if (jacobian) jacobian->assign(9 * rows, 0.0f);
@@ -57,7 +57,7 @@ void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Ei
         double d = 0;
         const double f = Falloff(p, n, v.geometric[k].cast<double>(), q, &l, &d);
         if (f == 0) continue;
-        const double seen = SphereVisibility(scene, p, q, radius, l, d, static_cast<std::uint64_t>(k));
+        const double seen = SphereVisibility(scene, p, q, radius, l, d, static_cast<std::uint64_t>(k), rays);
         if (seen == 0) continue;
         const Eigen::Vector3d w = v.weight[k].cast<double>() * seen;
         sum += w * f;

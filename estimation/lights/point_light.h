@@ -34,11 +34,12 @@ struct PointLight {
 double SphereVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const Eigen::Vector3d& q, double radius,
                         const Eigen::Vector3d& l, double d, std::uint64_t key, int rays = kSphereShadowRays);
 
-/// The unit-intensity column of a point light at `q` (of `radius`: soft shadows): out[3*row
-/// + c]. When `jacobian` is given it receives d out[3*row + c] / d q_k at [9*row + 3*c + k]
-/// (visibility held fixed).
+/// The unit-intensity column of a point light at `q` (of `radius`: soft shadows, `rays`
+/// shadow rays per vertex to its disc): out[3*row + c]. When `jacobian` is given it receives
+/// d out[3*row + c] / d q_k at [9*row + 3*c + k] (visibility held fixed).
 void PointLightColumn(const RayTracer& scene, const ShadingVertices& vertices, const Eigen::Vector3d& q,
-                      std::vector<float>* out, std::vector<float>* jacobian = nullptr, double radius = 0);
+                      std::vector<float>* out, std::vector<float>* jacobian = nullptr, double radius = 0,
+                      int rays = kColumnShadowRays);
 inline void UnitColumn(const RayTracer& scene, const ShadingVertices& vertices, const PointLight& light,
                        std::vector<float>* out, std::vector<float>* jacobian = nullptr) {
   PointLightColumn(scene, vertices, light.position, out, jacobian, light.radius);

@@ -32,7 +32,14 @@ inline double HashUnit(std::uint64_t z) {
   return static_cast<double>(z >> 11) * 0x1.0p-53;
 }
 
-/// Shadow rays per vertex from a column towards a light with a size (its disc, stratified).
+/// Shadow rays per vertex from a column towards a light with a size (its disc, stratified),
+/// where the columns of sizes are compared (a lamp's radius chosen) and for a sun's disc.
 constexpr int kSphereShadowRays = 4;
+/// Shadow rays per vertex from a lamp's column in the rounds' fits: a row averages over its
+/// tens of vertices (8-24 paths a pixel, combined over rounds), each with its own point of
+/// the disc, so one ray each estimates the penumbra as well as four do for a quarter of the
+/// rays (docs/benchmarks.md, session 33). Choosing the radius compares columns of different
+/// sizes, whose noise the loss would count against the larger: that keeps kSphereShadowRays.
+constexpr int kColumnShadowRays = 2;
 
 }  // namespace lp

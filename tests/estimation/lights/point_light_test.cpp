@@ -109,17 +109,21 @@ TEST(PointLights, ASphereLightsPenumbraIsTheDiscsVisibleSegment) {
     const Eigen::Vector3d p(x, 0, 0);
     const Eigen::Vector3d to = q - p;
     const double d = to.norm();
-    double seen = 0, single = 0;
+    double seen = 0, single = 0, column = 0;  // kSphereShadowRays, 1 and the columns' kColumnShadowRays
     const int n = 4096;
     for (int k = 0; k < n; ++k) {
       seen += SphereVisibility(scene, p, q, r, to / d, d, k);
       single += SphereVisibility(scene, p, q, r, to / d, d, k, 1);
+      column += SphereVisibility(scene, p, q, r, to / d, d, k, kColumnShadowRays);
     }
     seen /= n;
     single /= n;
-    std::printf("x %+.2f: seen %.4f (one ray per key %.4f), the disc's segment %.4f\n", x, seen, single, segment(-x));
+    column /= n;
+    std::printf("x %+.2f: seen %.4f (one ray per key %.4f, %d %.4f), the disc's segment %.4f\n", x, seen, single,
+                kColumnShadowRays, column, segment(-x));
     EXPECT_NEAR(seen, segment(-x), 0.02) << x;
     EXPECT_NEAR(single, segment(-x), 0.02) << x;
+    EXPECT_NEAR(column, segment(-x), 0.02) << x;
   }
   // A point light there is all or nothing.
   EXPECT_EQ(SphereVisibility(scene, {-0.05, 0, 0}, q, 0, (q - Eigen::Vector3d(-0.05, 0, 0)).normalized(),
