@@ -57,6 +57,12 @@ inline bool OnGrid(std::size_t p, int width, int stride) {
 /// outside the fold (ChoosePrior; the fold's pixels are all scored).
 constexpr int kPriorStride = 2;
 
+/// A directional light whose held-out loss is under this share of the cells' it replaced
+/// is a sun, not a flat sky taken for one: the map's prior is not chosen beside it (the map
+/// alone at weaker weights is tried to catch that sky; Cycles' uniform sky's light came in at
+/// 0.94 of its cells', the suns measured 0.08-0.27: docs/benchmarks.md, session 33).
+constexpr double kDecisiveSunRatio = 0.5;
+
 /// The rows (every n-th) the lights' shadow-seeing refinements look at: a quarter of a
 /// 160 x 120 view's (what a column costs on all rows: docs/benchmarks.md).
 constexpr std::size_t kShadowRows = 4800;
@@ -401,6 +407,9 @@ class Estimator {
   // Near lights.
   std::vector<PointLight> points_;  ///< the point lights so far, normalized units
   std::vector<DirectionalLight> suns_;  ///< the directional lights so far, normalized units
+  /// The kept directional light's held-out loss over its cells' (SelectDirectionalLight); 1
+  /// when none was selected in this estimate.
+  double sun_held_out_ratio_ = 1;
   std::vector<EmitterLight> emitters_;  ///< the glowing surfaces so far, normalized units
   bool emitters_sought_ = false;
   /// Per emitter (its triangles): the least radiance its clipped pixels show (normalized).

@@ -84,6 +84,10 @@ std::string Estimator::PriorLeftOut(const std::vector<Light>& lights) const {
   // (a reconstructed mesh's albedo is the colours seen: a weaker prior lets the map explain
   // its errors, and the held-out pixels, under the same albedo, agree: on our two-lamp scan
   // alpha 0.1 was chosen and the cool lamp came back 140 % of its distance off, 13 % at 3)
+  if (!suns_.empty() && sun_held_out_ratio_ < kDecisiveSunRatio)
+    return Fmt("a directional light that predicts the held-out pixels far better than the cells it replaced (its "
+               "held-out loss %.3g of theirs, under %g): a sun, not a flat sky; the given --alpha",
+               sun_held_out_ratio_, kDecisiveSunRatio);
   if (!bundle_.mesh.shaded.empty())
     return "a reconstructed mesh (its albedo is not known, and a weaker prior would let the map explain its "
            "errors): the given --alpha";

@@ -173,6 +173,7 @@ bool Estimator::SelectDirectionalLight(const DirectionalProposal& proposal, doub
   const DirectionalLight& sun = proposal.light;
   const double with_loss = suns_.empty() ? without_loss : HoldoutLoss(points_, &sun, true);
   const bool keep = with_loss < (1 - opt_.directional.min_gain) * without_loss;
+  if (keep) sun_held_out_ratio_ = without_loss > 0 ? with_loss / without_loss : 1;
   char line[400];
   std::snprintf(line, sizeof line,
                 "directional light from (%.4f, %.4f, %.4f), angular radius %.3g deg, in place of %zu cells holding "
