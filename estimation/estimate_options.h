@@ -150,7 +150,7 @@ struct EstimateOptions {
   /// radians, or a light came or went (0: every pass). Where texture splits the surfaces
   /// into many segments, each pass moves a lamp part of the way (docs/method.md).
   double albedo_settle = 0.1;
-  int albedo_samples = 64;
+  int albedo_samples = 32;
   /// The albedo's absolute scale, for a reconstructed mesh (one with `shaded` colours): the
   /// colours seen are albedo times the light, so their scale is the light's, and it sets
   /// the interreflections (which scale with the albedo) and so where the lamps go. The
