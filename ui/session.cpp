@@ -84,6 +84,7 @@ struct Session::Impl {
   LiveTrigger trigger;
   Eigen::Matrix4d live_pose = Eigen::Matrix4d::Identity();  // the last tracked pose
   int live_started = 0;
+  std::int64_t live_frames = -1;  // the run's frames when the last estimate took its snapshot
   // Export: one at a time, on its own thread.
   std::thread exporter;
   std::atomic<bool> exporting{false};
@@ -179,6 +180,7 @@ struct Session::Impl {
     fused_any = false;
     trigger = LiveTrigger(options.live_trigger);
     live_started = 0;
+    live_frames = -1;
     try {
       run = std::make_unique<ReconstructionRun>(rec_options);
     } catch (const std::exception& e) {
@@ -404,7 +406,7 @@ struct Session::Impl {
       }
       try {
         PollRecording();
-        Step();
+        if (!Step()) MaybeStartLive(true);  // stopped: the scan's last frames, once
       } catch (const std::exception& e) {  // nothing may escape the worker
         StopPlaying(e.what());
       }
@@ -425,9 +427,13 @@ struct Session::Impl {
 
   /// On the worker, after a tracked frame: a live estimate, when live estimation is on, the
   /// model has changed enough since the last one's snapshot, and the last one has its
-  /// result (or failed, or none runs); warm-started from that result.
-  void MaybeStartLive() {
-    if (!live_on || !run || !fused_any || !trigger.Due(*run, live_pose)) return;
+  /// result (or failed, or none runs); warm-started from that result. With `stopped` (the
+  /// input paused or at its end), any frame since the last snapshot is enough: the scan's
+  /// last frames get their estimate once the one running finishes, as `--headless --live`'s
+  /// last estimate does.
+  void MaybeStartLive(bool stopped = false) {
+    if (!live_on || !run || !fused_any) return;
+    if (stopped ? run->frames() == live_frames : !trigger.Due(*run, live_pose)) return;
     EstimateJob* started;
     {
       std::lock_guard<std::mutex> lock(mutex);
@@ -455,6 +461,7 @@ struct Session::Impl {
     std::string error;
     try {
       snapshot = Snapshot();
+      if (run) live_frames = run->frames();  // (a pressed estimate's snapshot covers them too)
     } catch (const std::exception& e) {
       error = e.what();
     }

@@ -187,6 +187,39 @@ TEST(Session, CancelStopsTheEstimateAndClosingStopsEverything) {
   s.reset();
 }
 
+// Live estimation (issue 44): when the input stops (here at the recording's end), the frames
+// since the last estimate's snapshot get one more live estimate, warm-started, once the one
+// running has its result; then no more. The trigger is set never to fire again after the
+// first snapshot, so the second can only be that one (the window waited for a tracked frame
+// that never came: Viewer.LiveEstimatesFollowTheScan timed out when the first estimate
+// outlasted the recording).
+TEST(Session, TheScansLastFramesGetALiveEstimateWhenTheInputStops) {
+  SessionOptions o = Options();
+  o.live_trigger.growth = 1e9;
+  o.live_trigger.travel = 1e9;  // (metres and radians: never)
+  Session s(o);
+  s.SetLive(true, Small());
+  Reconstruct(&s);
+  const int at_end = s.live().live_estimates;
+  EXPECT_EQ(at_end, 1) << "only the first snapshot during the play";
+  // The first has its result (the second, when it starts, replaces it as the job shown) ...
+  ASSERT_TRUE(WaitForEstimate(s, [&] {
+    const EstimateStatus e = s.estimate();
+    return e.live_index >= 2 || (e.result && !(e.finished_at < e.started_at));
+  })) << s.estimate().message;
+  // ... and the second starts at once (the worker looks every 50 ms; a minute is a hang).
+  ASSERT_TRUE(WaitFor([&] { return s.live().live_estimates >= 2; }, 60)) << "no estimate for the last frames";
+  ASSERT_TRUE(WaitForEstimate(s, [&] {
+    const EstimateStatus e = s.estimate();
+    return e.live_index == 2 && e.state == EstimateState::kDone;
+  })) << s.estimate().message;
+  const EstimateStatus last = s.estimate();
+  EXPECT_TRUE(last.live);
+  EXPECT_TRUE(last.warm) << "warm-started from the first";
+  std::this_thread::sleep_for(std::chrono::seconds(1));
+  EXPECT_EQ(s.live().live_estimates, 2) << "one for the last frames, then no more";
+}
+
 TEST(Session, BadInputIsAMessageNotACrash) {
   Session s(Options());
   s.Open("/no/such/recording.oni");
