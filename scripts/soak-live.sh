@@ -11,7 +11,9 @@
 # [SUMMARY OPTIONS] (default 30 minutes, out/soak; the options go to soak-summary.py).
 # SOAK_INTERVAL (seconds between states, 30), SOAK_FRAMES (frames in the loop, 90) and
 # SOAK_LIVE (the live switch's line, "live on": its keys as `estimate`'s) shorten it for
-# the tests (tests/cli_soak.sh). Needs a build (scripts/build.sh).
+# the tests (tests/cli_soak.sh); SOAK_MIN_LIVE=N runs on past MINUTES until the N-th live
+# estimate has its result (a count, not a rate: a loaded machine only takes longer). Needs a
+# build (scripts/build.sh).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 minutes="${1:-30}"
@@ -31,6 +33,10 @@ checks=$(python3 -c "import math,sys; print(max(1, math.ceil(float(sys.argv[1]) 
     echo "sleep $interval"
     echo "state $out/state-$(printf %03d "$k").json"
   done
+  if [ -n "${SOAK_MIN_LIVE:-}" ]; then  # on a loaded machine: run on until that many have results
+    echo "wait-live $SOAK_MIN_LIVE 900"
+    echo "state $out/state-$(printf %03d $((checks + 1))).json"
+  fi
   echo "quit"
 } >"$out/script.txt"
 frames=$(cd "$out/frames" && pwd)

@@ -26,7 +26,8 @@ def finished(s):
     e = s["estimate"]
     if not e.get("live"):
         return 0
-    return e["live_index"] if e["state"] == "done" else e["live_index"] - 1
+    own = e["has_result"] if "has_result" in e else e["state"] == "done"  # (its own result, refining or not)
+    return e["live_index"] if own else e["live_index"] - 1
 
 
 print("| seconds | frames read | dropped | live estimates started | finished | resident MiB |")
