@@ -183,8 +183,7 @@ bool WaitLive(const Call& c) {
   c.Timeout(c.Arg(2, 600), "the live estimates");
   if (c.v.est.state == EstimateState::kFailed) c.Fail(c.v.est.message);
   const EstimateStatus& e = c.v.est;
-  const bool finished = !std::isnan(e.finished_at) && e.finished_at >= e.started_at;  // its own, not the last's
-  return e.live && (e.live_index > c.Arg(1, 1) || (e.live_index == c.Arg(1, 1) && finished));
+  return e.live && (e.live_index > c.Arg(1, 1) || (e.live_index == c.Arg(1, 1) && e.HasOwnResult()));
 }
 
 /// `sleep S`: S seconds pass, the window and the workers going on.

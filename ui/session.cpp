@@ -440,7 +440,7 @@ struct Session::Impl {
       EstimateStatus last = job ? job->status() : idle;
       const bool running = last.state == EstimateState::kPreparing || last.state == EstimateState::kRunning;
       // Its own result (a live job shows the last one's until it has its own).
-      const bool has_result = last.result && !(last.finished_at < last.started_at);
+      const bool has_result = last.HasOwnResult();
       if (running && !has_result) return;  // the last one still estimating
       EstimateJob::Settings settings = JobSettings(live_options);
       if (last.result) settings.options.warm = WarmStartOf(*last.result);

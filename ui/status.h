@@ -79,6 +79,8 @@ struct EstimateStatus {
   double started_at = std::nan(""), finished_at = std::nan("");
   bool live = false;
   int live_index = 0;  ///< which live estimate since the source opened (1 = the first)
+  /// Whether the job has its own result (a live job shows the last one's until it has it).
+  bool HasOwnResult() const { return result && !std::isnan(finished_at) && !(finished_at < started_at); }
   bool warm = false;   ///< warm-started from the last estimate
   /// Lit shading of the snapshot's mesh under the estimate (per vertex, image units),
   /// refined progressively after the estimate; photometric error per vertex against the

@@ -1025,8 +1025,7 @@ nlohmann::json Viewer::EstimateStateJson() const {
           {"live", est_.live},
           {"live_index", est_.live_index},
           {"warm", est_.warm},
-          // (its own: a live job shows the last one's result until it has its own)
-          {"has_result", est_.result != nullptr && !(est_.finished_at < est_.started_at)},
+          {"has_result", est_.HasOwnResult()},
           {"age_seconds", std::isnan(est_.finished_at) ? json() : json(session_.seconds() - est_.finished_at)}};
 }
 

@@ -37,8 +37,8 @@ inline double HashUnit(std::uint64_t z) {
 constexpr int kSphereShadowRays = 4;
 /// Shadow rays per vertex from a lamp's column in the rounds' fits: a row averages over its
 /// tens of vertices (8-24 paths a pixel, combined over rounds), each with its own point of
-/// the disc, so one ray each estimates the penumbra as well as four do for a quarter of the
-/// rays (docs/benchmarks.md, session 33). Choosing the radius compares columns of different
+/// the disc, so two rays each estimate the penumbra as well as four do for half the rays
+/// (one each let the penumbra's noise move the compass search: docs/benchmarks.md, session 33). Choosing the radius compares columns of different
 /// sizes, whose noise the loss would count against the larger: that keeps kSphereShadowRays.
 constexpr int kColumnShadowRays = 2;
 

@@ -205,7 +205,7 @@ TEST(Session, TheScansLastFramesGetALiveEstimateWhenTheInputStops) {
   // The first has its result (the second, when it starts, replaces it as the job shown) ...
   ASSERT_TRUE(WaitForEstimate(s, [&] {
     const EstimateStatus e = s.estimate();
-    return e.live_index >= 2 || (e.result && !(e.finished_at < e.started_at));
+    return e.live_index >= 2 || e.HasOwnResult();
   })) << s.estimate().message;
   // ... and the second starts at once (the worker looks every 50 ms; a minute is a hang).
   ASSERT_TRUE(WaitFor([&] { return s.live().live_estimates >= 2; }, 60)) << "no estimate for the last frames";
