@@ -12,8 +12,10 @@
 #include <opencv2/imgproc.hpp>
 
 #include "common/atomic_file.h"
+#include "common/parallel.h"
 #include "common/color.h"
 #include "common/error.h"
+#include "common/parallel.h"
 
 namespace lp {
 
@@ -237,8 +239,10 @@ ImageRGB Linearize(const ImageRgb8& image, const Calibration& c, double exposure
       table[ch][v] = c.response ? static_cast<float>(std::max(0.0, c.response->Apply(ch, v / 255.0)))
                                 : SrgbToLinear(v / 255.f);  // uncalibrated: the sRGB standard
   ImageRGB out(image.width, image.height);
-  for (std::size_t p = 0; p < image.pixels(); ++p)
-    for (int ch = 0; ch < 3; ++ch) out.data[3 * p + ch] = table[ch][image.data[3 * p + ch]];
+  ParallelForChunks(0, image.pixels(), 16384, [&](std::size_t p0, std::size_t p1) {
+    for (std::size_t p = p0; p < p1; ++p)
+      for (int ch = 0; ch < 3; ++ch) out.data[3 * p + ch] = table[ch][image.data[3 * p + ch]];
+  });
   if (c.color && c.color->distorted()) {
     cv::Mat src(out.height, out.width, CV_32FC3, out.data.data()), dst, map1, map2;
     UndistortMaps(*c.color, &map1, &map2);
@@ -250,14 +254,18 @@ ImageRGB Linearize(const ImageRgb8& image, const Calibration& c, double exposure
   double scale = 1;
   if (c.reference_exposure > 0 && c.reference_gain > 0 && exposure > 0 && gain > 0)
     scale = (c.reference_exposure * c.reference_gain) / (exposure * gain);
-  for (int y = 0; y < out.height; ++y)
-    for (int x = 0; x < out.width; ++x) {
-      const float f = static_cast<float>(scale / c.vignetting.At(x, y, out.width, out.height));
-      float* px = out.at(x, y);
-      px[0] *= f;
-      px[1] *= f;
-      px[2] *= f;
-    }
+  const bool flat = c.vignetting.a == 0 && c.vignetting.b == 0 && c.vignetting.c == 0;
+  if (flat && scale == 1) return out;  // every pixel's factor is 1
+  ParallelForChunks(0, static_cast<std::size_t>(out.height), 16, [&](std::size_t y0, std::size_t y1) {
+    for (int y = static_cast<int>(y0); y < static_cast<int>(y1); ++y)
+      for (int x = 0; x < out.width; ++x) {
+        const float f = static_cast<float>(scale / c.vignetting.At(x, y, out.width, out.height));
+        float* px = out.at(x, y);
+        px[0] *= f;
+        px[1] *= f;
+        px[2] *= f;
+      }
+  });
   return out;
 }
 

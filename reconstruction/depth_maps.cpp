@@ -26,6 +26,23 @@ Camera ScaleIntrinsics(const Camera& k, int level) {
   return s;
 }
 
+std::vector<float> NearestDepthAtLevel(const std::vector<float>& depth, int width, int height, int level) {
+  const int f = 1 << level, w = width >> level, h = height >> level;
+  std::vector<float> out(static_cast<std::size_t>(w) * h, 0.f);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      float z = std::numeric_limits<float>::max();
+      for (int dy = 0; dy < f && z > 0; ++dy)
+        for (int dx = 0; dx < f; ++dx) {
+          const float d = depth[static_cast<std::size_t>(y * f + dy) * width + x * f + dx];
+          z = d > 0 ? std::min(z, d) : 0.f;
+          if (!(z > 0)) break;
+        }
+      out[static_cast<std::size_t>(y) * w + x] = z;
+    }
+  return out;
+}
+
 std::vector<float> DepthToMetres(const DepthImage& depth, const PreprocessOptions& o) {
   std::vector<float> m(depth.data.size(), 0.f);
   for (std::size_t p = 0; p < m.size(); ++p) {

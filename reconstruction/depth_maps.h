@@ -52,6 +52,10 @@ void ComputeVertexNormalMaps(DepthLevel* level, int normal_radius = 1);
 /// `first_level`, and vertex and normal maps from there on.
 std::vector<DepthLevel> PreprocessDepth(const DepthImage& depth, const Camera& k, const PreprocessOptions& options);
 
+/// A depth map (metres, 0 = none) at pyramid level `level`: each pixel the nearest depth of
+/// its 2^level x 2^level block, 0 where any of the block has none.
+std::vector<float> NearestDepthAtLevel(const std::vector<float>& depth, int width, int height, int level);
+
 /// Intrinsics of pyramid level `level` (each level halves the size).
 Camera ScaleIntrinsics(const Camera& k, int level);
 

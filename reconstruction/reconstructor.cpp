@@ -11,6 +11,7 @@
 
 #include "common/color.h"
 #include "common/error.h"
+#include "common/parallel.h"
 #include "reconstruction/geometry.h"
 
 namespace lp {
@@ -97,18 +98,31 @@ double Sharpness(const ImageRgb8& im) {
   const int w = im.width, h = im.height;
   if (w < 3 || h < 3) return 0;
   std::vector<float> grey(im.pixels());
-  for (std::size_t p = 0; p < grey.size(); ++p)
-    grey[p] = 0.299f * im.data[3 * p] + 0.587f * im.data[3 * p + 1] + 0.114f * im.data[3 * p + 2];
-  double sum = 0, sum2 = 0;
-  long n = 0;
-  for (int y = 1; y + 1 < h; ++y)
-    for (int x = 1; x + 1 < w; ++x) {
-      const std::size_t p = static_cast<std::size_t>(y) * w + x;
-      const double lap = grey[p - 1] + grey[p + 1] + grey[p - w] + grey[p + w] - 4.0 * grey[p];
-      sum += lap;
-      sum2 += lap * lap;
-      ++n;
+  ParallelForChunks(0, grey.size(), 16384, [&](std::size_t p0, std::size_t p1) {
+    for (std::size_t p = p0; p < p1; ++p)
+      grey[p] = 0.299f * im.data[3 * p] + 0.587f * im.data[3 * p + 1] + 0.114f * im.data[3 * p + 2];
+  });
+  // Per row, then summed in row order: the same value on any number of threads.
+  std::vector<double> row_sum(static_cast<std::size_t>(h), 0.0), row_sum2(row_sum.size(), 0.0);
+  ParallelForChunks(1, static_cast<std::size_t>(h - 1), 16, [&](std::size_t y0, std::size_t y1) {
+    for (std::size_t y = y0; y < y1; ++y) {
+      double a = 0, b = 0;
+      for (int x = 1; x + 1 < w; ++x) {
+        const std::size_t p = y * w + x;
+        const double lap = grey[p - 1] + grey[p + 1] + grey[p - w] + grey[p + w] - 4.0 * grey[p];
+        a += lap;
+        b += lap * lap;
+      }
+      row_sum[y] = a;
+      row_sum2[y] = b;
     }
+  });
+  double sum = 0, sum2 = 0;
+  for (int y = 1; y + 1 < h; ++y) {
+    sum += row_sum[y];
+    sum2 += row_sum2[y];
+  }
+  const double n = static_cast<double>(w - 2) * (h - 2);
   const double mean = sum / n;
   return sum2 / n - mean * mean;
 }
@@ -161,13 +175,16 @@ struct Reconstructor::Impl {
   explicit Impl(const ReconstructionOptions& opt) : o(opt), volume(opt.tsdf), relocalizer(opt.relocalizer) {}
 
   /// The model as a camera at `pose` sees it, for tracking (raycast at model_level);
-  /// `hint` bounds the search (TsdfVolume::Raycast), `raycast` receives the maps if asked.
+  /// `hint` (the last raycast) and `measured` (the depth just fused, metres, full size) bound
+  /// the search (TsdfVolume::Raycast); `raycast` receives the maps if asked.
   ModelMaps ModelFrom(const Camera& depth_k, const Eigen::Matrix4d& pose, const TsdfVolume::Maps* hint = nullptr,
-                      TsdfVolume::Maps* raycast = nullptr) const {
+                      TsdfVolume::Maps* raycast = nullptr, const std::vector<float>* measured = nullptr) const {
     TsdfVolume::Maps maps;
     const int level = std::clamp(o.model_level, 0, std::max(0, o.preprocess.levels - 1));
     const Camera k = ScaleIntrinsics(depth_k, level);
-    volume.Raycast(k, pose, &maps, false, hint);
+    const std::vector<float> guide =
+        measured ? NearestDepthAtLevel(*measured, depth_k.width, depth_k.height, level) : std::vector<float>();
+    volume.Raycast(k, pose, &maps, false, hint, guide.empty() ? nullptr : &guide);
     ModelMaps model_maps = MakeModelMaps(k, maps.vertex, maps.normal, pose, o.preprocess.levels, level);
     if (raycast) *raycast = std::move(maps);
     return model_maps;
@@ -219,8 +236,9 @@ struct Reconstructor::Impl {
     const ImageRGB color = Linearize(f.color, o.calibration, f.exposure, f.gain);
     const Eigen::Matrix4d* extrinsics =
         !f.registered && o.calibration.color_from_depth ? &*o.calibration.color_from_depth : nullptr;
-    r->blocks_updated = volume.Integrate(DepthToMetres(f.depth, o.preprocess), f.depth_intrinsics, &color,
-                                         ColorK(f), world_from_camera, extrinsics);
+    const std::vector<float> metres = DepthToMetres(f.depth, o.preprocess);
+    r->blocks_updated =
+        volume.Integrate(metres, f.depth_intrinsics, &color, ColorK(f), world_from_camera, extrinsics);
     r->times.fuse = Since(t0);
     t0 = Clock::now();
     // The last raycast bounds the search only when the camera moved less than its margin
@@ -229,7 +247,7 @@ struct Reconstructor::Impl {
     const bool hint = !last_maps.depth.empty() && moved.block<3, 1>(0, 3).norm() < 0.5 * (o.tsdf.truncation + 0.05) &&
                       RotationAngle(moved) < 0.05;
     TsdfVolume::Maps maps;
-    model = ModelFrom(f.depth_intrinsics, world_from_camera, hint ? &last_maps : nullptr, &maps);
+    model = ModelFrom(f.depth_intrinsics, world_from_camera, hint ? &last_maps : nullptr, &maps, &metres);
     last_maps = std::move(maps);
     last_maps_pose = world_from_camera;
     r->times.raycast = Since(t0);

@@ -1,8 +1,13 @@
 #include "reconstruction/tsdf_volume.h"
 
+#include <sys/mman.h>
+
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <limits>
+#include <new>
+#include <type_traits>
 
 #include "common/error.h"
 #include "common/parallel.h"
@@ -19,26 +24,13 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
 BlockHash::BlockHash() { Rehash(1024); }
 
-std::uint64_t BlockHash::Key(int bx, int by, int bz) {
-  constexpr std::int64_t off = 1 << 20;
-  return (static_cast<std::uint64_t>(bx + off) << 42) | (static_cast<std::uint64_t>(by + off) << 21) |
-         static_cast<std::uint64_t>(bz + off);
-}
-
-int BlockHash::Find(std::uint64_t key) const {
-  for (std::size_t i = SplitMix64(key) & mask_;; i = (i + 1) & mask_) {
-    if (keys_[i] == key) return values_[i];
-    if (keys_[i] == kEmpty) return -1;
-  }
-}
-
 int BlockHash::Insert(std::uint64_t key, int value) {
-  if (2 * (size_ + 1) > keys_.size()) Rehash(2 * keys_.size());
+  if (2 * (size_ + 1) > slots_.size()) Rehash(2 * slots_.size());
   for (std::size_t i = SplitMix64(key) & mask_;; i = (i + 1) & mask_) {
-    if (keys_[i] == key) return values_[i];
-    if (keys_[i] == kEmpty) {
-      keys_[i] = key;
-      values_[i] = value;
+    Slot& slot = slots_[i];
+    if (slot.key == key) return slot.value;
+    if (slot.key == kEmpty) {
+      slot = {key, value};
       ++size_;
       return value;
     }
@@ -46,41 +38,44 @@ int BlockHash::Insert(std::uint64_t key, int value) {
 }
 
 void BlockHash::Rehash(std::size_t capacity) {
-  std::vector<std::uint64_t> old_keys = std::move(keys_);
-  std::vector<int> old_values = std::move(values_);
-  keys_.assign(capacity, kEmpty);
-  values_.assign(capacity, -1);
+  std::vector<Slot> old = std::move(slots_);
+  slots_.assign(capacity, Slot{});
   mask_ = capacity - 1;
   size_ = 0;
-  for (std::size_t i = 0; i < old_keys.size(); ++i)
-    if (old_keys[i] != kEmpty) Insert(old_keys[i], old_values[i]);
+  for (const Slot& slot : old)
+    if (slot.key != kEmpty) Insert(slot.key, slot.value);
 }
+
+static_assert(std::is_trivially_destructible_v<VoxelBlock>);
+
+// ---- BlockArena ----------------------------------------------------------------------
+
+VoxelBlock* BlockArena::New() {
+  if (used_ == kPerChunk) {
+    void* p = std::aligned_alloc(std::size_t{2} << 20, kChunkBytes);
+    if (!p) throw std::bad_alloc();
+    madvise(p, kChunkBytes, MADV_HUGEPAGE);  // a hint: without huge pages the chunk still works
+    chunks_.emplace_back(static_cast<VoxelBlock*>(p));
+    used_ = 0;
+  }
+  return new (chunks_.back().get() + used_++) VoxelBlock();
+}
+
+void BlockArena::Free::operator()(VoxelBlock* p) const { std::free(p); }  // VoxelBlock is trivially destructible
 
 // ---- VolumeStore ---------------------------------------------------------------------
 
-int VolumeStore::FindBlock(int bx, int by, int bz, BlockCache* cache) const {
-  if (!cache) return hash.Find(BlockHash::Key(bx, by, bz));
-  if (cache->bx != bx || cache->by != by || cache->bz != bz) {
-    *cache = {bx, by, bz, hash.Find(BlockHash::Key(bx, by, bz))};
-  }
-  return cache->index;
-}
 
 int VolumeStore::AllocateBlock(int bx, int by, int bz) {
   const int next = static_cast<int>(blocks.size());
   const int index = hash.Insert(BlockHash::Key(bx, by, bz), next);
   if (index == next) {
-    blocks.push_back(std::make_unique<VoxelBlock>());
+    blocks.push_back(arena.New());
     coords.emplace_back(bx, by, bz);
   }
   return index;
 }
 
-const Voxel* VolumeStore::VoxelAt(int ix, int iy, int iz, BlockCache* cache) const {
-  const int b = FindBlock(ix >> kBlockShift, iy >> kBlockShift, iz >> kBlockShift, cache);
-  if (b < 0) return nullptr;
-  return &blocks[b]->v[LocalIndex(ix & kBlockMask, iy & kBlockMask, iz & kBlockMask)];
-}
 
 bool VolumeStore::Cell(int ix, int iy, int iz, const Voxel* out[8], BlockCache* cache,
                        const VoxelColor* colors[8]) const {
@@ -164,7 +159,7 @@ TsdfVolume TsdfVolume::Clone() const {
   c.store.hash = m.store.hash;
   c.store.coords = m.store.coords;
   c.store.blocks.reserve(m.store.blocks.size());
-  for (const auto& b : m.store.blocks) c.store.blocks.push_back(std::make_unique<VoxelBlock>(*b));
+  for (const VoxelBlock* b : m.store.blocks) c.store.blocks.push_back(new (c.store.arena.New()) VoxelBlock(*b));
   c.stamp = m.stamp;
   c.frame = m.frame;
   return copy;
@@ -195,6 +190,7 @@ std::vector<std::vector<Eigen::Vector3i>> BandBlocks(const std::vector<float>& d
                                                       const Eigen::Matrix3f& R, const Eigen::Vector3f& t, float trunc,
                                                       float block) {
   const std::size_t rows = static_cast<std::size_t>((k.h + 1) / 2);
+  const float per_block = 1.f / block;
   std::vector<std::vector<Eigen::Vector3i>> found(rows);
   ParallelForChunks(0, rows, 8, [&](std::size_t r0, std::size_t r1) {
     for (std::size_t r = r0; r < r1; ++r) {
@@ -210,9 +206,9 @@ std::vector<std::vector<Eigen::Vector3i>> BandBlocks(const std::vector<float>& d
           const float zs = z - dz + (2 * dz) * s / steps;
           if (zs <= 0) continue;
           const Eigen::Vector3f p = R * (ray * zs) + t;
-          const Eigen::Vector3i b(static_cast<int>(std::floor(p.x() / block)),
-                                  static_cast<int>(std::floor(p.y() / block)),
-                                  static_cast<int>(std::floor(p.z() / block)));
+          const Eigen::Vector3i b(static_cast<int>(std::floor(p.x() * per_block)),
+                                  static_cast<int>(std::floor(p.y() * per_block)),
+                                  static_cast<int>(std::floor(p.z() * per_block)));
           if (b != last) found[r].push_back(b);
           last = b;
         }
@@ -261,6 +257,7 @@ struct VoxelUpdate {
   std::vector<float> inv;         ///< 1 / (weight + 1): no division per voxel
   std::vector<float> lambda;      ///< per pixel: ray length per unit depth (no square root per voxel)
   std::vector<float> color_z;     ///< ColorCameraDepth, or empty
+  bool same_camera;               ///< colour on the depth's pixel grid: a voxel's colour pixel is its depth pixel
 
   VoxelUpdate(const std::vector<float>& depth_, const Camera& k_, const ImageRGB* color_, const Camera& color_k,
               const Eigen::Matrix4f& wfc, const Eigen::Matrix4d* color_from_depth, float voxel_, float trunc_,
@@ -274,6 +271,8 @@ struct VoxelUpdate {
                                                  : Eigen::Matrix4f(Eigen::Matrix4f::Identity());
     Rcd = cfd.block<3, 3>(0, 0);
     tcd = cfd.block<3, 1>(0, 3);
+    same_camera = color && !color_from_depth && color->width == k.w && color->height == k.h && ck.fx == k.fx &&
+                  ck.fy == k.fy && ck.cx == k.cx && ck.cy == k.cy;
     if (color && color_from_depth) color_z = ColorCameraDepth(depth, k, ck, Rcd, tcd, color->width, color->height);
     max_w = static_cast<int>(std::clamp(max_weight, 1.f, 65535.f));
     inv.resize(static_cast<std::size_t>(max_w) + 1);
@@ -285,23 +284,44 @@ struct VoxelUpdate {
             std::sqrt(1 + ((x - k.cx) / k.fx) * ((x - k.cx) / k.fx) + ((y - k.cy) / k.fy) * ((y - k.cy) / k.fy));
   }
 
+  /// A block row by row: first where each voxel of the row projects (no branches, so the
+  /// compiler vectorizes it), then the running averages of those that project onto a depth.
   void Block(VoxelBlock& blk, const Eigen::Vector3i& origin) const {
+    const Eigen::Vector3f step = Rt.col(0) * voxel;
     for (int lz = 0; lz < kBlockSide; ++lz)
       for (int ly = 0; ly < kBlockSide; ++ly) {
         const Eigen::Vector3f row_start = Rt * (Eigen::Vector3f(origin.x(), origin.y() + ly, origin.z() + lz) * voxel) + tc;
-        const Eigen::Vector3f step = Rt.col(0) * voxel;
+        float px[kBlockSide], py[kBlockSide], pz[kBlockSide];
+        int pix[kBlockSide];
+        ProjectRow(row_start, step, px, py, pz, pix);
         for (int lx = 0; lx < kBlockSide; ++lx)
-          UpdateVoxel(blk, VolumeStore::LocalIndex(lx, ly, lz), row_start + step * static_cast<float>(lx));
+          if (pix[lx] >= 0)
+            UpdateVoxel(blk, VolumeStore::LocalIndex(lx, ly, lz), Eigen::Vector3f(px[lx], py[lx], pz[lx]),
+                        static_cast<std::size_t>(pix[lx]));
       }
   }
 
-  void UpdateVoxel(VoxelBlock& blk, int li, const Eigen::Vector3f& pc) const {
-    if (pc.z() <= 0) return;
-    const float iz = 1.f / pc.z();
-    // +0.5 and truncation round to nearest for the in-image (non-negative) range.
-    const float uf = k.fx * pc.x() * iz + k.cx + 0.5f, vf = k.fy * pc.y() * iz + k.cy + 0.5f;
-    if (!(uf >= 0 && vf >= 0 && uf < k.w && vf < k.h)) return;  // NaN fails too
-    const std::size_t pix = static_cast<std::size_t>(static_cast<int>(vf)) * k.w + static_cast<int>(uf);
+  /// Camera-frame points of a row of voxels and the depth pixel each falls in (nearest),
+  /// -1 behind the camera or outside the image.
+  void ProjectRow(const Eigen::Vector3f& start, const Eigen::Vector3f& step, float* px, float* py, float* pz,
+                  int* pix) const {
+    for (int lx = 0; lx < kBlockSide; ++lx) {
+      const float f = static_cast<float>(lx);
+      px[lx] = start.x() + step.x() * f;
+      py[lx] = start.y() + step.y() * f;
+      pz[lx] = start.z() + step.z() * f;
+    }
+    for (int lx = 0; lx < kBlockSide; ++lx) {
+      const float z = pz[lx] > 0 ? pz[lx] : 1.f, iz = 1.f / z;
+      // +0.5 and truncation round to nearest for the in-image (non-negative) range.
+      const float uf = k.fx * px[lx] * iz + k.cx + 0.5f, vf = k.fy * py[lx] * iz + k.cy + 0.5f;
+      const bool in = pz[lx] > 0 && uf >= 0 && vf >= 0 && uf < k.w && vf < k.h;  // NaN fails too
+      const int u = in ? static_cast<int>(uf) : 0, v = in ? static_cast<int>(vf) : 0;
+      pix[lx] = in ? v * k.w + u : -1;
+    }
+  }
+
+  void UpdateVoxel(VoxelBlock& blk, int li, const Eigen::Vector3f& pc, std::size_t pix) const {
     const float d = depth[pix];
     if (d <= 0) return;
     const float sdf = (d - pc.z()) * lambda[pix];
@@ -311,20 +331,26 @@ struct VoxelUpdate {
     vx.set_sdf((vx.sdf() * vx.weight + tsdf) * inv[vx.weight]);
     vx.weight = static_cast<std::uint16_t>(std::min<int>(vx.weight + 1, max_w));
     if (!color || std::abs(sdf) > 0.5f * trunc) return;
+    if (same_camera) return Mix(blk.c[li], color->data.data() + 3 * pix);
     Color(blk.c[li], extrinsics ? Eigen::Vector3f(Rcd * pc + tcd) : pc);
   }
 
   void Color(VoxelColor& vc, const Eigen::Vector3f& pcol) const {
     if (pcol.z() <= 0) return;
-    const int cu = static_cast<int>(std::lround(ck.fx * pcol.x() / pcol.z() + ck.cx));
-    const int cv = static_cast<int>(std::lround(ck.fy * pcol.y() / pcol.z() + ck.cy));
-    if (cu < 0 || cv < 0 || cu >= color->width || cv >= color->height) return;
+    const float iz = 1.f / pcol.z();
+    const float uf = ck.fx * pcol.x() * iz + ck.cx + 0.5f, vf = ck.fy * pcol.y() * iz + ck.cy + 0.5f;
+    if (!(uf >= 0 && vf >= 0 && uf < color->width && vf < color->height)) return;  // NaN fails too
+    const int cu = static_cast<int>(uf), cv = static_cast<int>(vf);  // nearest
     if (!color_z.empty() && pcol.z() > color_z[static_cast<std::size_t>(cv) * color->width + cu] + trunc) return;
-    const float* c = color->at(cu, cv);
+    Mix(vc, color->at(cu, cv));
+  }
+
+  /// The running mean of a voxel's colour takes `c` (linear RGB; skipped unless finite).
+  void Mix(VoxelColor& vc, const float* c) const {
     if (!(std::isfinite(c[0]) && std::isfinite(c[1]) && std::isfinite(c[2]))) return;
-    const float cw = vc.weight;
+    const float cw = vc.weight * (1.f / 65535.f), to_mean = inv[vc.weight];
     auto mix = [&](std::uint16_t old, float value) {
-      const float v = (old * (1.f / 65535.f) * cw + std::clamp(value, 0.f, 1.f)) / (cw + 1);
+      const float v = (old * cw + std::clamp(value, 0.f, 1.f)) * to_mean;
       return static_cast<std::uint16_t>(v * 65535.f + 0.5f);
     };
     vc.r = mix(vc.r, c[0]);
@@ -349,11 +375,20 @@ std::size_t TsdfVolume::Integrate(const std::vector<float>& depth, const Camera&
   ++m.frame;
   std::vector<int> touched;
   constexpr int kMaxBlock = 1 << 16;  // keys hold +-2^20; edge keys of the mesh +-2^19 voxels
+  // The band lists each block many times: a small direct-mapped table of the blocks just
+  // seen spares most of the hash's probes.
+  constexpr std::size_t kRecent = 4096;
+  std::vector<std::pair<Eigen::Vector3i, int>> recent(kRecent, {Eigen::Vector3i(INT32_MIN, 0, 0), -1});
   for (const auto& list : found)
     for (const Eigen::Vector3i& b : list) {
       if (b.cwiseAbs().maxCoeff() >= kMaxBlock) continue;  // kilometres away: not a room
+      auto& seen = recent[(static_cast<std::size_t>(b.x()) * 73856093u ^ static_cast<std::size_t>(b.y()) * 19349663u ^
+                           static_cast<std::size_t>(b.z()) * 83492791u) &
+                          (kRecent - 1)];
+      if (seen.first == b) continue;  // touched already this frame
       const int index = st.AllocateBlock(b.x(), b.y(), b.z());
       LP_CHECK(index >= 0, "block hash returned no index");
+      seen = {b, index};
       if (static_cast<std::size_t>(index) >= m.stamp.size()) m.stamp.resize(st.blocks.size(), 0);
       if (m.stamp[index] == m.frame) continue;
       m.stamp[index] = m.frame;
@@ -456,6 +491,26 @@ void NarrowByHint(const TsdfVolume::Maps& hint, int w, int h, float trunc, TileR
     }
 }
 
+/// How far in front of and behind a ray's measured depth (its 3x3 neighbourhood's nearest
+/// and farthest) the surface is sought, beyond the truncation: depth noise at a few metres.
+constexpr float kMeasuredMargin = 0.05f;
+
+/// The nearest and farthest measured depth around pixel (x, y); false unless all 9 have one.
+bool MeasuredRange(const std::vector<float>& depth, int w, int h, int x, int y, float* lo, float* hi) {
+  if (x < 1 || y < 1 || x + 1 >= w || y + 1 >= h) return false;
+  float a = std::numeric_limits<float>::max(), b = 0;
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx) {
+      const float z = depth[static_cast<std::size_t>(y + dy) * w + x + dx];
+      if (!(z > 0)) return false;
+      a = std::min(a, z);
+      b = std::max(b, z);
+    }
+  *lo = a;
+  *hi = b;
+  return true;
+}
+
 /// One pixel's ray through the volume: the first zero crossing from the front.
 struct RayMarch {
   const VolumeStore& st;
@@ -480,7 +535,7 @@ struct RayMarch {
 
   /// The crossing between `a` (in front, value prev_s) and `b` (behind, value s), placed
   /// with trilinear values; writes the pixel when the gradient is usable.
-  void Hit(float a, float b, float prev_s, float s, bool prev_precise, bool precise, const Eigen::Vector3f& dir,
+  bool Hit(float a, float b, float prev_s, float s, bool prev_precise, bool precise, const Eigen::Vector3f& dir,
            float len, std::size_t p_idx, BlockCache* cache, TsdfVolume::Maps* out) const {
     float fa = prev_s, fb = s;
     if (!prev_precise) st.Trilinear(t + dir * a, &fa, nullptr, nullptr, cache);
@@ -510,10 +565,26 @@ struct RayMarch {
       out->normal[p_idx] = grad.normalized();
       out->depth[p_idx] = th / len;
       if (with_color) out->color[p_idx] = col;
+      return true;
     }
+    return false;
   }
 
-  void Cast(int x, int y, float zmin, float zmax, TsdfVolume::Maps* out) const {
+  /// Starts loading the voxel nearest `p` when it lies in the cached block: the next step's,
+  /// fetched while this step's trilinear value is computed.
+  void Prefetch(const Eigen::Vector3f& p, const BlockCache& cache) const {
+    const Eigen::Vector3f g = p / voxel;
+    const int ix = static_cast<int>(std::floor(g.x() + 0.5f)), iy = static_cast<int>(std::floor(g.y() + 0.5f)),
+              iz = static_cast<int>(std::floor(g.z() + 0.5f));
+    if (cache.index < 0 || (ix >> kBlockShift) != cache.bx || (iy >> kBlockShift) != cache.by ||
+        (iz >> kBlockShift) != cache.bz)
+      return;
+    __builtin_prefetch(&st.blocks[cache.index]->v[VolumeStore::LocalIndex(ix & kBlockMask, iy & kBlockMask, iz & kBlockMask)]);
+  }
+
+  /// True when the ray met a surface between zmin and zmax (along the axis).
+  /// `cache`: the last block looked up, kept from ray to ray (neighbouring rays cross the same blocks).
+  bool Cast(int x, int y, float zmin, float zmax, BlockCache& cache, TsdfVolume::Maps* out) const {
     const Eigen::Vector3f ray_c((x - k.cx) / k.fx, (y - k.cy) / k.fy, 1.f);
     const float len = ray_c.norm();
     const Eigen::Vector3f dir = R * (ray_c / len);
@@ -522,7 +593,6 @@ struct RayMarch {
     const float t_end = zmax * len;
     float prev_t = -1, prev_s = kNaN;
     bool prev_precise = false;
-    BlockCache cache;
     while (tr <= t_end) {
       const Eigen::Vector3f p = t + dir * tr;
       const Eigen::Vector3f g = p / voxel;
@@ -542,26 +612,28 @@ struct RayMarch {
       // The nearest voxel is enough to step; near the surface the trilinear value decides
       // where the crossing is.
       float s = v->sdf();
+      if (s >= 0) Prefetch(t + dir * (tr + std::max(voxel, 0.8f * s * trunc)), cache);
       bool precise = false;
       if (s < 0.5f) precise = st.Trilinear(p, &s, nullptr, nullptr, &cache);
       if (s < 0) {
-        if (prev_s > 0)  // a zero crossing from the front
-          Hit(prev_t, tr, prev_s, s, prev_precise, precise, dir, len, static_cast<std::size_t>(y) * k.w + x, &cache,
-              out);
-        return;  // behind a surface (or entered from behind): stop
+        if (!(prev_s > 0)) return false;  // behind a surface (or entered from behind): stop
+        // A zero crossing from the front.
+        return Hit(prev_t, tr, prev_s, s, prev_precise, precise, dir, len, static_cast<std::size_t>(y) * k.w + x,
+                   &cache, out);
       }
       prev_precise = precise;
       prev_t = tr;
       prev_s = s;
       tr += std::max(voxel, 0.8f * s * trunc);
     }
+    return false;
   }
 };
 
 }  // namespace
 
 void TsdfVolume::Raycast(const Camera& k, const Eigen::Matrix4d& world_from_camera, Maps* out, bool with_color,
-                         const Maps* hint) const {
+                         const Maps* hint, const std::vector<float>* measured) const {
   const VolumeStore& st = impl_->store;
   const float voxel = impl_->o.voxel, trunc = impl_->o.truncation, block = voxel * kBlockSide;
   const int w = k.width, h = k.height;
@@ -583,12 +655,24 @@ void TsdfVolume::Raycast(const Camera& k, const Eigen::Matrix4d& world_from_came
     NarrowByHint(*hint, w, h, trunc, &ranges);
 
   const RayMarch march{st, pin, R, t, voxel, trunc, with_color};
-  ParallelForChunks(0, static_cast<std::size_t>(h), 4, [&](std::size_t y0, std::size_t y1) {
-    for (int y = static_cast<int>(y0); y < static_cast<int>(y1); ++y)
-      for (int x = 0; x < w; ++x) {
-        const std::size_t tile = ranges.Tile(x, y);
+  const bool guided = measured && measured->size() == n;
+  const float margin = trunc + kMeasuredMargin;
+  // Tile by tile: a tile's rays cross the same few voxel blocks, which stay in the cache.
+  ParallelForChunks(0, static_cast<std::size_t>(ranges.th), 1, [&](std::size_t ty0, std::size_t ty1) {
+    for (int ty = static_cast<int>(ty0); ty < static_cast<int>(ty1); ++ty)
+      for (int tx = 0; tx < ranges.tw; ++tx) {
+        const std::size_t tile = static_cast<std::size_t>(ty) * ranges.tw + tx;
         if (ranges.zmax[tile] <= 0 || ranges.zmin[tile] >= kMaxRayDepth) continue;
-        march.Cast(x, y, ranges.zmin[tile], std::min(ranges.zmax[tile], kMaxRayDepth), out);
+        const float zmin = ranges.zmin[tile], zmax = std::min(ranges.zmax[tile], kMaxRayDepth);
+        BlockCache cache;
+        for (int y = ty * kTile; y < std::min(h, (ty + 1) * kTile); ++y)
+          for (int x = tx * kTile; x < std::min(w, (tx + 1) * kTile); ++x) {
+            float lo, hi;
+            if (guided && MeasuredRange(*measured, w, h, x, y, &lo, &hi) &&
+                march.Cast(x, y, std::max(lo - margin, 0.f), std::min(hi + margin, kMaxRayDepth), cache, out))
+              continue;
+            march.Cast(x, y, zmin, zmax, cache, out);
+          }
       }
   });
 }

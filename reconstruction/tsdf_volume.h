@@ -75,9 +75,12 @@ class TsdfVolume {
   /// the signed distance (from front to back; rays start near the allocated blocks). With
   /// `hint`, a raycast of the same camera from a nearby pose (the previous frame), each
   /// 8x8 tile whose neighbourhood was fully hit there searches only around those depths
-  /// (+-(truncation + 5 cm)): fewer steps through the volume.
+  /// (+-(truncation + 5 cm)): fewer steps through the volume. With `measured`, the depth
+  /// this camera measured at this pose (k's size, metres, 0 = none; the frame just fused),
+  /// each ray whose 3x3 neighbourhood has a depth first searches only around it
+  /// (+-(truncation + 5 cm)), and the whole range only if it finds no surface there.
   void Raycast(const Camera& k, const Eigen::Matrix4d& world_from_camera, Maps* out, bool with_color = false,
-               const Maps* hint = nullptr) const;
+               const Maps* hint = nullptr, const std::vector<float>* measured = nullptr) const;
 
   /// Marching cubes over the allocated blocks (cubes whose 8 corners have weight >=
   /// min_weight); vertices shared between cubes, normals from the triangles, pointing to
