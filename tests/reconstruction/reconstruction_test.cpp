@@ -61,6 +61,17 @@ TsdfOptions SphereVolumeOptions() {
   return o;
 }
 
+/// A sphere fused from 8 exact depth maps around it (camera k).
+TsdfVolume FusedSphere(const Eigen::Vector3d& centre, double r, const Camera& k) {
+  TsdfVolume volume(SphereVolumeOptions());
+  for (int i = 0; i < 8; ++i) {
+    const double a = 2 * 3.14159265358979 * i / 8;
+    const Eigen::Matrix4d T = LookAt(centre + Eigen::Vector3d(std::cos(a), std::sin(a), 0.4 * (i % 2) - 0.2), centre);
+    volume.Integrate(SphereDepth(k, T, centre, r), k, nullptr, k, T);
+  }
+  return volume;
+}
+
 // A sphere fused from exact depth maps around it: the mesh lies on the sphere (within a
 // fraction of a voxel) with outward normals, and a raycast from a new viewpoint gives the
 // sphere's depth.
@@ -69,12 +80,7 @@ TEST(TsdfVolume, SphereFromExactDepthMapsMeshesAndRaycastsTheSphere) {
   const double r = 0.25;
   const Camera k{160, 120, 140, 140, 79.5, 59.5};
   const TsdfOptions o = SphereVolumeOptions();
-  TsdfVolume volume(o);
-  for (int i = 0; i < 8; ++i) {
-    const double a = 2 * 3.14159265358979 * i / 8;
-    const Eigen::Matrix4d T = LookAt(centre + Eigen::Vector3d(std::cos(a), std::sin(a), 0.4 * (i % 2) - 0.2), centre);
-    volume.Integrate(SphereDepth(k, T, centre, r), k, nullptr, k, T);
-  }
+  const TsdfVolume volume = FusedSphere(centre, r, k);
   const Mesh mesh = volume.ExtractMesh(1);
   ASSERT_GT(mesh.triangles.size(), 1000u);
   std::vector<float> off;
@@ -120,6 +126,54 @@ TEST(TsdfVolume, SphereFromExactDepthMapsMeshesAndRaycastsTheSphere) {
   EXPECT_GT(both, 0.97 * hits) << "the raycast misses parts of the sphere";
   EXPECT_LT(Percentile(err, 0.5), 0.1 * o.voxel);
   EXPECT_LT(Percentile(err, 0.99), 0.5 * o.voxel);
+}
+
+// A raycast guided by a measured depth (tracking's, after fusing that frame) finds what the
+// whole search finds: with the true depth it searches only around it, and where the depth
+// is wrong (half a metre behind or in front of the surface) it finds nothing there and
+// falls back to the whole range.
+TEST(TsdfVolume, ARaycastGuidedByAMeasuredDepthFindsWhatTheWholeSearchFinds) {
+  const Eigen::Vector3d centre(0.1, -0.05, 0.3);
+  const double r = 0.25;
+  const Camera k{160, 120, 140, 140, 79.5, 59.5};
+  const TsdfVolume volume = FusedSphere(centre, r, k);
+  const Eigen::Matrix4d T = LookAt(centre + Eigen::Vector3d(0.7, 0.7, 0.1), centre);
+  TsdfVolume::Maps whole;
+  volume.Raycast(k, T, &whole);
+  const std::vector<float> truth = SphereDepth(k, T, centre, r);
+  int hits = 0;
+  for (float d : whole.depth) hits += d > 0;
+  ASSERT_GT(hits, 1000);
+  for (const float shift : {0.f, 0.5f, -0.5f}) {
+    std::vector<float> measured = truth;
+    for (float& d : measured)
+      if (d > 0) d += shift;
+    TsdfVolume::Maps guided;
+    volume.Raycast(k, T, &guided, false, nullptr, &measured);
+    int differ = 0;
+    std::vector<float> moved, err_whole, err_guided;  // against the sphere
+    for (std::size_t p = 0; p < truth.size(); ++p) {
+      if ((whole.depth[p] > 0) != (guided.depth[p] > 0)) ++differ;
+      if (!(whole.depth[p] > 0 && guided.depth[p] > 0 && truth[p] > 0)) continue;
+      moved.push_back(std::abs(whole.depth[p] - guided.depth[p]));
+      err_whole.push_back(std::abs(whole.depth[p] - truth[p]));
+      err_guided.push_back(std::abs(guided.depth[p] - truth[p]));
+    }
+    std::printf("measured depth shifted by %+.1f m: %d pixels hit by one search only; the crossing moved by %.3f mm "
+                "at most; from the sphere: median %.3f / 99th %.3f mm guided, %.3f / %.3f mm whole\n",
+                shift, differ, 1e3 * Percentile(moved, 1.0), 1e3 * Percentile(err_guided, 0.5),
+                1e3 * Percentile(err_guided, 0.99), 1e3 * Percentile(err_whole, 0.5), 1e3 * Percentile(err_whole, 0.99));
+    EXPECT_EQ(differ, 0) << "pixels hit by one search only";
+    if (shift != 0) {  // nothing found around the measured depth: the whole search, the same crossings
+      EXPECT_EQ(Percentile(moved, 1.0), 0.f);
+      continue;
+    }
+    // Starting nearer, a ray brackets the crossing between other steps (one regula falsi
+    // step places it within): as close to the sphere as the whole search's.
+    const float voxel = SphereVolumeOptions().voxel;
+    EXPECT_LT(Percentile(err_guided, 0.5), Percentile(err_whole, 0.5) + 0.01f * voxel);
+    EXPECT_LT(Percentile(err_guided, 0.99), Percentile(err_whole, 0.99) + 0.05f * voxel);
+  }
 }
 
 /// Which paint a point of the painted sphere has: 8 sectors of longitude around the
