@@ -3,7 +3,13 @@
 verdict. Exit 1 when memory grew more than --max-growth (0.10) after the first fifth of the
 run (at least the first minute), when resident memory ever passed --max-mb (none), when
 fewer than --min-finished (1) live estimates finished, or when no frame was read over the
-last two intervals (a stalled reconstruction)."""
+last two intervals (a stalled reconstruction).
+
+Growth is a trend, not a swing: each live estimate's working set (a few hundred MiB) comes
+and goes, so a sample taken during one is higher than one taken between two. The samples
+after the first minutes are split in halves and the later half's highest is compared with
+the earlier half's highest: a leak raises both the floor and the peaks, an estimate's working
+set does not. The swing (highest over lowest after the first minutes) is reported beside it."""
 import argparse
 import glob
 import json
@@ -38,15 +44,19 @@ for s in states:
 last = states[-1]
 settle = max(60.0, 0.2 * last["seconds"])
 after = [s for s in states if s["seconds"] >= settle] or [last]
-base = after[0]["rss_mb"]
-peak = max(s["rss_mb"] for s in after)
+half = max(1, len(after) // 2)
+earlier, later = after[:half], after[half:] or after[-1:]
+base = max(s["rss_mb"] for s in earlier)
+peak = max(s["rss_mb"] for s in later)
 growth = peak / base - 1 if base > 0 else float("nan")
+low = min(s["rss_mb"] for s in after)
 done = finished(last)
 minutes = last["seconds"] / 60
 print("soak: %.1f minutes, %d frames read, %d dropped (%.1f %%), %d live estimates finished (%.2f a minute), "
-      "resident %.0f MiB after %.0f s, at most %.0f MiB after (%+.1f %%)"
+      "resident at most %.0f MiB from %.0f s to %.0f s and %.0f MiB after (%+.1f %%); swing %.0f-%.0f MiB"
       % (minutes, last["frames_read"], last["dropped"], 100.0 * last["dropped"] / max(1, last["frames_read"] + last["dropped"]),
-         done, done / max(minutes, 1e-9), base, after[0]["seconds"], peak, 100 * growth))
+         done, done / max(minutes, 1e-9), base, earlier[0]["seconds"], earlier[-1]["seconds"], peak, 100 * growth,
+         low, max(base, peak)))
 most = max(s["rss_mb"] for s in states)
 problems = []
 if done < args.min_finished:
