@@ -375,7 +375,9 @@ Run AddBench(CLI::App& app) {
       ->capture_default_str()
       ->check(CLI::IsMember({"estimate", "solvers", "fd", "replay", "reconstruct", "rays"}));
   cmd->add_option("--out", o->out, "directory for bench.csv and bench.md")->capture_default_str();
-  cmd->add_option("--sizes", o->sizes, "image sizes WxH")->capture_default_str();
+  cmd->add_option("--sizes", o->sizes,
+                  "image sizes WxH of the estimate, solvers and fd parts (reconstruct runs 320x240 and 640x480)")
+      ->capture_default_str();
   cmd->add_option("--gradient-cap", o->cap, "seconds the gradient solver may run per problem")->capture_default_str();
   AddEstimateOptions(*cmd, &o->estimate, &o->threads);
   return [o] { RunBench(*o); };

@@ -168,8 +168,9 @@ TsdfVolume TsdfVolume::Clone() const {
 const TsdfOptions& TsdfVolume::options() const { return impl_->o; }
 std::size_t TsdfVolume::BlockCount() const { return impl_->store.blocks.size(); }
 std::size_t TsdfVolume::MemoryBytes() const {
-  return impl_->store.blocks.size() * (sizeof(VoxelBlock) + sizeof(Eigen::Vector3i) + sizeof(int)) +
-         impl_->store.hash.Bytes();
+  const VolumeStore& st = impl_->store;
+  return st.arena.Bytes() + st.blocks.size() * (sizeof(VoxelBlock*) + sizeof(Eigen::Vector3i) + sizeof(int)) +
+         st.hash.Bytes();
 }
 
 namespace {
@@ -491,6 +492,9 @@ void NarrowByHint(const TsdfVolume::Maps& hint, int w, int h, float trunc, TileR
     }
 }
 
+/// Rays a raycast marches in turn (RayState).
+constexpr int kRayLanes = 4;
+
 /// How far in front of and behind a ray's measured depth (its 3x3 neighbourhood's nearest
 /// and farthest) the surface is sought, beyond the truncation: depth noise at a few metres.
 constexpr float kMeasuredMargin = 0.05f;
@@ -510,6 +514,18 @@ bool MeasuredRange(const std::vector<float>& depth, int w, int h, int x, int y, 
   *hi = b;
   return true;
 }
+
+/// A ray under way (RayMarch::Step advances it one step). `cache` is kept from ray to ray:
+/// neighbouring rays cross the same blocks.
+struct RayState {
+  int x = 0, y = 0;
+  Eigen::Vector3f dir = Eigen::Vector3f::Zero();
+  float len = 1, tr = 0, t_end = -1, prev_t = -1, prev_s = kNaN;
+  bool prev_precise = false;
+  float whole_min = 0, whole_max = -1;  ///< the range searched next if this search finds nothing (max < 0: none)
+  BlockCache cache;
+};
+enum class RayEnd { kGoing, kHit, kNothing };
 
 /// One pixel's ray through the volume: the first zero crossing from the front.
 struct RayMarch {
@@ -582,53 +598,106 @@ struct RayMarch {
     __builtin_prefetch(&st.blocks[cache.index]->v[VolumeStore::LocalIndex(ix & kBlockMask, iy & kBlockMask, iz & kBlockMask)]);
   }
 
-  /// True when the ray met a surface between zmin and zmax (along the axis).
-  /// `cache`: the last block looked up, kept from ray to ray (neighbouring rays cross the same blocks).
-  bool Cast(int x, int y, float zmin, float zmax, BlockCache& cache, TsdfVolume::Maps* out) const {
+  /// A ray set off from pixel (x, y) between depths zmin and zmax (along the axis).
+  void Start(RayState& r, int x, int y, float zmin, float zmax) const {
     const Eigen::Vector3f ray_c((x - k.cx) / k.fx, (y - k.cy) / k.fy, 1.f);
-    const float len = ray_c.norm();
-    const Eigen::Vector3f dir = R * (ray_c / len);
+    r.x = x;
+    r.y = y;
+    r.len = ray_c.norm();
+    r.dir = R * (ray_c / r.len);
     // Distance along the ray from depth along the axis: t = z * len.
-    float tr = zmin * len;
-    const float t_end = zmax * len;
-    float prev_t = -1, prev_s = kNaN;
-    bool prev_precise = false;
-    while (tr <= t_end) {
-      const Eigen::Vector3f p = t + dir * tr;
-      const Eigen::Vector3f g = p / voxel;
-      const int ix = static_cast<int>(std::floor(g.x() + 0.5f)), iy = static_cast<int>(std::floor(g.y() + 0.5f)),
-                iz = static_cast<int>(std::floor(g.z() + 0.5f));
-      const Voxel* v = st.VoxelAt(ix, iy, iz, &cache);
-      if (!v) {  // unallocated: on to where the ray leaves this block
-        prev_s = kNaN;
-        tr += std::max(BlockExit(p, dir, ix, iy, iz), 0.f) + 0.01f * voxel;
-        continue;
-      }
-      if (v->weight == 0) {
-        prev_s = kNaN;
-        tr += voxel;
-        continue;
-      }
-      // The nearest voxel is enough to step; near the surface the trilinear value decides
-      // where the crossing is.
-      float s = v->sdf();
-      if (s >= 0) Prefetch(t + dir * (tr + std::max(voxel, 0.8f * s * trunc)), cache);
-      bool precise = false;
-      if (s < 0.5f) precise = st.Trilinear(p, &s, nullptr, nullptr, &cache);
-      if (s < 0) {
-        if (!(prev_s > 0)) return false;  // behind a surface (or entered from behind): stop
-        // A zero crossing from the front.
-        return Hit(prev_t, tr, prev_s, s, prev_precise, precise, dir, len, static_cast<std::size_t>(y) * k.w + x,
-                   &cache, out);
-      }
-      prev_precise = precise;
-      prev_t = tr;
-      prev_s = s;
-      tr += std::max(voxel, 0.8f * s * trunc);
+    r.tr = zmin * r.len;
+    r.t_end = zmax * r.len;
+    r.prev_t = -1;
+    r.prev_s = kNaN;
+    r.prev_precise = false;
+  }
+
+  /// One step of a ray's march to the first zero crossing from the front.
+  RayEnd Step(RayState& r, TsdfVolume::Maps* out) const {
+    if (!(r.tr <= r.t_end)) return RayEnd::kNothing;
+    const Eigen::Vector3f p = t + r.dir * r.tr;
+    const Eigen::Vector3f g = p / voxel;
+    const int ix = static_cast<int>(std::floor(g.x() + 0.5f)), iy = static_cast<int>(std::floor(g.y() + 0.5f)),
+              iz = static_cast<int>(std::floor(g.z() + 0.5f));
+    const Voxel* v = st.VoxelAt(ix, iy, iz, &r.cache);
+    if (!v) {  // unallocated: on to where the ray leaves this block
+      r.prev_s = kNaN;
+      r.tr += std::max(BlockExit(p, r.dir, ix, iy, iz), 0.f) + 0.01f * voxel;
+      return RayEnd::kGoing;
     }
-    return false;
+    if (v->weight == 0) {
+      r.prev_s = kNaN;
+      r.tr += voxel;
+      return RayEnd::kGoing;
+    }
+    // The nearest voxel is enough to step; near the surface the trilinear value decides
+    // where the crossing is.
+    float s = v->sdf();
+    if (s >= 0) Prefetch(t + r.dir * (r.tr + std::max(voxel, 0.8f * s * trunc)), r.cache);
+    bool precise = false;
+    if (s < 0.5f) precise = st.Trilinear(p, &s, nullptr, nullptr, &r.cache);
+    if (s < 0) {
+      if (!(r.prev_s > 0)) return RayEnd::kNothing;  // behind a surface (or entered from behind): stop
+      // A zero crossing from the front.
+      return Hit(r.prev_t, r.tr, r.prev_s, s, r.prev_precise, precise, r.dir, r.len,
+                 static_cast<std::size_t>(r.y) * k.w + r.x, &r.cache, out)
+                 ? RayEnd::kHit
+                 : RayEnd::kNothing;
+    }
+    r.prev_precise = precise;
+    r.prev_t = r.tr;
+    r.prev_s = s;
+    r.tr += std::max(voxel, 0.8f * s * trunc);
+    return RayEnd::kGoing;
   }
 };
+
+/// The rays of one tile. Several march in turn, a step each: one ray's step does not wait on
+/// the voxel another's is loading (a march is a chain of loads, each waiting on the last).
+/// With `measured` a ray first searches around its pixel's measured depth (MeasuredRange).
+void MarchTile(const RayMarch& march, const TileRanges& ranges, int tx, int ty, const std::vector<float>* measured,
+               TsdfVolume::Maps* out) {
+  const std::size_t tile = static_cast<std::size_t>(ty) * ranges.tw + tx;
+  if (ranges.zmax[tile] <= 0 || ranges.zmin[tile] >= kMaxRayDepth) return;
+  const float zmin = ranges.zmin[tile], zmax = std::min(ranges.zmax[tile], kMaxRayDepth);
+  const float margin = march.trunc + kMeasuredMargin;
+  const int w = march.k.w, h = march.k.h, x0 = tx * kTile, y0 = ty * kTile, tw = std::min(w, x0 + kTile) - x0,
+            count = tw * (std::min(h, y0 + kTile) - y0);
+  int next = 0;
+  auto launch = [&](RayState& r) {  // the tile's next pixel
+    if (next >= count) return false;
+    const int x = x0 + next % tw, y = y0 + next / tw;
+    ++next;
+    float lo, hi;
+    if (measured && MeasuredRange(*measured, w, h, x, y, &lo, &hi)) {
+      march.Start(r, x, y, std::max(lo - margin, 0.f), std::min(hi + margin, kMaxRayDepth));
+      r.whole_min = zmin;
+      r.whole_max = zmax;
+    } else {
+      march.Start(r, x, y, zmin, zmax);
+      r.whole_max = -1;
+    }
+    return true;
+  };
+  RayState lanes[kRayLanes];
+  bool going[kRayLanes];
+  int active = 0;
+  for (int l = 0; l < kRayLanes; ++l) active += going[l] = launch(lanes[l]);
+  while (active > 0)
+    for (int l = 0; l < kRayLanes; ++l) {
+      if (!going[l]) continue;
+      RayState& r = lanes[l];
+      const RayEnd end = march.Step(r, out);
+      if (end == RayEnd::kGoing) continue;
+      if (end == RayEnd::kNothing && r.whole_max >= 0) {  // nothing around the measured depth
+        march.Start(r, r.x, r.y, r.whole_min, r.whole_max);
+        r.whole_max = -1;
+        continue;
+      }
+      if (!(going[l] = launch(r))) --active;
+    }
+}
 
 }  // namespace
 
@@ -656,24 +725,10 @@ void TsdfVolume::Raycast(const Camera& k, const Eigen::Matrix4d& world_from_came
 
   const RayMarch march{st, pin, R, t, voxel, trunc, with_color};
   const bool guided = measured && measured->size() == n;
-  const float margin = trunc + kMeasuredMargin;
   // Tile by tile: a tile's rays cross the same few voxel blocks, which stay in the cache.
   ParallelForChunks(0, static_cast<std::size_t>(ranges.th), 1, [&](std::size_t ty0, std::size_t ty1) {
     for (int ty = static_cast<int>(ty0); ty < static_cast<int>(ty1); ++ty)
-      for (int tx = 0; tx < ranges.tw; ++tx) {
-        const std::size_t tile = static_cast<std::size_t>(ty) * ranges.tw + tx;
-        if (ranges.zmax[tile] <= 0 || ranges.zmin[tile] >= kMaxRayDepth) continue;
-        const float zmin = ranges.zmin[tile], zmax = std::min(ranges.zmax[tile], kMaxRayDepth);
-        BlockCache cache;
-        for (int y = ty * kTile; y < std::min(h, (ty + 1) * kTile); ++y)
-          for (int x = tx * kTile; x < std::min(w, (tx + 1) * kTile); ++x) {
-            float lo, hi;
-            if (guided && MeasuredRange(*measured, w, h, x, y, &lo, &hi) &&
-                march.Cast(x, y, std::max(lo - margin, 0.f), std::min(hi + margin, kMaxRayDepth), cache, out))
-              continue;
-            march.Cast(x, y, zmin, zmax, cache, out);
-          }
-      }
+      for (int tx = 0; tx < ranges.tw; ++tx) MarchTile(march, ranges, tx, ty, guided ? measured : nullptr, out);
   });
 }
 
