@@ -31,14 +31,15 @@ std::vector<float> NearestDepthAtLevel(const std::vector<float>& depth, int widt
   std::vector<float> out(static_cast<std::size_t>(w) * h, 0.f);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
-      float z = std::numeric_limits<float>::max();
-      for (int dy = 0; dy < f && z > 0; ++dy)
-        for (int dx = 0; dx < f; ++dx) {
+      float nearest = std::numeric_limits<float>::max();
+      bool all = true;
+      for (int dy = 0; dy < f && all; ++dy)
+        for (int dx = 0; dx < f && all; ++dx) {
           const float d = depth[static_cast<std::size_t>(y * f + dy) * width + x * f + dx];
-          z = d > 0 ? std::min(z, d) : 0.f;
-          if (!(z > 0)) break;
+          all = d > 0;
+          nearest = std::min(nearest, d);
         }
-      out[static_cast<std::size_t>(y) * w + x] = z;
+      if (all) out[static_cast<std::size_t>(y) * w + x] = nearest;
     }
   return out;
 }

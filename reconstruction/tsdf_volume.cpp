@@ -65,7 +65,6 @@ void BlockArena::Free::operator()(VoxelBlock* p) const { std::free(p); }  // Vox
 
 // ---- VolumeStore ---------------------------------------------------------------------
 
-
 int VolumeStore::AllocateBlock(int bx, int by, int bz) {
   const int next = static_cast<int>(blocks.size());
   const int index = hash.Insert(BlockHash::Key(bx, by, bz), next);
@@ -75,7 +74,6 @@ int VolumeStore::AllocateBlock(int bx, int by, int bz) {
   }
   return index;
 }
-
 
 bool VolumeStore::Cell(int ix, int iy, int iz, const Voxel* out[8], BlockCache* cache,
                        const VoxelColor* colors[8]) const {
@@ -586,18 +584,6 @@ struct RayMarch {
     return false;
   }
 
-  /// Starts loading the voxel nearest `p` when it lies in the cached block: the next step's,
-  /// fetched while this step's trilinear value is computed.
-  void Prefetch(const Eigen::Vector3f& p, const BlockCache& cache) const {
-    const Eigen::Vector3f g = p / voxel;
-    const int ix = static_cast<int>(std::floor(g.x() + 0.5f)), iy = static_cast<int>(std::floor(g.y() + 0.5f)),
-              iz = static_cast<int>(std::floor(g.z() + 0.5f));
-    if (cache.index < 0 || (ix >> kBlockShift) != cache.bx || (iy >> kBlockShift) != cache.by ||
-        (iz >> kBlockShift) != cache.bz)
-      return;
-    __builtin_prefetch(&st.blocks[cache.index]->v[VolumeStore::LocalIndex(ix & kBlockMask, iy & kBlockMask, iz & kBlockMask)]);
-  }
-
   /// A ray set off from pixel (x, y) between depths zmin and zmax (along the axis).
   void Start(RayState& r, int x, int y, float zmin, float zmax) const {
     const Eigen::Vector3f ray_c((x - k.cx) / k.fx, (y - k.cy) / k.fy, 1.f);
@@ -634,7 +620,6 @@ struct RayMarch {
     // The nearest voxel is enough to step; near the surface the trilinear value decides
     // where the crossing is.
     float s = v->sdf();
-    if (s >= 0) Prefetch(t + r.dir * (r.tr + std::max(voxel, 0.8f * s * trunc)), r.cache);
     bool precise = false;
     if (s < 0.5f) precise = st.Trilinear(p, &s, nullptr, nullptr, &r.cache);
     if (s < 0) {
