@@ -86,6 +86,10 @@ std::vector<EstimateOption> MakeTable() {
        Type::kBool, 0, 1, false, LP_GET(choose_prior), LP_SET(choose_prior, bool), "", 0, 0, {}},
       {"albedo-samples", "albedo_samples", "paths per vertex for the irradiance an albedo pass de-lights by",
        Type::kInt, 1, 4096, false, LP_GET(albedo_samples), LP_SET(albedo_samples, int), "", 0, 0, {}},
+      {"pre-albedo-stride", "pre_albedo_stride",
+       "the rounds before the first albedo pass fit the pixels on a grid of this many (at most round 1's); 1 = "
+       "every pixel",
+       Type::kInt, 1, 16, false, LP_GET(pre_albedo_stride), LP_SET(pre_albedo_stride, int), "", 0, 0, {}},
       {"trace-pixels", "trace_pixels",
        "trace the mesh clustered on a grid of this many pixels (what one spans on the nearest tenth of the surfaces "
        "seen) where it is finer; 0 = trace the bundle's mesh as it is",

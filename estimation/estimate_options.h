@@ -50,8 +50,12 @@ constexpr double kGraduatedSigmaStart = 0.5;
 
 /// Round 1 (the first estimate) fits the valid pixels on the widest grid that keeps this
 /// many of them (a quarter of a 160x120 view: every 2nd pixel of every 2nd row of one such
-/// view, every 3rd of every 3rd of the demo's 4); the rounds after fit them all.
+/// view, every 3rd of every 3rd of the demo's 4); the rounds after fit them all (before
+/// an albedo pass, a grid of EstimateOptions::pre_albedo_stride).
 constexpr double kFirstRoundPixels = 4800;
+/// The least share of tracer.spp the map is traced at after round 1, however little of the
+/// light it renders (Estimator::MapSamples).
+constexpr double kMinMapSamples = 0.25;
 
 /// The traced mesh is clustered only where its grid is at least this many median edges.
 constexpr double kMinTraceCellEdges = 1.5;
@@ -151,6 +155,11 @@ struct EstimateOptions {
   /// into many segments, each pass moves a lamp part of the way (docs/method.md).
   double albedo_settle = 0.1;
   int albedo_samples = 32;
+  /// The rounds before the first albedo pass fit the valid pixels on a grid of this many
+  /// (at most round 1's grid): they only settle the lights the pass de-lights under, and the
+  /// rounds after it start over under the new albedo (docs/method.md, "Rounds"); 1 fits
+  /// every pixel. Only where an albedo pass is to come.
+  int pre_albedo_stride = 2;
   /// The albedo's absolute scale, for a reconstructed mesh (one with `shaded` colours): the
   /// colours seen are albedo times the light, so their scale is the light's, and it sets
   /// the interreflections (which scale with the albedo) and so where the lamps go. The

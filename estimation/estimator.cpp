@@ -163,14 +163,25 @@ int Estimator::FirstRoundStride() const {
   return stride;
 }
 
+/// The grid of the rounds after round 1 and before the first albedo pass (where one is to
+/// come): opt_.pre_albedo_stride, at most round 1's; 1 after it, or with no pass to come.
+int Estimator::PreAlbedoStride() const {
+  const bool pass_ahead = opt_.albedo_passes > 0 && res_.albedo_passes == 0 &&
+                          res_.albedo_left_out == AlbedoLeftOut::kRefined &&
+                          bundle_.mesh.shaded.size() == bundle_.mesh.positions.size() && !bundle_.mesh.shaded.empty();
+  return pass_ahead ? std::min(opt_.pre_albedo_stride, FirstRoundStride()) : 1;
+}
+
 void Estimator::RunRounds() {
   const int first = static_cast<int>(res_.rounds.size()) + 1, last = first + opt_.max_rounds - 1;
   int since = first;  // the first round on the current pixels and albedo
   for (int round = first; round <= last; ++round) {
     CheckCancel();
-    const int stride = round == 1 ? FirstRoundStride() : 1;
-    if (stride != stride_) {
-      if (stride_ > 1) after_grid_ = round;
+    const int stride = round == 1 ? FirstRoundStride() : PreAlbedoStride();
+    // The first round past round 1's grid starts afresh, on another grid or none.
+    const bool past_grid = round > 1 && stride_ > 1 && after_grid_ == 0;
+    if (past_grid) after_grid_ = round;
+    if (stride != stride_ || past_grid) {
       UseViews(stride);
       since = round;
     }
@@ -180,9 +191,9 @@ void Estimator::RunRounds() {
     const SolveResult sr = Solve(rp, round, &info, round == 1);
     const std::vector<double> full = TakeSolution(rp, sr, &info);
     FitLights(rp, full, &info);
-    // The map's prior, once, in the first round on every pixel (after the lamps and the sun
-    // were sought): the rounds after it run at the prior chosen.
-    const bool prior_changed = stride_ == 1 && !res_.prior.done && ChoosePrior(&info);
+    // The map's prior, once, in the first round past round 1's grid (after the lamps and the
+    // sun were sought): the rounds after it run at the prior chosen.
+    const bool prior_changed = PastFirstGrid() && !res_.prior.done && ChoosePrior(&info);
     EndRound(sr, &info);
     if (round > first && info.image_change < opt_.change_threshold && !info.lights_moved && !prior_changed) break;
   }
@@ -246,12 +257,13 @@ double Estimator::MapShare() {
 
 /// The map's samples per pixel in `round`: tracer.spp in round 1 (nothing known yet), then
 /// in proportion to the share of the light the map renders (its noise reaches the fit in
-/// that proportion: a map that renders half the light or more gets them all), at least a
-/// quarter of them (a map left dark can still take light back).
+/// that proportion: a map that renders half the light or more gets them all), at least
+/// kMinMapSamples of them (a map left dark can still take light back; an eighth left
+/// lamp-and-sky's and lamp-4m's map short of their skies on some seeds: docs/benchmarks.md).
 int Estimator::MapSamples(int round) const {
   const int spp = opt_.tracer.spp;
   if (round == 1) return spp;
-  const double share = std::clamp(2 * map_share_, 0.25, 1.0);
+  const double share = std::clamp(2 * map_share_, kMinMapSamples, 1.0);
   return std::max(1, static_cast<int>(std::lround(share * spp)));
 }
 
@@ -274,7 +286,7 @@ void Estimator::GatherVertices(int round, int first) {
   // the paths (what rounds 1 and 2 hold on every pixel: noise in a column biases its
   // intensity low; docs/method.md).
   const int spp = opt_.point_lights.spp;
-  topt.spp = stride_ > 1 ? std::max(1, spp / 2) : round == after_grid_ ? 2 * spp : spp;
+  topt.spp = round == 1 && stride_ > 1 ? std::max(1, spp / 2) : round == after_grid_ ? 2 * spp : spp;
   topt.seed = opt_.tracer.seed * 1000003ull + 500 + round;
   ShadingVertices fresh = GatherShadingVertices(*scene_, views_, topt);
   CheckCancel();
@@ -623,6 +635,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& option
       estimator.RunRounds();
       if (estimator.Settled(before)) break;
     }
+  if (estimator.OnPreAlbedoGrid()) estimator.RunRounds();  // no albedo pass came after the grid's rounds
   estimator.FitSky();
   estimator.Conclude();
   if (options.render) estimator.RenderFittedViews();

@@ -99,6 +99,10 @@ bool Estimator::RefineAlbedo(int pass) {
       // The albedo's scale by the rule it was given before the rounds (--room-albedo), or
       // the colours' own when that is 0.
       segments = DelightAlbedo(&mesh_, irradiance, DelitAlbedoOptions(), res_.albedo_scale, opt_.room_albedo, &labels);
+      if (segments >= 0 && stride_ > 1) {  // the rounds after the pass fit every pixel
+        if (after_grid_ == 0) after_grid_ = static_cast<int>(res_.rounds.size()) + 1;
+        UseViews(1);
+      }
       if (segments >= 0 && opt_.free_albedo) {
         row_segment_ = RowSegments(full ? *full : *scene_, labels);
         const auto free_rows = std::count_if(row_segment_.begin(), row_segment_.end(), [](int s) { return s >= 0; });

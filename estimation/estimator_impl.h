@@ -132,6 +132,9 @@ class Estimator {
   /// albedo pass they are warm-started from the estimate so far, with an A of their own);
   /// stops early when the rendered estimate settles.
   void RunRounds();
+  /// Whether the last rounds fitted the grid of the rounds before an albedo pass
+  /// (PreAlbedoStride) and no pass came: then the rounds go on, on every pixel.
+  bool OnPreAlbedoGrid() const { return stride_ > 1 && after_grid_ > 0; }
   /// Whether the albedo is refined at all (sets res_.albedo_left_out when not).
   bool AlbedoRefinable();
   /// De-lights the colours seen by the estimate's irradiance and segments them again into
@@ -187,6 +190,7 @@ class Estimator {
   void StartWarm(const WarmStart& warm);
   void UseViews(int stride);
   int FirstRoundStride() const;
+  int PreAlbedoStride() const;
   int MapSamples(int round) const;
   double MapShare();
   Mesh TracedMesh();
@@ -320,7 +324,10 @@ class Estimator {
   bool FitDirectionalLight(RoundInfo* info);
   // Glowing surfaces (docs/method.md, "Glowing surfaces"; estimator_emitters.cpp).
   /// Whether `round` looks for them: the first on every pixel, once, after the lamps and the sun.
-  bool EmitterRound() const { return opt_.emitters && !emitters_sought_ && stride_ == 1 && !vertices_.camera.empty(); }
+  bool EmitterRound() const { return opt_.emitters && !emitters_sought_ && PastFirstGrid() && !vertices_.camera.empty(); }
+  /// Whether the rounds are past round 1's first estimate on a grid: on every pixel, or on
+  /// the grid of the rounds before the first albedo pass (PreAlbedoStride).
+  bool PastFirstGrid() const { return stride_ == 1 || after_grid_ > 0; }
   bool ProposeEmitters(RoundInfo* info);
   /// Keeps `candidate` beside `kept` when the objective and the held-out loss say so (both
   /// updated then).

@@ -13,6 +13,10 @@
 #include "scene/surface_filter.h"
 
 namespace lp {
+namespace {
+/// Russian roulette from this bounce on (the path tracer's default, TracerOptions).
+const int kRouletteAfter = TracerOptions{}.roulette_after;
+}  // namespace
 
 VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, Lighting lighting, int bounces,
                                std::uint64_t seed)
@@ -69,7 +73,13 @@ void VertexRadiance::Refine(int samples) {
           }
           // Cosine sampling cancels cos/pi against the Lambertian albedo/pi: the weight is the albedo.
           throughput = throughput.cwiseProduct(hit.albedo);
-          if (throughput.maxCoeff() < 1e-4) break;
+          const double tmax = throughput.maxCoeff();
+          if (tmax < 1e-4) break;
+          if (bounce + 1 >= kRouletteAfter) {  // Russian roulette, as the path tracer's (PathContinues)
+            const double p = std::min(0.95, tmax);
+            if (rng.Uniform() >= p) break;
+            throughput /= p;
+          }
           n = hit.shading;
           geometric = hit.geometric;
           origin = hit.position + hit.geometric * (4 * scene_.epsilon());

@@ -673,6 +673,57 @@ TEST(Stability, AlbedoRefinementWithNothingLitOrSeenKeepsTheAlbedo) {
   EXPECT_GT(black.rendered_fraction, 0.5);
 }
 
+// The rounds before the first albedo pass fit a grid of 2 (PreAlbedoStride: their lights
+// only set what the pass de-lights under; the rounds after it start over), those after it
+// every pixel; a bundle with known albedo, or a pass that finds nothing lit, leaves no round
+// past round 1 on a grid.
+TEST(Stability, TheRoundsBeforeAnAlbedoPassFitAGridAndTheRoundsAfterItEveryPixel) {
+  SceneBundle b = Room(200, 150);  // 30,000 pixels: round 1 on every 2nd of every 2nd row (kFirstRoundPixels)
+  const EnvMap env(9, b.up);
+  const std::vector<double> truth = Cells(env, {{CellAt(env, 30, 50), 2.0}});
+  LightByCells(&b, env, truth, 4, 16);
+  const SceneBundle known = b;
+  AsReconstructed(&b, env, truth);
+  EstimateOptions eo = Small();
+  eo.tracer.spp = 8;
+  eo.room_albedo = 0;
+  eo.albedo_passes = 1;
+  eo.point_lights.max_lights = 0;
+  const auto pass_of = [](const EstimateResult& r, int round) {
+    for (const ConvergenceRow& row : r.convergence)
+      if (row.round == round) return row.albedo_pass;
+    return -1;
+  };
+  const EstimateResult r = Estimate(b, eo);
+  ExpectHealthy(r);
+  ASSERT_EQ(r.albedo_passes, 1);
+  ASSERT_GE(r.rounds.size(), 3u);
+  const auto share = [&](const RoundInfo& round) { return static_cast<double>(round.pixels) / r.observations; };
+  EXPECT_NEAR(share(r.rounds[0]), 0.25, 0.01);
+  for (const RoundInfo& round : r.rounds) {
+    SCOPED_TRACE("round " + std::to_string(round.round));
+    if (round.round == 1) continue;
+    if (pass_of(r, round.round) == 0) EXPECT_NEAR(share(round), 0.25, 0.01);  // every 2nd of every 2nd row
+    else EXPECT_EQ(round.pixels, r.observations);
+  }
+  EXPECT_EQ(pass_of(r, r.rounds.back().round), 1);
+  // Every pixel from round 2 on: the known albedo (no pass to come), and every pixel
+  // before the pass when asked (--pre-albedo-stride 1).
+  eo.pre_albedo_stride = 1;
+  const EstimateResult all = Estimate(b, eo);
+  eo.pre_albedo_stride = 2;
+  const EstimateResult truth_albedo = Estimate(known, eo);
+  for (const EstimateResult* e : {&all, &truth_albedo})
+    for (std::size_t k = 1; k < e->rounds.size(); ++k) EXPECT_EQ(e->rounds[k].pixels, e->observations);
+  // A pass that finds nothing lit (the map lighting nothing at this Cauchy scale: see
+  // AlbedoRefinementWithNothingLitOrSeenKeepsTheAlbedo): the rounds go on on every pixel.
+  eo.objective.sigma = 0.02;
+  eo.directional_lights = false;
+  const EstimateResult dark = Estimate(b, eo);
+  EXPECT_EQ(dark.albedo_passes, 0);
+  EXPECT_EQ(dark.rounds.back().pixels, dark.observations);
+}
+
 // ---- Near lights (issue 20): the point lights' stiff and extreme cases ----
 
 /// Re-renders every view of `b` under point lights (every pixel), plus a map when given.
