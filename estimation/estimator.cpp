@@ -145,6 +145,14 @@ void Estimator::UseViews(int stride) {
   holdout_fit_.reset();
 }
 
+/// The rounds from `round` on fit the pixels on a grid of `stride` (UseViews); `round`, when
+/// it is the first past round 1's grid, is marked so (after_grid_: its shading vertices
+/// take twice the paths, and a sun is sought in it).
+void Estimator::UseStride(int stride, int round) {
+  if (round > 1 && stride_ > 1 && after_grid_ == 0) after_grid_ = round;
+  UseViews(stride);
+}
+
 /// Round 1's grid of pixels: the widest that keeps kFirstRoundPixels of the valid ones
 /// (a first estimate needs no more; 1 where there are fewer).
 int Estimator::FirstRoundStride() const {
@@ -166,9 +174,8 @@ int Estimator::FirstRoundStride() const {
 /// The grid of the rounds after round 1 and before the first albedo pass (where one is to
 /// come): opt_.pre_albedo_stride, at most round 1's; 1 after it, or with no pass to come.
 int Estimator::PreAlbedoStride() const {
-  const bool pass_ahead = opt_.albedo_passes > 0 && res_.albedo_passes == 0 &&
-                          res_.albedo_left_out == AlbedoLeftOut::kRefined &&
-                          bundle_.mesh.shaded.size() == bundle_.mesh.positions.size() && !bundle_.mesh.shaded.empty();
+  const bool pass_ahead = res_.albedo_passes == 0 && res_.albedo_left_out == AlbedoLeftOut::kRefined &&
+                          AlbedoLeftOutByOptions() == AlbedoLeftOut::kRefined;
   return pass_ahead ? std::min(opt_.pre_albedo_stride, FirstRoundStride()) : 1;
 }
 
@@ -179,10 +186,8 @@ void Estimator::RunRounds() {
     CheckCancel();
     const int stride = round == 1 ? FirstRoundStride() : PreAlbedoStride();
     // The first round past round 1's grid starts afresh, on another grid or none.
-    const bool past_grid = round > 1 && stride_ > 1 && after_grid_ == 0;
-    if (past_grid) after_grid_ = round;
-    if (stride != stride_ || past_grid) {
-      UseViews(stride);
+    if (stride != stride_ || (round > 1 && stride_ > 1 && after_grid_ == 0)) {
+      UseStride(stride, round);
       since = round;
     }
     RoundInfo info;

@@ -7,10 +7,14 @@ namespace lp::detail {
 // two surfaces of one chromaticity share one albedo). Divided by the estimate's
 // irradiance, the colour seen is the albedo the estimate implies; segmented again (now
 // a brightness step is a material's) it is the albedo the next rounds are solved under.
+AlbedoLeftOut Estimator::AlbedoLeftOutByOptions() const {
+  if (opt_.albedo_passes <= 0) return AlbedoLeftOut::kNoPasses;
+  if (bundle_.mesh.shaded.size() != bundle_.mesh.positions.size()) return AlbedoLeftOut::kKnownAlbedo;
+  return AlbedoLeftOut::kRefined;
+}
+
 bool Estimator::AlbedoRefinable() {
-  if (opt_.albedo_passes <= 0) res_.albedo_left_out = AlbedoLeftOut::kNoPasses;
-  else if (bundle_.mesh.shaded.size() != bundle_.mesh.positions.size())
-    res_.albedo_left_out = AlbedoLeftOut::kKnownAlbedo;
+  if (const AlbedoLeftOut why = AlbedoLeftOutByOptions(); why != AlbedoLeftOut::kRefined) res_.albedo_left_out = why;
   if (res_.albedo_left_out != AlbedoLeftOut::kRefined) return false;
   mesh_ = bundle_.mesh;
   return true;
@@ -99,10 +103,7 @@ bool Estimator::RefineAlbedo(int pass) {
       // The albedo's scale by the rule it was given before the rounds (--room-albedo), or
       // the colours' own when that is 0.
       segments = DelightAlbedo(&mesh_, irradiance, DelitAlbedoOptions(), res_.albedo_scale, opt_.room_albedo, &labels);
-      if (segments >= 0 && stride_ > 1) {  // the rounds after the pass fit every pixel
-        if (after_grid_ == 0) after_grid_ = static_cast<int>(res_.rounds.size()) + 1;
-        UseViews(1);
-      }
+      if (segments >= 0 && stride_ > 1) UseStride(1, static_cast<int>(res_.rounds.size()) + 1);  // every pixel after it
       if (segments >= 0 && opt_.free_albedo) {
         row_segment_ = RowSegments(full ? *full : *scene_, labels);
         const auto free_rows = std::count_if(row_segment_.begin(), row_segment_.end(), [](int s) { return s >= 0; });

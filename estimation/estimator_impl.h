@@ -137,6 +137,8 @@ class Estimator {
   bool OnPreAlbedoGrid() const { return stride_ > 1 && after_grid_ > 0; }
   /// Whether the albedo is refined at all (sets res_.albedo_left_out when not).
   bool AlbedoRefinable();
+  /// Why the options and the bundle leave the albedo unrefined (kRefined: they do not).
+  AlbedoLeftOut AlbedoLeftOutByOptions() const;
   /// De-lights the colours seen by the estimate's irradiance and segments them again into
   /// the albedo the next rounds run under; false when there is nothing to divide by.
   bool RefineAlbedo(int pass);
@@ -189,6 +191,7 @@ class Estimator {
   void Observe();
   void StartWarm(const WarmStart& warm);
   void UseViews(int stride);
+  void UseStride(int stride, int round);
   int FirstRoundStride() const;
   int PreAlbedoStride() const;
   int MapSamples(int round) const;

@@ -8,14 +8,15 @@
 #include "common/rng.h"
 #include "estimation/error_display.h"
 #include "estimation/path_tracer.h"
+#include "estimation/pixel_loop.h"
 #include "estimation/lights/light.h"
 #include "estimation/sampling.h"
 #include "scene/surface_filter.h"
 
 namespace lp {
 namespace {
-/// Russian roulette from this bounce on (the path tracer's default, TracerOptions).
-const int kRouletteAfter = TracerOptions{}.roulette_after;
+/// The path tracer's defaults: the same negligible throughput and Russian roulette.
+const TracerOptions kPathEnds;
 }  // namespace
 
 VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, Lighting lighting, int bounces,
@@ -36,6 +37,7 @@ void VertexRadiance::Refine(int samples) {
   const Mesh& mesh = scene_.mesh();
   const int first = samples_;
   ParallelForChunks(0, mesh.positions.size(), 256, [&](std::size_t b, std::size_t e) {
+    detail::Counters ended;  // how paths ended (not reported)
     for (std::size_t v = b; v < e; ++v) {
       if (v >= mesh.normals.size()) continue;
       const Eigen::Vector3d n0 = mesh.normals[v].cast<double>();
@@ -73,13 +75,7 @@ void VertexRadiance::Refine(int samples) {
           }
           // Cosine sampling cancels cos/pi against the Lambertian albedo/pi: the weight is the albedo.
           throughput = throughput.cwiseProduct(hit.albedo);
-          const double tmax = throughput.maxCoeff();
-          if (tmax < 1e-4) break;
-          if (bounce + 1 >= kRouletteAfter) {  // Russian roulette, as the path tracer's (PathContinues)
-            const double p = std::min(0.95, tmax);
-            if (rng.Uniform() >= p) break;
-            throughput /= p;
-          }
+          if (!detail::PathContinues(bounce, kPathEnds, &throughput, rng, ended)) break;
           n = hit.shading;
           geometric = hit.geometric;
           origin = hit.position + hit.geometric * (4 * scene_.epsilon());
