@@ -35,6 +35,29 @@ std::vector<EstimateOption> RenderOptions() {
   };
 }
 
+/// The options of the lights beside the map (MakeTable's).
+std::vector<EstimateOption> LightOptions() {
+  return {
+      {"point-lights", "point_lights",
+       "point lights (lamps in the room) at most, beside the environment map; 0 = the map alone", Type::kInt, 0, 16,
+       false, LP_GET(point_lights.max_lights), LP_SET(point_lights.max_lights, int), "point lights", 0, 8, {}},
+      {"point-spp", "point_spp", "paths per pixel the point lights' columns and positions use", Type::kInt, 1, 1024,
+       false, LP_GET(point_lights.spp), LP_SET(point_lights.spp, int), "", 0, 0, {}},
+      {"debias-columns", "debias_columns",
+       "1 = the lights' fit takes their columns' Monte Carlo noise out of its objective (alone it stops a lamp's "
+       "drift out along its ray; in the estimate not better so far: docs/method.md); 0 = the plain objective",
+       Type::kBool, 0, 1, false, LP_GET(point_lights.debiased), LP_SET(point_lights.debiased, bool), "", 0, 0, {}},
+      {"directional-lights", "directional_lights",
+       "try a directional light (a sun: sharp shadows) where the map concentrates its power; 0 = never",
+       Type::kBool, 0, 1, false, LP_GET(directional_lights), LP_SET(directional_lights, bool),
+       "directional light (a sun)", 0, 1, {}},
+      {"emitters", "emitters",
+       "look for glowing surfaces (lamp shades, frosted windows, screens) where the views see pixels brighter than "
+       "a white surface under the lights; 0 = never",
+       Type::kBool, 0, 1, false, LP_GET(emitters), LP_SET(emitters, bool), "", 0, 0, {}},
+  };
+}
+
 std::vector<EstimateOption> MakeTable() {
   std::vector<EstimateOption> table = {
       {"rings", "rings", "rings of the environment map (21 -> 522 directions)", Type::kInt, kMinRings, kMaxRings, false,
@@ -95,22 +118,10 @@ std::vector<EstimateOption> MakeTable() {
        "seen) where it is finer; 0 = trace the bundle's mesh as it is",
        Type::kReal, 0, kMaxTracePixels, false, LP_GET(trace_pixels), LP_SET(trace_pixels, double),
        "traced mesh (pixels)", 0, 4, {}},
-      {"point-lights", "point_lights",
-       "point lights (lamps in the room) at most, beside the environment map; 0 = the map alone", Type::kInt, 0, 16,
-       false, LP_GET(point_lights.max_lights), LP_SET(point_lights.max_lights, int), "point lights", 0, 8, {}},
-      {"point-spp", "point_spp", "paths per pixel the point lights' columns and positions use", Type::kInt, 1, 1024,
-       false, LP_GET(point_lights.spp), LP_SET(point_lights.spp, int), "", 0, 0, {}},
-      {"directional-lights", "directional_lights",
-       "try a directional light (a sun: sharp shadows) where the map concentrates its power; 0 = never",
-       Type::kBool, 0, 1, false, LP_GET(directional_lights), LP_SET(directional_lights, bool),
-       "directional light (a sun)", 0, 1, {}},
-      {"emitters", "emitters",
-       "look for glowing surfaces (lamp shades, frosted windows, screens) where the views see pixels brighter than "
-       "a white surface under the lights; 0 = never",
-       Type::kBool, 0, 1, false, LP_GET(emitters), LP_SET(emitters, bool), "", 0, 0, {}},
-      {"seed", "seed", "random seed (same seed => same result for any thread count)", Type::kInt, 0, 9007199254740992.0,
-       false, LP_GET(tracer.seed), LP_SET(tracer.seed, std::uint64_t), "", 0, 0, {}},
   };
+  for (EstimateOption& o : LightOptions()) table.push_back(std::move(o));
+  table.push_back({"seed", "seed", "random seed (same seed => same result for any thread count)", Type::kInt, 0,
+                   9007199254740992.0, false, LP_GET(tracer.seed), LP_SET(tracer.seed, std::uint64_t), "", 0, 0, {}});
   for (EstimateOption& o : RenderOptions()) table.push_back(std::move(o));
   return table;
 }

@@ -85,6 +85,9 @@ struct PointLightOptions {
   int spp = 8;
   /// The same for the first round's candidates (many columns, so fewer paths).
   int candidate_spp = 1;
+  /// The lights' fit takes the columns' Monte Carlo noise out of its objective
+  /// (LightFitProblem::debiased): without, a lamp drifts along its ray by about 1 / spp.
+  bool debiased = false;
   /// A point light's activation penalty, in cells of the reference solid angle.
   double weight = 1;
   /// Share of the pixels the model selection scores lights on (left out of that fit), in

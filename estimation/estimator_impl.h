@@ -259,6 +259,7 @@ class Estimator {
   std::vector<int> SkyCells() const;
   double RenderedShare(const PointLight& light);
   std::vector<float> Column(const Light& light);
+  SplitColumn Split(const Light& light);
   ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params, double prior = 0) const;
   void Score(ConvergenceRow* row, const Lighting& lighting) const;
   /// A convergence row of a light's refinement (the objective and the sum of squared
@@ -369,6 +370,7 @@ class Estimator {
     fit.loss = CauchyLoss{res_.objective_params.sigma};
     fit.alpha = res_.objective_params.alpha * opt_.point_lights.weight;
     fit.beta = res_.objective_params.beta;
+    fit.debiased = opt_.point_lights.debiased;
     if (row_segment_.size() * 3 == y_.size()) fit.segment = &row_segment_;  // (made only with free_albedo)
     return fit;
   }
@@ -429,7 +431,7 @@ class Estimator {
   /// The last few columns on vertices_ (Column), cleared when vertices_ change.
   struct CachedColumn {
     Light light;  ///< its shape (its scale aside)
-    std::vector<float> column;
+    SplitColumn column;
   };
   std::vector<CachedColumn> columns_;
   double vertex_samples_ = 0;       ///< paths per pixel they hold

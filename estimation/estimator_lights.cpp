@@ -222,11 +222,14 @@ bool Estimator::FitRadii(std::vector<PointLight>* lights) {
   fit.alpha = 0;  // the radius is chosen by the loss alone
   for (std::size_t k = 0; k < lights->size(); ++k) {
     base = map;
-    std::vector<float> col;
+    SplitColumn col, others;  // the other lights' render in the base; their noise (debiased)
+    if (fit.debiased) others.spread.assign(base.size(), 0.0f);
     for (std::size_t j = 0; j < lights->size(); ++j) {
       if (j == k) continue;
-      col = Column((*lights)[j]);
-      for (std::size_t i = 0; i < base.size(); ++i) base[i] += (*lights)[j].intensity[i % 3] * col[i];
+      col = Split((*lights)[j]);
+      for (std::size_t i = 0; i < base.size(); ++i) base[i] += (*lights)[j].intensity[i % 3] * col.value[i];
+      for (std::size_t i = 0; i < others.spread.size() && i < col.spread.size(); ++i)
+        others.spread[i] += static_cast<float>((*lights)[j].intensity[i % 3] * col.spread[i]);
     }
     PointLight& light = (*lights)[k];
     double best_loss = 0, point_loss = 0, best_radius = 0;
@@ -234,11 +237,14 @@ bool Estimator::FitRadii(std::vector<PointLight>* lights) {
     for (int g = 0; g < 6; ++g) {
       const double radius = g == 0 ? 0.0 : 0.004 * radius_ * std::pow(2.0, g);
       // (kSphereShadowRays each: the sizes' columns compared alike; the rounds' are the cache's)
-      if (radius == 0) col = Column(PointLight{light.position, light.intensity, 0});
-      else PointLightColumn(*scene_, vertices_, light.position, &col, nullptr, radius, kSphereShadowRays);
+      if (radius == 0) col = Split(PointLight{light.position, light.intensity, 0});
+      else
+        PointLightColumn(*scene_, vertices_, light.position,
+                         ColumnOut{&col.value, nullptr, fit.debiased ? &col.spread : nullptr}, radius,
+                         kSphereShadowRays);
       Eigen::Vector3d intensity = light.intensity;
       double sse = 0;
-      const double loss = RefitScale(fit, col, {}, &intensity, &sse);  // its intensity refitted there
+      const double loss = RefitScale(fit, col, others, &intensity, &sse);  // its intensity refitted there
       if (g == 0) point_loss = best_loss = loss;
       if (loss < best_loss) best_loss = loss, best_radius = radius, best_intensity = intensity;
       CheckCancel();
@@ -337,8 +343,8 @@ void Estimator::RefinePositions(std::vector<PointLight>* lights, RoundInfo* info
   // n-th); what they find is kept only if the whole objective, over all rows, falls too.
   // (Why these numbers, measured: docs/method.md, "Refinement", and docs/benchmarks.md.)
   const auto value = [&](const std::vector<PointLight>& now, double* sse = nullptr) {
-    std::vector<std::vector<float>> columns;  // from the cache: the round's solve made the start's
-    for (const PointLight& l : now) columns.push_back(Column(l));
+    std::vector<SplitColumn> columns;  // from the cache: the round's solve made the start's
+    for (const PointLight& l : now) columns.push_back(Split(l));
     return fit.Value(AsLights(now), columns, sse);
   };
   const std::vector<PointLight> start = *lights;
@@ -435,16 +441,26 @@ std::vector<double> Estimator::LightsRender(const std::vector<PointLight>& point
   return out;
 }
 
-/// A light's unit column on vertices_ (UnitColumn), from the cache when the round's
-/// vertices already gave it one for that shape (the last 8 shapes are kept).
-std::vector<float> Estimator::Column(const Light& light) {
+/// A light's unit column on vertices_ (UnitColumn) and, when the fit is debiased, its
+/// halves' difference, from the cache when the round's vertices already gave them for that
+/// shape (the last 8 shapes are kept).
+SplitColumn Estimator::Split(const Light& light) {
   for (const CachedColumn& c : columns_)
     if (SameShape(c.light, light)) return c.column;
   constexpr std::size_t kKept = 8;
   if (columns_.size() == kKept) columns_.erase(columns_.begin());
   columns_.push_back({light, {}});
-  UnitColumn(*scene_, vertices_, light, &columns_.back().column);
-  return columns_.back().column;
+  SplitColumn& c = columns_.back().column;
+  UnitColumn(*scene_, vertices_, light,
+             ColumnOut{&c.value, nullptr, opt_.point_lights.debiased ? &c.spread : nullptr});
+  return c;
+}
+
+/// A light's unit column on vertices_ (Split's value).
+std::vector<float> Estimator::Column(const Light& light) {
+  for (const CachedColumn& c : columns_)
+    if (SameShape(c.light, light)) return c.column.value;
+  return Split(light).value;
 }
 
 /// The share of the observed light a point light renders; a lamp inside a glowing surface

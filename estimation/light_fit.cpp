@@ -10,46 +10,78 @@
 namespace lp {
 namespace {
 
-/// What base and the lights render, 3 per row (the lights' columns given).
-std::vector<double> Model(const LightFitProblem& p, const std::vector<Light>& lights,
-                          const std::vector<std::vector<float>>& columns) {
-  LP_CHECK(columns.size() == lights.size(), "a column per light");
-  std::vector<double> model(*p.base);
+/// The lights' columns on the problem's vertices (their spreads when debiased) and, when
+/// asked, their derivatives.
+struct Traced {
+  std::vector<SplitColumn> cols;
+  std::vector<std::vector<float>> jac, spread_jac;
+};
+
+void TraceColumns(const LightFitProblem& p, const std::vector<Light>& lights, Traced* t, bool derivatives) {
+  const std::size_t K = lights.size();
+  t->cols.assign(K, {});
+  t->jac.assign(derivatives ? K : 0, {});
+  t->spread_jac.assign(derivatives && p.debiased ? K : 0, {});
+  for (std::size_t k = 0; k < K; ++k)
+    UnitColumn(*p.scene, *p.vertices, lights[k],
+               ColumnOut{&t->cols[k].value, derivatives ? &t->jac[k] : nullptr,
+                         p.debiased ? &t->cols[k].spread : nullptr,
+                         derivatives && p.debiased ? &t->spread_jac[k] : nullptr});
+}
+
+/// Whether a column has its spread, the problem being debiased.
+bool HasSpread(const LightFitProblem& p, const SplitColumn& c) {
+  return p.debiased && p.vertices && !p.vertices->half.empty() && c.spread.size() == c.value.size();
+}
+
+/// Whether every column has its spread (the objective is then debiased).
+bool HasSpreads(const LightFitProblem& p, const std::vector<SplitColumn>& cols) {
+  for (const SplitColumn& c : cols)
+    if (!HasSpread(p, c)) return false;
+  return p.debiased && p.vertices && !p.vertices->half.empty();
+}
+
+/// The residuals y - m model over all rows, `mult` m (3 per row; all 1 without segments),
+/// and `noise` the model's halves' difference times m (its square estimates the variance
+/// the columns' Monte Carlo noise adds to the residual; empty when not debiased).
+struct Fitted {
+  std::vector<double> r, mult, noise;
+};
+
+Fitted Residual(const LightFitProblem& p, const std::vector<Light>& lights, const std::vector<SplitColumn>& cols) {
+  LP_CHECK(cols.size() == lights.size(), "a column per light");
+  std::vector<double> model(*p.base), noise;
+  const bool debiased = HasSpreads(p, cols);
+  if (debiased) noise.assign(model.size(), 0.0);
   for (std::size_t k = 0; k < lights.size(); ++k) {
-    LP_CHECK(columns[k].size() == model.size(), "a column of the problem's rows");
+    LP_CHECK(cols[k].value.size() == model.size(), "a column of the problem's rows");
     const Eigen::Vector3d& s = Scale(lights[k]);
-    for (std::size_t i = 0; i < model.size(); ++i) model[i] += s[i % 3] * columns[k][i];
+    for (std::size_t i = 0; i < model.size(); ++i) model[i] += s[i % 3] * cols[k].value[i];
+    if (debiased)
+      for (std::size_t i = 0; i < model.size(); ++i) noise[i] += s[i % 3] * cols[k].spread[i];
   }
-  return model;
+  Fitted f;
+  f.mult = SegmentMultipliers(p, model, noise);
+  f.r.resize(model.size());
+  for (std::size_t i = 0; i < model.size(); ++i) f.r[i] = (*p.y)[i] - f.mult[i] * model[i];
+  for (std::size_t i = 0; i < noise.size(); ++i) noise[i] *= f.mult[i];
+  f.noise = std::move(noise);
+  return f;
 }
 
-/// Residuals y - m model over all rows, the lights' columns given; `mult` receives m (3
-/// per row; all 1 without segments).
-std::vector<double> Residual(const LightFitProblem& p, const std::vector<Light>& lights,
-                             const std::vector<std::vector<float>>& columns, std::vector<double>* mult = nullptr) {
-  const std::vector<double> model = Model(p, lights, columns);
-  const std::vector<double> m = SegmentMultipliers(p, model);
-  std::vector<double> r(model.size());
-  for (std::size_t i = 0; i < r.size(); ++i) r[i] = (*p.y)[i] - m[i] * model[i];
-  if (mult) *mult = m;
-  return r;
-}
-
-/// The lights' unit columns on the problem's vertices (and their Jacobians when asked).
-void TraceColumns(const LightFitProblem& p, const std::vector<Light>& lights, std::vector<std::vector<float>>* columns,
-                  std::vector<std::vector<float>>* jacobians) {
-  columns->resize(lights.size());
-  if (jacobians) jacobians->resize(lights.size());
-  for (std::size_t k = 0; k < lights.size(); ++k)
-    UnitColumn(*p.scene, *p.vertices, lights[k], &(*columns)[k], jacobians ? &(*jacobians)[k] : nullptr);
+/// sum rho(r), less what the noise adds to its expectation (rho''(r) noise^2 / 2 each).
+double LossSum(const CauchyLoss& loss, const std::vector<double>& r, const std::vector<double>& noise) {
+  double e = loss.Sum(r);
+  for (std::size_t i = 0; i < noise.size(); ++i) e -= 0.5 * loss.Curvature(r[i]) * noise[i] * noise[i];
+  return e;
 }
 
 double Penalty(const LightFitProblem& p, const Eigen::Vector3d& scale) {
   return p.alpha * std::log1p(p.beta * std::max(0.0, scale.sum()));
 }
 
-double Energy(const LightFitProblem& p, const std::vector<Light>& lights, const std::vector<double>& r) {
-  double e = p.loss.Sum(r);
+double Energy(const LightFitProblem& p, const std::vector<Light>& lights, const Fitted& f) {
+  double e = LossSum(p.loss, f.r, f.noise);
   for (const Light& l : lights) e += Penalty(p, Scale(l));
   return e;
 }
@@ -60,35 +92,53 @@ double SquaredSum(const std::vector<double>& r) {
   return sse;
 }
 
-/// The reweighted normal equations of RefineLights at `lights` (H lower and upper, g).
+/// One entry's derivative with respect to the parameters (each light's shape, then its
+/// scale) of what the lights render, from their columns (`value`) and the columns'
+/// derivatives (`jac`): the model's, or (the spreads) its noise's. False where every column
+/// is 0 there.
+bool EntryGradient(const std::vector<Light>& lights, const std::vector<Eigen::Matrix3d>& bases,
+                   const std::vector<int>& offset, const std::vector<const std::vector<float>*>& value,
+                   const std::vector<std::vector<float>>& jac, std::size_t i, Eigen::VectorXd* J) {
+  const std::size_t row = i / 3;
+  const int c = static_cast<int>(i % 3);
+  double shape[3];
+  J->setZero();
+  bool any = false;
+  for (std::size_t k = 0; k < lights.size(); ++k) {
+    const int dims = offset[k + 1] - offset[k] - 3;
+    ShapeGradient(bases[k], dims, &jac[k][9 * row + 3 * c], shape);
+    for (int a = 0; a < dims; ++a) (*J)[offset[k] + a] = Scale(lights[k])[c] * shape[a];
+    (*J)[offset[k] + dims + c] = (*value[k])[i];
+    any = any || (*value[k])[i] != 0;
+  }
+  return any;
+}
+
+/// The reweighted normal equations of RefineLights at `lights` (H lower and upper, g). When
+/// debiased, the noise's part (its gradient J_n) is taken out: H = sum w (J J' - J_n J_n'),
+/// g = sum w (r J + noise J_n), the Gauss-Newton form of LossSum's correction.
 void NormalEquations(const LightFitProblem& p, const std::vector<Light>& lights, const std::vector<int>& offset,
-                     const std::vector<std::vector<float>>& cols, const std::vector<std::vector<float>>& jacs,
-                     const std::vector<double>& r, const std::vector<double>& mult, Eigen::MatrixXd* H,
-                     Eigen::VectorXd* g) {
+                     const Traced& t, const Fitted& f, Eigen::MatrixXd* H, Eigen::VectorXd* g) {
   const int K = static_cast<int>(lights.size()), n = offset.back();
   *H = Eigen::MatrixXd::Zero(n, n);
   *g = Eigen::VectorXd::Zero(n);
-  Eigen::VectorXd J(n);
-  double shape[3];
+  Eigen::VectorXd J(n), Jn(n);
   std::vector<Eigen::Matrix3d> bases;  // each light's, once (not per row)
   for (const Light& l : lights) bases.push_back(ShapeBasis(l));
-  for (std::size_t i = 0; i < r.size(); ++i) {
-    const std::size_t row = i / 3;
-    const int c = static_cast<int>(i % 3);
-    J.setZero();
-    bool any = false;
-    for (int k = 0; k < K; ++k) {
-      const int dims = offset[k + 1] - offset[k] - 3;
-      ShapeGradient(bases[k], dims, &jacs[k][9 * row + 3 * c], shape);
-      for (int a = 0; a < dims; ++a) J[offset[k] + a] = Scale(lights[k])[c] * shape[a];
-      J[offset[k] + dims + c] = cols[k][i];
-      any = any || cols[k][i] != 0;
-    }
-    if (!any) continue;
-    J *= mult[i];  // the segments' multipliers held (their own derivative left out)
-    const double w = p.loss.Weight(r[i]);
+  std::vector<const std::vector<float>*> values, spreads;
+  for (const SplitColumn& c : t.cols) values.push_back(&c.value), spreads.push_back(&c.spread);
+  const bool debiased = !f.noise.empty() && t.spread_jac.size() == lights.size();
+  for (std::size_t i = 0; i < f.r.size(); ++i) {
+    if (!EntryGradient(lights, bases, offset, values, t.jac, i, &J)) continue;
+    J *= f.mult[i];  // the segments' multipliers held (their own derivative left out)
+    const double w = p.loss.Weight(f.r[i]);
     H->selfadjointView<Eigen::Lower>().rankUpdate(J, w);
-    *g += w * r[i] * J;
+    *g += w * f.r[i] * J;
+    if (debiased && EntryGradient(lights, bases, offset, spreads, t.spread_jac, i, &Jn)) {
+      Jn *= f.mult[i];
+      H->selfadjointView<Eigen::Lower>().rankUpdate(Jn, -w);
+      *g += w * f.noise[i] * Jn;
+    }
   }
   *H = H->selfadjointView<Eigen::Lower>();
   for (int k = 0; k < K; ++k)  // the penalty's gradient on the scales
@@ -99,19 +149,20 @@ void NormalEquations(const LightFitProblem& p, const std::vector<Light>& lights,
 }  // namespace
 
 double LightFitProblem::Value(const std::vector<Light>& lights, double* sse) const {
-  std::vector<std::vector<float>> columns;
-  TraceColumns(*this, lights, &columns, nullptr);
-  return Value(lights, columns, sse);
+  Traced t;
+  TraceColumns(*this, lights, &t, false);
+  return Value(lights, t.cols, sse);
 }
 
-double LightFitProblem::Value(const std::vector<Light>& lights, const std::vector<std::vector<float>>& columns,
+double LightFitProblem::Value(const std::vector<Light>& lights, const std::vector<SplitColumn>& columns,
                               double* sse) const {
-  const std::vector<double> r = Residual(*this, lights, columns);
-  if (sse) *sse = SquaredSum(r);
-  return Energy(*this, lights, r);
+  const Fitted f = Residual(*this, lights, columns);
+  if (sse) *sse = SquaredSum(f.r);
+  return Energy(*this, lights, f);
 }
 
-std::vector<double> SegmentMultipliers(const LightFitProblem& p, const std::vector<double>& model) {
+std::vector<double> SegmentMultipliers(const LightFitProblem& p, const std::vector<double>& model,
+                                       const std::vector<double>& noise) {
   std::vector<double> m(model.size(), 1.0);
   if (!p.segment) return m;
   const std::vector<int>& seg = *p.segment;
@@ -121,10 +172,11 @@ std::vector<double> SegmentMultipliers(const LightFitProblem& p, const std::vect
   std::vector<int> rows(segments, 0);
   for (int s : seg)
     if (s >= 0) ++rows[s];
-  std::vector<double> k(3 * segments, 1.0), num(3 * segments), den(3 * segments);
+  std::vector<double> k(3 * segments, 1.0), num(3 * segments), den(3 * segments), var(3 * segments);
   for (int it = 0; it < 4; ++it) {
     std::fill(num.begin(), num.end(), 0.0);
     std::fill(den.begin(), den.end(), 0.0);
+    std::fill(var.begin(), var.end(), 0.0);
     for (std::size_t i = 0; i < model.size(); ++i) {
       const int s = seg[i / 3];
       if (s < 0 || rows[s] < kMinSegmentRows) continue;
@@ -132,10 +184,12 @@ std::vector<double> SegmentMultipliers(const LightFitProblem& p, const std::vect
       const double w = p.loss.Weight((*p.y)[i] - k[j] * model[i]);
       num[j] += w * model[i] * (*p.y)[i];
       den[j] += w * model[i] * model[i];
+      if (!noise.empty()) var[j] += w * noise[i] * noise[i];
     }
     for (std::size_t j = 0; j < k.size(); ++j)
-      if (den[j] > 0)
-        k[j] = std::clamp(num[j] / den[j], 1 / kMaxSegmentMultiplier, kMaxSegmentMultiplier);
+      if (den[j] > 0)  // (the noise's share of sum model^2 taken out, at most half of it)
+        k[j] = std::clamp(num[j] / std::max(den[j] - var[j], 0.5 * den[j]), 1 / kMaxSegmentMultiplier,
+                          kMaxSegmentMultiplier);
   }
   for (std::size_t i = 0; i < model.size(); ++i) {
     const int s = seg[i / 3];
@@ -156,6 +210,7 @@ LightFitSubset::LightFitSubset(const LightFitProblem& full, std::size_t max_rows
       vertices.geometric.push_back(v.geometric[k]);
       vertices.weight.push_back(v.weight[k]);
       if (v.camera.size() == v.size()) vertices.camera.push_back(v.camera[k]);
+      if (v.half.size() == v.size()) vertices.half.push_back(v.half[k]);
     }
     vertices.row_start.push_back(static_cast<std::int64_t>(vertices.position.size()));
     for (int c = 0; c < 3; ++c) {
@@ -177,17 +232,16 @@ int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_i
   std::vector<int> offset{0};  // per light: its shape's coordinates, then its scale (3)
   for (const Light& l : *lights) offset.push_back(offset.back() + ShapeDims(l) + 3);
   const int n = offset.back();
-  std::vector<std::vector<float>> cols, jacs;
-  TraceColumns(p, *lights, &cols, &jacs);
-  std::vector<double> mult;
-  std::vector<double> r = Residual(p, *lights, cols, &mult);
-  double E = Energy(p, *lights, r);
+  Traced t;
+  TraceColumns(p, *lights, &t, true);
+  Fitted f = Residual(p, *lights, t.cols);
+  double E = Energy(p, *lights, f);
   double mu = 1e-3;
   int it = 0;
   for (; it < max_iterations; ++it) {
     Eigen::MatrixXd H;
     Eigen::VectorXd g;
-    NormalEquations(p, *lights, offset, cols, jacs, r, mult, &H, &g);
+    NormalEquations(p, *lights, offset, t, f, &H, &g);
     bool accepted = false;
     for (int tries = 0; tries < 8 && !accepted; ++tries) {
       Eigen::MatrixXd M = H;
@@ -202,22 +256,19 @@ int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_i
         trial.push_back(Moved((*lights)[k], &step[offset[k]]));
         Scale(trial[k]) = (Scale(trial[k]) + step.segment<3>(offset[k + 1] - 3)).cwiseMax(0.0);
       }
-      std::vector<std::vector<float>> tcols, tjacs;
-      TraceColumns(p, trial, &tcols, &tjacs);
-      std::vector<double> tmult;
-      std::vector<double> tr = Residual(p, trial, tcols, &tmult);
-      const double tE = Energy(p, trial, tr);
+      Traced tt;
+      TraceColumns(p, trial, &tt, true);
+      Fitted tf = Residual(p, trial, tt.cols);
+      const double tE = Energy(p, trial, tf);
       if (tE < E) {
         accepted = true;
-        const double drop = (E - tE) / std::max(E, 1e-300);
+        const double drop = (E - tE) / std::max(std::abs(E), 1e-300);
         *lights = std::move(trial);
-        cols.swap(tcols);
-        jacs.swap(tjacs);
-        r.swap(tr);
-        mult.swap(tmult);
+        t = std::move(tt);
+        f = std::move(tf);
         E = tE;
         mu = std::max(mu / 3, 1e-9);
-        if (log) log(it + 1, E, SquaredSum(r), *lights);
+        if (log) log(it + 1, E, SquaredSum(f.r), *lights);
         if (drop < 1e-6) return it + 1;
       } else {
         mu *= 10;
@@ -228,53 +279,78 @@ int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_i
   return it;
 }
 
-double RefitScale(const LightFitProblem& p, const std::vector<float>& others, Light* light, double* sse) {
-  std::vector<float> col;
-  UnitColumn(*p.scene, *p.vertices, *light, &col);
+double RefitScale(const LightFitProblem& p, const SplitColumn& others, Light* light, double* sse) {
+  SplitColumn col;
+  UnitColumn(*p.scene, *p.vertices, *light, ColumnOut{&col.value, nullptr, p.debiased ? &col.spread : nullptr});
   return RefitScale(p, col, others, &Scale(*light), sse);
 }
 
-double RefitScale(const LightFitProblem& p, const std::vector<float>& col, const std::vector<float>& others,
+double RefitScale(const LightFitProblem& p, const SplitColumn& column, const SplitColumn& others,
                   Eigen::Vector3d* scale_out, double* sse) {
+  const std::vector<float>& col = column.value;
   std::vector<double> rest(*p.base);  // what the others render, held
-  if (!others.empty())
-    for (std::size_t i = 0; i < col.size(); ++i) rest[i] += others[i];
+  if (!others.value.empty())
+    for (std::size_t i = 0; i < col.size(); ++i) rest[i] += others.value[i];
+  // Debiased: the model's noise is the others' spread plus the scale times the column's.
+  const bool debiased = HasSpread(p, column) && (others.spread.empty() || others.spread.size() == col.size());
+  std::vector<double> rest_noise(debiased ? col.size() : 0, 0.0);
+  if (debiased && others.spread.size() == col.size())
+    std::copy(others.spread.begin(), others.spread.end(), rest_noise.begin());
   Eigen::Vector3d& scale = *scale_out;
-  const auto model = [&] {
+  const auto model = [&](std::vector<double>* noise) {
     std::vector<double> out(rest);
     for (std::size_t i = 0; i < col.size(); ++i) out[i] += scale[i % 3] * col[i];
+    *noise = rest_noise;
+    for (std::size_t i = 0; i < noise->size(); ++i) (*noise)[i] += scale[i % 3] * column.spread[i];
     return out;
   };
-  std::vector<double> m(col.size(), 1.0);
+  std::vector<double> m(col.size(), 1.0), noise;
   for (int it = 0; it < 4; ++it) {
-    if (p.segment) m = SegmentMultipliers(p, model());  // the albedos for this scale, then the scale for them
-    Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
+    if (p.segment) {  // the albedos for this scale, then the scale for them
+      const std::vector<double> now = model(&noise);
+      m = SegmentMultipliers(p, now, noise);
+    }
+    // d/ds sum w ((left - s mc)^2 - (m (rest_noise + s spread))^2) = 0
+    Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero(), var = Eigen::Vector3d::Zero();
     for (std::size_t i = 0; i < col.size(); ++i) {
       const double left = (*p.y)[i] - m[i] * rest[i], mc = m[i] * col[i];
       const double r = left - scale[i % 3] * mc, w = p.loss.Weight(r);
       num[i % 3] += w * mc * left;
       den[i % 3] += w * mc * mc;
+      if (debiased) {
+        const double ms = m[i] * column.spread[i];
+        num[i % 3] += w * ms * m[i] * rest_noise[i];
+        var[i % 3] += w * ms * ms;
+      }
     }
-    for (int c = 0; c < 3; ++c) scale[c] = den[c] > 0 ? std::max(0.0, num[c] / den[c]) : 0.0;
+    for (int c = 0; c < 3; ++c)  // (the noise's share of the curvature at most half of it)
+      scale[c] = den[c] > 0 ? std::max(0.0, num[c] / std::max(den[c] - var[c], 0.5 * den[c])) : 0.0;
   }
-  const std::vector<double> final_model = model();
-  if (p.segment) m = SegmentMultipliers(p, final_model);
+  const std::vector<double> final_model = model(&noise);
+  if (p.segment) m = SegmentMultipliers(p, final_model, noise);
   std::vector<double> r(col.size());
   for (std::size_t i = 0; i < col.size(); ++i) r[i] = (*p.y)[i] - m[i] * final_model[i];
+  for (std::size_t i = 0; i < noise.size(); ++i) noise[i] *= m[i];
   *sse = SquaredSum(r);
-  return p.loss.Sum(r) + Penalty(p, scale);
+  return LossSum(p.loss, r, noise) + Penalty(p, scale);
 }
 
 int SearchLights(const LightFitProblem& p, std::vector<Light>* lights, const Eigen::Vector3d& centre,
                  const CompassOptions& o, const LightFitLog& log) {
   int moves = 0;
   for (std::size_t k = 0; k < lights->size(); ++k) {
-    std::vector<float> others(p.y->size(), 0.0f), col;  // the other lights' render, held
+    SplitColumn others, col;  // the other lights' render, held
+    others.value.assign(p.y->size(), 0.0f);
+    if (p.debiased) others.spread.assign(p.y->size(), 0.0f);
     for (std::size_t j = 0; j < lights->size(); ++j) {
       if (j == k) continue;
-      UnitColumn(*p.scene, *p.vertices, (*lights)[j], &col);
+      UnitColumn(*p.scene, *p.vertices, (*lights)[j],
+                 ColumnOut{&col.value, nullptr, p.debiased ? &col.spread : nullptr});
       const Eigen::Vector3d& s = Scale((*lights)[j]);
-      for (std::size_t i = 0; i < col.size(); ++i) others[i] += static_cast<float>(s[i % 3] * col[i]);
+      for (std::size_t i = 0; i < col.value.size(); ++i) {
+        others.value[i] += static_cast<float>(s[i % 3] * col.value[i]);
+        if (p.debiased) others.spread[i] += static_cast<float>(s[i % 3] * col.spread[i]);
+      }
     }
     // The light as it is, its scale refitted on these rows.
     Light current = (*lights)[k];

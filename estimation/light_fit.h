@@ -15,6 +15,12 @@
 
 namespace lp {
 
+/// A light's unit column on shading vertices (or a sum of scaled columns), 3 per row, and the
+/// difference of its two halves (ColumnOut's spread; empty: not known).
+struct SplitColumn {
+  std::vector<float> value, spread;
+};
+
 /// The robust objective of lights on fixed shading vertices, the rest of the image
 /// (`base`: the environment's render, 3 per row) held fixed:
 ///   E = sum rho(y - m . (base + sum_k s_k . c_k(shape_k))) + sum_k alpha log(1 + beta sum_c s_kc),
@@ -23,6 +29,10 @@ namespace lp {
 /// segment (over kMinSegmentRows rows) is then free, eliminated where E is evaluated
 /// (variable projection, SegmentMultipliers), so the lights are fitted to the shading
 /// within the segments and not to their albedos (docs/method.md, "Albedo left free").
+/// `debiased`: the columns are Monte Carlo sums, and their noise adds about
+/// rho''(r) Var(m sum_k s_k c_k) / 2 to each term's expectation, more where a light's paths
+/// are noisier (a lamp farther along its ray): that is subtracted, the variance estimated by
+/// the square of the columns' halves' difference (docs/method.md, "The columns' noise").
 struct LightFitProblem {
   const RayTracer* scene = nullptr;
   const ShadingVertices* vertices = nullptr;
@@ -33,11 +43,12 @@ struct LightFitProblem {
   /// Per row: the segment of the surface it sees (0 ..), or -1 (its albedo held); null: every
   /// albedo held.
   const std::vector<int>* segment = nullptr;
+  bool debiased = false;
   /// E at these lights; `sse`, when given, receives the sum of squared residuals.
   double Value(const std::vector<Light>& lights, double* sse = nullptr) const;
   /// The same with the lights' unit columns given (as UnitColumn makes them on these
-  /// vertices: e.g. from a cache).
-  double Value(const std::vector<Light>& lights, const std::vector<std::vector<float>>& columns,
+  /// vertices: e.g. from a cache; without spreads, not debiased).
+  double Value(const std::vector<Light>& lights, const std::vector<SplitColumn>& columns,
                double* sse = nullptr) const;
 };
 
@@ -66,8 +77,10 @@ constexpr double kMaxSegmentMultiplier = 8;
 /// The albedo multipliers of LightFitProblem's segments for a model (3 per row: what the
 /// lights and base render), 3 per row (1 where the row's albedo is held): per segment and
 /// channel the m minimizing sum rho(y - m model) over its rows, by reweighted least squares
-/// (4 passes from 1), kept within kMaxSegmentMultiplier.
-std::vector<double> SegmentMultipliers(const LightFitProblem& problem, const std::vector<double>& model);
+/// (4 passes from 1), kept within kMaxSegmentMultiplier. `noise` (3 per row, or empty): the
+/// model's halves' difference, whose square is taken from the model's (debiased).
+std::vector<double> SegmentMultipliers(const LightFitProblem& problem, const std::vector<double>& model,
+                                       const std::vector<double>& noise = {});
 
 /// Called after each accepted step of a fit: (step, E, sum of squared residuals, lights).
 using LightFitLog = std::function<void(int, double, double, const std::vector<Light>&)>;
@@ -100,9 +113,9 @@ int SearchLights(const LightFitProblem& problem, std::vector<Light>* lights, con
 /// The energy of a light at its shape, what `others` render (3 per row, or empty) held and
 /// its scale refitted there by reweighted least squares (4 passes from its scale);
 /// `sse` receives the sum of squared residuals.
-double RefitScale(const LightFitProblem& problem, const std::vector<float>& others, Light* light, double* sse);
+double RefitScale(const LightFitProblem& problem, const SplitColumn& others, Light* light, double* sse);
 /// The same with the light's unit column given (e.g. from a cache), its scale `scale`.
-double RefitScale(const LightFitProblem& problem, const std::vector<float>& column, const std::vector<float>& others,
+double RefitScale(const LightFitProblem& problem, const SplitColumn& column, const SplitColumn& others,
                   Eigen::Vector3d* scale, double* sse);
 
 /// The widest angular radius FitAngularRadius tries (degrees).

@@ -20,6 +20,12 @@ struct CauchyLoss {
   }
   /// rho'(r) / r = 1 / (1 + r^2/sigma^2): the weight of a residual in reweighted least squares.
   double Weight(double r) const { return 1 / (1 + r * r / (sigma * sigma)); }
+  /// rho''(r) = (1 - r^2/sigma^2) / (1 + r^2/sigma^2)^2: what a zero-mean noise of variance v
+  /// in r adds to rho's expectation is about rho''(r) v / 2.
+  double Curvature(double r) const {
+    const double t = r * r / (sigma * sigma);
+    return (1 - t) / ((1 + t) * (1 + t));
+  }
 };
 
 }  // namespace lp

@@ -18,20 +18,23 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
   struct Vertex {
     Eigen::Vector3f p, n, g, w;
     float camera;
+    std::int8_t half;
   };
   const std::vector<PixelRef> pixels = PixelsToTrace(views, all_pixels);
   std::vector<std::vector<Vertex>> rows(pixels.size());
   const float inv = 1.0f / opt.spp;
+  const int paired = opt.spp / 2 * 2;  // an odd count's last sample is in neither half
   ForEachPixel(pixels, opt, stats, [&](std::size_t i, const PixelRef& px, Counters& cnt) {
     const Camera& cam = views[px.view].camera;
     const int x = px.pixel % cam.width, y = px.pixel / cam.width;
     for (int s = 0; s < opt.spp; ++s) {
       Rng rng(opt.seed, px.view, px.pixel, s);
       float camera = inv;  // the path's first vertex only
+      const std::int8_t half = s >= paired ? 0 : s % 2 ? -1 : 1;
       WalkPath(scene, cam, x, y, rng, opt, cnt,
                [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
                  rows[i].push_back({off.cast<float>(), hit.shading.cast<float>(), hit.geometric.cast<float>(),
-                                    w.cast<float>() * inv, camera});
+                                    w.cast<float>() * inv, camera, half});
                  camera = 0;
                });
     }
@@ -45,6 +48,7 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
   out.geometric.reserve(n);
   out.weight.reserve(n);
   out.camera.reserve(n);
+  out.half.reserve(n);
   for (auto& r : rows) {
     for (const Vertex& v : r) {
       out.position.push_back(v.p);
@@ -52,6 +56,7 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
       out.geometric.push_back(v.g);
       out.weight.push_back(v.w);
       out.camera.push_back(v.camera);
+      out.half.push_back(v.half);
     }
     out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
     std::vector<Vertex>().swap(r);
@@ -74,6 +79,8 @@ ShadingVertices Combine(const ShadingVertices& a, double a_samples, const Shadin
   out.weight.reserve(total);
   const bool camera = a.camera.size() == a.size() && b.camera.size() == b.size();
   if (camera) out.camera.reserve(total);
+  const bool half = a.half.size() == a.size() && b.half.size() == b.size();
+  if (half) out.half.reserve(total);
   for (std::size_t r = 0; r < a.rows(); ++r) {
     for (const auto& [v, w] : {std::pair<const ShadingVertices*, float>{&a, wa}, {&b, wb}})
       for (std::int64_t k = v->row_start[r]; k < v->row_start[r + 1]; ++k) {
@@ -82,6 +89,7 @@ ShadingVertices Combine(const ShadingVertices& a, double a_samples, const Shadin
         out.geometric.push_back(v->geometric[k]);
         out.weight.push_back(v->weight[k] * w);
         if (camera) out.camera.push_back(v->camera[k] * w);
+        if (half) out.half.push_back(v->half[k]);
       }
     out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
   }

@@ -28,7 +28,14 @@ struct ShadingVertices {
   /// first vertex (the surface the pixel sees), 0 for the vertices after it (a glowing
   /// surface's own radiance reaches the pixel with it: EmitterLight). Empty: not kept.
   std::vector<float> camera;
+  /// The half of the row's paths the vertex's path is in: +1 (the even samples), -1 (the odd
+  /// ones) or 0 (neither: the last of an odd count). A column's two halves differ by the sum
+  /// of its terms so signed, whose square estimates the column's Monte Carlo variance
+  /// (ColumnRow, LightFitProblem). Empty: not kept (no variance is estimated).
+  std::vector<std::int8_t> half;
   std::size_t rows() const { return row_start.size() - 1; }
+  /// The vertex's half (0 when not kept).
+  int Half(std::size_t k) const { return half.empty() ? 0 : half[k]; }
   std::size_t size() const { return position.size(); }
 };
 
@@ -42,14 +49,48 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
 /// scaled by its gathering's share of the samples), like Combine for transport matrices.
 ShadingVertices Combine(const ShadingVertices& a, double a_samples, const ShadingVertices& b, double b_samples);
 
-/// Stores a column's row `r`: `sum` (per channel) at out[3*r + c] and, when `jacobian` is
-/// given, `jac` (channel, coordinate) at [9*r + 3*c + a], as floats.
-inline void StoreColumnRow(std::size_t r, const Eigen::Vector3d& sum, const Eigen::Matrix3d& jac,
-                           std::vector<float>* out, std::vector<float>* jacobian) {
-  for (int c = 0; c < 3; ++c) (*out)[3 * r + c] = static_cast<float>(sum[c]);
-  if (jacobian)
-    for (int c = 0; c < 3; ++c)
-      for (int a = 0; a < 3; ++a) (*jacobian)[9 * r + 3 * c + a] = static_cast<float>(jac(c, a));
-}
+/// Where a light's column on shading vertices goes: `value` (3 per row) and, each when
+/// given, its derivative with respect to the light's shape (9 per row: [9*row + 3*c + k]),
+/// the difference of its two halves (ShadingVertices::half; 3 per row) and that
+/// difference's derivative (9 per row).
+struct ColumnOut {
+  std::vector<float>* value = nullptr;
+  std::vector<float>* jacobian = nullptr;
+  std::vector<float>* spread = nullptr;
+  std::vector<float>* spread_jacobian = nullptr;
+  /// Each given output sized for `rows` and zeroed.
+  void Assign(std::size_t rows) const {
+    value->assign(3 * rows, 0.0f);
+    if (jacobian) jacobian->assign(9 * rows, 0.0f);
+    if (spread) spread->assign(3 * rows, 0.0f);
+    if (spread_jacobian) spread_jacobian->assign(9 * rows, 0.0f);
+  }
+};
+
+/// A column's row summed vertex by vertex: the sum and its derivative, and the same with each
+/// term signed by its path's half (ColumnOut's spread).
+struct ColumnRow {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero(), spread = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d jac = Eigen::Matrix3d::Zero(), spread_jac = Eigen::Matrix3d::Zero();  ///< (channel, coordinate)
+  void Add(int half, const Eigen::Vector3d& value) {
+    sum += value;
+    spread += half * value;
+  }
+  void AddDerivative(int half, const Eigen::Matrix3d& d) {
+    jac += d;
+    spread_jac += half * d;
+  }
+  /// Writes row `r` (as floats) to each output given.
+  void Store(std::size_t r, const ColumnOut& out) const {
+    for (int c = 0; c < 3; ++c) {
+      (*out.value)[3 * r + c] = static_cast<float>(sum[c]);
+      if (out.spread) (*out.spread)[3 * r + c] = static_cast<float>(spread[c]);
+      for (int a = 0; a < 3; ++a) {
+        if (out.jacobian) (*out.jacobian)[9 * r + 3 * c + a] = static_cast<float>(jac(c, a));
+        if (out.spread_jacobian) (*out.spread_jacobian)[9 * r + 3 * c + a] = static_cast<float>(spread_jac(c, a));
+      }
+    }
+  }
+};
 
 }  // namespace lp

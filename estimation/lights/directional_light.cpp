@@ -22,14 +22,12 @@ double ConeVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const Ei
 }
 
 void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& towards,
-                            std::vector<float>* out, std::vector<float>* jacobian, double angular_radius) {
+                            const ColumnOut& out, double angular_radius) {
   const Eigen::Vector3d l = towards.normalized();
-  out->assign(3 * v.rows(), 0.0f);
-  if (jacobian) jacobian->assign(9 * v.rows(), 0.0f);
+  out.Assign(v.rows());
   ParallelForChunks(0, v.rows(), 64, [&](std::size_t b, std::size_t e) {
     for (std::size_t r = b; r < e; ++r) {
-      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-      Eigen::Matrix3d jac = Eigen::Matrix3d::Zero();  // (channel, coordinate)
+      ColumnRow row;
       for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
         const Eigen::Vector3d n = v.normal[k].cast<double>();
         const double cn = n.dot(l), cg = v.geometric[k].cast<double>().dot(l);
@@ -38,10 +36,11 @@ void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& v, co
             ConeVisibility(scene, v.position[k].cast<double>(), l, angular_radius, static_cast<std::uint64_t>(k));
         if (seen == 0) continue;
         const Eigen::Vector3d w = v.weight[k].cast<double>() * seen;
-        sum += w * cn;
-        if (jacobian) jac += w * (n - cn * l).transpose();  // d cos / d l on the unit sphere
+        row.Add(v.Half(k), w * cn);
+        // d cos / d l on the unit sphere
+        if (out.jacobian || out.spread_jacobian) row.AddDerivative(v.Half(k), w * (n - cn * l).transpose());
       }
-      StoreColumnRow(r, sum, jac, out, jacobian);
+      row.Store(r, out);
     }
   });
 }

@@ -37,12 +37,18 @@ double ConeVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const Ei
 /// it receives the derivative with respect to the direction moved on the unit sphere
 /// (towards + delta, normalized; visibility held fixed) at [9*row + 3*c + k]. With an
 /// `angular_radius` (a disc of that half-angle) each vertex sends kSphereShadowRays shadow
-/// rays across it (ConeVisibility, a fixed pattern per vertex).
+/// rays across it (ConeVisibility, a fixed pattern per vertex). ColumnOut: with the
+/// halves' difference when asked.
 void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& vertices, const Eigen::Vector3d& towards,
-                            std::vector<float>* out, std::vector<float>* jacobian = nullptr, double angular_radius = 0);
+                            const ColumnOut& out, double angular_radius = 0);
+inline void DirectionalLightColumn(const RayTracer& scene, const ShadingVertices& vertices,
+                                   const Eigen::Vector3d& towards, std::vector<float>* out,
+                                   std::vector<float>* jacobian = nullptr, double angular_radius = 0) {
+  DirectionalLightColumn(scene, vertices, towards, ColumnOut{out, jacobian}, angular_radius);
+}
 inline void UnitColumn(const RayTracer& scene, const ShadingVertices& vertices, const DirectionalLight& light,
-                       std::vector<float>* out, std::vector<float>* jacobian = nullptr) {
-  DirectionalLightColumn(scene, vertices, light.direction, out, jacobian, light.angular_radius);
+                       const ColumnOut& out) {
+  DirectionalLightColumn(scene, vertices, light.direction, out, light.angular_radius);
 }
 
 /// The irradiance (image units) the light sends to a surface point `origin` (already off

@@ -168,21 +168,19 @@ double AreaOn(const EmitterShape& a, const EmitterShape& b) {
 
 Eigen::Vector3d EmitterLight::Power() const { return kPi * radiance * Area(); }
 
-void UnitColumn(const RayTracer& scene, const ShadingVertices& v, const EmitterLight& light, std::vector<float>* out,
-                std::vector<float>* jacobian) {
+void UnitColumn(const RayTracer& scene, const ShadingVertices& v, const EmitterLight& light, const ColumnOut& out) {
   const std::size_t rows = v.rows();
-  out->assign(3 * rows, 0.0f);
-  if (jacobian) jacobian->assign(9 * rows, 0.0f);
+  out.Assign(rows);
   if (!light.shape || !(light.shape->area > 0)) return;
   const EmitterShape& s = *light.shape;
   const bool seen = v.camera.size() == v.size();
   ParallelForChunks(0, rows, 64, [&](std::size_t b, std::size_t e) {
     for (std::size_t r = b; r < e; ++r) {
-      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      ColumnRow row;
       for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
         const Eigen::Vector3d p = v.position[k].cast<double>(), n = v.normal[k].cast<double>(),
                               g = v.geometric[k].cast<double>();
-        if (seen && v.camera[k] > 0 && OnEmitter(s, p, g)) sum += Eigen::Vector3d::Constant(v.camera[k]);
+        if (seen && v.camera[k] > 0 && OnEmitter(s, p, g)) row.Add(v.Half(k), Eigen::Vector3d::Constant(v.camera[k]));
         const double turn = HashUnit(static_cast<std::uint64_t>(k) * 0x9E3779B9ull + 17);
         double e_sum = 0;
         for (int i = 0; i < kEmitterShadowRays; ++i) {
@@ -191,9 +189,9 @@ void UnitColumn(const RayTracer& scene, const ShadingVertices& v, const EmitterL
               PointOn(s, (i + turn) / kEmitterShadowRays, HashUnit(static_cast<std::uint64_t>(k) << 3 ^ i), &t);
           e_sum += Transfer(scene, s, p, n, g, q, t);
         }
-        sum += v.weight[k].cast<double>() * (e_sum * s.area / kEmitterShadowRays);
+        row.Add(v.Half(k), v.weight[k].cast<double>() * (e_sum * s.area / kEmitterShadowRays));
       }
-      for (int c = 0; c < 3; ++c) (*out)[3 * r + c] = static_cast<float>(sum[c]);
+      row.Store(r, out);
     }
   });
 }

@@ -82,9 +82,9 @@ struct EmitterLight {
 /// The column of the emitter at unit radiance: out[3*row + c], the light its triangles send
 /// to each row's shading vertices (kEmitterShadowRays each, shadowed, one-sided) plus the
 /// camera's direct view of it (ShadingVertices::camera of the vertices on it). It has no
-/// shape: a `jacobian` is all zeros.
+/// shape: its derivatives are all zeros. ColumnOut: with the halves' difference when asked.
 void UnitColumn(const RayTracer& scene, const ShadingVertices& vertices, const EmitterLight& light,
-                std::vector<float>* out, std::vector<float>* jacobian = nullptr);
+                const ColumnOut& out);
 
 /// The irradiance (image units) the emitter sends to a surface point `origin` of shading
 /// normal `n` and geometric normal `g`: one shadow ray to a point of its triangles drawn by

@@ -23,10 +23,15 @@ using Light = std::variant<PointLight, DirectionalLight, EmitterLight>;
 
 /// The light's column of unit scale on shading vertices (3 per row), and its derivative
 /// with respect to the shape (9 per row: [9*row + 3*c + k], the kind's 3 raw coordinates;
-/// ShapeGradient maps them to the shape's).
+/// ShapeGradient maps them to the shape's); with the halves' difference and its derivative
+/// when asked (ColumnOut). Each kind gives the ColumnOut form.
+inline void UnitColumn(const RayTracer& scene, const ShadingVertices& vertices, const Light& light,
+                       const ColumnOut& out) {
+  std::visit([&](const auto& l) { UnitColumn(scene, vertices, l, out); }, light);
+}
 inline void UnitColumn(const RayTracer& scene, const ShadingVertices& vertices, const Light& light,
                        std::vector<float>* out, std::vector<float>* jacobian = nullptr) {
-  std::visit([&](const auto& l) { UnitColumn(scene, vertices, l, out, jacobian); }, light);
+  UnitColumn(scene, vertices, light, ColumnOut{out, jacobian});
 }
 /// Whether two lights are of one kind and one shape (the same column), their scales aside.
 inline bool SameShape(const Light& a, const Light& b) {

@@ -42,15 +42,12 @@ double SphereVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const 
   return static_cast<double>(seen) / rays;
 }
 
-void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& q,
-                      std::vector<float>* out, std::vector<float>* jacobian, double radius, int rays) {
-  const std::size_t rows = v.rows();
-  out->assign(3 * rows, 0.0f);
-  if (jacobian) jacobian->assign(9 * rows, 0.0f);
-  ParallelForChunks(0, rows, 64, [&](std::size_t b, std::size_t e) {
+void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& q, const ColumnOut& out,
+                      double radius, int rays) {
+  out.Assign(v.rows());
+  ParallelForChunks(0, v.rows(), 64, [&](std::size_t b, std::size_t e) {
     for (std::size_t r = b; r < e; ++r) {
-      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-      Eigen::Matrix3d jac = Eigen::Matrix3d::Zero();  // (channel, coordinate)
+      ColumnRow row;
       for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
         const Eigen::Vector3d p = v.position[k].cast<double>(), n = v.normal[k].cast<double>();
         Eigen::Vector3d l;
@@ -60,14 +57,14 @@ void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Ei
         const double seen = SphereVisibility(scene, p, q, radius, l, d, static_cast<std::uint64_t>(k), rays);
         if (seen == 0) continue;
         const Eigen::Vector3d w = v.weight[k].cast<double>() * seen;
-        sum += w * f;
-        if (jacobian) {
+        row.Add(v.Half(k), w * f);
+        if (out.jacobian || out.spread_jacobian) {
           // f = n.(q-p) / d^3:  df/dq = n / d^3 - 3 n.(q-p) (q-p) / d^5 = (n - 3 (n.l) l) / d^3.
           const Eigen::Vector3d grad = (n - 3 * n.dot(l) * l) / (d * d * d);
-          jac += w * grad.transpose();
+          row.AddDerivative(v.Half(k), w * grad.transpose());
         }
       }
-      StoreColumnRow(r, sum, jac, out, jacobian);
+      row.Store(r, out);
     }
   });
 }

@@ -35,14 +35,19 @@ double SphereVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const 
                         const Eigen::Vector3d& l, double d, std::uint64_t key, int rays = kSphereShadowRays);
 
 /// The unit-intensity column of a point light at `q` (of `radius`: soft shadows, `rays`
-/// shadow rays per vertex to its disc): out[3*row + c]. When `jacobian` is given it receives
-/// d out[3*row + c] / d q_k at [9*row + 3*c + k] (visibility held fixed).
+/// shadow rays per vertex to its disc): out.value[3*row + c]; its derivative with respect to
+/// q (out.jacobian: d value[3*row + c] / d q_k at [9*row + 3*c + k], visibility held fixed)
+/// and its halves' difference (ColumnOut) when asked.
 void PointLightColumn(const RayTracer& scene, const ShadingVertices& vertices, const Eigen::Vector3d& q,
-                      std::vector<float>* out, std::vector<float>* jacobian = nullptr, double radius = 0,
-                      int rays = kColumnShadowRays);
+                      const ColumnOut& out, double radius = 0, int rays = kColumnShadowRays);
+inline void PointLightColumn(const RayTracer& scene, const ShadingVertices& vertices, const Eigen::Vector3d& q,
+                             std::vector<float>* out, std::vector<float>* jacobian = nullptr, double radius = 0,
+                             int rays = kColumnShadowRays) {
+  PointLightColumn(scene, vertices, q, ColumnOut{out, jacobian}, radius, rays);
+}
 inline void UnitColumn(const RayTracer& scene, const ShadingVertices& vertices, const PointLight& light,
-                       std::vector<float>* out, std::vector<float>* jacobian = nullptr) {
-  PointLightColumn(scene, vertices, light.position, out, jacobian, light.radius);
+                       const ColumnOut& out) {
+  PointLightColumn(scene, vertices, light.position, out, light.radius);
 }
 
 /// The irradiance (image units) the light sends to a surface point `origin` (already off
