@@ -47,6 +47,11 @@ std::vector<EstimateOption> LightOptions() {
        "1 = the lights' fit takes their columns' Monte Carlo noise out of its objective (alone it stops a lamp's "
        "drift out along its ray; in the estimate not better so far: docs/method.md); 0 = the plain objective",
        Type::kBool, 0, 1, false, LP_GET(point_lights.debiased), LP_SET(point_lights.debiased, bool), "", 0, 0, {}},
+      {"polish-spp", "polish_spp",
+       "after the last round the lamps are refined again on fresh paths, this many per pixel on a share of the rows "
+       "(the fit debiased); 0 = not; -1 = 64 where an albedo pass de-lit the colours seen (a scan), else not",
+       Type::kInt, -1, 1024, false, LP_GET(point_lights.polish_spp), LP_SET(point_lights.polish_spp, int), "", 0, 0,
+       {}},
       {"directional-lights", "directional_lights",
        "try a directional light (a sun: sharp shadows) where the map concentrates its power; 0 = never",
        Type::kBool, 0, 1, false, LP_GET(directional_lights), LP_SET(directional_lights, bool),

@@ -77,6 +77,9 @@ constexpr double kMinCleanRenderSeconds = 2;
 constexpr int kMinRings = 2, kMaxRings = 181;
 
 
+/// PointLightOptions::polish_spp's paths where it is left to the estimate (a scan's).
+constexpr int kPolishSpp = 64;
+
 /// The near-light model (docs/method.md, "Point lights"): point lights beside the map.
 struct PointLightOptions {
   /// At most this many point lights; 0 = the environment map alone (the far-light model).
@@ -88,6 +91,10 @@ struct PointLightOptions {
   /// The lights' fit takes the columns' Monte Carlo noise out of its objective
   /// (LightFitProblem::debiased): without, a lamp drifts along its ray by about 1 / spp.
   bool debiased = false;
+  /// After the last round the lamps are refined once more on fresh shading vertices of this
+  /// many paths per pixel on kShadowRows of the rows, the fit debiased (PolishLamps); 0 = not;
+  /// -1: kPolishSpp where an albedo pass de-lit the colours seen (a scan), else 0.
+  int polish_spp = -1;
   /// A point light's activation penalty, in cells of the reference solid angle.
   double weight = 1;
   /// Share of the pixels the model selection scores lights on (left out of that fit), in

@@ -475,6 +475,7 @@ void Estimator::Conclude() {
   else if (res_.albedo_scale != 1) res_.albedo = bundle_.mesh.albedo;  // the scaled albedo the lights go with
   res_.left_out.assign(cells_, 0);
   for (int j = 0; j < cells_; ++j) res_.left_out[j] = !reachable_[j];
+  PolishLamps();
   res_.lighting = InImageUnits();
   res_.uncertainty = Uncertainty();
   OnBundleMesh(&res_.lighting.lights);
@@ -494,6 +495,70 @@ void Estimator::Conclude() {
                   res_.rendered_fraction, opt_.objective.sigma, opt_.objective.alpha);
     res_.warnings.push_back(line);
   }
+}
+
+/// The lamps refined once more after the last round (PolishSpp() > 0) on fresh shading
+/// vertices of that many paths on every n-th row (kShadowRows of them), the rest of the image
+/// held and the fit debiased: the rounds' vertices hold few paths, and their noise pulls a
+/// lamp along its ray (docs/method.md, "The lamps polished").
+void Estimator::PolishLamps() {
+  const int spp = opt_.point_lights.polish_spp >= 0 ? opt_.point_lights.polish_spp
+                  : res_.albedo_passes > 0         ? kPolishSpp
+                                                   : 0;
+  if (spp <= 0 || points_.empty() || vertices_.rows() != A_.rows()) return;
+  CheckCancel();
+  Stopwatch watch;
+  const std::size_t rows = A_.rows();
+  const std::size_t stride = std::max<std::size_t>(1, (rows + kShadowRows - 1) / kShadowRows);
+  std::vector<View> views = views_;
+  for (std::size_t r = 0; r < rows; ++r)
+    if (r % stride != 0) views[A_.row_view[r]].valid[A_.row_pixel[r]] = 0;
+  TracerOptions topt = opt_.tracer;
+  topt.cancelled = opt_.cancelled;
+  topt.spp = spp;
+  topt.seed = opt_.tracer.seed * 1000003ull + 977;
+  const ShadingVertices fresh = GatherShadingVertices(*scene_, views, topt);
+  CheckCancel();
+  const std::vector<double> all_base = Plus(A_.Multiply(lambda_), LightsRender({}, suns_));
+  std::vector<double> y, base;
+  std::vector<int> segment;
+  for (std::size_t r = 0; r < rows; r += stride) {
+    for (int c = 0; c < 3; ++c) y.push_back(y_[3 * r + c]), base.push_back(all_base[3 * r + c]);
+    if (row_segment_.size() == rows) segment.push_back(row_segment_[r]);
+  }
+  LP_CHECK(fresh.rows() * 3 == y.size(), "the polish's rows");
+  LightFitProblem fit = FitProblem(&base);
+  fit.vertices = &fresh;
+  fit.y = &y;
+  fit.segment = segment.empty() ? nullptr : &segment;
+  fit.alpha /= static_cast<double>(stride);
+  fit.debiased = true;
+  // Each accepted step a convergence row (step "polish"; its objective and error are the
+  // polish's rows' times the stride, on its own vertices: not continuous with the rounds').
+  const RoundInfo info = res_.rounds.empty() ? RoundInfo{} : res_.rounds.back();
+  const auto log = [&](int, double E, double sse, const std::vector<Light>& now) {
+    ConvergenceRow row = LightRow(info, fit.loss.sigma, E * stride, sse * stride);
+    row.step = "polish";
+    Score(&row, {lambda_, Joined(suns_, OfKind<PointLight>(now))});
+    Push(row);
+  };
+  std::vector<Light> moving = AsLights(points_);
+  const int iterations = RefineLights(fit, &moving, 12, log);
+  CompassOptions compass;
+  compass.start = 0.01;
+  compass.stop = 0.002;
+  compass.max_evaluations = 12;
+  const int moves = SearchLights(fit, &moving, centre_, compass, log);
+  const std::vector<PointLight> polished = OfKind<PointLight>(moving);
+  double moved = 0;
+  for (std::size_t k = 0; k < polished.size(); ++k)
+    moved = std::max(moved, (polished[k].position - points_[k].position).norm());
+  points_ = polished;
+  const std::string line = Fmt("lamps polished on %zu rows at %d fresh paths a pixel: %d iterations, %d compass moves, "
+                               "moved at most %.3g m in %.2f s",
+                               fresh.rows(), topt.spp, iterations, moves, moved, watch.Seconds());
+  res_.point_light_choices.push_back(line);
+  Progress(line);
 }
 
 std::vector<int> Estimator::RowBlocks(int across) const {

@@ -51,6 +51,8 @@ struct ConvergenceRow {
   /// light's rows ("sun", which leave the map's penalty out) and the solve after them.
   /// "prior": the map and the intensities solved again at the map's prior the data chose
   /// (EstimateResult::prior; a penalty of another weight, so its objective is another function).
+  /// "polish": the lamps refined after the last round on fresh vertices (PolishLamps; its
+  /// objective is debiased and on its own rows, times their stride: another function too).
   const char* step = "solve";
 };
 

@@ -159,6 +159,7 @@ class Estimator {
   Mesh WithAlbedoOf(const Mesh& full, const std::vector<float>& irradiance) const;
   /// The estimate in image units, its scores and what the user should know about it.
   void Conclude();
+  void PolishLamps();
   /// How well the images fix each light (Lights()' order, normalized units), on the last
   /// round's rows; empty without lights or shading vertices.
   std::vector<LightUncertainty> Uncertainty();
