@@ -480,7 +480,12 @@ void Estimator::Conclude() {
   res_.uncertainty = Uncertainty();
   OnBundleMesh(&res_.lighting.lights);
   for (LightUncertainty& u : res_.uncertainty) u.scale_sigma *= res_.image_mean;
-  res_.final_relative_rmse = res_.convergence.empty() ? 0 : res_.convergence.back().relative_rmse;
+  // The rounds' last error (the polish's rows are on its own fresh vertices: another measure).
+  for (auto row = res_.convergence.rbegin(); row != res_.convergence.rend(); ++row)
+    if (std::string(row->step) != "polish") {
+      res_.final_relative_rmse = row->relative_rmse;
+      break;
+    }
   res_.final_rmse = res_.final_relative_rmse * res_.image_mean;
   if (opt_.scorer) opt_.scorer->Conclude(&res_);
   res_.dominant = DominantDirections(env_, res_.lighting.map, res_.lighting.Of<DirectionalLight>(), 2);
@@ -553,7 +558,9 @@ void Estimator::PolishLamps() {
   double moved = 0;
   for (std::size_t k = 0; k < polished.size(); ++k)
     moved = std::max(moved, (polished[k].position - points_[k].position).norm());
-  points_ = polished;
+  points_.clear();  // (a lamp the polish left dark is dropped)
+  for (const PointLight& l : polished)
+    if (l.intensity.maxCoeff() > 0) points_.push_back(l);
   const std::string line = Fmt("lamps polished on %zu rows at %d fresh paths a pixel: %d iterations, %d compass moves, "
                                "moved at most %.3g m in %.2f s",
                                fresh.rows(), topt.spp, iterations, moves, moved, watch.Seconds());
