@@ -513,10 +513,13 @@ void Estimator::PolishLamps() {
   if (spp <= 0 || points_.empty() || vertices_.rows() != A_.rows()) return;
   CheckCancel();
   Stopwatch watch;
-  const std::size_t rows = A_.rows();
-  const std::size_t stride = std::max<std::size_t>(1, (rows + kShadowRows - 1) / kShadowRows);
+  // The rows, observations, rest of the image and albedo segments of LightFitSubset's share;
+  // the vertices fresh ones of those rows.
+  const std::vector<double> all_base = Plus(A_.Multiply(lambda_), LightsRender({}, suns_));
+  LightFitSubset share(FitProblem(&all_base), kShadowRows);
+  const std::size_t stride = static_cast<std::size_t>(share.stride);
   std::vector<View> views = views_;
-  for (std::size_t r = 0; r < rows; ++r)
+  for (std::size_t r = 0; r < A_.rows(); ++r)
     if (r % stride != 0) views[A_.row_view[r]].valid[A_.row_pixel[r]] = 0;
   TracerOptions topt = opt_.tracer;
   topt.cancelled = opt_.cancelled;
@@ -524,19 +527,9 @@ void Estimator::PolishLamps() {
   topt.seed = opt_.tracer.seed * 1000003ull + 977;
   const ShadingVertices fresh = GatherShadingVertices(*scene_, views, topt);
   CheckCancel();
-  const std::vector<double> all_base = Plus(A_.Multiply(lambda_), LightsRender({}, suns_));
-  std::vector<double> y, base;
-  std::vector<int> segment;
-  for (std::size_t r = 0; r < rows; r += stride) {
-    for (int c = 0; c < 3; ++c) y.push_back(y_[3 * r + c]), base.push_back(all_base[3 * r + c]);
-    if (row_segment_.size() == rows) segment.push_back(row_segment_[r]);
-  }
-  LP_CHECK(fresh.rows() * 3 == y.size(), "the polish's rows");
-  LightFitProblem fit = FitProblem(&base);
+  LightFitProblem& fit = share.problem;
+  LP_CHECK(fresh.rows() * 3 == fit.y->size(), "the polish's rows");
   fit.vertices = &fresh;
-  fit.y = &y;
-  fit.segment = segment.empty() ? nullptr : &segment;
-  fit.alpha /= static_cast<double>(stride);
   fit.debiased = true;
   // Each accepted step a convergence row (step "polish"; its objective and error are the
   // polish's rows' times the stride, on its own vertices: not continuous with the rounds').

@@ -457,11 +457,7 @@ SplitColumn Estimator::Split(const Light& light) {
 }
 
 /// A light's unit column on vertices_ (Split's value).
-std::vector<float> Estimator::Column(const Light& light) {
-  for (const CachedColumn& c : columns_)
-    if (SameShape(c.light, light)) return c.column.value;
-  return Split(light).value;
-}
+std::vector<float> Estimator::Column(const Light& light) { return Split(light).value; }
 
 /// The share of the observed light a point light renders; a lamp inside a glowing surface
 /// (a bulb in its shade) with the surface's: the two are one light, most of the bulb's

@@ -34,11 +34,10 @@ bool HasSpread(const LightFitProblem& p, const SplitColumn& c) {
   return p.debiased && p.vertices && !p.vertices->half.empty() && c.spread.size() == c.value.size();
 }
 
-/// Whether every column has its spread (the objective is then debiased).
+/// Whether the problem is debiased and every column has its spread.
 bool HasSpreads(const LightFitProblem& p, const std::vector<SplitColumn>& cols) {
-  for (const SplitColumn& c : cols)
-    if (!HasSpread(p, c)) return false;
-  return p.debiased && p.vertices && !p.vertices->half.empty();
+  return p.debiased && p.vertices && !p.vertices->half.empty() &&
+         std::all_of(cols.begin(), cols.end(), [&](const SplitColumn& c) { return HasSpread(p, c); });
 }
 
 /// The residuals y - m model over all rows, `mult` m (3 per row; all 1 without segments),
