@@ -203,11 +203,11 @@ struct EstimateOptions {
   /// kMaskedRenderSpp.)
   int render_spp = 0;
   /// The clean render of the fitted views (EstimateResult::renders, render_view*; the fit
-  /// itself is EstimateResult::fits): every pixel traced again in passes that double the
-  /// samples (ProgressiveRender) until its relative noise is at most this, or the next pass
-  /// would end past render_seconds; 0: no clean render (renders are the fit). Ignored when
-  /// render_spp > 0.
-  double render_noise = 0.02;
+  /// itself is EstimateResult::fits): every pixel traced again in passes, each pixel's
+  /// samples where the noise is (ProgressiveRender), until its relative noise is at most
+  /// this, or the next pass would end past render_seconds; 0: no clean render (renders are
+  /// the fit). Ignored when render_spp > 0.
+  double render_noise = 0.01;
   /// The clean render's time; 0 (the default): as long as the estimate took, at least
   /// kMinCleanRenderSeconds.
   double render_seconds = 0;

@@ -1,5 +1,6 @@
 #include "estimation/light_render.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/error.h"
@@ -89,7 +90,6 @@ std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& en
   std::vector<ImageRGB> half[2], mean;
   TracerOptions o = options;
   int each = 0;  // samples per pixel in each half so far
-  double last_pass = 0;
   passes->clear();
   for (int pass = 0;; ++pass) {
     const double start = clock.Seconds();
@@ -98,14 +98,21 @@ std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& en
       Accumulate(&half[h], RenderLighting(scene, env, lighting, sampler, views, o, true), o.spp);
     }
     each += o.spp;
-    last_pass = clock.Seconds() - start;
+    const double took = clock.Seconds() - start;
     const double noise_now = denoise ? MeanAndNoise(denoised_mean(half[0], each), denoised_mean(half[1], each), 1, views, &mean)
                                      : MeanAndNoise(half[0], half[1], each, views, &mean);
     passes->push_back({2 * each, clock.Seconds(), noise_now});
     if (on_pass) on_pass(passes->back(), mean);
-    o.spp *= 2;
-    if (passes->back().noise <= noise || clock.Seconds() + 2 * last_pass > seconds || 2 * (each + o.spp) > max_spp)
-      return mean;
+    // The next pass: twice this one, or (the noise falling as one over the root of the
+    // samples) what reaches the noise asked with a tenth to spare, whichever is less; at
+    // most what the time left holds at this pass's pace (a tenth to spare), and none when
+    // that is under an eighth of this pass.
+    double next = 2.0 * o.spp;
+    if (noise > 0 && noise_now > 0)
+      next = std::clamp(std::ceil(each * (1.1 * std::pow(noise_now / noise, 2) - 1)), o.spp / 4.0, next);
+    next = std::min(next, std::floor(0.9 * (seconds - clock.Seconds()) / std::max(took, 1e-9) * o.spp));
+    if (noise_now <= noise || next < std::max(1.0, o.spp / 8.0) || 2 * (each + next) > max_spp) return mean;
+    o.spp = static_cast<int>(next);
   }
 }
 

@@ -30,14 +30,17 @@ struct RenderPass {
 };
 
 /// A clean render of every pixel of `views` under `lighting` (RenderLighting), traced in
-/// passes: two independent halves, each given options.spp samples in the first pass and
-/// twice the last pass's in each after, until the relative noise of their mean (the RMS of
-/// half their difference over the valid pixels and channels, over the mean's mean there) is
-/// at most `noise`, or the next pass would end past `seconds`, or the samples reach
-/// `max_spp`. Each pass is given to `on_pass` with the render so far (and kept in `passes`).
-/// With `denoise`, both halves are denoised alike (Denoise, estimation/render_denoise.h, one
-/// guide a view) before the mean and its noise are formed: the noise said is the denoised
-/// render's (the denoiser's blur is not in it).
+/// passes into two independent halves: options.spp samples a pixel each in the first pass;
+/// each pass after it twice the last, or (the noise falling as one over the root of the
+/// samples) what reaches `noise` with a tenth to spare, whichever is less; it stops when the
+/// relative noise of the halves' mean (the RMS of half their difference over the valid
+/// pixels and channels, over the mean's mean there) is at most `noise`, or the samples would
+/// pass `max_spp`; a pass the time left before `seconds` cannot hold (at the last pass's
+/// pace, a tenth to spare) is cut to what it holds, and not traced when that is under an
+/// eighth of the last pass. Each pass is given to `on_pass` with the render so far (and
+/// kept in `passes`). With `denoise`, both halves are denoised alike (Denoise,
+/// estimation/render_denoise.h, one guide a view) before the mean and its noise are formed:
+/// the noise said is the denoised render's (the denoiser's blur is not in it).
 using RenderPassCallback = std::function<void(const RenderPass&, const std::vector<ImageRGB>&)>;
 std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& env, const Lighting& lighting,
                                         const CellSampler& sampler, const std::vector<View>& views,

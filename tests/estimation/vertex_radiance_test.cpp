@@ -257,7 +257,9 @@ TEST(VertexRadiance, TheCleanLitShadingIsWithinTheNoiseItSays) {
 TEST(ProgressiveRender, StopsAtTheNoiseItWasAskedAndSaysItsNoiseHonestly) {
   // The floor under a square, a lamp beside them and a uniform sky (interreflections: noisy)
   // seen by a 24x24 camera. Passes double the samples (8 a half, then 16, 32, ...: 16, 48,
-  // 112 in all) and the noise falls; it stops at the first pass under the noise asked; the
+  // 112 in all) while the noise asked is far, and the last is what reaches it with a tenth
+  // to spare (the noise as one over the root of the samples): fewer than doubling, and the
+  // noise falls each pass; it stops at the first pass under the noise asked; the
   // noise it reports is the RMS of the render against an independent one at the same samples
   // over sqrt 2 (their difference holds both noises), within 25 %; no light: no noise, one
   // pass; the samples never exceed the most asked.
@@ -272,18 +274,17 @@ TEST(ProgressiveRender, StopsAtTheNoiseItWasAskedAndSaysItsNoiseHonestly) {
   std::vector<RenderPass> passes;
   const std::vector<ImageRGB> a = ProgressiveRender(scene, env, lighting, sampler, views, t, 0.02, 1e9, 1 << 20, &passes);
   ASSERT_GE(passes.size(), 2u);
-  for (std::size_t k = 0; k < passes.size(); ++k) {
-    EXPECT_EQ(passes[k].spp, 16 * ((1 << (k + 1)) - 1)) << k;
-    if (k > 0) {
-      EXPECT_LT(passes[k].noise, passes[k - 1].noise) << k;
-    }
-  }
+  for (std::size_t k = 0; k + 1 < passes.size(); ++k) EXPECT_EQ(passes[k].spp, 16 * ((1 << (k + 1)) - 1)) << k;
+  const int before = passes[passes.size() - 2].spp;
+  EXPECT_GT(passes.back().spp, before);
+  EXPECT_LT(passes.back().spp, 3 * before + 16);  // (doubling: 2 x before + 16)
+  for (std::size_t k = 1; k < passes.size(); ++k) EXPECT_LT(passes[k].noise, passes[k - 1].noise) << k;
   EXPECT_LE(passes.back().noise, 0.02);
   EXPECT_GT(passes[passes.size() - 2].noise, 0.02);
   t.seed = 99;
   std::vector<RenderPass> other_passes;
   const std::vector<ImageRGB> b = ProgressiveRender(scene, env, lighting, sampler, views, t, 0.02, 1e9, 1 << 20, &other_passes);
-  ASSERT_EQ(other_passes.back().spp, passes.back().spp);
+  EXPECT_NEAR(other_passes.back().spp, passes.back().spp, 0.15 * passes.back().spp);  // (its last pass its own)
   double d2 = 0, sum = 0;
   for (std::size_t i = 0; i < a[0].data.size(); ++i) {
     d2 += (a[0].data[i] - b[0].data[i]) * (a[0].data[i] - b[0].data[i]);
