@@ -583,6 +583,12 @@ std::vector<LightUncertainty> Estimator::Uncertainty() {
   LightFitProblem fit = FitProblem(&base);
   fit.segment = nullptr;  // under the albedo the map and the intensities were solved with
   std::vector<LightUncertainty> out = LightUncertainties(fit, lights, &A_, lambda_, block);
+  // The columns' Monte Carlo noise, which the blocks left out do not see (docs/method.md,
+  // "Uncertainty"): each lamp refitted on each half of the paths apart.
+  const LightFitSubset share(fit, kShadowRows);
+  const std::vector<Eigen::Matrix3d> noise = HalvesCovariance(share.problem, lights, kHalvesIterations);
+  for (std::size_t k = 0; k < out.size() && k < noise.size(); ++k)
+    if (ShapeDims(lights[k]) == 3) out[k].shape_covariance += noise[k];
   for (std::size_t k = 0; k < out.size(); ++k) {
     Eigen::Vector3d semi = Eigen::Vector3d::Constant(INFINITY);
     Eigen::Matrix3d axes;

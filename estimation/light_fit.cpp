@@ -278,6 +278,26 @@ int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_i
   return it;
 }
 
+std::vector<Eigen::Matrix3d> HalvesCovariance(LightFitProblem p, const std::vector<Light>& lights, int iterations) {
+  std::vector<Eigen::Matrix3d> out(lights.size(), Eigen::Matrix3d::Zero());
+  const ShadingVertices& whole = *p.vertices;
+  if (whole.half.size() != whole.size() || whole.size() == 0) return out;
+  std::vector<Light> refit[2];
+  for (int h = 0; h < 2; ++h) {
+    const ShadingVertices half = HalfOf(whole, h == 0 ? 1 : -1);
+    p.vertices = &half;
+    refit[h] = lights;
+    RefineLights(p, &refit[h], iterations);
+  }
+  for (std::size_t k = 0; k < lights.size(); ++k) {
+    if (!std::holds_alternative<PointLight>(lights[k])) continue;
+    const Eigen::Vector3d d =
+        std::get<PointLight>(refit[0][k]).position - std::get<PointLight>(refit[1][k]).position;
+    if (d.allFinite()) out[k] = d * d.transpose() / 4;
+  }
+  return out;
+}
+
 double RefitScale(const LightFitProblem& p, const SplitColumn& others, Light* light, double* sse) {
   SplitColumn col;
   UnitColumn(*p.scene, *p.vertices, *light, ColumnOut{&col.value, nullptr, p.debiased ? &col.spread : nullptr});

@@ -96,4 +96,24 @@ ShadingVertices Combine(const ShadingVertices& a, double a_samples, const Shadin
   return out;
 }
 
+ShadingVertices HalfOf(const ShadingVertices& v, int half) {
+  LP_CHECK(v.half.size() == v.size(), "HalfOf: the vertices' halves were not kept");
+  const bool camera = v.camera.size() == v.size();
+  ShadingVertices out;
+  out.row_start.reserve(v.rows() + 1);
+  for (std::size_t r = 0; r < v.rows(); ++r) {
+    for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
+      if (v.half[k] != half) continue;
+      out.position.push_back(v.position[k]);
+      out.normal.push_back(v.normal[k]);
+      out.geometric.push_back(v.geometric[k]);
+      out.weight.push_back(2 * v.weight[k]);
+      if (camera) out.camera.push_back(2 * v.camera[k]);
+      out.half.push_back(0);
+    }
+    out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
+  }
+  return out;
+}
+
 }  // namespace lp

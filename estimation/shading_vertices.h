@@ -49,6 +49,10 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
 /// scaled by its gathering's share of the samples), like Combine for transport matrices.
 ShadingVertices Combine(const ShadingVertices& a, double a_samples, const ShadingVertices& b, double b_samples);
 
+/// The vertices of one half of each row's paths (`half`: +1 or -1; ShadingVertices::half),
+/// their weights doubled: what a gathering of half the paths would hold. Needs `half` kept.
+ShadingVertices HalfOf(const ShadingVertices& v, int half);
+
 /// Where a light's column on shading vertices goes: `value` (3 per row) and, each when
 /// given, its derivative with respect to the light's shape (9 per row: [9*row + 3*c + k]),
 /// the difference of its two halves (ShadingVertices::half; 3 per row) and that
