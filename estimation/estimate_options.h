@@ -203,10 +203,10 @@ struct EstimateOptions {
   /// kMaskedRenderSpp.)
   int render_spp = 0;
   /// The clean render of the fitted views (EstimateResult::renders, render_view*; the fit
-  /// itself is EstimateResult::fits): every pixel traced again in passes, each pixel's
-  /// samples where the noise is (ProgressiveRender), until its relative noise is at most
-  /// this, or the next pass would end past render_seconds; 0: no clean render (renders are
-  /// the fit). Ignored when render_spp > 0.
+  /// itself is EstimateResult::fits): every pixel traced again in passes, the last sized to
+  /// reach this (ProgressiveRender), until its relative noise is at most this or the time
+  /// (render_seconds) is up; 0: no clean render (renders are the fit). Ignored when
+  /// render_spp > 0.
   double render_noise = 0.01;
   /// The clean render's time; 0 (the default): as long as the estimate took, at least
   /// kMinCleanRenderSeconds.
