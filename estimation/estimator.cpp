@@ -587,8 +587,7 @@ std::vector<LightUncertainty> Estimator::Uncertainty() {
   // "Uncertainty"): each lamp refitted on each half of the paths apart.
   const LightFitSubset share(fit, kShadowRows);
   const std::vector<Eigen::Matrix3d> noise = HalvesCovariance(share.problem, lights, kHalvesIterations);
-  for (std::size_t k = 0; k < out.size() && k < noise.size(); ++k)
-    if (ShapeDims(lights[k]) == 3) out[k].shape_covariance += noise[k];
+  for (std::size_t k = 0; k < out.size() && k < noise.size(); ++k) out[k].shape_covariance += noise[k];  // (0 but a lamp's)
   for (std::size_t k = 0; k < out.size(); ++k) {
     Eigen::Vector3d semi = Eigen::Vector3d::Constant(INFINITY);
     Eigen::Matrix3d axes;

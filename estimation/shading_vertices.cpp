@@ -65,6 +65,18 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
   return out;
 }
 
+namespace {
+/// Appends `v`'s vertex k to `out`, its weights (and its camera weight where `camera`)
+/// times `w`; its half is the caller's to append.
+void Append(ShadingVertices* out, const ShadingVertices& v, std::int64_t k, float w, bool camera) {
+  out->position.push_back(v.position[k]);
+  out->normal.push_back(v.normal[k]);
+  out->geometric.push_back(v.geometric[k]);
+  out->weight.push_back(v.weight[k] * w);
+  if (camera) out->camera.push_back(v.camera[k] * w);
+}
+}  // namespace
+
 ShadingVertices Combine(const ShadingVertices& a, double a_samples, const ShadingVertices& b, double b_samples) {
   LP_CHECK(a.rows() == b.rows(), "combining gatherings of different rows");
   const double n = a_samples + b_samples;
@@ -84,11 +96,7 @@ ShadingVertices Combine(const ShadingVertices& a, double a_samples, const Shadin
   for (std::size_t r = 0; r < a.rows(); ++r) {
     for (const auto& [v, w] : {std::pair<const ShadingVertices*, float>{&a, wa}, {&b, wb}})
       for (std::int64_t k = v->row_start[r]; k < v->row_start[r + 1]; ++k) {
-        out.position.push_back(v->position[k]);
-        out.normal.push_back(v->normal[k]);
-        out.geometric.push_back(v->geometric[k]);
-        out.weight.push_back(v->weight[k] * w);
-        if (camera) out.camera.push_back(v->camera[k] * w);
+        Append(&out, *v, k, w, camera);
         if (half) out.half.push_back(v->half[k]);
       }
     out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
@@ -104,11 +112,7 @@ ShadingVertices HalfOf(const ShadingVertices& v, int half) {
   for (std::size_t r = 0; r < v.rows(); ++r) {
     for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
       if (v.half[k] != half) continue;
-      out.position.push_back(v.position[k]);
-      out.normal.push_back(v.normal[k]);
-      out.geometric.push_back(v.geometric[k]);
-      out.weight.push_back(2 * v.weight[k]);
-      if (camera) out.camera.push_back(2 * v.camera[k]);
+      Append(&out, v, k, 2.f, camera);
       out.half.push_back(0);
     }
     out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
