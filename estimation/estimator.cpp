@@ -586,7 +586,7 @@ std::vector<LightUncertainty> Estimator::Uncertainty() {
   // The columns' Monte Carlo noise, which the blocks left out do not see (docs/method.md,
   // "Uncertainty"): each lamp refitted on each half of the paths apart.
   const LightFitSubset share(fit, kShadowRows);
-  const std::vector<Eigen::Matrix3d> noise = HalvesCovariance(share.problem, lights, kHalvesIterations);
+  const std::vector<Eigen::Matrix3d> noise = PartsCovariance(share.problem, lights, kPartsIterations);
   for (std::size_t k = 0; k < out.size() && k < noise.size(); ++k) out[k].shape_covariance += noise[k];  // (0 but a lamp's)
   for (std::size_t k = 0; k < out.size(); ++k) {
     Eigen::Vector3d semi = Eigen::Vector3d::Constant(INFINITY);

@@ -66,10 +66,10 @@ constexpr double kDecisiveSunRatio = 0.5;
 /// The rows (every n-th) the lights' shadow-seeing refinements look at: a quarter of a
 /// 160 x 120 view's (what a column costs on all rows: docs/benchmarks.md).
 constexpr std::size_t kShadowRows = 4800;
-/// Levenberg-Marquardt steps of each half's refit for the columns' noise in the lamps'
-/// uncertainty (HalvesCovariance): from the estimate, a few millimetres away (12 measured
-/// the same coverage as 4: docs/benchmarks.md, session 37).
-constexpr int kHalvesIterations = 4;
+/// Levenberg-Marquardt steps of each part's refit for the columns' noise in the lamps'
+/// uncertainty (PartsCovariance): from the estimate, a few millimetres away (12 measured
+/// the same coverage as 4 on halves: docs/benchmarks.md, session 37).
+constexpr int kPartsIterations = 4;
 
 /// The lights' uncertainty takes each view as this many blocks across and down (16 a view),
 /// each independent of the others: the model's errors (the mesh's, the albedo's, another

@@ -210,6 +210,7 @@ LightFitSubset::LightFitSubset(const LightFitProblem& full, std::size_t max_rows
       vertices.weight.push_back(v.weight[k]);
       if (v.camera.size() == v.size()) vertices.camera.push_back(v.camera[k]);
       if (v.half.size() == v.size()) vertices.half.push_back(v.half[k]);
+      if (v.part.size() == v.size()) vertices.part.push_back(v.part[k]);
     }
     vertices.row_start.push_back(static_cast<std::int64_t>(vertices.position.size()));
     for (int c = 0; c < 3; ++c) {
@@ -278,22 +279,27 @@ int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_i
   return it;
 }
 
-std::vector<Eigen::Matrix3d> HalvesCovariance(LightFitProblem p, const std::vector<Light>& lights, int iterations) {
+std::vector<Eigen::Matrix3d> PartsCovariance(LightFitProblem p, const std::vector<Light>& lights, int iterations) {
   std::vector<Eigen::Matrix3d> out(lights.size(), Eigen::Matrix3d::Zero());
   const ShadingVertices& whole = *p.vertices;
-  if (whole.half.size() != whole.size() || whole.size() == 0) return out;
-  std::vector<Light> refit[2];
-  for (int h = 0; h < 2; ++h) {
-    const ShadingVertices half = HalfOf(whole, h == 0 ? 1 : -1);
-    p.vertices = &half;
-    refit[h] = lights;
-    RefineLights(p, &refit[h], iterations);
+  if (whole.part.size() != whole.size() || whole.size() == 0) return out;
+  std::vector<std::vector<Light>> refit(kPathParts, lights);
+  for (int q = 0; q < kPathParts; ++q) {
+    const ShadingVertices part = PartOf(whole, q);
+    p.vertices = &part;
+    RefineLights(p, &refit[q], iterations);
   }
   for (std::size_t k = 0; k < lights.size(); ++k) {
     if (!std::holds_alternative<PointLight>(lights[k])) continue;
-    const Eigen::Vector3d d =
-        std::get<PointLight>(refit[0][k]).position - std::get<PointLight>(refit[1][k]).position;
-    if (d.allFinite()) out[k] = d * d.transpose() / 4;
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const auto& r : refit) mean += std::get<PointLight>(r[k]).position / kPathParts;
+    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+    for (const auto& r : refit) {
+      const Eigen::Vector3d d = std::get<PointLight>(r[k]).position - mean;
+      scatter += d * d.transpose();
+    }
+    // The parts' sample covariance (over kPathParts - 1), a part's; the whole's is 1/kPathParts of it.
+    if (scatter.allFinite()) out[k] = scatter / ((kPathParts - 1) * kPathParts);
   }
   return out;
 }

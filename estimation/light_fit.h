@@ -94,12 +94,13 @@ int RefineLights(const LightFitProblem& problem, std::vector<Light>* lights, int
 
 /// Each light's place's covariance from its columns' Monte Carlo noise (docs/method.md,
 /// "Uncertainty"): the lights refitted (RefineLights, `iterations` steps from `lights`, the
-/// rest of `problem` held, its vertices' paths halved by HalfOf) on each half apart. A point
-/// light's place differs between the halves by d; each half's noise is twice the whole's,
-/// so d d^T / 4 estimates the whole's (one draw: unbiased, of rank one). Zero for the other
-/// kinds, and for all when the vertices' halves were not kept or a refit is not finite.
-std::vector<Eigen::Matrix3d> HalvesCovariance(LightFitProblem problem, const std::vector<Light>& lights,
-                                              int iterations);
+/// rest of `problem` held) on each of the kPathParts parts of its vertices' paths apart
+/// (PartOf). Each part's noise is kPathParts times the whole's, so the parts' places' sample
+/// covariance over kPathParts estimates the whole's (kPathParts - 1 degrees of freedom: two
+/// halves' d d^T / 4 is of rank one, and says nothing across d). Zero for the other kinds,
+/// and for all when the vertices' parts were not kept or a refit is not finite.
+std::vector<Eigen::Matrix3d> PartsCovariance(LightFitProblem problem, const std::vector<Light>& lights,
+                                             int iterations);
 
 /// A compass search's schedule: steps of `start` CompassUnits (a lamp: its distance from
 /// the centre; a direction: a radian), halved when no move lowers the energy, down to

@@ -18,12 +18,13 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
   struct Vertex {
     Eigen::Vector3f p, n, g, w;
     float camera;
-    std::int8_t half;
+    std::int8_t half, part;
   };
   const std::vector<PixelRef> pixels = PixelsToTrace(views, all_pixels);
   std::vector<std::vector<Vertex>> rows(pixels.size());
   const float inv = 1.0f / opt.spp;
   const int paired = opt.spp / 2 * 2;  // an odd count's last sample is in neither half
+  const int dealt = opt.spp / kPathParts * kPathParts;  // nor the last of a count not dealt evenly in any part
   ForEachPixel(pixels, opt, stats, [&](std::size_t i, const PixelRef& px, Counters& cnt) {
     const Camera& cam = views[px.view].camera;
     const int x = px.pixel % cam.width, y = px.pixel / cam.width;
@@ -31,10 +32,11 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
       Rng rng(opt.seed, px.view, px.pixel, s);
       float camera = inv;  // the path's first vertex only
       const std::int8_t half = s >= paired ? 0 : s % 2 ? -1 : 1;
+      const auto part = static_cast<std::int8_t>(s >= dealt ? -1 : s % kPathParts);
       WalkPath(scene, cam, x, y, rng, opt, cnt,
                [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
                  rows[i].push_back({off.cast<float>(), hit.shading.cast<float>(), hit.geometric.cast<float>(),
-                                    w.cast<float>() * inv, camera, half});
+                                    w.cast<float>() * inv, camera, half, part});
                  camera = 0;
                });
     }
@@ -49,6 +51,7 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
   out.weight.reserve(n);
   out.camera.reserve(n);
   out.half.reserve(n);
+  out.part.reserve(n);
   for (auto& r : rows) {
     for (const Vertex& v : r) {
       out.position.push_back(v.p);
@@ -57,6 +60,7 @@ ShadingVertices GatherShadingVertices(const RayTracer& scene, const std::vector<
       out.weight.push_back(v.w);
       out.camera.push_back(v.camera);
       out.half.push_back(v.half);
+      out.part.push_back(v.part);
     }
     out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
     std::vector<Vertex>().swap(r);
@@ -93,11 +97,14 @@ ShadingVertices Combine(const ShadingVertices& a, double a_samples, const Shadin
   if (camera) out.camera.reserve(total);
   const bool half = a.half.size() == a.size() && b.half.size() == b.size();
   if (half) out.half.reserve(total);
+  const bool part = a.part.size() == a.size() && b.part.size() == b.size();
+  if (part) out.part.reserve(total);
   for (std::size_t r = 0; r < a.rows(); ++r) {
     for (const auto& [v, w] : {std::pair<const ShadingVertices*, float>{&a, wa}, {&b, wb}})
       for (std::int64_t k = v->row_start[r]; k < v->row_start[r + 1]; ++k) {
         Append(&out, *v, k, w, camera);
         if (half) out.half.push_back(v->half[k]);
+        if (part) out.part.push_back(v->part[k]);
       }
     out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
   }
@@ -115,6 +122,19 @@ ShadingVertices HalfOf(const ShadingVertices& v, int half) {
       Append(&out, v, k, 2.f, camera);
       out.half.push_back(0);
     }
+    out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
+  }
+  return out;
+}
+
+ShadingVertices PartOf(const ShadingVertices& v, int part) {
+  LP_CHECK(v.part.size() == v.size(), "PartOf: the vertices' parts were not kept");
+  const bool camera = v.camera.size() == v.size();
+  ShadingVertices out;
+  out.row_start.reserve(v.rows() + 1);
+  for (std::size_t r = 0; r < v.rows(); ++r) {
+    for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k)
+      if (v.part[k] == part) Append(&out, v, k, static_cast<float>(kPathParts), camera);
     out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
   }
   return out;

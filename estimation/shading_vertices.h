@@ -14,6 +14,11 @@
 
 namespace lp {
 
+/// Into how many parts a row's paths are dealt (ShadingVertices::part): the lights refitted on
+/// each give kPathParts - 1 degrees of freedom for their Monte Carlo spread (two halves give
+/// one: a spread along a single direction; docs/benchmarks.md, session 38).
+constexpr int kPathParts = 4;
+
 /// The shading vertices of camera paths, row by row in the transport matrix's order (the
 /// valid pixels of each view, or every pixel when gathered with all_pixels).
 struct ShadingVertices {
@@ -33,6 +38,11 @@ struct ShadingVertices {
   /// of its terms so signed, whose square estimates the column's Monte Carlo variance
   /// (ColumnRow, LightFitProblem). Empty: not kept (no variance is estimated).
   std::vector<std::int8_t> half;
+  /// The part of the row's paths the vertex's path is in: its sample's index mod kPathParts,
+  /// or -1 (the last samples of a count that is not a multiple of kPathParts). The lights
+  /// refitted on each part apart spread as their Monte Carlo noise does (PartsCovariance).
+  /// Empty: not kept.
+  std::vector<std::int8_t> part;
   std::size_t rows() const { return row_start.size() - 1; }
   /// The vertex's half (0 when not kept).
   int Half(std::size_t k) const { return half.empty() ? 0 : half[k]; }
@@ -52,6 +62,11 @@ ShadingVertices Combine(const ShadingVertices& a, double a_samples, const Shadin
 /// The vertices of one half of each row's paths (`half`: +1 or -1; ShadingVertices::half),
 /// their weights doubled: what a gathering of half the paths would hold. Needs `half` kept.
 ShadingVertices HalfOf(const ShadingVertices& v, int half);
+
+/// The vertices of one part of each row's paths (`part`: 0 .. kPathParts - 1;
+/// ShadingVertices::part), their weights times kPathParts: what a gathering of that share of
+/// the paths would hold (its halves not kept). Needs `part` kept.
+ShadingVertices PartOf(const ShadingVertices& v, int part);
 
 /// Where a light's column on shading vertices goes: `value` (3 per row) and, each when
 /// given, its derivative with respect to the light's shape (9 per row: [9*row + 3*c + k]),

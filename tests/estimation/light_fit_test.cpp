@@ -350,13 +350,15 @@ TEST(LightFit, TheColumnsNoiseDoesNotPullALampAlongItsRay) {
   EXPECT_LT(std::abs(pull[1]), 0.5 * pull[0]);
 }
 
-TEST(LightFit, TheHalvesDifferenceIsThePlacesMonteCarloSpread) {
+TEST(LightFit, ThePartsSpreadIsThePlacesMonteCarloSpread) {
   // The plane, ball and lamp above, the image from 256-path columns (no pixel noise), fitted
   // on 4-path vertices of 24 seeds from the truth. HalfOf's two halves' columns sum to twice
-  // the whole's (a point's: exactly); HalvesCovariance's d d^T / 4 (one draw each), averaged over the seeds, is the
-  // spread of the whole's fitted places over the seeds: the columns' Monte Carlo noise in the
-  // place, which the uncertainty's blocks left out do not see (docs/method.md, "Uncertainty").
-  // Within 0.55-1.4x (RMS): a factor two in d, or its square, is out.
+  // the whole's, PartOf's kPathParts parts' to kPathParts times it (a point's: exactly);
+  // PartsCovariance (the parts' refits' sample covariance over kPathParts), averaged over the
+  // seeds, is the spread of the whole's fitted places over the seeds: the columns' Monte Carlo
+  // noise in the place, which the uncertainty's blocks left out do not see (docs/method.md,
+  // "Uncertainty"). Within 0.55-1.4x (RMS): a factor kPathParts either way in the variance, or
+  // kPathParts - 1 too small, is out.
   const RayTracer scene(PlaneAndBall());
   const Camera cam = test::LookAt({1.5, -1.5, 1.5}, {0, 0, 0.1}, 64, 48, 50);
   TracerOptions o;
@@ -377,20 +379,28 @@ TEST(LightFit, TheHalvesDifferenceIsThePlacesMonteCarloSpread) {
       UnitColumn(scene, HalfOf(v, 1), point, &plus);
       UnitColumn(scene, HalfOf(v, -1), point, &minus);
       for (std::size_t i = 0; i < whole.size(); ++i) ASSERT_NEAR(plus[i] + minus[i], 2 * whole[i], 1e-4 + 1e-4 * whole[i]);
+      std::vector<float> parts(whole.size(), 0.f), part;
+      for (int q = 0; q < kPathParts; ++q) {
+        UnitColumn(scene, PartOf(v, q), point, &part);
+        for (std::size_t i = 0; i < whole.size(); ++i) parts[i] += part[i];
+      }
+      for (std::size_t i = 0; i < whole.size(); ++i)
+        ASSERT_NEAR(parts[i], kPathParts * whole[i], 1e-4 + 1e-4 * whole[i]);
     }
     const LightFitProblem fit{&scene, &v, &y, &base, CauchyLoss{0.5}, 0};
     std::vector<Light> lights{Light{lamp}};
     RefineLights(fit, &lights, 12);
     places.push_back(std::get<PointLight>(lights[0]).position);
-    said += HalvesCovariance(fit, {Light{lamp}}, 12)[0].trace() / seeds;
+    said += PartsCovariance(fit, {Light{lamp}}, 12)[0].trace() / seeds;
   }
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (const Eigen::Vector3d& p : places) mean += p / seeds;
   double spread = 0;
   for (const Eigen::Vector3d& p : places) spread += (p - mean).squaredNorm() / (seeds - 1);
-  std::printf("the places' spread over %d seeds: %.2f mm (RMS); the halves say %.2f mm\n", seeds,
+  std::printf("the places' spread over %d seeds: %.2f mm (RMS); the parts say %.2f mm\n", seeds,
               1000 * std::sqrt(spread), 1000 * std::sqrt(said));
-  // (measured: 3.97 mm spread, 3.07 said; d d^T without the 4 would say 6.1, over 16 1.5)
+  // (measured: 3.97 mm spread, the parts 2.95 said (two halves' d d^T / 4: 3.07); 5.9 without
+  // the 1 / kPathParts, 1.7 over (kPathParts - 1)^2)
   EXPECT_GT(std::sqrt(said), 0.55 * std::sqrt(spread));
   EXPECT_LT(std::sqrt(said), 1.4 * std::sqrt(spread));
 }
