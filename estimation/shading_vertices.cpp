@@ -111,33 +111,34 @@ ShadingVertices Combine(const ShadingVertices& a, double a_samples, const Shadin
   return out;
 }
 
-ShadingVertices HalfOf(const ShadingVertices& v, int half) {
-  LP_CHECK(v.half.size() == v.size(), "HalfOf: the vertices' halves were not kept");
+namespace {
+/// The vertices `keep(k)` takes, their weights times `w`, their halves 0 (a subset's halves are
+/// not its paths' halves).
+template <class Keep>
+ShadingVertices Subset(const ShadingVertices& v, Keep keep, float w) {
   const bool camera = v.camera.size() == v.size();
   ShadingVertices out;
   out.row_start.reserve(v.rows() + 1);
   for (std::size_t r = 0; r < v.rows(); ++r) {
     for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
-      if (v.half[k] != half) continue;
-      Append(&out, v, k, 2.f, camera);
+      if (!keep(k)) continue;
+      Append(&out, v, k, w, camera);
       out.half.push_back(0);
     }
     out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
   }
   return out;
 }
+}  // namespace
+
+ShadingVertices HalfOf(const ShadingVertices& v, int half) {
+  LP_CHECK(v.half.size() == v.size(), "HalfOf: the vertices' halves were not kept");
+  return Subset(v, [&](std::int64_t k) { return v.half[k] == half; }, 2.f);
+}
 
 ShadingVertices PartOf(const ShadingVertices& v, int part) {
   LP_CHECK(v.part.size() == v.size(), "PartOf: the vertices' parts were not kept");
-  const bool camera = v.camera.size() == v.size();
-  ShadingVertices out;
-  out.row_start.reserve(v.rows() + 1);
-  for (std::size_t r = 0; r < v.rows(); ++r) {
-    for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k)
-      if (v.part[k] == part) Append(&out, v, k, static_cast<float>(kPathParts), camera);
-    out.row_start.push_back(static_cast<std::int64_t>(out.position.size()));
-  }
-  return out;
+  return Subset(v, [&](std::int64_t k) { return v.part[k] == part; }, static_cast<float>(kPathParts));
 }
 
 }  // namespace lp

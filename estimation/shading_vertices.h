@@ -65,7 +65,7 @@ ShadingVertices HalfOf(const ShadingVertices& v, int half);
 
 /// The vertices of one part of each row's paths (`part`: 0 .. kPathParts - 1;
 /// ShadingVertices::part), their weights times kPathParts: what a gathering of that share of
-/// the paths would hold (its halves not kept). Needs `part` kept.
+/// the paths would hold (its halves 0). Needs `part` kept.
 ShadingVertices PartOf(const ShadingVertices& v, int part);
 
 /// Where a light's column on shading vertices goes: `value` (3 per row) and, each when
