@@ -279,10 +279,14 @@ int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_i
   return it;
 }
 
-std::vector<Eigen::Matrix3d> PartsCovariance(LightFitProblem p, const std::vector<Light>& lights, int iterations) {
+std::vector<Eigen::Matrix3d> PartsCovariance(LightFitProblem p, const std::vector<Light>& lights, int iterations,
+                                             std::vector<Eigen::Vector3d>* pull) {
   std::vector<Eigen::Matrix3d> out(lights.size(), Eigen::Matrix3d::Zero());
+  if (pull) pull->assign(lights.size(), Eigen::Vector3d::Zero());
   const ShadingVertices& whole = *p.vertices;
   if (whole.part.size() != whole.size() || whole.size() == 0) return out;
+  std::vector<Light> refit_whole = lights;
+  RefineLights(p, &refit_whole, iterations);
   std::vector<std::vector<Light>> refit(kPathParts, lights);
   for (int q = 0; q < kPathParts; ++q) {
     const ShadingVertices part = PartOf(whole, q);
@@ -300,6 +304,12 @@ std::vector<Eigen::Matrix3d> PartsCovariance(LightFitProblem p, const std::vecto
     }
     // The parts' sample covariance (over kPathParts - 1), a part's; the whole's is 1/kPathParts of it.
     if (scatter.allFinite()) out[k] = scatter / ((kPathParts - 1) * kPathParts);
+    // The pull goes as one over the paths: a part's is kPathParts times the whole's, so the
+    // parts' mean is (kPathParts - 1) pulls from the whole's refit.
+    const Eigen::Vector3d b = (mean - std::get<PointLight>(refit_whole[k]).position) / (kPathParts - 1);
+    if (!b.allFinite()) continue;
+    out[k] += b * b.transpose();
+    if (pull) (*pull)[k] = b;
   }
   return out;
 }

@@ -92,15 +92,20 @@ using LightFitLog = std::function<void(int, double, double, const std::vector<Li
 int RefineLights(const LightFitProblem& problem, std::vector<Light>* lights, int max_iterations = 12,
                  const LightFitLog& log = {});
 
-/// Each light's place's covariance from its columns' Monte Carlo noise (docs/method.md,
+/// Each light's place's mean squared error from its columns' Monte Carlo noise (docs/method.md,
 /// "Uncertainty"): the lights refitted (RefineLights, `iterations` steps from `lights`, the
-/// rest of `problem` held) on each of the kPathParts parts of its vertices' paths apart
-/// (PartOf). Each part's noise is kPathParts times the whole's, so the parts' places' sample
-/// covariance over kPathParts estimates the whole's (kPathParts - 1 degrees of freedom: two
-/// halves' d d^T / 4 is of rank one, and says nothing across d). Zero for the other kinds,
-/// and for all when the vertices' parts were not kept or a refit is not finite.
+/// rest of `problem` held) on the whole and on each of the kPathParts parts of its vertices'
+/// paths apart (PartOf). Each part's noise is kPathParts times the whole's, so the parts'
+/// places' sample covariance over kPathParts estimates the whole's (kPathParts - 1 degrees
+/// of freedom: two halves' d d^T / 4 is of rank one, and says nothing across d). The noise
+/// also pulls a lamp (errors in variables: about one over the paths, docs/benchmarks.md
+/// session 36): a part's pull is kPathParts times the whole's, so the parts' mean lies
+/// kPathParts - 1 pulls b from the whole's refit, and b b^T is added (the region is of the
+/// error, not only of the spread; the lamp is not moved). `pull`, when given, receives b per
+/// light. Zero for the other kinds, and for all when the vertices' parts were not kept or a
+/// refit is not finite.
 std::vector<Eigen::Matrix3d> PartsCovariance(LightFitProblem problem, const std::vector<Light>& lights,
-                                             int iterations);
+                                             int iterations, std::vector<Eigen::Vector3d>* pull = nullptr);
 
 /// A compass search's schedule: steps of `start` CompassUnits (a lamp: its distance from
 /// the centre; a direction: a radian), halved when no move lowers the energy, down to
