@@ -584,7 +584,7 @@ std::vector<LightUncertainty> Estimator::Uncertainty() {
   fit.segment = nullptr;  // under the albedo the map and the intensities were solved with
   std::vector<LightUncertainty> out = LightUncertainties(fit, lights, &A_, lambda_, block);
   // The columns' Monte Carlo noise, which the blocks left out do not see (docs/method.md,
-  // "Uncertainty"): each lamp refitted on each half of the paths apart.
+  // "Uncertainty"): each lamp refitted on each part of the paths apart, and the pull that gives.
   const LightFitSubset share(fit, kShadowRows);
   const std::vector<Eigen::Matrix3d> noise = PartsCovariance(share.problem, lights, kPartsIterations);
   for (std::size_t k = 0; k < out.size() && k < noise.size(); ++k) out[k].shape_covariance += noise[k];  // (0 but a lamp's)
