@@ -417,27 +417,87 @@ int SearchLights(const LightFitProblem& p, std::vector<Light>* lights, const Eig
   return moves;
 }
 
+namespace {
+
+/// A bracket of log2 sizes (a < x < c) with x's loss the lowest of the three.
+struct SizeBracket {
+  double a, x, c, la, lx, lc;
+  /// The vertex of the parabola through the three, kept inside and a little away from x.
+  double Vertex() const {
+    const double p = (x - a) * (x - a) * (lx - lc) - (x - c) * (x - c) * (lx - la);
+    const double q = (x - a) * (lx - lc) - (x - c) * (lx - la);
+    constexpr double kMinStep = 0.05;  // in log2: 3.5 % of the size
+    double v = q != 0 ? x - 0.5 * p / q : x;
+    v = std::clamp(v, a + kMinStep, c - kMinStep);
+    if (!(std::abs(v - x) >= kMinStep)) v = x + (c - x > x - a ? kMinStep : -kMinStep);
+    return v;
+  }
+  /// Take a trial at v with loss lv: the bracket narrows around the lowest.
+  bool Take(double v, double lv) {
+    if (lv < lx) {
+      if (v < x) c = x, lc = lx;
+      else a = x, la = lx;
+      x = v, lx = lv;
+      return true;
+    }
+    if (v < x) a = v, la = lv;
+    else c = v, lc = lv;
+    return false;
+  }
+};
+
+}  // namespace
+
+SizeChoice ChooseSize(const SizeLoss& loss, double first, int steps, int refinements) {
+  SizeChoice best;
+  Eigen::Vector3d scale;
+  best.zero_loss = best.loss = loss(0, &best.scale);
+  best.zero_scale = best.scale;
+  std::vector<double> u, l;  // the grid's log2 sizes and losses
+  int b = -1;
+  for (int g = 0; g < steps; ++g) {
+    u.push_back(std::log2(first) + g);
+    l.push_back(loss(std::exp2(u.back()), &scale));
+    if (l.back() < best.loss) best.loss = l.back(), best.size = std::exp2(u.back()), best.scale = scale, b = g;
+  }
+  if (b < 0 || steps < 2) return best;  // a point
+  SizeBracket br{0, u[b], 0, 0, l[b], 0};
+  if (b == steps - 1) {  // the widest: bracketed by half a step below it, or the widest is kept
+    br.a = u[b - 1], br.la = l[b - 1], br.c = u[b], br.lc = l[b], br.x = u[b] - 0.5;
+    br.lx = loss(std::exp2(br.x), &scale);
+    if (!(br.lx < br.lc)) return best;
+    best.loss = br.lx, best.size = std::exp2(br.x), best.scale = scale;
+  } else if (b == 0) {  // the first: bracketed by half of it, or that is taken
+    br.c = u[1], br.lc = l[1], br.a = u[0] - 1;
+    br.la = loss(std::exp2(br.a), &scale);
+    if (br.la < br.lx) {
+      best.loss = br.la, best.size = std::exp2(br.a), best.scale = scale;
+      return best;
+    }
+  } else {
+    br.a = u[b - 1], br.la = l[b - 1], br.c = u[b + 1], br.lc = l[b + 1];
+  }
+  for (int r = 0; r < refinements; ++r) {
+    const double v = br.Vertex(), lv = loss(std::exp2(v), &scale);
+    if (br.Take(v, lv)) best.loss = lv, best.size = std::exp2(v), best.scale = scale;
+  }
+  return best;
+}
+
 double FitAngularRadius(const LightFitProblem& p, DirectionalLight* light) {
   constexpr double kDeg = 3.14159265358979323846 / 180;
-  double sse = 0;
-  const auto energy = [&](DirectionalLight* l) {
-    Light as_light = *l;
-    const double e = RefitScale(p, {}, &as_light, &sse);
-    *l = std::get<DirectionalLight>(as_light);
+  const SizeLoss energy = [&](double radius, Eigen::Vector3d* irradiance) {
+    Light trial = *light;
+    std::get<DirectionalLight>(trial).angular_radius = radius;
+    double sse = 0;
+    const double e = RefitScale(p, {}, &trial, &sse);
+    *irradiance = Scale(trial);
     return e;
   };
-  DirectionalLight sharp = *light;
-  sharp.angular_radius = 0;
-  const double sharp_energy = energy(&sharp);
-  DirectionalLight best = sharp;
-  double best_energy = sharp_energy;
-  for (double deg = kMaxAngularRadiusDeg / 32; deg <= kMaxAngularRadiusDeg; deg *= 2) {
-    DirectionalLight trial = *light;
-    trial.angular_radius = deg * kDeg;
-    const double e = energy(&trial);
-    if (e < best_energy) best_energy = e, best = trial;
-  }
-  *light = best_energy < (1 - 0.005) * sharp_energy ? best : sharp;
+  const SizeChoice best = ChooseSize(energy, kMaxAngularRadiusDeg / 32 * kDeg, 6);
+  const bool soft = best.size > 0 && best.loss < (1 - 0.005) * best.zero_loss;
+  light->angular_radius = soft ? best.size : 0;
+  light->irradiance = soft ? best.scale : best.zero_scale;
   return light->angular_radius;
 }
 

@@ -418,6 +418,40 @@ TEST(LightFit, ThePartsSayThePlacesMonteCarloSpreadAndPull) {
   EXPECT_LT(said_pull.dot(ray), 2 * pulled);
 }
 
+TEST(LightFit, ChooseSizeFindsTheLossesLowestSizeBetweenTheGridsSteps) {
+  // A loss with its lowest point at size s0 (smooth in the size: a parabola in its log,
+  // plus a quartic so that a parabola is not exact), the scale written where it was
+  // evaluated. On the grid 0.01, 0.02, ... 0.16 alone a size of 0.05 comes back as 0.04 or
+  // 0.08; refined it is within 2 %. A loss lowest at 0 gives 0, one lowest past the widest
+  // gives the widest, one lowest below the first step half of it.
+  int calls = 0;
+  const auto loss_with_lowest_at = [&](double s0) {
+    return SizeLoss([&calls, s0](double size, Eigen::Vector3d* scale) {
+      ++calls;
+      *scale = Eigen::Vector3d::Constant(size);
+      if (size == 0) return 100.0;
+      const double u = std::log2(size / s0);
+      return 1 + u * u + 0.3 * u * u * u * u;
+    });
+  };
+  for (double s0 : {0.05, 0.03, 0.011, 0.13}) {
+    calls = 0;
+    const SizeChoice c = ChooseSize(loss_with_lowest_at(s0), 0.01, 5);
+    EXPECT_NEAR(c.size, s0, 0.02 * s0);
+    EXPECT_EQ(c.scale[0], c.size);  // the scale refitted at the size chosen
+    EXPECT_EQ(c.zero_loss, 100.0);
+    EXPECT_LE(calls, 10);
+  }
+  EXPECT_DOUBLE_EQ(ChooseSize(loss_with_lowest_at(0.5), 0.01, 5).size, 0.16);
+  EXPECT_DOUBLE_EQ(ChooseSize(loss_with_lowest_at(0.002), 0.01, 5).size, 0.005);
+  const SizeLoss point_best = [](double size, Eigen::Vector3d* scale) {
+    *scale = Eigen::Vector3d::Ones();
+    return 1 + size;
+  };
+  const SizeChoice p = ChooseSize(point_best, 0.01, 5);
+  EXPECT_EQ(p.size, 0);
+  EXPECT_EQ(p.loss, 1);
+}
+
 }  // namespace
 }  // namespace lp
-
