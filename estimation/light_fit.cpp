@@ -460,14 +460,11 @@ SizeChoice ChooseSize(const SizeLoss& loss, double first, int steps, int refinem
     l.push_back(loss(std::exp2(u.back()), &scale));
     if (l.back() < best.loss) best.loss = l.back(), best.size = std::exp2(u.back()), best.scale = scale, b = g;
   }
-  if (b < 0 || steps < 2) return best;  // a point
+  // A point, or the widest: kept as it is (the widest says "at least this wide": a sun
+  // there is a wide far light, left to the map).
+  if (b < 0 || b == steps - 1) return best;
   SizeBracket br{0, u[b], 0, 0, l[b], 0};
-  if (b == steps - 1) {  // the widest: bracketed by half a step below it, or the widest is kept
-    br.a = u[b - 1], br.la = l[b - 1], br.c = u[b], br.lc = l[b], br.x = u[b] - 0.5;
-    br.lx = loss(std::exp2(br.x), &scale);
-    if (!(br.lx < br.lc)) return best;
-    best.loss = br.lx, best.size = std::exp2(br.x), best.scale = scale;
-  } else if (b == 0) {  // the first: bracketed by half of it, or that is taken
+  if (b == 0) {  // the first: bracketed by half of it, or that is taken
     br.c = u[1], br.lc = l[1], br.a = u[0] - 1;
     br.la = loss(std::exp2(br.a), &scale);
     if (br.la < br.lx) {

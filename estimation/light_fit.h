@@ -142,10 +142,10 @@ struct SizeChoice {
   Eigen::Vector3d scale = Eigen::Vector3d::Zero(), zero_scale = Eigen::Vector3d::Zero();
 };
 /// The lowest loss over 0 and a doubling grid (first, 2 first, ... 2^(steps-1) first), then,
-/// unless that is 0, refined by `refinements` parabolas in the log of the size through the
-/// best size and its neighbours (Brent's bracket kept: the loss must be smooth in the size,
-/// the shadow rays' pattern fixed); the first's lower neighbour is half of it, the widest's
-/// upper one itself (a size beyond the grid is not sought). A grid alone leaves the size up
+/// unless that is 0 or the widest ("at least this wide": a sun there is left to the map),
+/// refined by `refinements` parabolas in the log of the size through the best size and its
+/// neighbours (Brent's bracket kept: the loss must be smooth in the size, the shadow rays'
+/// pattern fixed); the first's lower neighbour is half of it. A grid alone leaves the size up
 /// to a factor of √2 off, and the shadows' edges place the light by its penumbrae (a 5 cm
 /// lamp taken for 3.8 cm was 2 mm off across its ray where its region is 0.4 mm wide).
 SizeChoice ChooseSize(const SizeLoss& loss, double first, int steps, int refinements = 3);
