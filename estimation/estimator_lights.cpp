@@ -249,12 +249,12 @@ bool Estimator::FitRadii(std::vector<PointLight>* lights) {
       return loss;
     };
     const SizeChoice best = ChooseSize(loss_at, 0.008 * radius_, 5);
-    const double radius = best.loss > (1 - 0.005) * best.zero_loss ? 0.0 : best.size;
+    const double radius = best.size;
     char line[240];
     std::snprintf(line, sizeof line,
                   "point light at (%.3f, %.3f, %.3f): radius %.3g m (Cauchy loss %.6g; as a point %.6g)",
                   light.position.x(), light.position.y(), light.position.z(), radius,
-                  radius > 0 ? best.loss : best.zero_loss, best.zero_loss);
+                  best.loss, best.zero_loss);
     res_.point_light_choices.push_back(line);
     Progress(line);
     if (radius != light.radius) {

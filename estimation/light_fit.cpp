@@ -448,11 +448,15 @@ struct SizeBracket {
 
 }  // namespace
 
-SizeChoice ChooseSize(const SizeLoss& loss, double first, int steps, int refinements) {
+namespace {
+
+/// ChooseSize's search: the lowest loss over the grid, refined; the scale at size 0 in
+/// `zero_scale`.
+SizeChoice LowestSize(const SizeLoss& loss, double first, int steps, int refinements, Eigen::Vector3d* zero_scale) {
   SizeChoice best;
   Eigen::Vector3d scale;
   best.zero_loss = best.loss = loss(0, &best.scale);
-  best.zero_scale = best.scale;
+  *zero_scale = best.scale;
   std::vector<double> u, l;  // the grid's log2 sizes and losses
   int b = -1;
   for (int g = 0; g < steps; ++g) {
@@ -481,6 +485,16 @@ SizeChoice ChooseSize(const SizeLoss& loss, double first, int steps, int refinem
   return best;
 }
 
+}  // namespace
+
+SizeChoice ChooseSize(const SizeLoss& loss, double first, int steps, int refinements, double min_gain) {
+  Eigen::Vector3d zero_scale;
+  SizeChoice best = LowestSize(loss, first, steps, refinements, &zero_scale);
+  if (best.size > 0 && !(best.loss < (1 - min_gain) * best.zero_loss))  // not worth a size
+    best.size = 0, best.loss = best.zero_loss, best.scale = zero_scale;
+  return best;
+}
+
 double FitAngularRadius(const LightFitProblem& p, DirectionalLight* light) {
   constexpr double kDeg = 3.14159265358979323846 / 180;
   const SizeLoss energy = [&](double radius, Eigen::Vector3d* irradiance) {
@@ -492,9 +506,8 @@ double FitAngularRadius(const LightFitProblem& p, DirectionalLight* light) {
     return e;
   };
   const SizeChoice best = ChooseSize(energy, kMaxAngularRadiusDeg / 32 * kDeg, 6);
-  const bool soft = best.size > 0 && best.loss < (1 - 0.005) * best.zero_loss;
-  light->angular_radius = soft ? best.size : 0;
-  light->irradiance = soft ? best.scale : best.zero_scale;
+  light->angular_radius = best.size;
+  light->irradiance = best.scale;
   return light->angular_radius;
 }
 

@@ -137,9 +137,9 @@ double RefitScale(const LightFitProblem& problem, const SplitColumn& column, con
 /// with the light at that size, its scale refitted there (written to `scale`).
 using SizeLoss = std::function<double(double size, Eigen::Vector3d* scale)>;
 struct SizeChoice {
-  double size = 0, loss = 0;
-  double zero_loss = 0;  ///< the loss at size 0 (a point, a sharp light), and the scale there
-  Eigen::Vector3d scale = Eigen::Vector3d::Zero(), zero_scale = Eigen::Vector3d::Zero();
+  double size = 0, loss = 0;  ///< the size chosen (0: a point, a sharp light) and its loss
+  double zero_loss = 0;       ///< the loss at size 0
+  Eigen::Vector3d scale = Eigen::Vector3d::Zero();  ///< the scale refitted at the size chosen
 };
 /// The lowest loss over 0 and a doubling grid (first, 2 first, ... 2^(steps-1) first), then,
 /// unless that is 0 or the widest ("at least this wide": a sun there is left to the map),
@@ -148,7 +148,8 @@ struct SizeChoice {
 /// pattern fixed); the first's lower neighbour is half of it. A grid alone leaves the size up
 /// to a factor of √2 off, and the shadows' edges place the light by its penumbrae (a 5 cm
 /// lamp taken for 3.8 cm was 2 mm off across its ray where its region is 0.4 mm wide).
-SizeChoice ChooseSize(const SizeLoss& loss, double first, int steps, int refinements = 3);
+/// A size is taken only where it lowers the loss below (1 - min_gain) of size 0's.
+SizeChoice ChooseSize(const SizeLoss& loss, double first, int steps, int refinements = 3, double min_gain = 0.005);
 
 /// The widest angular radius FitAngularRadius tries (degrees).
 constexpr double kMaxAngularRadiusDeg = 8;
