@@ -49,7 +49,8 @@ std::vector<EstimateOption> LightOptions() {
        Type::kBool, 0, 1, false, LP_GET(point_lights.debiased), LP_SET(point_lights.debiased, bool), "", 0, 0, {}},
       {"polish-spp", "polish_spp",
        "after the last round the lamps are refined again on fresh paths, this many per pixel on a share of the rows "
-       "(the fit debiased); 0 = not; -1 = 64 where an albedo pass de-lit the colours seen (a scan), else not",
+       "(the fit debiased); 0 = not; -1 = 64 on a scan (an albedo pass de-lit the colours seen) and where the paths' "
+       "noise limits a lamp's place more than the images do, else not",
        Type::kInt, -1, 1024, false, LP_GET(point_lights.polish_spp), LP_SET(point_lights.polish_spp, int), "", 0, 0,
        {}},
       {"directional-lights", "directional_lights",

@@ -77,7 +77,7 @@ constexpr double kMinCleanRenderSeconds = 2;
 constexpr int kMinRings = 2, kMaxRings = 181;
 
 
-/// PointLightOptions::polish_spp's paths where it is left to the estimate (a scan's).
+/// PointLightOptions::polish_spp's paths where it is left to the estimate.
 constexpr int kPolishSpp = 64;
 
 /// The near-light model (docs/method.md, "Point lights"): point lights beside the map.
@@ -93,7 +93,9 @@ struct PointLightOptions {
   bool debiased = false;
   /// After the last round the lamps are refined once more on fresh shading vertices of this
   /// many paths per pixel on kShadowRows of the rows, the fit debiased (PolishLamps); 0 = not;
-  /// -1: kPolishSpp where an albedo pass de-lit the colours seen (a scan), else 0.
+  /// -1: kPolishSpp on a scan (an albedo pass de-lit the colours seen) and where the paths'
+  /// noise limits a lamp's place more than the images do (LightUncertainty::paths_ratio at
+  /// least kPolishPathsRatio), else 0.
   int polish_spp = -1;
   /// A point light's activation penalty, in cells of the reference solid angle.
   double weight = 1;

@@ -475,9 +475,15 @@ void Estimator::Conclude() {
   else if (res_.albedo_scale != 1) res_.albedo = bundle_.mesh.albedo;  // the scaled albedo the lights go with
   res_.left_out.assign(cells_, 0);
   for (int j = 0; j < cells_; ++j) res_.left_out[j] = !reachable_[j];
-  PolishLamps();
+  // Left to the estimate, the lamps are polished where the uncertainty at the rounds' end says
+  // their paths limit them (a scan's always); polished, it is computed again where they are.
+  const bool judge = opt_.point_lights.polish_spp < 0 && res_.albedo_passes == 0 && !points_.empty();
+  std::vector<LightUncertainty> uncertainty = judge ? Uncertainty() : std::vector<LightUncertainty>{};
+  const bool polished = PolishLamps(PolishSpp(uncertainty));
+  if (!judge || polished) uncertainty = Uncertainty();
+  SayUncertainty(uncertainty);
   res_.lighting = InImageUnits();
-  res_.uncertainty = Uncertainty();
+  res_.uncertainty = uncertainty;
   OnBundleMesh(&res_.lighting.lights);
   for (LightUncertainty& u : res_.uncertainty) u.scale_sigma *= res_.image_mean;
   // The rounds' last error (the polish's rows are on its own fresh vertices: another measure).
@@ -502,15 +508,31 @@ void Estimator::Conclude() {
   }
 }
 
-/// The lamps refined once more after the last round (PolishSpp() > 0) on fresh shading
-/// vertices of that many paths on every n-th row (kShadowRows of them), the rest of the image
-/// held and the fit debiased: the rounds' vertices hold few paths, and their noise pulls a
-/// lamp along its ray (docs/method.md, "The lamps polished").
-void Estimator::PolishLamps() {
-  const int spp = opt_.point_lights.polish_spp >= 0 ? opt_.point_lights.polish_spp
-                  : res_.albedo_passes > 0         ? kPolishSpp
-                                                   : 0;
-  if (spp <= 0 || points_.empty() || vertices_.rows() != A_.rows()) return;
+/// The polish's paths (0: none): PointLightOptions::polish_spp where given; left to the
+/// estimate (-1), kPolishSpp on a scan and where a lamp's paths_ratio in `rounds` (the
+/// uncertainty at the rounds' end) is at least kPolishPathsRatio, said with why.
+int Estimator::PolishSpp(const std::vector<LightUncertainty>& rounds) {
+  if (opt_.point_lights.polish_spp >= 0) return opt_.point_lights.polish_spp;
+  if (res_.albedo_passes > 0) return kPolishSpp;
+  if (points_.empty()) return 0;
+  double most = 0;
+  for (const LightUncertainty& u : rounds) most = std::max(most, u.paths_ratio);
+  const bool polish = most >= kPolishPathsRatio;
+  const std::string line =
+      Fmt("the lamps %s: where a lamp's place is least sure from its columns' paths, their noise is %.3g times the "
+          "images' (%s %g)",
+          polish ? "polished on fresh paths" : "not polished", most, polish ? "at least" : "under", kPolishPathsRatio);
+  res_.point_light_choices.push_back(line);
+  Progress(line);
+  return polish ? kPolishSpp : 0;
+}
+
+/// The lamps refined once more after the last round on fresh shading vertices of `spp`
+/// paths on every n-th row (kShadowRows of them), the rest of the image held and the fit
+/// debiased: the rounds' vertices hold few paths, and their noise pulls a lamp along its
+/// ray (docs/method.md, "The lamps polished"). False where it does not run.
+bool Estimator::PolishLamps(int spp) {
+  if (spp <= 0 || points_.empty() || vertices_.rows() != A_.rows()) return false;
   CheckCancel();
   Stopwatch watch;
   // The rows, observations, rest of the image and albedo segments of LightFitSubset's share;
@@ -526,6 +548,7 @@ void Estimator::PolishLamps() {
   topt.spp = spp;
   topt.seed = opt_.tracer.seed * 1000003ull + 977;
   const ShadingVertices fresh = GatherShadingVertices(*scene_, views, topt);
+  const double traced = watch.Seconds();
   CheckCancel();
   LightFitProblem& fit = share.problem;
   LP_CHECK(fresh.rows() * 3 == fit.y->size(), "the polish's rows");
@@ -541,12 +564,14 @@ void Estimator::PolishLamps() {
     Push(row);
   };
   std::vector<Light> moving = AsLights(points_);
-  const int iterations = RefineLights(fit, &moving, 12, log);
+  const int iterations = RefineLights(fit, &moving, 12, log, kPolishMinDrop);
   CompassOptions compass;
   compass.start = 0.01;
   compass.stop = 0.002;
   compass.max_evaluations = 12;
-  const int moves = SearchLights(fit, &moving, centre_, compass, log);
+  // (where the albedo is known, Levenberg-Marquardt alone: the compass's steps of 1 % of the
+  // distance moved a far lamp on along its ray, where the images, not the paths, limit it)
+  const int moves = res_.albedo_passes > 0 ? SearchLights(fit, &moving, centre_, compass, log) : 0;
   const std::vector<PointLight> polished = OfKind<PointLight>(moving);
   double moved = 0;
   for (std::size_t k = 0; k < polished.size(); ++k)
@@ -555,10 +580,11 @@ void Estimator::PolishLamps() {
   for (const PointLight& l : polished)
     if (l.intensity.maxCoeff() > 0) points_.push_back(l);
   const std::string line = Fmt("lamps polished on %zu rows at %d fresh paths a pixel: %d iterations, %d compass moves, "
-                               "moved at most %.3g m in %.2f s",
-                               fresh.rows(), topt.spp, iterations, moves, moved, watch.Seconds());
+                               "moved at most %.3g m in %.2f s (traced in %.2f s)",
+                               fresh.rows(), topt.spp, iterations, moves, moved, watch.Seconds(), traced);
   res_.point_light_choices.push_back(line);
   Progress(line);
+  return true;
 }
 
 std::vector<int> Estimator::RowBlocks(int across) const {
@@ -587,20 +613,29 @@ std::vector<LightUncertainty> Estimator::Uncertainty() {
   // "Uncertainty"): each lamp refitted on each part of the paths apart, and the pull that gives.
   const LightFitSubset share(fit, kShadowRows);
   const std::vector<Eigen::Matrix3d> noise = PartsCovariance(share.problem, lights, kPartsIterations);
-  for (std::size_t k = 0; k < out.size() && k < noise.size(); ++k) out[k].shape_covariance += noise[k];  // (0 but a lamp's)
-  for (std::size_t k = 0; k < out.size(); ++k) {
+  for (std::size_t k = 0; k < out.size() && k < noise.size(); ++k) {  // (noise is 0 but a lamp's)
+    if (std::holds_alternative<PointLight>(lights[k]))
+      out[k].paths_ratio = LargestVarianceRatio(noise[k], out[k].shape_covariance);
+    out[k].shape_covariance += noise[k];
+  }
+  Progress(Fmt("the lights' uncertainty in %.2f s", us.Seconds()));
+  return out;
+}
+
+/// A progress line per light: its 95 % region's size (`u`: Uncertainty()'s, in Lights()' order).
+void Estimator::SayUncertainty(const std::vector<LightUncertainty>& u) {
+  const std::vector<Light> lights = Lights();
+  for (std::size_t k = 0; k < u.size() && k < lights.size(); ++k) {
     Eigen::Vector3d semi = Eigen::Vector3d::Constant(INFINITY);
     Eigen::Matrix3d axes;
-    Region95(out[k].shape_covariance, ShapeDims(lights[k]), &semi, &axes);
+    Region95(u[k].shape_covariance, ShapeDims(lights[k]), &semi, &axes);
     Progress(std::holds_alternative<PointLight>(lights[k])
                  ? Fmt("point light %zu: its place within %.3g m (the 95 %% region's longest semi-axis)", k, semi[2])
              : std::holds_alternative<EmitterLight>(lights[k])
                  ? Fmt("emitter %zu: its radiance within %.3g of %.3g (95 %%, the green channel, image units)", k,
-                       1.96 * out[k].scale_sigma[1] * res_.image_mean, Scale(lights[k])[1] * res_.image_mean)
+                       1.96 * u[k].scale_sigma[1] * res_.image_mean, Scale(lights[k])[1] * res_.image_mean)
                  : Fmt("directional light %zu: its direction within %.3g degrees (95 %%)", k, semi[2] * 180 / kPi));
   }
-  Progress(Fmt("the lights' uncertainty in %.2f s", us.Seconds()));
-  return out;
 }
 
 void Estimator::RenderFittedViews() {

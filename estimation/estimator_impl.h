@@ -70,6 +70,15 @@ constexpr std::size_t kShadowRows = 4800;
 /// uncertainty (PartsCovariance): from the estimate, a few millimetres away (12 measured
 /// the same coverage as 4 on halves: docs/benchmarks.md, session 37).
 constexpr int kPartsIterations = 4;
+/// The polish's Levenberg-Marquardt stops where a step lowers its objective by less than
+/// this share: its last steps each gained 1e-5 or less and moved a lamp by under a
+/// micrometre, at a fifth of an estimate's time (docs/benchmarks.md, session 40).
+constexpr double kPolishMinDrop = 1e-5;
+/// Left to the estimate, the lamps are polished where a lamp's place is less sure from its
+/// columns' paths than from the images in some direction (LightUncertainty::paths_ratio);
+/// where the images limit it (a lamp 4 m away) the polish's quarter of the rows moved it
+/// along its ray as often away from the truth as towards it (docs/benchmarks.md, session 40).
+constexpr double kPolishPathsRatio = 1;
 
 /// The lights' uncertainty takes each view as this many blocks across and down (16 a view),
 /// each independent of the others: the model's errors (the mesh's, the albedo's, another
@@ -163,10 +172,12 @@ class Estimator {
   Mesh WithAlbedoOf(const Mesh& full, const std::vector<float>& irradiance) const;
   /// The estimate in image units, its scores and what the user should know about it.
   void Conclude();
-  void PolishLamps();
+  int PolishSpp(const std::vector<LightUncertainty>& rounds);
+  bool PolishLamps(int spp);
   /// How well the images fix each light (Lights()' order, normalized units), on the last
   /// round's rows; empty without lights or shading vertices.
   std::vector<LightUncertainty> Uncertainty();
+  void SayUncertainty(const std::vector<LightUncertainty>& u);
   /// The map's prior chosen by the data (docs/method.md, "The map's prior"; res_.prior says
   /// how): where it is weaker than the given one, the round's map and lights' intensities
   /// are solved again at it (its rows in `info`) and the rounds after it run at it. Returns

@@ -226,7 +226,8 @@ LightFitSubset::LightFitSubset(const LightFitProblem& full, std::size_t max_rows
   problem.alpha /= stride;
 }
 
-int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_iterations, const LightFitLog& log) {
+int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_iterations, const LightFitLog& log,
+                 double min_drop) {
   const int K = static_cast<int>(lights->size());
   if (K == 0) return 0;
   std::vector<int> offset{0};  // per light: its shape's coordinates, then its scale (3)
@@ -269,7 +270,7 @@ int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_i
         E = tE;
         mu = std::max(mu / 3, 1e-9);
         if (log) log(it + 1, E, SquaredSum(f.r), *lights);
-        if (drop < 1e-6) return it + 1;
+        if (drop < min_drop) return it + 1;
       } else {
         mu *= 10;
       }

@@ -88,9 +88,10 @@ using LightFitLog = std::function<void(int, double, double, const std::vector<Li
 /// Levenberg-Marquardt on the lights' shapes (ShapeDims each: a position, a direction's
 /// tangent plane) and scales together, iteratively reweighted for the loss, the analytical
 /// derivative of the columns (visibility held fixed), scales kept >= 0; a step is taken
-/// only if E falls. Returns the iterations taken; `lights` holds the best found.
+/// only if E falls; it stops where a step lowers E by less than `min_drop` of it. Returns the
+/// iterations taken; `lights` holds the best found.
 int RefineLights(const LightFitProblem& problem, std::vector<Light>* lights, int max_iterations = 12,
-                 const LightFitLog& log = {});
+                 const LightFitLog& log = {}, double min_drop = 1e-6);
 
 /// Each light's place's mean squared error from its columns' Monte Carlo noise (docs/method.md,
 /// "Uncertainty"): the lights refitted (RefineLights, `iterations` steps from `lights`, the

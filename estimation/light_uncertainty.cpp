@@ -202,4 +202,16 @@ double SquaredMahalanobis(const Eigen::Vector3d& d, const Eigen::Matrix3d& covar
   return m;
 }
 
+double LargestVarianceRatio(const Eigen::Matrix3d& of, const Eigen::Matrix3d& to) {
+  if (!of.allFinite() || !to.allFinite()) return 0;
+  const Eigen::LLT<Eigen::Matrix3d> llt(to);
+  if (llt.info() != Eigen::Success) return 0;
+  // With to = L Lᵀ, the ratio's largest value is the largest eigenvalue of L⁻¹ of L⁻ᵀ.
+  const Eigen::Matrix3d l_inv = llt.matrixL().solve(Eigen::Matrix3d::Identity());
+  const Eigen::Matrix3d w = l_inv * of * l_inv.transpose();
+  return std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(0.5 * (w + w.transpose()), Eigen::EigenvaluesOnly)
+                           .eigenvalues()
+                           .maxCoeff());
+}
+
 }  // namespace lp

@@ -26,6 +26,10 @@ struct LightUncertainty {
   /// Per channel, the standard deviation of its Scale (a lamp's intensity, a directional
   /// light's irradiance), in the same units.
   Eigen::Vector3d scale_sigma = Eigen::Vector3d::Zero();
+  /// A lamp's: the largest ratio, over directions, of its place's variance from its columns'
+  /// Monte Carlo noise (the paths' parts) to the images' (the blocks left out): above 1 the
+  /// paths, not the images, limit where the lamp is. 0 for other lights.
+  double paths_ratio = 0;
 };
 
 /// The square of the 95 % quantile of the chi distribution with 3 / 2 degrees of freedom:
@@ -52,5 +56,10 @@ bool Region95(const Eigen::Matrix3d& covariance, int dims, Eigen::Vector3d* semi
 /// The squared Mahalanobis distance of a shape error `d` (world coordinates; a direction's
 /// in its tangent plane) under `covariance` (its pseudo-inverse where it is rank 2).
 double SquaredMahalanobis(const Eigen::Vector3d& d, const Eigen::Matrix3d& covariance);
+
+/// The largest, over directions u, of uᵀ `of` u / uᵀ `to` u (the largest generalized
+/// eigenvalue): how many times one covariance exceeds another where it does most. 0 where
+/// `to` is not positive definite (infinite or unknown somewhere) or not finite.
+double LargestVarianceRatio(const Eigen::Matrix3d& of, const Eigen::Matrix3d& to);
 
 }  // namespace lp

@@ -153,5 +153,27 @@ TEST(LightUncertainty, SquaredMahalanobisIsTheClosedForm) {
   EXPECT_EQ(SquaredMahalanobis({1, 1, 1}, cov), 0);
 }
 
+// The polish's rule (docs/method.md, "The lamps polished"): how many times the paths'
+// covariance exceeds the images' where it does most. Closed forms: diagonal pairs give the
+// largest ratio of their diagonals; a rotation of both changes nothing; a covariance the
+// images do not bound (infinite, singular) gives 0, never a spurious polish.
+TEST(LightUncertainty, LargestVarianceRatioIsTheLargestRatioOverDirections) {
+  const Eigen::Matrix3d paths = Eigen::Vector3d(1, 8, 0.5).asDiagonal();
+  const Eigen::Matrix3d images = Eigen::Vector3d(4, 2, 0.1).asDiagonal();
+  EXPECT_NEAR(LargestVarianceRatio(paths, images), 5, 1e-12);  // max(0.25, 4, 5)
+  const Eigen::Matrix3d r = Eigen::AngleAxisd(0.7, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+  EXPECT_NEAR(LargestVarianceRatio(r * paths * r.transpose(), r * images * r.transpose()), 5, 1e-9);
+  // A paths' covariance of rank one along u: its ratio is uᵀ P u / uᵀ D u only if u is an
+  // axis of D; in general uᵀ D⁻¹ u times its variance.
+  const Eigen::Vector3d u = Eigen::Vector3d(1, 1, 0).normalized();
+  const Eigen::Matrix3d one = 3 * u * u.transpose();
+  EXPECT_NEAR(LargestVarianceRatio(one, images), 3 * u.dot(images.inverse() * u), 1e-12);
+  EXPECT_EQ(LargestVarianceRatio(Eigen::Matrix3d::Zero(), images), 0);
+  Eigen::Matrix3d singular = images;
+  singular(2, 2) = 0;
+  EXPECT_EQ(LargestVarianceRatio(paths, singular), 0);
+  EXPECT_EQ(LargestVarianceRatio(paths, Eigen::Matrix3d::Constant(INFINITY)), 0);
+}
+
 }  // namespace
 }  // namespace lp
