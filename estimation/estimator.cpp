@@ -196,12 +196,32 @@ void Estimator::RunRounds() {
     const SolveResult sr = Solve(rp, round, &info, round == 1);
     const std::vector<double> full = TakeSolution(rp, sr, &info);
     FitLights(rp, full, &info);
-    // The map's prior, once, in the first round past round 1's grid (after the lamps and the
-    // sun were sought): the rounds after it run at the prior chosen.
-    const bool prior_changed = PastFirstGrid() && !res_.prior.done && ChoosePrior(&info);
+    const bool prior_changed = PriorRound(round, last) && ChoosePrior(&info);
     EndRound(sr, &info);
-    if (round > first && info.image_change < opt_.change_threshold && !info.lights_moved && !prior_changed) break;
+    const bool prior_ahead = PastFirstGrid() && !res_.prior.done;
+    if (round > first && info.image_change < opt_.change_threshold && !info.lights_moved && !prior_changed &&
+        !prior_ahead)
+      break;
   }
+  if (!res_.prior.done) {
+    res_.prior.done = true;
+    res_.prior.why = Fmt("the rounds ended (--rounds %d) before the round that chooses the map's prior: the given --alpha",
+                         opt_.max_rounds);
+  }
+}
+
+/// Whether this round (of `last`) chooses the map's prior (once): beside lamps the
+/// kPriorRound-th on every pixel, after they were refined there (at round 1's places a far
+/// lamp's error was taken up by a weak prior's sky that is not there, and the lamp followed
+/// it: docs/method.md, "The map's prior"), or the last but one, so that a round follows the
+/// choice; without lamps the first on every pixel. Until then, where it will not be chosen
+/// that is said at once (the rounds then need not wait for it).
+bool Estimator::PriorRound(int round, int last) {
+  if (res_.prior.done || !PastFirstGrid()) return false;
+  if (points_.empty() || ++rounds_past_grid_ >= kPriorRound || round + 1 >= last) return true;
+  res_.prior.why = PriorLeftOut(ColumnOrder(points_));
+  res_.prior.done = !res_.prior.why.empty();
+  return false;
 }
 
 /// Traces A with importance from the estimate so far (uniform in round 1), averages it

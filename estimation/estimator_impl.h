@@ -183,6 +183,8 @@ class Estimator {
   /// are solved again at it (its rows in `info`) and the rounds after it run at it. Returns
   /// whether the prior changed.
   bool ChoosePrior(RoundInfo* info);
+  /// Whether this round (of `last`) chooses the map's prior (kPriorRound).
+  bool PriorRound(int round, int last);
   /// The sky beside a directional light, after the rounds (docs/method.md).
   void FitSky();
   /// Relit renders of the fitted views under the estimate (EstimateOptions::render_spp).
@@ -409,6 +411,7 @@ class Estimator {
   std::vector<View> views_;
   int stride_ = 0;
   int after_grid_ = 0;  ///< the first round on every pixel after round 1's grid (0: none)
+  int rounds_past_grid_ = 0;  ///< the rounds on every pixel so far (PriorRound)
   bool warm_ = false;  ///< round 1 starts from a live estimate's map (EstimateOptions::warm)
   /// The share of the rendered light that is the map's (the rest the lights'), after the last round.
   double map_share_ = 1;
