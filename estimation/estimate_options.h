@@ -42,10 +42,11 @@ constexpr int kPriorFolds = 4;
 /// (docs/benchmarks.md, session 27).
 constexpr double kPriorMinGain = 0.03;
 constexpr int kPriorBlocksAcross = 4;
-/// The prior is chosen in this round on every pixel (after round 1's grid), so that the lamps
-/// were refined there first: chosen in the first, at round 1's places, the far lamp's error
-/// was taken up by a weak prior's sky that is not there (`lamp-4m` 8-14 cm off on 7 of 25
-/// seeds; docs/benchmarks.md, session 41).
+/// Beside lamps the prior is chosen in this round on every pixel (after round 1's grid), so
+/// that the lamps were refined there twice first: chosen in the first, after one refinement
+/// from round 1's places, the far lamp was still 7-8 cm off and a weak prior's sky that is
+/// not there took up its error (`lamp-4m` 8-14 cm off on 7 of 25 seeds; docs/benchmarks.md,
+/// session 41).
 constexpr int kPriorRound = 2;
 
 /// Round 1 (the cold start) solves at this Cauchy scale first when a smaller one is asked

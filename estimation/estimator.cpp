@@ -211,9 +211,9 @@ void Estimator::RunRounds() {
 }
 
 /// Whether this round (of `last`) chooses the map's prior (once): beside lamps the
-/// kPriorRound-th on every pixel, after they were refined there (at round 1's places a far
-/// lamp's error was taken up by a weak prior's sky that is not there, and the lamp followed
-/// it: docs/method.md, "The map's prior"), or the last but one, so that a round follows the
+/// kPriorRound-th on every pixel, after they were refined there (refined once, a far lamp was
+/// still 7-8 cm off, a weak prior's sky that is not there took up its error, and the lamp
+/// followed it: docs/method.md, "The map's prior"), or the last but one, so that a round follows the
 /// choice; without lamps the first on every pixel. Until then, where it will not be chosen
 /// that is said at once (the rounds then need not wait for it).
 bool Estimator::PriorRound(int round, int last) {
