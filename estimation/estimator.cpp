@@ -491,6 +491,7 @@ void Estimator::EndRound(const SolveResult& sr, RoundInfo* info) {
 }
 
 void Estimator::Conclude() {
+  RelaxPrior();
   if (res_.albedo_passes > 0) res_.albedo = mesh_.albedo;
   else if (res_.albedo_scale != 1) res_.albedo = bundle_.mesh.albedo;  // the scaled albedo the lights go with
   res_.left_out.assign(cells_, 0);

@@ -183,6 +183,9 @@ class Estimator {
   /// are solved again at it (its rows in `info`) and the rounds after it run at it. Returns
   /// whether the prior changed.
   bool ChoosePrior(RoundInfo* info);
+  /// Beside lamps, where a weaker prior than the given one was chosen, the map solved once
+  /// more at the weakest one tried (its shrinkage of the extended light undone).
+  void RelaxPrior();
   /// Whether this round (of `last`) chooses the map's prior (kPriorRound).
   bool PriorRound(int round, int last);
   /// The sky beside a directional light, after the rounds (docs/method.md).

@@ -263,6 +263,24 @@ Estimator::PriorFolds Estimator::PriorLosses(const std::vector<Light>& lights, c
   return out;
 }
 
+/// Beside lamps, where the data chose a weaker prior than the given one (extended light beside
+/// them), the map and the lights' intensities (their places held) solved once more at the
+/// weakest weight tried: the strongest prior the held-out pixels allow, chosen for the lamps'
+/// sake, shrinks the dim sky it kept (docs/method.md, "The map's prior").
+void Estimator::RelaxPrior() {
+  PriorChoice& pc = res_.prior;
+  const double weakest = opt_.objective.alpha * kPriorFactors[std::size(kPriorFactors) - 1];
+  if (points_.empty() || res_.rounds.empty() || pc.lights_dropped || !(pc.chosen < opt_.objective.alpha) ||
+      !(pc.chosen > weakest))
+    return;
+  CheckCancel();
+  RoundInfo info = res_.rounds.back();
+  SolveAtPrior(weakest, lambda_, &info);
+  pc.why += Fmt("; beside the lamps the map solved once more at alpha %g, the weakest tried, so that the prior "
+                "chosen does not shrink the extended light it kept",
+                weakest);
+}
+
 /// The map and the lights' intensities solved again on every pixel at weight `alpha` (as
 /// EstimateOptions' alpha), warm-started from `start` (the map's cells, then the lights of
 /// WithLights(points_)); its iterations are convergence rows of step "prior". A lamp left

@@ -249,12 +249,14 @@ TEST(Cycles, AFlatSkyComesBackFlat) {
 // (1.24x; at the given prior, --choose-prior 0, the sky comes back -37 %). That 1.25x is
 // not met over seeds: estimate seeds 1-4 gave 1.24, 1.45, 1.22, 1.40x (the lamp 0.8, 1.9,
 // 0.3, 1.7 cm off) at session 38's end, and 1.33, 1.38, 1.21, 1.51x (1.9, 1.3, 0.9, 1.9 cm)
-// with the lamp's radius refined (session 39): held here at 1.6x, the issue's 1.25x open
-// (docs/benchmarks.md, session 39). Nor is the sky's 20 %: over estimate seeds 1-4 it came
+// with the lamp's radius refined (session 39), so the test held 1.6x until session 41
+// (docs/benchmarks.md, session 39). Nor was the sky's 20 %: over estimate seeds 1-4 it came
 // back -9, -26, -11, -20 % (the lamp 1.9, 1.3, 0.9, 1.9 cm off) before the prior was chosen
 // after the lamps' refinement (session 41), -26, -26, -13, -12 % (0.8, 1.3, 1.4, 0.7 cm)
-// since: where the held-out loss is least at alpha/10 the sky comes back a quarter low.
-// Held here at 30 %, the issue's 20 % open (docs/benchmarks.md, session 41).
+// then: at alpha/10 the penalty left the sky a quarter low. With the map solved once more at
+// alpha/30 beside the lamps where a weaker prior was chosen (RelaxPrior): -14.5, -11, -13,
+// -12 %, and this seed's held-out view 1.19x the truth's (1.26x before; the other seeds'
+// not measured): the issue's 20 % and 1.25x held (docs/benchmarks.md, session 41).
 TEST(Cycles, ADimSkyBesideALampStaysInTheMap) {
   const SceneBundle bundle = LoadSceneBundle(CyclesDir("lamp_sky"));
   const nlohmann::json truth = nlohmann::json::parse(ReadTextFile(CyclesDir("lamp_sky") / "truth.json"));
@@ -278,8 +280,8 @@ TEST(Cycles, ADimSkyBesideALampStaysInTheMap) {
               relit, floor);
   EXPECT_LT(error, 0.05 * distance);
   for (int c = 0; c < 3; ++c) EXPECT_NEAR(l.intensity[c], intensity[c], 0.15 * intensity[c]);
-  EXPECT_NEAR(up, true_up, 0.3 * true_up);
-  EXPECT_LT(relit, 1.6 * floor);
+  EXPECT_NEAR(up, true_up, 0.2 * true_up);
+  EXPECT_LT(relit, 1.25 * floor);
 }
 
 // Issue 42: two lamps of different brightness and colour (tests/data/cycles/two_lamps, KIND
