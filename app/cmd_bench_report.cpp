@@ -305,34 +305,40 @@ std::string WritePlot(const fs::path& out, const Metric& m, const std::string& s
 
 /// The map's prior at one size: per scene, the held-out loss of each weight the default
 /// estimate tried, with the lights it found and with the map alone (one standard error of
-/// its difference from the least either side), and the one it chose (PNG + CSV; none where
-/// no scene chose); returns its part of report.md.
+/// its difference from the least either side), and the one it chose; the smooth maps' in a
+/// panel of their own (PNG + CSV; none where no scene chose); returns its part of report.md.
 std::string WritePriorPlot(const fs::path& out, const std::string& size, const Cases& cases) {
   std::vector<PlotPanel> panels;
   std::ostringstream csv;
-  csv << "scene,size,alpha,lights,heldout_loss,standard_error,chosen\n";
+  csv << "scene,size,alpha,smooth,lights,heldout_loss,standard_error,chosen\n";
   for (const auto& c : cases) {
     const PriorChoice& p = c->prior;
     if (c->size != size || p.tried.empty()) continue;
-    PlotPanel panel;
-    panel.title = c->scene;
-    panel.x_label = "alpha (the map's prior)";
-    panel.y_label = "held-out loss";
-    panel.log_y = false;
-    PlotSeries with{"with the lights", {}, {}}, alone{"the map alone", {}, {}}, chosen{"chosen", {}, {}, false, true};
-    PlotSeries band{"+/- 1 SE", {}, {}, false, true};
-    for (const PriorChoice::Tried& t : p.tried) {
-      PlotSeries& s = t.lights > 0 ? with : alone;
-      s.x.push_back(t.alpha);
-      s.y.push_back(t.loss);
-      for (double d : {-t.standard_error, t.standard_error}) band.x.push_back(t.alpha), band.y.push_back(t.loss + d);
-      if (p.IsChosen(t)) chosen.x.push_back(t.alpha), chosen.y.push_back(t.loss);
-      csv << c->scene << ',' << size << ',' << t.alpha << ',' << t.lights << ',' << t.loss << ',' << t.standard_error
-          << ',' << p.IsChosen(t) << '\n';
+    // Two panels a scene: the activation penalty's weights, then the smoothness's (at the
+    // weakest of those weights).
+    for (const bool smooth : {false, true}) {
+      PlotPanel panel;
+      panel.title = c->scene + (smooth ? ": smooth maps" : "");
+      panel.x_label = smooth ? "the smoothness's weight" : "alpha (the map's prior)";
+      panel.y_label = "held-out loss";
+      panel.log_y = false;
+      PlotSeries with{"with the lights", {}, {}}, alone{"the map alone", {}, {}}, chosen{"chosen", {}, {}, false, true};
+      PlotSeries band{"+/- 1 SE", {}, {}, false, true};
+      for (const PriorChoice::Tried& t : p.tried) {
+        if ((t.smooth > 0) != smooth) continue;
+        const double x = smooth ? t.smooth : t.alpha;
+        PlotSeries& s = t.lights > 0 ? with : alone;
+        s.x.push_back(x);
+        s.y.push_back(t.loss);
+        for (double d : {-t.standard_error, t.standard_error}) band.x.push_back(x), band.y.push_back(t.loss + d);
+        if (p.IsChosen(t)) chosen.x.push_back(x), chosen.y.push_back(t.loss);
+        csv << c->scene << ',' << size << ',' << t.alpha << ',' << t.smooth << ',' << t.lights << ',' << t.loss << ','
+            << t.standard_error << ',' << p.IsChosen(t) << '\n';
+      }
+      for (PlotSeries* s : {&band, &with, &alone, &chosen})  // (the chosen marker drawn last, on top)
+        if (!s->x.empty()) panel.series.push_back(*s);
+      if (!panel.series.empty()) panels.push_back(std::move(panel));
     }
-    for (PlotSeries* s : {&band, &with, &alone, &chosen})  // (the chosen marker drawn last, on top)
-      if (!s->x.empty()) panel.series.push_back(*s);
-    panels.push_back(std::move(panel));
   }
   if (panels.empty()) return "";
   const std::string stem = "prior_" + size;

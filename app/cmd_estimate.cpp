@@ -239,11 +239,13 @@ static json PriorJson(const EstimateOptions& o, const EstimateResult& r) {
   json tried = json::array();
   for (const PriorChoice::Tried& t : p.tried)
     tried.push_back({{"alpha", t.alpha},
+                     {"smooth", t.smooth},
                      {"lights", t.lights},
                      {"heldout_loss", t.loss},
                      {"standard_error", t.standard_error},
                      {"chosen", p.IsChosen(t)}});
   return {{"alpha", std::isfinite(p.chosen) ? p.chosen : o.objective.alpha},
+          {"smooth", std::isfinite(p.chosen) ? p.chosen_smooth : o.objective.smooth},
           {"chosen", std::isfinite(p.chosen)},
           {"lights_dropped", p.lights_dropped},
           {"why", p.why},

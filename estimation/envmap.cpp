@@ -42,6 +42,33 @@ EnvMap::EnvMap(int rings, const Eigen::Vector3d& up) : rings_(rings) {
   }
 }
 
+std::vector<EnvMap::Neighbours> EnvMap::Adjacency() const {
+  const double dtheta = kPi / (rings_ - 1);
+  std::vector<Neighbours> out;
+  for (int i = 0; i < rings_; ++i) {
+    const int n = ring_count_[i], s = ring_start_[i];
+    // Along the ring: the sectors' radial edges (the band's polar extent) over the arc between centres.
+    const double arc = std::sin(i * dtheta) * 2 * kPi / n;
+    if (n == 2) out.push_back({s, s + 1, 2 * (ring_theta_hi_[i] - ring_theta_lo_[i]) / arc});
+    if (n > 2)
+      for (int k = 0; k < n; ++k) {
+        const int a = s + k, b = s + (k + 1) % n;
+        out.push_back({std::min(a, b), std::max(a, b), (ring_theta_hi_[i] - ring_theta_lo_[i]) / arc});
+      }
+    if (i + 1 == rings_) continue;
+    // To the next ring: the sectors' overlap in azimuth along the band edge between them,
+    // over the polar distance between the rings.
+    const int m = ring_count_[i + 1], t = ring_start_[i + 1];
+    const double edge = std::sin(ring_theta_hi_[i]);
+    for (int k = 0; k < n; ++k)
+      for (int q = 0; q < m; ++q) {
+        const double lo = std::max(2 * kPi * k / n, 2 * kPi * q / m), hi = std::min(2 * kPi * (k + 1) / n, 2 * kPi * (q + 1) / m);
+        if (hi - lo > 1e-12) out.push_back({s + k, t + q, edge * (hi - lo) / dtheta});
+      }
+  }
+  return out;
+}
+
 void EnvMap::ToSpherical(const Eigen::Vector3d& w, double* theta, double* phi) const {
   const double z = w.dot(up_), x = w.dot(ex_), y = w.dot(ey_);
   *theta = std::atan2(std::sqrt(x * x + y * y), z);

@@ -41,6 +41,17 @@ class EnvMap {
   void ToSpherical(const Eigen::Vector3d& w, double* theta, double* phi) const;
   Eigen::Vector3d FromSpherical(double theta, double phi) const;
 
+  /// Two cells that share a boundary, and the weight of their difference in a discrete
+  /// Dirichlet energy of the map (the boundary's length over the distance between their
+  /// centres, both on the unit sphere): sum over the pairs of weight * (f_a - f_b)^2
+  /// approximates the integral of |grad f|^2 over the sphere at any ring count.
+  struct Neighbours {
+    int a = 0, b = 0;
+    double weight = 0;
+  };
+  /// Every pair of cells that share a boundary (a < b), once.
+  std::vector<Neighbours> Adjacency() const;
+
   /// Equirectangular picture of per-cell RGB radiance (`rgb` has 3*size() values):
   /// width = 2*height; pixel row y covers polar angle theta = (y+0.5)/height*pi from
   /// `up` (top row = up), column x covers azimuth phi = (x+0.5)/width*2*pi measured

@@ -33,6 +33,7 @@ Estimator::Estimator(const SceneBundle& bundle, const EstimateOptions& options, 
   res_.albedo_scale = albedo_scale;
   res_.env = EnvMap(opt_.rings, bundle_.up);
   cells_ = env_.size();
+  adjacency_ = env_.Adjacency();
   Observe();
   Stopwatch bvh;
   scene_ = std::make_unique<RayTracer>(TracedMesh());
@@ -367,6 +368,30 @@ ObjectiveParams Estimator::CellWeights(const LinearProblem& problem, ObjectivePa
     for (const PointLight& p : points_) near = near || env_.direction(j).dot((p.position - centre_).normalized()) > reach;
     if (near) params.cell_weight[k] *= keep;
   }
+  if (params.smooth > 0) params = WithSmoothness(problem, params);
+  return params;
+}
+
+/// `params` with the map's smoothness between the problem's neighbouring cells, its weight
+/// params.smooth times the median curvature of a cell's data term (sum_r A_rj^2): so a
+/// weight means the same for any pixel count, exposure or albedo.
+ObjectiveParams Estimator::WithSmoothness(const LinearProblem& problem, ObjectiveParams params) const {
+  std::vector<int> compact(cells_, -1);
+  std::vector<double> curvature;
+  for (int k = 0; k < problem.unknown_cells; ++k) {
+    if (problem.cell_of[k] >= cells_) continue;
+    compact[problem.cell_of[k]] = k;
+    double g = 0;
+    for (std::int64_t q = problem.col_start[k]; q < problem.col_start[k + 1]; ++q)
+      for (int c = 0; c < 3; ++c) g += double(problem.col_val[q][c]) * problem.col_val[q][c] / 3;
+    curvature.push_back(g);
+  }
+  if (curvature.empty()) return params;
+  std::nth_element(curvature.begin(), curvature.begin() + curvature.size() / 2, curvature.end());
+  params.smooth *= curvature[curvature.size() / 2];
+  params.neighbours.clear();
+  for (const EnvMap::Neighbours& e : adjacency_)
+    if (compact[e.a] >= 0 && compact[e.b] >= 0) params.neighbours.push_back({compact[e.a], compact[e.b], e.weight});
   return params;
 }
 

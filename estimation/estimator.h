@@ -98,15 +98,24 @@ const char* ToString(AlbedoLeftOut why);
 /// alone, each scored by the Cauchy loss on pixels the fit did not use (folds of large
 /// blocks); the strongest weight within one standard error of the best is kept, and the
 /// lights only if they predict better than the map alone.
+/// A prior of the map: the activation penalty's weight (as EstimateOptions' objective.alpha)
+/// and its smoothness's (as objective.smooth; 0: none).
+struct MapPrior {
+  double alpha = 0;
+  double smooth = 0;
+};
+
 struct PriorChoice {
   struct Tried {
     double alpha = 0;           ///< the weight (as EstimateOptions' alpha)
     double loss = 0;            ///< its held-out loss, summed over the folds (normalized units)
     double standard_error = 0;  ///< of its difference from the least of its kind
     int lights = 0;             ///< the lights fitted beside the map (0: the map alone)
+    double smooth = 0;          ///< the smoothness's weight (as EstimateOptions' objective.smooth)
   };
   std::vector<Tried> tried;      ///< with the lights (strongest first), then the map alone
   double chosen = std::nan("");  ///< the weight solved at (NaN: the given one, nothing tried)
+  double chosen_smooth = 0;      ///< and the smoothness's
   bool lights_dropped = false;   ///< the map alone predicted as well: the lights were dropped
   std::string why;               ///< one line: how it was chosen, or why nothing was tried
   bool done = false;             ///< whether the choice was made (or said why not)
@@ -114,7 +123,7 @@ struct PriorChoice {
   double seconds = 0;
   /// Whether `t` (one of `tried`) is the weight and the lights the estimate was solved at.
   bool IsChosen(const Tried& t) const {
-    return t.alpha == chosen && (lights_dropped ? t.lights == 0 : t.lights == tried.front().lights);
+    return t.alpha == chosen && t.smooth == chosen_smooth && (lights_dropped ? t.lights == 0 : t.lights == tried.front().lights);
   }
 };
 

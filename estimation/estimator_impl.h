@@ -243,9 +243,9 @@ class Estimator {
   struct PriorFolds {
     std::vector<std::vector<double>> loss, mean;
   };
-  PriorFolds PriorLosses(const std::vector<Light>& lights, const std::vector<double>& weights,
+  PriorFolds PriorLosses(const std::vector<Light>& lights, const std::vector<MapPrior>& priors,
                          const std::vector<int>& block);
-  void SolveAtPrior(double alpha, const std::vector<double>& start, RoundInfo* info);
+  void SolveAtPrior(MapPrior prior, const std::vector<double>& start, RoundInfo* info);
   std::string PriorLeftOut(const std::vector<Light>& lights) const;
   void SayPrior(const std::vector<double>& loss, const std::vector<double>& se, std::size_t k, std::size_t lights);
   // The near-light steps (docs/method.md, "Point lights").
@@ -282,6 +282,7 @@ class Estimator {
   std::vector<float> Column(const Light& light);
   SplitColumn Split(const Light& light);
   ObjectiveParams CellWeights(const LinearProblem& problem, ObjectiveParams params, double prior = 0) const;
+  ObjectiveParams WithSmoothness(const LinearProblem& problem, ObjectiveParams params) const;
   void Score(ConvergenceRow* row, const Lighting& lighting) const;
   /// A convergence row of a light's refinement (the objective and the sum of squared
   /// residuals over y_ as given), scored and step left to the caller.
@@ -408,6 +409,7 @@ class Estimator {
   /// (directional.min_map_share of the map's power) when the prior was chosen, which keeps
   /// the given prior (CellWeights); empty: none.
   std::vector<std::uint8_t> sparse_cells_;
+  std::vector<EnvMap::Neighbours> adjacency_;  ///< env_.Adjacency(), for the map's smoothness
   int cells_ = 0;
   /// The views the rounds fit (the bundle's, or round 1's grid of their pixels: UseViews)
   /// and their grid's stride.

@@ -114,9 +114,17 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   // Beside a directional light also the map alone at every weaker weight: a flat sky under the
   // given prior is taken for a sun (Cycles' uniform sky: a sun and a lamp 7 m away,
   // docs/benchmarks.md).
-  std::vector<double> with_alphas, alone_alphas;
-  for (double f : kPriorFactors) alone_alphas.push_back(opt_.objective.alpha * f);
-  with_alphas = suns_.empty() ? alone_alphas : std::vector<double>{opt_.objective.alpha};
+  // The map alone (without lamps) also smooth at the weakest weight: beside a lamp the data
+  // chose a smooth map that took the lamp's light (Cycles' lamp_sky: the sky 29 % low and the
+  // lamp 1.9 cm off, against 14.5 % and 0.7 cm without; docs/benchmarks.md, session 42).
+  std::vector<MapPrior> sparse, smooth;
+  for (double f : kPriorFactors) sparse.push_back({opt_.objective.alpha * f, 0});
+  smooth = sparse;
+  for (double s : kSmoothFactors) smooth.push_back({sparse.back().alpha, s});
+  std::vector<MapPrior> with_alphas = !suns_.empty() ? std::vector<MapPrior>{{opt_.objective.alpha, 0}}
+                                      : points_.empty() ? smooth
+                                                        : sparse;
+  std::vector<MapPrior> alone_alphas = smooth;
   // (the map alone at the given weight is what the directional light's own selection beat)
   if (suns_.empty()) alone_alphas.clear();
   else alone_alphas.erase(alone_alphas.begin());
@@ -145,19 +153,22 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   // well (within the model selection's min_gain): a flat sky that was taken for a sun.
   const bool keep = alone_alphas.empty() || with_loss[kw] < (1 - opt_.point_lights.min_gain) * alone_loss[ka];
   for (std::size_t k = 0; k < with_alphas.size(); ++k)
-    pc.tried.push_back({with_alphas[k], with_loss[k], with_se[k], static_cast<int>(lights.size())});
+    pc.tried.push_back({with_alphas[k].alpha, with_loss[k], with_se[k], static_cast<int>(lights.size()),
+                        with_alphas[k].smooth});
   for (std::size_t k = 0; k < alone_alphas.size(); ++k)
-    pc.tried.push_back({alone_alphas[k], alone_loss[k], alone_se[k], 0});
-  pc.chosen = keep ? with_alphas[kw] : alone_alphas[ka];
+    pc.tried.push_back({alone_alphas[k].alpha, alone_loss[k], alone_se[k], 0, alone_alphas[k].smooth});
+  const MapPrior chosen = keep ? with_alphas[kw] : alone_alphas[ka];
+  pc.chosen = chosen.alpha;
+  pc.chosen_smooth = chosen.smooth;
   pc.lights_dropped = !keep;
   SayPrior(keep ? with_loss : alone_loss, keep ? with_se : alone_se, keep ? kw : ka, lights.size());
-  const bool changed = pc.chosen != opt_.objective.alpha || !keep;
+  const bool changed = pc.chosen != opt_.objective.alpha || pc.chosen_smooth != opt_.objective.smooth || !keep;
   if (!keep) {
     res_.point_light_choices.push_back("the map's prior: " + pc.why);
     points_.clear();
     suns_.clear();
   }
-  if (changed) SolveAtPrior(pc.chosen, (keep ? with : alone).mean[keep ? kw : ka], info);
+  if (changed) SolveAtPrior(chosen, (keep ? with : alone).mean[keep ? kw : ka], info);
   pc.seconds = ps.Seconds();
   Progress(Fmt("the map's prior chosen in %.2f s", pc.seconds));
   return changed;
@@ -170,11 +181,11 @@ void Estimator::SayPrior(const std::vector<double>& loss, const std::vector<doub
   PriorChoice& pc = res_.prior;
   const std::size_t best = std::min_element(loss.begin(), loss.end()) - loss.begin();
   const PriorChoice::Tried& least = pc.tried[(pc.lights_dropped ? pc.tried.size() - loss.size() : 0) + best];
-  pc.why = Fmt("with %zu light(s) the held-out loss is least at alpha %g (%.6g over %d blocks in %d folds); the "
-               "strongest prior whose loss is within one standard error of that and %g %% below the given one's: %g "
-               "(%.6g, more by %.3g, standard error %.3g)",
-               pc.lights_dropped ? 0 : lights, least.alpha, loss[best], pc.blocks, pc.folds, 100 * kPriorMinGain,
-               pc.chosen, loss[k], loss[k] - loss[best], se[k]);
+  pc.why = Fmt("with %zu light(s) the held-out loss is least at alpha %g, smoothness %g (%.6g over %d blocks in %d "
+               "folds); the strongest prior whose loss is within one standard error of that and %g %% below the given "
+               "one's: alpha %g, smoothness %g (%.6g, more by %.3g, standard error %.3g)",
+               pc.lights_dropped ? 0 : lights, least.alpha, least.smooth, loss[best], pc.blocks, pc.folds,
+               100 * kPriorMinGain, pc.chosen, pc.chosen_smooth, loss[k], loss[k] - loss[best], se[k]);
   if (pc.tried.size() > loss.size()) {  // the map alone was tried beside the lights
     const PriorChoice::Tried* alone = &pc.tried.back();
     for (const PriorChoice::Tried& t : pc.tried)
@@ -186,9 +197,9 @@ void Estimator::SayPrior(const std::vector<double>& loss, const std::vector<doub
              pc.why;
   }
   for (const PriorChoice::Tried& t : pc.tried)
-    Progress(Fmt("the map's prior: alpha %g with %d light(s), held-out loss %.6g (standard error of its difference "
-                 "from the least %.3g)",
-                 t.alpha, t.lights, t.loss, t.standard_error));
+    Progress(Fmt("the map's prior: alpha %g, smoothness %g with %d light(s), held-out loss %.6g (standard error of its "
+                 "difference from the least %.3g)",
+                 t.alpha, t.smooth, t.lights, t.loss, t.standard_error));
   Progress("the map's prior: " + pc.why);
 }
 
@@ -196,7 +207,7 @@ void Estimator::SayPrior(const std::vector<double>& loss, const std::vector<doub
 /// fitted on the other folds' rows at each weight, strongest first, each solve warm-started
 /// from the one before (the first from the estimate), and scored on the fold's rows. Empty
 /// when a fold has no rows to fit or none to score.
-Estimator::PriorFolds Estimator::PriorLosses(const std::vector<Light>& lights, const std::vector<double>& weights,
+Estimator::PriorFolds Estimator::PriorLosses(const std::vector<Light>& lights, const std::vector<MapPrior>& weights,
                                              const std::vector<int>& block) {
   const std::size_t blocks = bundle_.views.size() * kPriorBlocksAcross * kPriorBlocksAcross;
   const std::size_t alphas = weights.size(), unknowns = 3 * (cells_ + lights.size());
@@ -240,10 +251,11 @@ Estimator::PriorFolds Estimator::PriorLosses(const std::vector<Light>& lights, c
     std::vector<double> x = StartOf(problem, lights);
     for (std::size_t a = 0; a < alphas; ++a) {
       ObjectiveParams params = res_.objective_params;
-      params.alpha = weights[a] * static_cast<double>(problem.rows()) / kAlphaReferencePixels;
+      params.alpha = weights[a].alpha * static_cast<double>(problem.rows()) / kAlphaReferencePixels;
+      params.smooth = weights[a].smooth;
       SolverOptions so;
       so.max_iterations = 50;
-      const Objective objective(problem, CellWeights(problem, params, weights[a]));
+      const Objective objective(problem, CellWeights(problem, params, weights[a].alpha));
       x = lp::Solve(opt_.solver, objective, x, so).lambda;
       std::vector<double> full = Scattered(problem, x, cells_ + lights.size());
       const std::vector<double> render = HeldOutRender(held_map, held_columns, full);
@@ -275,7 +287,7 @@ void Estimator::RelaxPrior() {
     return;
   CheckCancel();
   RoundInfo info = res_.rounds.back();
-  SolveAtPrior(weakest, lambda_, &info);
+  SolveAtPrior({weakest, pc.chosen_smooth}, lambda_, &info);
   pc.why += Fmt("; beside the lamps the map solved once more at alpha %g, the weakest tried, so that the prior "
                 "chosen does not shrink the extended light it kept",
                 weakest);
@@ -285,9 +297,10 @@ void Estimator::RelaxPrior() {
 /// EstimateOptions' alpha), warm-started from `start` (the map's cells, then the lights of
 /// WithLights(points_)); its iterations are convergence rows of step "prior". A lamp left
 /// with no intensity is dropped.
-void Estimator::SolveAtPrior(double alpha, const std::vector<double>& start, RoundInfo* info) {
-  alpha_ = alpha;
-  res_.objective_params.alpha = alpha * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
+void Estimator::SolveAtPrior(MapPrior prior, const std::vector<double>& start, RoundInfo* info) {
+  alpha_ = prior.alpha;
+  res_.objective_params.alpha = prior.alpha * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
+  res_.objective_params.smooth = prior.smooth;
   RoundProblem rp = WithLights(points_);
   for (int k = 0; k < rp.problem->unknown_cells; ++k)
     for (int c = 0; c < 3; ++c) rp.init[3 * k + c] = start[3 * rp.problem->cell_of[k] + c];
@@ -301,8 +314,8 @@ void Estimator::SolveAtPrior(double alpha, const std::vector<double>& start, Rou
   points_ = rp.Lit<PointLight>(full, cells_);
   map_share_ = MapShare();
   res_.kkt_violation = sr.kkt_violation;
-  Progress(Fmt("the map and the lights solved again at alpha %g: %d iterations, objective %.6g", alpha,
-               sr.iterations, sr.objective));
+  Progress(Fmt("the map and the lights solved again at alpha %g, smoothness %g: %d iterations, objective %.6g",
+               prior.alpha, prior.smooth, sr.iterations, sr.objective));
 }
 
 }  // namespace lp::detail

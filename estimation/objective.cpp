@@ -176,9 +176,14 @@ LinearProblem WithColumns(const LinearProblem& base, int cells, const std::vecto
   p.row_start[R] = static_cast<std::int64_t>(nnz);
   // Columns: base's, their rows' positions moved by the entries appended before them; then
   // the new ones.
+  // (room for the new columns first: appending to exact copies moved them all again)
+  p.col_start.reserve(base.col_start.size() + columns.size());
+  p.col_row.reserve(nnz);
+  p.col_val.reserve(nnz);
+  p.col_pos.reserve(nnz);
   p.col_start = base.col_start;
-  p.col_row = base.col_row;
-  p.col_val = base.col_val;
+  p.col_row.assign(base.col_row.begin(), base.col_row.end());
+  p.col_val.assign(base.col_val.begin(), base.col_val.end());
   p.col_pos.resize(base.col_pos.size());
   for (std::size_t k = 0; k < base.col_pos.size(); ++k) p.col_pos[k] = base.col_pos[k] + extra[base.col_row[k]];
   for (std::size_t j = 0; j < columns.size(); ++j) {
@@ -248,7 +253,42 @@ Objective::Objective(const LinearProblem& problem, const ObjectiveParams& params
   for (double v : aty) kkt_scale_ = std::max(kkt_scale_, std::abs(v));
 }
 
-double Objective::Penalty(const std::vector<double>& lambda) const {
+double Objective::Smoothness(const std::vector<double>& lambda) const {
+  double s = 0;
+  if (params_.smooth > 0)
+    for (const ObjectiveParams::Neighbours& e : params_.neighbours)
+      for (int c = 0; c < 3; ++c) {
+        const double d = lambda[3 * e.a + c] - lambda[3 * e.b + c];
+        s += e.weight * d * d;
+      }
+  return 0.5 * params_.smooth * s;
+}
+
+void Objective::AddSmoothnessGradient(const std::vector<double>& lambda, std::vector<double>* out) const {
+  if (!(params_.smooth > 0)) return;
+  for (const ObjectiveParams::Neighbours& e : params_.neighbours)
+    for (int c = 0; c < 3; ++c) {
+      const double g = params_.smooth * e.weight * (lambda[3 * e.a + c] - lambda[3 * e.b + c]);
+      (*out)[3 * e.a + c] += g;
+      (*out)[3 * e.b + c] -= g;
+    }
+}
+
+void Objective::AddSmoothnessCurvature(std::vector<double> G[3], int n) const {
+  if (!(params_.smooth > 0)) return;
+  for (const ObjectiveParams::Neighbours& e : params_.neighbours) {
+    const double w = params_.smooth * e.weight;
+    const std::size_t a = static_cast<std::size_t>(e.a), b = static_cast<std::size_t>(e.b), N = static_cast<std::size_t>(n);
+    for (int c = 0; c < 3; ++c) {
+      G[c][a * N + a] += w;
+      G[c][b * N + b] += w;
+      G[c][a * N + b] -= w;
+      G[c][b * N + a] -= w;
+    }
+  }
+}
+
+double Objective::Activation(const std::vector<double>& lambda) const {
   double penalty = 0;
   if (params_.alpha > 0)
     for (int j = 0; j < p_.unknown_cells; ++j)
@@ -321,6 +361,7 @@ double Objective::ValueAndGradient(const std::vector<double>& lambda, std::vecto
                        (1 + params_.beta * (lambda[3 * j] + lambda[3 * j + 1] + lambda[3 * j + 2]));
     for (int c = 0; c < 3; ++c) (*gradient)[3 * j + c] = -(*gradient)[3 * j + c] + pen;
   }
+  AddSmoothnessGradient(lambda, gradient);
   return e;
 }
 

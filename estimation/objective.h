@@ -20,6 +20,14 @@ struct ObjectiveParams {
   /// The estimator passes each cell's solid angle over a reference one, so the penalty
   /// approximates an integral over the sphere and does not change with the ring count.
   std::vector<double> cell_weight;
+  /// The map's smoothness: smooth/2 * sum over `neighbours` (compact indices) of weight *
+  /// |lambda_a - lambda_b|^2, a discrete Dirichlet energy (EnvMap::Adjacency); 0 = none.
+  double smooth = 0;
+  struct Neighbours {
+    int a = 0, b = 0;
+    double weight = 0;
+  };
+  std::vector<Neighbours> neighbours;
 };
 
 struct LinearProblem;
@@ -89,8 +97,16 @@ class Objective {
   /// receives y - A lambda, `adjoint` (optional) A^T psi(y - A lambda), psi = rho'.
   double DataPass(const std::vector<double>& lambda, std::vector<double>* residual,
                   std::vector<double>* adjoint) const;
+  /// The priors: the activation penalty and the smoothness.
+  double Penalty(const std::vector<double>& lambda) const { return Activation(lambda) + Smoothness(lambda); }
   /// The activation penalty sum_j alpha_j*log(1 + beta*sum_c lambda_jc).
-  double Penalty(const std::vector<double>& lambda) const;
+  double Activation(const std::vector<double>& lambda) const;
+  /// The map's smoothness (ObjectiveParams::smooth), 0 without one.
+  double Smoothness(const std::vector<double>& lambda) const;
+  /// out += its gradient, smooth * L lambda (L the neighbours' weighted graph Laplacian).
+  void AddSmoothnessGradient(const std::vector<double>& lambda, std::vector<double>* out) const;
+  /// G[c] += smooth * L (each n x n, column-major): the smoothness's curvature.
+  void AddSmoothnessCurvature(std::vector<double> G[3], int n) const;
   /// alpha_j: alpha times the cell's weight.
   double Alpha(int j) const { return params_.cell_weight.empty() ? params_.alpha : params_.alpha * params_.cell_weight[j]; }
   /// Root mean square of the residual y - A lambda over all rows and channels.

@@ -29,10 +29,15 @@ const char* ToString(SolverKind kind) { return kind == SolverKind::kFast ? "fast
 /// passive set: successive solves of an MM run mostly keep their support.
 class NnqpSolver {
  public:
-  /// Largest support solved exactly by the active-set phase.
+  /// Largest support solved exactly by the active-set phase (a wider one by coordinate descent).
   static constexpr int kMaxExactSupport = 256;
+  /// ... where the map is smooth: its Laplacian couples every cell to its neighbours, and
+  /// coordinate descent (Gauss-Seidel) needs of the order of a sweep per cell to carry a
+  /// change across the map (Cycles' flat sky: 0.5-1.7 s a solve, 2000 sweeps).
+  static constexpr int kMaxExactSmoothSupport = 2048;
 
-  NnqpSolver(const double* G, int n) : G_(G, n, n), n_(n) {
+  NnqpSolver(const double* G, int n, int max_exact_support = kMaxExactSupport)
+      : G_(G, n, n), n_(n), max_exact_support_(max_exact_support) {
     // With thousands of cells most pairs share no path and G is mostly zeros: keep each
     // column's non-zero rows so coordinate updates cost O(non-zeros), not O(n).
     if (n < 256) return;
@@ -81,7 +86,7 @@ class NnqpSolver {
     // A wide support (thousands of near-collinear cells, e.g. 61 rings at 4 spp) would make
     // the active-set phase cost O(support^3) per factorization: descend to a tight tolerance
     // instead (each sweep O(n^2), never increasing the quadratic).
-    const bool wide = exact && support > kMaxExactSupport;
+    const bool wide = exact && support > max_exact_support_;
     const int sweeps = wide ? 2000 : 30;
     const double stop = wide ? 1e-10 : 1e-6;
     for (int sweep = 0; sweep < sweeps; ++sweep) {
@@ -103,7 +108,7 @@ class NnqpSolver {
       if (exact && !wide && sweep == 29) {  // the support grew wide while descending
         support = 0;
         for (int i = 0; i < n; ++i) support += x[i] > 0;
-        if (support > kMaxExactSupport) return Solve(bp, xp, exact);
+        if (support > max_exact_support_) return Solve(bp, xp, exact);
       }
     }
     if (!exact || wide) return 0;
@@ -194,6 +199,7 @@ class NnqpSolver {
 
   Eigen::Map<const Eigen::MatrixXd> G_;
   int n_;
+  int max_exact_support_;
   std::vector<std::vector<int>> nonzero_rows_;  ///< per column, when G is sparse
   std::vector<int> P_, cached_P_{-1};
   Eigen::LLT<Eigen::MatrixXd> llt_;
@@ -247,12 +253,15 @@ class MajorizeMinimize {
  public:
   MajorizeMinimize(const Objective& obj) : obj_(obj), p_(obj.problem()), prm_(obj.params()), L_(p_.unknown_cells) {
     BuildNormalMatrices(p_, G_);
+    obj.AddSmoothnessCurvature(G_, L_);  // a quadratic: its own majorizer
     for (int c = 0; c < 3; ++c) {
       double trace = 0;
       for (int j = 0; j < L_; ++j) trace += G_[c][static_cast<std::size_t>(j) * L_ + j];
       const double mu = 1e-10 * trace / std::max(1, L_) + 1e-300;
       for (int j = 0; j < L_; ++j) G_[c][static_cast<std::size_t>(j) * L_ + j] += mu;
-      qp_[c] = std::make_unique<NnqpSolver>(G_[c].data(), L_);
+      qp_[c] = std::make_unique<NnqpSolver>(G_[c].data(), L_,
+                                            prm_.smooth > 0 ? NnqpSolver::kMaxExactSmoothSupport
+                                                            : NnqpSolver::kMaxExactSupport);
     }
   }
 
@@ -322,15 +331,19 @@ class MajorizeMinimize {
   /// Fixes the expansion point lambda_k and h = A^T psi there.
   void SetCentre(const std::vector<double>& lambda, const std::vector<double>& h) {
     centre_ = lambda;
+    // The smoothness is in G (its curvature): its gradient at the centre leaves h.
+    h_ = h;
+    std::vector<double> smooth(h.size(), 0.0);
+    obj_.AddSmoothnessGradient(lambda, &smooth);
+    for (std::size_t i = 0; i < h_.size(); ++i) h_[i] -= smooth[i];
     for (int c = 0; c < 3; ++c) {
       Eigen::VectorXd x0(L_);
       for (int j = 0; j < L_; ++j) x0[j] = lambda[3 * j + c];
       const Eigen::VectorXd gx = qp_[c]->Times(x0);
       b0_[c].resize(L_);
-      for (int j = 0; j < L_; ++j) b0_[c][j] = gx[j] + h[3 * j + c];
+      for (int j = 0; j < L_; ++j) b0_[c][j] = gx[j] + h_[3 * j + c];
     }
-    penalty_centre_ = obj_.Penalty(lambda);
-    h_ = h;
+    penalty_centre_ = obj_.Activation(lambda);
   }
 
   /// M(x) - E(lambda_k), computed in L-space.
@@ -342,7 +355,7 @@ class MajorizeMinimize {
       mc[c] = 0.5 * d.dot(qp_[c]->Times(d));
       for (int j = 0; j < L_; ++j) mc[c] -= h_[3 * j + c] * d[j];
     });
-    return mc[0] + mc[1] + mc[2] + obj_.Penalty(x) - penalty_centre_;
+    return mc[0] + mc[1] + mc[2] + obj_.Activation(x) - penalty_centre_;
   }
 
   /// Reweighted l1 on M with the penalty weight scaled by `weight`, from x; at most

@@ -28,9 +28,13 @@ for s in one-light sun-and-sky lamp-1m; do grep -q "^| $s | 40x30 |" "$out/repor
 # The map's prior: each weight the far scene's default estimate tried, one of them chosen.
 for ext in png csv; do [ -s "$out/prior_40x30.$ext" ] || { echo "missing prior_40x30.$ext"; exit 1; }; done
 grep -q "(prior_40x30.png)" "$out/report.md" || { echo "report.md does not embed the prior's plot"; exit 1; }
-[ "$(grep -c '^one-light,40x30,' "$out/prior_40x30.csv")" = 4 ] || { echo "one-light: not 4 weights tried"; exit 1; }
+# (the map alone: four weights of the activation penalty, then three smooth maps at the weakest)
+[ "$(grep -c '^one-light,40x30,[^,]*,0,' "$out/prior_40x30.csv")" = 4 ] || { echo "one-light: not 4 weights tried"; exit 1; }
+[ "$(grep -c '^one-light,40x30,[^,]*,[1-9][0-9]*,' "$out/prior_40x30.csv")" = 3 ] || { echo "one-light: not 3 smooth maps tried"; exit 1; }
 [ "$(grep -c '^one-light,40x30,.*,1$' "$out/prior_40x30.csv")" = 1 ] || { echo "one-light: not one weight chosen"; exit 1; }
 # lamp-1m: each weight with the lamp, and the lamp kept.
-[ "$(grep -c '^lamp-1m,40x30,[^,]*,1,' "$out/prior_40x30.csv")" = 4 ] || { echo "lamp-1m: not 4 weights tried"; exit 1; }
-grep -q '^lamp-1m,40x30,[^,]*,1,.*,1$' "$out/prior_40x30.csv" || { echo "lamp-1m: the lamp was not kept"; exit 1; }
+# (beside a lamp no smooth map is tried)
+[ "$(grep -c '^lamp-1m,40x30,[^,]*,0,1,' "$out/prior_40x30.csv")" = 4 ] || { echo "lamp-1m: not 4 weights tried"; exit 1; }
+[ "$(grep -c '^lamp-1m,40x30,' "$out/prior_40x30.csv")" = 4 ] || { echo "lamp-1m: a smooth map tried beside the lamp"; exit 1; }
+grep -q '^lamp-1m,40x30,[^,]*,0,1,.*,1$' "$out/prior_40x30.csv" || { echo "lamp-1m: the lamp was not kept"; exit 1; }
 echo "bench-report ok"

@@ -211,13 +211,14 @@ double IrradianceUp(const EnvMap& env, const std::vector<double>& map, const Eig
 // KIND sky: the room corner open above and on two sides, irradiance 1 on an open floor)
 // comes back flat. Under the given prior (alpha 3) the rounds take it for a sun and a lamp
 // 7 m away and leave the map nearly dark; the prior the data choose (with the map alone
-// beside the directional light) drops them and keeps a smooth map: most cells above the
-// horizon lit (measured 221 of 281), its irradiance facing up within 20 % of the world's
-// (-9.5 %). The held-out view, on the pixels that see the room, relit at 6.4 % against 3.6 %
-// for the same render of the true sky: 1.8x, not the 1.25x issue 42 asks. Not the prior:
-// alpha fixed at 0.03 gives 6.1 %, at 0.01 5.9 %; what is left is lit from directions the
-// fitted view does not fix (the world below the horizon past the floor's edge: 73 of its 241
-// cells lit). Held here at 2x.
+// beside the directional light) drops them and keeps a smooth map. The held-out view sees
+// surfaces lit from below the horizon past the floor's edge, directions the fitted view
+// hardly fixes: under the activation penalty alone they stayed dark or spiky and the view
+// relit at 6.4 % against 3.6 % for the true sky (1.8x; alpha fixed at 0.03: 6.1 %, at 0.01:
+// 5.9 %). The map smooth between neighbouring cells (chosen by the held-out blocks:
+// smoothness 1000, loss 2173 against 2205 for the best sparse weight, standard error 3.3)
+// fills them from their neighbours: measured 3.57 % (1.00x), the irradiance facing up -0.8 %
+// (-9.5 %). Asserted: the issue's 1.25x, 10 %; the smooth map's choice (without it: 1.8x).
 TEST(Cycles, AFlatSkyComesBackFlat) {
   const SceneBundle bundle = LoadSceneBundle(CyclesDir("sky"));
   const nlohmann::json truth = nlohmann::json::parse(ReadTextFile(CyclesDir("sky") / "truth.json"));
@@ -227,18 +228,19 @@ TEST(Cycles, AFlatSkyComesBackFlat) {
   const EstimateResult r = Estimate(bundle, o);
   EXPECT_TRUE(r.lighting.lights.empty()) << r.prior.why;
   EXPECT_LT(r.prior.chosen, o.objective.alpha);
+  EXPECT_GT(r.prior.chosen_smooth, 0) << r.prior.why;
   int above = 0, lit = 0;
   for (int j = 0; j < r.env.size(); ++j)
     if (r.env.direction(j).dot(bundle.up) > 0) ++above, lit += r.lighting.map[3 * j] > 0;
   const double up = IrradianceUp(r.env, r.lighting.map, bundle.up), true_up = IrradianceUp(r.env, UniformMap(r.env, world), bundle.up);
   const SceneBundle held = LoadSceneBundle(CyclesDir("sky_holdout"));
   const double relit = RelitError(held, r.env, r.lighting), floor = RelitError(held, r.env, {UniformMap(r.env, world), {}});
-  std::printf("flat sky: prior %g (%s); %d of %d cells above the horizon lit; irradiance facing up %.4f (truth %.4f); "
-              "held-out relit %.4f (the true sky %.4f)\n",
-              r.prior.chosen, r.prior.why.c_str(), lit, above, up, true_up, relit, floor);
+  std::printf("flat sky: prior %g, smoothness %g (%s); %d of %d cells above the horizon lit; irradiance facing up %.4f "
+              "(truth %.4f); held-out relit %.4f (the true sky %.4f)\n",
+              r.prior.chosen, r.prior.chosen_smooth, r.prior.why.c_str(), lit, above, up, true_up, relit, floor);
   EXPECT_GT(lit, above / 2);
-  EXPECT_NEAR(up, true_up, 0.2 * true_up);
-  EXPECT_LT(relit, 2 * floor);
+  EXPECT_NEAR(up, true_up, 0.1 * true_up);
+  EXPECT_LT(relit, 1.25 * floor);
 }
 
 // Issue 42: a lamp beside a sky 1/20 as bright (tests/data/cycles/lamp_sky, KIND lamp-sky):

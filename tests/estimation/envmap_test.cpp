@@ -50,6 +50,35 @@ TEST_P(EnvMapRings, CellsAreNearestInPolarAngleAndSpacingIsRingSpacing) {
 
 INSTANTIATE_TEST_SUITE_P(Rings, EnvMapRings, ::testing::Values(9, 15, 21, 31, 61));
 
+// The neighbours' weights make a discrete Dirichlet energy: for f = the cosine of the polar
+// angle about the rings' axis (a linear function) the integral of |grad f|^2 over the sphere is
+// that of sin^2, 8 pi / 3, and the same for the cosine about another axis; every cell has at
+// least two neighbours.
+TEST_P(EnvMapRings, AdjacencyIsADirichletEnergy) {
+  const int R = GetParam();
+  const EnvMap env(R, Eigen::Vector3d(0.3, -1, 0.2));
+  const std::vector<EnvMap::Neighbours> pairs = env.Adjacency();
+  std::vector<int> degree(env.size(), 0);
+  const Eigen::Vector3d axis = Eigen::Vector3d(1, 2, -0.5).normalized();
+  double along_up = 0, along_axis = 0;
+  for (const EnvMap::Neighbours& e : pairs) {
+    ASSERT_LT(e.a, e.b);
+    ASSERT_GT(e.weight, 0);
+    ++degree[e.a], ++degree[e.b];
+    along_up += e.weight * std::pow(env.direction(e.a).dot(env.up()) - env.direction(e.b).dot(env.up()), 2);
+    along_axis += e.weight * std::pow(env.direction(e.a).dot(axis) - env.direction(e.b).dot(axis), 2);
+  }
+  for (int j = 0; j < env.size(); ++j) EXPECT_GE(degree[j], 2) << "cell " << j;
+  const double exact = 8 * 3.14159265358979323846 / 3;
+  // Along the rings' axis the error falls with the rings (measured -1.3 % at 9 rings, -0.2 % at
+  // 21, -0.02 % at 61); across it a neighbour in the next ring is off in azimuth, so its
+  // difference holds some of the other direction's and the energy comes out 3-5 % high at any
+  // ring count (a prior's weight, which the data choose: no need of better).
+  EXPECT_NEAR(along_up, exact, (R >= 21 ? 0.005 : 0.015) * exact) << R << " rings";
+  EXPECT_NEAR(along_axis, exact, 0.06 * exact) << R << " rings";
+  EXPECT_GT(along_axis, along_up) << R << " rings";
+}
+
 TEST(EnvMap, EquirectRoundTripOfPiecewiseConstantMap) {
   const EnvMap env(15, Eigen::Vector3d::UnitZ());
   std::vector<double> rgb(3 * env.size());

@@ -9,14 +9,26 @@
 namespace lp {
 namespace {
 
+/// `prm` with a smoothness between each cell and the next two (weights unequal).
+ObjectiveParams Smooth(ObjectiveParams prm, int cells) {
+  prm.smooth = 0.7;
+  for (int j = 0; j + 1 < cells; ++j) {
+    prm.neighbours.push_back({j, j + 1, 0.5 + 0.1 * j});
+    if (j + 2 < cells) prm.neighbours.push_back({j, j + 2, 1.5});
+  }
+  return prm;
+}
+
+// (the last case: the map's smoothness beside the weighted penalty)
 TEST(Objective, GradientMatchesCentralFiniteDifferences) {
   const auto rp = test::MakeRandomProblem(120, 20, 0.3, 0.2, 11);
   const LinearProblem p = MakeLinearProblem(rp.A, rp.y);
   // The last case weights the penalty per cell (as the estimator does by solid angle).
   std::vector<double> weights(p.unknown_cells);
   for (int j = 0; j < p.unknown_cells; ++j) weights[j] = 0.3 + 0.1 * j;
-  for (const ObjectiveParams& prm : {ObjectiveParams{0.3, 0.5, 2.0, {}}, ObjectiveParams{5.0, 0.0, 1.0, {}},
-                                    ObjectiveParams{0.05, 2.0, 0.1, {}}, ObjectiveParams{2.0, 0.5, 1.5, weights}}) {
+  for (const ObjectiveParams& prm : {ObjectiveParams{0.3, 0.5, 2.0, {}, 0, {}}, ObjectiveParams{5.0, 0.0, 1.0, {}, 0, {}},
+                                    ObjectiveParams{0.05, 2.0, 0.1, {}, 0, {}}, ObjectiveParams{2.0, 0.5, 1.5, weights, 0, {}},
+                                    Smooth(ObjectiveParams{0.3, 0.5, 2.0, weights, 0, {}}, p.unknown_cells)}) {
     const Objective obj(p, prm);
     std::vector<double> lambda(obj.unknowns());
     for (std::size_t i = 0; i < lambda.size(); ++i) lambda[i] = 0.2 + 0.05 * (i % 7);

@@ -35,7 +35,7 @@ void ExpectSane(const LoggedRun& run) {
 TEST(Solver, BothSolversReachTheSameObjective) {
   const auto rp = test::MakeRandomProblem(300, 30, 0.25, 0.05, 21);
   const LinearProblem p = MakeLinearProblem(rp.A, rp.y);
-  const Objective obj(p, ObjectiveParams{0.5, 0.01, 1.0, {}});
+  const Objective obj(p, ObjectiveParams{0.5, 0.01, 1.0, {}, 0, {}});
   SolverOptions o;
   o.max_iterations = 500;
   o.relative_tolerance = 1e-14;
@@ -52,7 +52,7 @@ TEST(Solver, BothSolversReachTheSameObjective) {
 TEST(Solver, RecoversTheSparseAnswerWithoutNoise) {
   const auto rp = test::MakeRandomProblem(300, 30, 0.25, 0.0, 8);
   const LinearProblem p = MakeLinearProblem(rp.A, rp.y);
-  const Objective obj(p, ObjectiveParams{1.0, 0.0, 1.0, {}});
+  const Objective obj(p, ObjectiveParams{1.0, 0.0, 1.0, {}, 0, {}});
   SolverOptions o;
   o.relative_tolerance = 1e-15;
   const LoggedRun fast = SolveLogged(SolverKind::kFast, obj, o);
@@ -60,6 +60,55 @@ TEST(Solver, RecoversTheSparseAnswerWithoutNoise) {
   for (int k = 0; k < p.unknown_cells; ++k)
     for (int c = 0; c < 3; ++c)
       EXPECT_NEAR(fast.result.lambda[3 * k + c], rp.truth[3 * p.cell_of[k] + c], 1e-4) << k << "," << c;
+}
+
+// The map's smoothness fills what the data hardly fix: a chain of 300 cells, each seen by one
+// pixel, the two ends strongly (observing 1 and 3), the others a thousand times more weakly
+// (observing values between 1 and 3 that jump from cell to cell). With the chain's smoothness
+// (weight 1) the map is the straight line between the ends, which the smoothness pulls towards
+// each other: with the ends' data curvature 1, the slope s = 2 / (n - 1 + 2), the ends 1 + s
+// and 3 - s (closed form, up to the weak pixels' pull); without it, the jumps. The support (300
+// cells) is wider than the NNQP's exact phase takes without a smoothness.
+TEST(Solver, TheSmoothnessFillsWhatTheDataHardlyFix) {
+  const int n = 300;
+  const double weak = 1e-3;
+  TransportMatrix A;
+  A.cells = n;
+  A.row_start = {0};
+  std::vector<double> y;
+  for (int j = 0; j < n; ++j) {
+    const bool end = j == 0 || j == n - 1;
+    const float a = end ? 1.0f : static_cast<float>(weak);
+    A.col.push_back(j);
+    A.val.push_back({a, a, a});
+    A.row_start.push_back(static_cast<std::int64_t>(A.col.size()));
+    A.row_view.push_back(0);
+    A.row_pixel.push_back(j);
+    const double seen = j == 0 ? 1 : j == n - 1 ? 3 : 2 + std::sin(3.0 * j);
+    for (int c = 0; c < 3; ++c) y.push_back(a * seen);
+  }
+  const LinearProblem p = MakeLinearProblem(A, y);
+  ASSERT_EQ(p.unknown_cells, n);
+  ObjectiveParams prm{10.0, 0.0, 1.0, {}, 1.0, {}};  // a Cauchy scale far above the residuals: least squares
+  for (int j = 0; j + 1 < n; ++j) prm.neighbours.push_back({j, j + 1, 1.0});
+  SolverOptions o;
+  o.max_iterations = 200;
+  o.relative_tolerance = 1e-14;
+  const LoggedRun smooth = SolveLogged(SolverKind::kFast, Objective(p, prm), o);
+  ExpectSane(smooth);
+  EXPECT_LT(smooth.result.kkt_violation, 1e-6);
+  const double s = 2.0 / (n - 1 + 2);
+  double worst = 0;
+  for (int k = 0; k < n; ++k) {
+    const int j = p.cell_of[k];
+    for (int c = 0; c < 3; ++c) worst = std::max(worst, std::abs(smooth.result.lambda[3 * k + c] - (1 + s + j * s)));
+  }
+  EXPECT_LT(worst, 2e-3);
+  prm.smooth = 0;
+  const LoggedRun jagged = SolveLogged(SolverKind::kFast, Objective(p, prm), o);
+  double off = 0;
+  for (int k = 0; k < n; ++k) off = std::max(off, std::abs(jagged.result.lambda[3 * k] - (1 + s + p.cell_of[k] * s)));
+  EXPECT_GT(off, 0.5);  // each weak cell its own pixel's value
 }
 
 TEST(Nnqp, SatisfiesKktOnAnIllConditionedProblem) {
