@@ -32,11 +32,12 @@ constexpr double kAlphaReferenceSolidAngle = 4 * 3.14159265358979323846 / 522;
 /// which scored within one standard error of 1/30 on every scene measured and costs the most:
 /// docs/benchmarks.md, sessions 26-27).
 constexpr double kPriorFactors[] = {1, 1.0 / 3, 1.0 / 10, 1.0 / 30};
-/// ... and after them, for the map alone, at the weakest of those weights, the map's
-/// smoothness at each of these (objective.smooth; strongest first): a sky is smooth, and
-/// where the fitted pixels hardly fix a direction the smoothness fills it from its neighbours
-/// (Cycles' flat sky: docs/method.md, "The map's prior"). After the sparse ones, a smooth map
-/// is taken only where no sparse one is within one standard error of the least loss.
+/// ... and after them, for the map alone where the weakest of those weights scored best, at
+/// that weight, the map's smoothness at each of these (objective.smooth; strongest first): a
+/// sky is smooth, and where the fitted pixels hardly fix a direction the smoothness fills it
+/// from its neighbours (Cycles' flat sky: docs/method.md, "The map's prior"). After the
+/// sparse ones, a smooth map is taken only where no sparse one is within one standard error
+/// of the least loss.
 constexpr double kSmoothFactors[] = {1000, 100, 10};
 /// ... scored on this many folds of the views' blocks (kPriorBlocksAcross across and down a
 /// view; block (x, y) of view v in fold (x + y + v) mod kPriorFolds): neighbouring pixels

@@ -244,7 +244,9 @@ class Estimator {
     std::vector<std::vector<double>> loss, mean;
   };
   PriorFolds PriorLosses(const std::vector<Light>& lights, const std::vector<MapPrior>& priors,
-                         const std::vector<int>& block);
+                         const std::vector<int>& block, const std::vector<double>* start = nullptr);
+  void TrySmoothMaps(const std::vector<Light>& lights, const std::vector<int>& block, std::vector<MapPrior>* priors,
+                     PriorFolds* folds);
   void SolveAtPrior(MapPrior prior, const std::vector<double>& start, RoundInfo* info);
   std::string PriorLeftOut(const std::vector<Light>& lights) const;
   void SayPrior(const std::vector<double>& loss, const std::vector<double>& se, std::size_t k, std::size_t lights);

@@ -114,25 +114,20 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   // Beside a directional light also the map alone at every weaker weight: a flat sky under the
   // given prior is taken for a sun (Cycles' uniform sky: a sun and a lamp 7 m away,
   // docs/benchmarks.md).
-  // The map alone (without lamps) also smooth at the weakest weight: beside a lamp the data
-  // chose a smooth map that took the lamp's light (Cycles' lamp_sky: the sky 29 % low and the
-  // lamp 1.9 cm off, against 14.5 % and 0.7 cm without; docs/benchmarks.md, session 42).
-  std::vector<MapPrior> sparse, smooth;
-  for (double f : kPriorFactors) sparse.push_back({opt_.objective.alpha * f, 0});
-  smooth = sparse;
-  for (double s : kSmoothFactors) smooth.push_back({sparse.back().alpha, s});
-  std::vector<MapPrior> with_alphas = !suns_.empty() ? std::vector<MapPrior>{{opt_.objective.alpha, 0}}
-                                      : points_.empty() ? smooth
-                                                        : sparse;
-  std::vector<MapPrior> alone_alphas = smooth;
+  std::vector<MapPrior> with_alphas, alone_alphas;
+  for (double f : kPriorFactors) alone_alphas.push_back({opt_.objective.alpha * f, 0});
+  with_alphas = suns_.empty() ? alone_alphas : std::vector<MapPrior>{{opt_.objective.alpha, 0}};
   // (the map alone at the given weight is what the directional light's own selection beat)
   if (suns_.empty()) alone_alphas.clear();
   else alone_alphas.erase(alone_alphas.begin());
   const std::vector<int> block = RowBlocks(kPriorBlocksAcross);
-  const PriorFolds with = PriorLosses(lights, with_alphas, block);
+  PriorFolds with = PriorLosses(lights, with_alphas, block);
   // (the glowing surfaces stay with the map alone: the pixels that see them are theirs)
   const std::vector<Light> glowing(emitters_.begin(), emitters_.end());
-  const PriorFolds alone = alone_alphas.empty() ? PriorFolds() : PriorLosses(glowing, alone_alphas, block);
+  PriorFolds alone = alone_alphas.empty() ? PriorFolds() : PriorLosses(glowing, alone_alphas, block);
+  // The map alone (no lamp beside it) also smooth, where its weakest weight scored best.
+  if (points_.empty() && alone_alphas.empty()) TrySmoothMaps(lights, block, &with_alphas, &with);
+  if (!alone_alphas.empty()) TrySmoothMaps(glowing, block, &alone_alphas, &alone);
   if (with.loss.empty() || (!alone_alphas.empty() && alone.loss.empty())) {
     pc.why = "a fold of the views' blocks has no pixels (too few valid pixels): the given --alpha";
     return false;
@@ -174,6 +169,30 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   return changed;
 }
 
+/// Where the map's weakest weight in `priors` (the last; `folds` their losses) scored best,
+/// the map also smooth at that weight (kSmoothFactors, strongest first), each fold's solves
+/// warm-started from the folds' mean there; appended to both. Not beside lamps (the caller's):
+/// there the data chose a smooth map that took the lamp's light (Cycles' lamp_sky: the sky
+/// 29 % low and the lamp 1.9 cm off, against 14.5 % and 0.7 cm without; docs/benchmarks.md,
+/// session 42). A compact light left to the map scores best at a stronger weight, and pays
+/// nothing for it (synth one-light: 1 s of 7.7 when they were always tried).
+void Estimator::TrySmoothMaps(const std::vector<Light>& lights, const std::vector<int>& block,
+                              std::vector<MapPrior>* priors, PriorFolds* folds) {
+  if (folds->loss.empty() || priors->empty()) return;
+  std::vector<double> total(folds->loss.size(), 0.0);
+  for (std::size_t k = 0; k < total.size(); ++k)
+    for (double b : folds->loss[k]) total[k] += b;
+  if (std::min_element(total.begin(), total.end()) - total.begin() != static_cast<std::ptrdiff_t>(total.size()) - 1)
+    return;
+  std::vector<MapPrior> smooth;
+  for (double s : kSmoothFactors) smooth.push_back({priors->back().alpha, s});
+  PriorFolds more = PriorLosses(lights, smooth, block, &folds->mean.back());
+  if (more.loss.empty()) return;
+  priors->insert(priors->end(), smooth.begin(), smooth.end());
+  folds->loss.insert(folds->loss.end(), more.loss.begin(), more.loss.end());
+  folds->mean.insert(folds->mean.end(), more.mean.begin(), more.mean.end());
+}
+
 /// res_.prior.why, and a progress line per weight tried: `loss` and `se` the kind chosen
 /// (with `lights` lights, or the map alone), its `k`-th weight the one chosen.
 void Estimator::SayPrior(const std::vector<double>& loss, const std::vector<double>& se, std::size_t k,
@@ -205,10 +224,10 @@ void Estimator::SayPrior(const std::vector<double>& loss, const std::vector<doub
 
 /// For each fold (in parallel), the map and the lights' intensities (their shapes held)
 /// fitted on the other folds' rows at each weight, strongest first, each solve warm-started
-/// from the one before (the first from the estimate), and scored on the fold's rows. Empty
-/// when a fold has no rows to fit or none to score.
+/// from the one before (the first from `start` where given, else the estimate), and scored
+/// on the fold's rows. Empty when a fold has no rows to fit or none to score.
 Estimator::PriorFolds Estimator::PriorLosses(const std::vector<Light>& lights, const std::vector<MapPrior>& weights,
-                                             const std::vector<int>& block) {
+                                             const std::vector<int>& block, const std::vector<double>* start) {
   const std::size_t blocks = bundle_.views.size() * kPriorBlocksAcross * kPriorBlocksAcross;
   const std::size_t alphas = weights.size(), unknowns = 3 * (cells_ + lights.size());
   PriorFolds out;
@@ -249,6 +268,9 @@ Estimator::PriorFolds Estimator::PriorLosses(const std::vector<Light>& lights, c
     problem.base_normal = MakeNormalMatrices(problem);  // once for every weight's solve
     const TransportMatrix held_map = SelectRows(A_, held, true);
     std::vector<double> x = StartOf(problem, lights);
+    if (start)  // (a full solution: the map's cells, then the lights)
+      for (int k = 0; k < problem.unknown_cells; ++k)
+        for (int c = 0; c < 3; ++c) x[3 * k + c] = (*start)[3 * problem.cell_of[k] + c];
     for (std::size_t a = 0; a < alphas; ++a) {
       ObjectiveParams params = res_.objective_params;
       params.alpha = weights[a].alpha * static_cast<double>(problem.rows()) / kAlphaReferencePixels;
