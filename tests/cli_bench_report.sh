@@ -28,9 +28,20 @@ for s in one-light sun-and-sky lamp-1m; do grep -q "^| $s | 40x30 |" "$out/repor
 # The map's prior: each weight the far scene's default estimate tried, one of them chosen.
 for ext in png csv; do [ -s "$out/prior_40x30.$ext" ] || { echo "missing prior_40x30.$ext"; exit 1; }; done
 grep -q "(prior_40x30.png)" "$out/report.md" || { echo "report.md does not embed the prior's plot"; exit 1; }
-# (the map alone: four weights of the activation penalty, then three smooth maps at the weakest)
+# (the map alone: four weights of the activation penalty, then three smooth maps at the
+# weakest where that one scored best of the four, and only there)
 [ "$(grep -c '^one-light,40x30,[^,]*,0,' "$out/prior_40x30.csv")" = 4 ] || { echo "one-light: not 4 weights tried"; exit 1; }
-[ "$(grep -c '^one-light,40x30,[^,]*,[1-9][0-9]*,' "$out/prior_40x30.csv")" = 3 ] || { echo "one-light: not 3 smooth maps tried"; exit 1; }
+python3 - "$out/prior_40x30.csv" <<'PY' || exit 1
+import csv, sys
+rows = [r for r in csv.DictReader(open(sys.argv[1])) if r["scene"] == "one-light"]
+assert all(float(r["smooth"]) == 0 for r in rows if r["lights"] != "0"), "a smooth map beside a light"
+rows = [r for r in rows if r["lights"] == "0"]  # the map alone
+sparse = [r for r in rows if float(r["smooth"]) == 0]
+smooth = [r for r in rows if float(r["smooth"]) > 0]
+weakest_best = min(sparse, key=lambda r: float(r["heldout_loss"])) is min(sparse, key=lambda r: float(r["alpha"]))
+assert len(smooth) == (3 if weakest_best else 0), ("smooth maps tried", len(smooth), "the weakest weight best", weakest_best)
+assert len({float(r["alpha"]) for r in smooth}) <= 1 and all(float(r["alpha"]) == min(float(q["alpha"]) for q in sparse) for r in smooth)
+PY
 [ "$(grep -c '^one-light,40x30,.*,1$' "$out/prior_40x30.csv")" = 1 ] || { echo "one-light: not one weight chosen"; exit 1; }
 # lamp-1m: each weight with the lamp, and the lamp kept.
 # (beside a lamp no smooth map is tried)
