@@ -199,7 +199,7 @@ void Estimator::RunRounds() {
     FitLights(rp, full, &info);
     const bool prior_changed = PriorRound(round, last) && ChoosePrior(&info);
     EndRound(sr, &info);
-    const bool prior_ahead = PastFirstGrid() && !res_.prior.done;
+    const bool prior_ahead = PriorAhead();
     if (round > first && info.image_change < opt_.change_threshold && !info.lights_moved && !prior_changed &&
         !prior_ahead)
       break;
@@ -218,7 +218,7 @@ void Estimator::RunRounds() {
 /// choice; without lamps the first on every pixel. Until then, where it will not be chosen
 /// that is said at once (the rounds then need not wait for it).
 bool Estimator::PriorRound(int round, int last) {
-  if (res_.prior.done || !PastFirstGrid()) return false;
+  if (!PriorAhead()) return false;
   if (points_.empty() || ++rounds_past_grid_ >= kPriorRound || round + 1 >= last) return true;
   res_.prior.why = PriorLeftOut(ColumnOrder(points_));
   res_.prior.done = !res_.prior.why.empty();
@@ -523,10 +523,9 @@ void Estimator::Conclude() {
   for (int j = 0; j < cells_; ++j) res_.left_out[j] = !reachable_[j];
   // Left to the estimate, the lamps are polished where the uncertainty at the rounds' end says
   // their paths limit them (a scan's always); polished, it is computed again where they are.
-  const bool judge = opt_.point_lights.polish_spp < 0 && res_.albedo_passes == 0 && !points_.empty();
-  std::vector<LightUncertainty> uncertainty = judge ? Uncertainty() : std::vector<LightUncertainty>{};
-  const bool polished = PolishLamps(PolishSpp(uncertainty));
-  if (!judge || polished) uncertainty = Uncertainty();
+  std::optional<std::vector<LightUncertainty>> rounds;  // where PolishSpp judged by it
+  const bool polished = PolishLamps(PolishSpp(&rounds));
+  const std::vector<LightUncertainty> uncertainty = rounds && !polished ? *rounds : Uncertainty();
   SayUncertainty(uncertainty);
   res_.lighting = InImageUnits();
   res_.uncertainty = uncertainty;
@@ -555,14 +554,15 @@ void Estimator::Conclude() {
 }
 
 /// The polish's paths (0: none): PointLightOptions::polish_spp where given; left to the
-/// estimate (-1), kPolishSpp on a scan and where a lamp's paths_ratio in `rounds` (the
-/// uncertainty at the rounds' end) is at least kPolishPathsRatio, said with why.
-int Estimator::PolishSpp(const std::vector<LightUncertainty>& rounds) {
+/// estimate (-1), kPolishSpp on a scan and where a lamp's paths_ratio in the uncertainty at
+/// the rounds' end (computed here, kept in `rounds`) is at least kPolishPathsRatio, said with why.
+int Estimator::PolishSpp(std::optional<std::vector<LightUncertainty>>* rounds) {
   if (opt_.point_lights.polish_spp >= 0) return opt_.point_lights.polish_spp;
   if (res_.albedo_passes > 0) return kPolishSpp;
   if (points_.empty()) return 0;
+  *rounds = Uncertainty();
   double most = 0;
-  for (const LightUncertainty& u : rounds) most = std::max(most, u.paths_ratio);
+  for (const LightUncertainty& u : **rounds) most = std::max(most, u.paths_ratio);
   const bool polish = most >= kPolishPathsRatio;
   const std::string line =
       Fmt("the lamps %s: where a lamp's place is least sure from its columns' paths, their noise is %.3g times the "

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 
 #include "common/color.h"
@@ -172,7 +173,7 @@ class Estimator {
   Mesh WithAlbedoOf(const Mesh& full, const std::vector<float>& irradiance) const;
   /// The estimate in image units, its scores and what the user should know about it.
   void Conclude();
-  int PolishSpp(const std::vector<LightUncertainty>& rounds);
+  int PolishSpp(std::optional<std::vector<LightUncertainty>>* rounds);
   bool PolishLamps(int spp);
   /// How well the images fix each light (Lights()' order, normalized units), on the last
   /// round's rows; empty without lights or shading vertices.
@@ -356,6 +357,8 @@ class Estimator {
   /// Whether the rounds are past round 1's first estimate on a grid: on every pixel, or on
   /// the grid of the rounds before the first albedo pass (PreAlbedoStride).
   bool PastFirstGrid() const { return stride_ == 1 || after_grid_ > 0; }
+  /// Whether the map's prior is still to be chosen, in a round on every pixel (PriorRound).
+  bool PriorAhead() const { return PastFirstGrid() && !res_.prior.done; }
   bool ProposeEmitters(RoundInfo* info);
   /// Keeps `candidate` beside `kept` when the objective and the held-out loss say so (both
   /// updated then).
