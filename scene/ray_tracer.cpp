@@ -133,4 +133,29 @@ bool RayTracer::Occluded(const Eigen::Vector3d& o, const Eigen::Vector3d& d, dou
   return ray.tfar < 0;
 }
 
+void RayTracer::OccludedMany(const std::vector<ShadowRay>& rays, std::vector<std::uint8_t>* blocked) const {
+  thread_local std::vector<RTCRay> stream;
+  stream.resize(rays.size());
+  for (std::size_t i = 0; i < rays.size(); ++i) {
+    RTCRay& ray = stream[i];
+    ray.org_x = rays[i].origin.x();
+    ray.org_y = rays[i].origin.y();
+    ray.org_z = rays[i].origin.z();
+    ray.dir_x = rays[i].dir.x();
+    ray.dir_y = rays[i].dir.y();
+    ray.dir_z = rays[i].dir.z();
+    ray.tnear = static_cast<float>(epsilon_);
+    ray.tfar = rays[i].tmax;
+    ray.mask = 0xFFFFFFFFu;
+    ray.flags = 0;
+    ray.time = 0;
+  }
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+  rtcOccluded1M(impl_->scene, &ctx, stream.data(), static_cast<unsigned>(stream.size()), sizeof(RTCRay));
+  blocked->resize(rays.size());
+  for (std::size_t i = 0; i < rays.size(); ++i) (*blocked)[i] = stream[i].tfar < 0;
+}
+
 }  // namespace lp

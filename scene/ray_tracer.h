@@ -36,6 +36,14 @@ class RayTracer {
                  double tmax = 1e30) const;
   /// True if anything lies along origin + t*dir, t in (epsilon, tmax).
   bool Occluded(const Eigen::Vector3d& origin, const Eigen::Vector3d& dir, double tmax = 1e30) const;
+  /// A shadow ray for OccludedMany: from `origin` along unit `dir`, t in (epsilon, tmax).
+  struct ShadowRay {
+    Eigen::Vector3f origin, dir;
+    float tmax;
+  };
+  /// Occluded for each of `rays` (blocked[i] = 1 where anything lies along it), traced as one
+  /// stream: the same answers as Occluded ray by ray, for less per ray where they are many.
+  void OccludedMany(const std::vector<ShadowRay>& rays, std::vector<std::uint8_t>* blocked) const;
   /// Embree alone, for the tracer's throughput benchmark (`lightprobe bench --parts rays`):
   /// rtcIntersect1 on each ray (origin, unit direction) over this BVH, on all cores, with no
   /// hit record made; returns how many hit.

@@ -23,44 +23,89 @@ inline double Falloff(const Eigen::Vector3d& p, const Eigen::Vector3d& n, const 
   return cn / (d2 * d);
 }
 
+/// SphereVisibility's shadow rays from p (appended to `out`): one to q for a point, none
+/// inside the light (it sees all of it), else `rays` to the disc. Returns how many.
+int DiscShadowRays(const Eigen::Vector3d& p, const Eigen::Vector3d& q, double radius, const Eigen::Vector3d& l,
+                   double d, std::uint64_t key, int rays, std::vector<RayTracer::ShadowRay>* out) {
+  const Eigen::Vector3f origin = p.cast<float>();
+  if (!(radius > 0)) {
+    out->push_back({origin, l.cast<float>(), static_cast<float>(std::min(d, 1e30))});
+    return 1;
+  }
+  if (d <= radius) return 0;
+  const SphereFrame frame(l);  // the disc facing p
+  const double turn = HashUnit(key), jitter = HashUnit(key ^ 0x5DEECE66Dull);
+  // The i-th ray's angle is 2 pi (turn + i golden): one sine and cosine, then each next by a
+  // fixed rotation.
+  constexpr double kGoldenTurn = 2 * kPi * 0.6180339887498949;
+  static const double cos_step = std::cos(kGoldenTurn), sin_step = std::sin(kGoldenTurn);
+  double c = std::cos(2 * kPi * turn), s = std::sin(2 * kPi * turn);
+  for (int i = 0; i < rays; ++i) {
+    const double rho = radius * std::sqrt((i + jitter) / rays);  // equal-area rings
+    const Eigen::Vector3d to = q + rho * (c * frame.t + s * frame.b) - p;
+    const double len = to.norm();
+    out->push_back({origin, (to / len).cast<float>(), static_cast<float>(std::min(len, 1e30))});
+    const double next_c = c * cos_step - s * sin_step;
+    s = s * cos_step + c * sin_step;
+    c = next_c;
+  }
+  return rays;
+}
+
 }  // namespace
 
 double SphereVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const Eigen::Vector3d& q, double radius,
                         const Eigen::Vector3d& l, double d, std::uint64_t key, int rays) {
-  if (!(radius > 0)) return scene.Occluded(p, l, d) ? 0.0 : 1.0;
-  if (d <= radius) return 1.0;  // inside the light
-  const SphereFrame frame(l);  // the disc facing p
-  const double turn = HashUnit(key), jitter = HashUnit(key ^ 0x5DEECE66Dull);
+  std::vector<RayTracer::ShadowRay> disc;
+  const int n = DiscShadowRays(p, q, radius, l, d, key, rays, &disc);
+  if (n == 0) return 1.0;
   int seen = 0;
-  for (int i = 0; i < rays; ++i) {
-    const double rho = radius * std::sqrt((i + jitter) / rays);  // equal-area rings
-    const double a = 2 * kPi * (turn + i * 0.6180339887498949);
-    const Eigen::Vector3d s = q + rho * (std::cos(a) * frame.t + std::sin(a) * frame.b) - p;
-    const double len = s.norm();
-    seen += !scene.Occluded(p, s / len, len);
-  }
-  return static_cast<double>(seen) / rays;
+  for (const RayTracer::ShadowRay& r : disc)
+    seen += !scene.Occluded(r.origin.cast<double>(), r.dir.cast<double>(), r.tmax);
+  return static_cast<double>(seen) / n;
 }
 
 void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Eigen::Vector3d& q, const ColumnOut& out,
                       double radius, int rays) {
   out.Assign(v.rows());
   ParallelForChunks(0, v.rows(), 64, [&](std::size_t b, std::size_t e) {
+    // The chunk's shadow rays traced as one stream: per vertex its first ray and count
+    // (-1: the light is behind it).
+    thread_local std::vector<RayTracer::ShadowRay> shadow;
+    thread_local std::vector<std::uint8_t> blocked;
+    thread_local std::vector<int> first, count;
+    shadow.clear();
+    const std::int64_t k0 = v.row_start[b], k1 = v.row_start[e];
+    first.resize(k1 - k0);
+    count.resize(k1 - k0);
+    for (std::int64_t k = k0; k < k1; ++k) {
+      Eigen::Vector3d l = Eigen::Vector3d::Zero();
+      double d = 0;
+      first[k - k0] = static_cast<int>(shadow.size());
+      count[k - k0] = Falloff(v.position[k].cast<double>(), v.normal[k].cast<double>(), v.geometric[k].cast<double>(),
+                              q, &l, &d) == 0
+                          ? -1
+                          : DiscShadowRays(v.position[k].cast<double>(), q, radius, l, d,
+                                           static_cast<std::uint64_t>(k), rays, &shadow);
+    }
+    scene.OccludedMany(shadow, &blocked);
     for (std::size_t r = b; r < e; ++r) {
       ColumnRow row;
       for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
-        const Eigen::Vector3d p = v.position[k].cast<double>(), n = v.normal[k].cast<double>();
-        Eigen::Vector3d l;
+        const int n = count[k - k0];
+        if (n < 0) continue;
+        int seen = n;
+        for (int i = 0; i < n; ++i) seen -= blocked[first[k - k0] + i];
+        if (n > 0 && seen == 0) continue;
+        const Eigen::Vector3d p = v.position[k].cast<double>(), n_ = v.normal[k].cast<double>();
+        Eigen::Vector3d l = Eigen::Vector3d::Zero();
         double d = 0;
-        const double f = Falloff(p, n, v.geometric[k].cast<double>(), q, &l, &d);
-        if (f == 0) continue;
-        const double seen = SphereVisibility(scene, p, q, radius, l, d, static_cast<std::uint64_t>(k), rays);
-        if (seen == 0) continue;
-        const Eigen::Vector3d w = v.weight[k].cast<double>() * seen;
+        const double f = Falloff(p, n_, v.geometric[k].cast<double>(), q, &l, &d);
+        const Eigen::Vector3d w = v.weight[k].cast<double>() * (n > 0 ? static_cast<double>(seen) / n : 1.0);
         row.Add(v.Half(k), w * f);
         if (out.jacobian || out.spread_jacobian) {
           // f = n.(q-p) / d^3:  df/dq = n / d^3 - 3 n.(q-p) (q-p) / d^5 = (n - 3 (n.l) l) / d^3.
-          const Eigen::Vector3d grad = (n - 3 * n.dot(l) * l) / (d * d * d);
+          const Eigen::Vector3d grad = (n_ - 3 * n_.dot(l) * l) / (d * d * d);
           row.AddDerivative(v.Half(k), w * grad.transpose());
         }
       }
