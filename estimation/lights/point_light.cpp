@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "common/parallel.h"
+#include "estimation/lights/chunk_visibility.h"
 #include "estimation/envmap.h"
 #include "estimation/sampling.h"
 
@@ -69,43 +70,28 @@ void PointLightColumn(const RayTracer& scene, const ShadingVertices& v, const Ei
                       double radius, int rays) {
   out.Assign(v.rows());
   ParallelForChunks(0, v.rows(), 64, [&](std::size_t b, std::size_t e) {
-    // The chunk's shadow rays traced as one stream: per vertex its first ray and count
-    // (-1: the light is behind it).
-    thread_local std::vector<RayTracer::ShadowRay> shadow;
-    thread_local std::vector<std::uint8_t> blocked;
-    thread_local std::vector<int> first, count;
-    shadow.clear();
-    const std::int64_t k0 = v.row_start[b], k1 = v.row_start[e];
-    first.resize(k1 - k0);
-    count.resize(k1 - k0);
-    for (std::int64_t k = k0; k < k1; ++k) {
+    const ChunkVisibility seen(scene, v.row_start[b], v.row_start[e], [&](std::int64_t k, auto* rays_out) {
       Eigen::Vector3d l = Eigen::Vector3d::Zero();
       double d = 0;
-      first[k - k0] = static_cast<int>(shadow.size());
-      count[k - k0] = Falloff(v.position[k].cast<double>(), v.normal[k].cast<double>(), v.geometric[k].cast<double>(),
-                              q, &l, &d) == 0
-                          ? -1
-                          : DiscShadowRays(v.position[k].cast<double>(), q, radius, l, d,
-                                           static_cast<std::uint64_t>(k), rays, &shadow);
-    }
-    scene.OccludedMany(shadow, &blocked);
+      const Eigen::Vector3d p = v.position[k].cast<double>();
+      if (Falloff(p, v.normal[k].cast<double>(), v.geometric[k].cast<double>(), q, &l, &d) == 0) return -1;
+      return DiscShadowRays(p, q, radius, l, d, static_cast<std::uint64_t>(k), rays, rays_out);
+    });
     for (std::size_t r = b; r < e; ++r) {
       ColumnRow row;
       for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
-        const int n = count[k - k0];
-        if (n < 0) continue;
-        int seen = n;
-        for (int i = 0; i < n; ++i) seen -= blocked[first[k - k0] + i];
-        if (n > 0 && seen == 0) continue;
-        const Eigen::Vector3d p = v.position[k].cast<double>(), n_ = v.normal[k].cast<double>();
+        if (!seen.Faces(k)) continue;
+        const double share = seen.Seen(k);
+        if (share == 0) continue;
+        const Eigen::Vector3d p = v.position[k].cast<double>(), n = v.normal[k].cast<double>();
         Eigen::Vector3d l = Eigen::Vector3d::Zero();
         double d = 0;
-        const double f = Falloff(p, n_, v.geometric[k].cast<double>(), q, &l, &d);
-        const Eigen::Vector3d w = v.weight[k].cast<double>() * (n > 0 ? static_cast<double>(seen) / n : 1.0);
+        const double f = Falloff(p, n, v.geometric[k].cast<double>(), q, &l, &d);
+        const Eigen::Vector3d w = v.weight[k].cast<double>() * share;
         row.Add(v.Half(k), w * f);
         if (out.jacobian || out.spread_jacobian) {
           // f = n.(q-p) / d^3:  df/dq = n / d^3 - 3 n.(q-p) (q-p) / d^5 = (n - 3 (n.l) l) / d^3.
-          const Eigen::Vector3d grad = (n_ - 3 * n_.dot(l) * l) / (d * d * d);
+          const Eigen::Vector3d grad = (n - 3 * n.dot(l) * l) / (d * d * d);
           row.AddDerivative(v.Half(k), w * grad.transpose());
         }
       }

@@ -40,5 +40,30 @@ TEST(PointLights, TheDirectionDerivativeMatchesCentralDifferences) {
   EXPECT_LT(worst, 2e-2 * scale) << "worst " << worst << " of " << scale;
 }
 
+// The column traces each chunk's shadow rays as one stream (RayTracer::OccludedMany): it
+// must see what ConeVisibility sees ray by ray, for a sharp sun and for one with a disc whose
+// penumbra the ball casts on the plane.
+TEST(DirectionalLights, TheColumnSeesWhatEachVertexsShadowRaysSee) {
+  const test::PlaneAndBall pb(24, 18, 50, 2);
+  const ShadingVertices& v = pb.vertices;
+  const Eigen::Vector3d l = Eigen::Vector3d(-0.5, 0.6, 0.7).normalized();
+  for (double radius : {0.0, 0.1}) {
+    std::vector<float> col;
+    DirectionalLightColumn(pb.scene, v, l, &col, nullptr, radius);
+    double scale = 0, shaded = 0;
+    const double worst = test::WorstColumnDifference(v, col, [&](std::int64_t k) {
+      const double cn = v.normal[k].cast<double>().dot(l);
+      if (!(cn > 0 && v.geometric[k].cast<double>().dot(l) > 0)) return Eigen::Vector3d::Zero().eval();
+      const double seen =
+          ConeVisibility(pb.scene, v.position[k].cast<double>(), l, radius, static_cast<std::uint64_t>(k));
+      shaded += seen < 1;
+      return Eigen::Vector3d(v.weight[k].cast<double>() * seen * cn);
+    }, &scale);
+    EXPECT_GT(scale, 0);
+    EXPECT_LT(worst, 1e-5 * scale) << "radius " << radius << ": worst " << worst << " of " << scale;
+    EXPECT_GT(shaded, 0) << radius;  // the ball shadows some vertices
+  }
+}
+
 }  // namespace
 }  // namespace lp

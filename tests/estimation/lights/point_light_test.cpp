@@ -144,24 +144,17 @@ TEST(PointLights, TheColumnSeesWhatEachVertexsShadowRaysSee) {
                                   std::pair{Eigen::Vector3d(top + Eigen::Vector3d(0, 0, 0.05)), 0.2}}) {
     std::vector<float> col;
     PointLightColumn(pb.scene, v, q, &col, nullptr, radius);
-    double worst = 0, scale = 0, shaded = 0, inside = 0;
-    for (std::size_t r = 0; r < v.rows(); ++r) {
-      Eigen::Vector3d expect = Eigen::Vector3d::Zero();
-      for (std::int64_t k = v.row_start[r]; k < v.row_start[r + 1]; ++k) {
-        const Eigen::Vector3d p = v.position[k].cast<double>(), n = v.normal[k].cast<double>(), to = q - p;
-        const double d = to.norm();
-        if (!(n.dot(to) > 0 && v.geometric[k].cast<double>().dot(to) > 0)) continue;
-        const double seen = SphereVisibility(pb.scene, p, q, radius, to / d, d, static_cast<std::uint64_t>(k),
-                                             kColumnShadowRays);
-        shaded += seen < 1;
-        inside += d <= radius;
-        expect += v.weight[k].cast<double>() * seen * n.dot(to) / (d * d * d);
-      }
-      for (int c = 0; c < 3; ++c) {
-        worst = std::max(worst, std::abs(expect[c] - col[3 * r + c]));
-        scale = std::max(scale, std::abs(expect[c]));
-      }
-    }
+    double scale = 0, shaded = 0, inside = 0;
+    const double worst = test::WorstColumnDifference(v, col, [&](std::int64_t k) {
+      const Eigen::Vector3d p = v.position[k].cast<double>(), n = v.normal[k].cast<double>(), to = q - p;
+      const double d = to.norm();
+      if (!(n.dot(to) > 0 && v.geometric[k].cast<double>().dot(to) > 0)) return Eigen::Vector3d::Zero().eval();
+      const double seen = SphereVisibility(pb.scene, p, q, radius, to / d, d, static_cast<std::uint64_t>(k),
+                                           kColumnShadowRays);
+      shaded += seen < 1;
+      inside += d <= radius;
+      return Eigen::Vector3d(v.weight[k].cast<double>() * seen * n.dot(to) / (d * d * d));
+    }, &scale);
     EXPECT_GT(scale, 0);
     EXPECT_LT(worst, 1e-5 * scale) << "radius " << radius << ": worst " << worst << " of " << scale;
     EXPECT_GT(shaded, 0) << radius;  // the ball shadows some vertices
