@@ -174,6 +174,8 @@ class Estimator {
   /// The estimate in image units, its scores and what the user should know about it.
   void Conclude();
   int PolishSpp(std::optional<std::vector<LightUncertainty>>* rounds);
+  std::vector<LightUncertainty> Carried(const std::vector<LightUncertainty>& rounds, const std::vector<Light>& before,
+                                        const std::vector<Light>& now);
   bool PolishLamps(int spp);
   /// How well the images fix each light (Lights()' order, normalized units), on the last
   /// round's rows; empty without lights or shading vertices.

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include <Eigen/Dense>
 
@@ -226,13 +227,29 @@ LightFitSubset::LightFitSubset(const LightFitProblem& full, std::size_t max_rows
   problem.alpha /= stride;
 }
 
+DampedStep::DampedStep(Eigen::MatrixXd H, Eigen::VectorXd g) : H_(std::move(H)), g_(std::move(g)), d_(H_.rows()) {
+  for (int a = 0; a < H_.rows(); ++a) d_[a] = std::max(H_(a, a), 1e-12);
+}
+
+Eigen::VectorXd DampedStep::Within(double radius, double* mu) const {
+  Eigen::VectorXd s = At(*mu);
+  for (int k = 0; k < 200 && s.allFinite() && Length(s) > radius; ++k) s = At(*mu *= 2);
+  for (int k = 0; k < 8 && !s.allFinite(); ++k) s = At(*mu *= 10);
+  return s;
+}
+
+Eigen::VectorXd DampedStep::At(double mu) const {
+  Eigen::MatrixXd M = H_;
+  M.diagonal() += mu * d_;
+  return M.ldlt().solve(g_);
+}
+
 int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_iterations, const LightFitLog& log,
                  double min_drop) {
   const int K = static_cast<int>(lights->size());
   if (K == 0) return 0;
   std::vector<int> offset{0};  // per light: its shape's coordinates, then its scale (3)
   for (const Light& l : *lights) offset.push_back(offset.back() + ShapeDims(l) + 3);
-  const int n = offset.back();
   Traced t;
   TraceColumns(p, *lights, &t, true);
   Fitted f = Residual(p, *lights, t.cols);
@@ -243,15 +260,16 @@ int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_i
     Eigen::MatrixXd H;
     Eigen::VectorXd g;
     NormalEquations(p, *lights, offset, t, f, &H, &g);
+    const DampedStep damped(H, g);
     bool accepted = false;
+    double radius = INFINITY;  // the last rejected step's damped length, a quarter of it next
     for (int tries = 0; tries < 8 && !accepted; ++tries) {
-      Eigen::MatrixXd M = H;
-      for (int a = 0; a < n; ++a) M(a, a) += mu * std::max(H(a, a), 1e-12);
-      const Eigen::VectorXd step = M.ldlt().solve(g);
-      if (!step.allFinite()) {
-        mu *= 10;
-        continue;
-      }
+      const Eigen::VectorXd step = damped.Within(radius, &mu);
+      if (!step.allFinite()) break;
+      // A step the model says gains less than min_drop is not traced: its columns cost
+      // what the fit does, and steps that small gain what the model says (or nothing).
+      const double predicted = damped.PredictedDrop(step);
+      if (predicted > 0 && predicted < min_drop * std::abs(E)) return it;
       std::vector<Light> trial;
       for (int k = 0; k < K; ++k) {
         trial.push_back(Moved((*lights)[k], &step[offset[k]]));
@@ -272,7 +290,7 @@ int RefineLights(const LightFitProblem& p, std::vector<Light>* lights, int max_i
         if (log) log(it + 1, E, SquaredSum(f.r), *lights);
         if (drop < min_drop) return it + 1;
       } else {
-        mu *= 10;
+        radius = damped.Length(step) / 4;
       }
     }
     if (!accepted) break;

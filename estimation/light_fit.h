@@ -2,6 +2,7 @@
 /// One fit for every kind of light (estimation/lights/light.h): "refine these lights'
 /// shapes and intensities on these rows", the rest of the image held. One objective, one
 /// Levenberg-Marquardt, one compass search and one intensity refit, whatever the kinds.
+#include <cmath>
 #include <functional>
 #include <limits>
 #include <vector>
@@ -85,11 +86,34 @@ std::vector<double> SegmentMultipliers(const LightFitProblem& problem, const std
 /// Called after each accepted step of a fit: (step, E, sum of squared residuals, lights).
 using LightFitLog = std::function<void(int, double, double, const std::vector<Light>&)>;
 
+/// Levenberg-Marquardt's damped steps of one iteration, (H + mu diag H) s = g (g: the
+/// descent direction, J^T W r), and the damping that keeps a step within a length: where the
+/// fit rejects a step, RefineLights retries it a quarter as long. Raising mu tenfold at a time
+/// can leave the step as it was (along a valley whose curvature is far below the diagonal's:
+/// a lamp's distance against its intensity), and each retry traces the columns again.
+class DampedStep {
+ public:
+  DampedStep(Eigen::MatrixXd H, Eigen::VectorXd g);
+  /// The step at *mu, *mu raised (doubled at a time) until the step's Length is at most
+  /// `radius`; non-finite where no damping gives a finite step.
+  Eigen::VectorXd Within(double radius, double* mu) const;
+  /// The step's length in the damping's metric, sqrt(sum H_aa s_a^2).
+  double Length(const Eigen::VectorXd& s) const { return std::sqrt(s.cwiseProduct(s).dot(d_)); }
+  /// What the Gauss-Newton model says the step lowers the objective by: g.s - s.H.s / 2.
+  double PredictedDrop(const Eigen::VectorXd& s) const { return g_.dot(s) - 0.5 * s.dot(H_ * s); }
+
+ private:
+  Eigen::VectorXd At(double mu) const;
+  Eigen::MatrixXd H_;
+  Eigen::VectorXd g_, d_;
+};
+
 /// Levenberg-Marquardt on the lights' shapes (ShapeDims each: a position, a direction's
 /// tangent plane) and scales together, iteratively reweighted for the loss, the analytical
 /// derivative of the columns (visibility held fixed), scales kept >= 0; a step is taken
-/// only if E falls; it stops where a step lowers E by less than `min_drop` of it. Returns the
-/// iterations taken; `lights` holds the best found.
+/// only if E falls (a rejected one retried a quarter as long, DampedStep); it stops where a
+/// step lowers E by less than `min_drop` of it, or where the model predicts it would (such a
+/// step is not traced). Returns the iterations taken; `lights` holds the best found.
 int RefineLights(const LightFitProblem& problem, std::vector<Light>* lights, int max_iterations = 12,
                  const LightFitLog& log = {}, double min_drop = 1e-6);
 

@@ -112,6 +112,43 @@ TEST(LightKinds, IrradianceIsTheClosedForm) {
   EXPECT_EQ(Irradiance(scene, std::vector<Light>{lamp, sun}, at, -up, -up, 1, &rays), Eigen::Vector3d::Zero());
 }
 
+// Levenberg-Marquardt's retries (DampedStep): on a valley (a lamp's distance against its
+// intensity: curvature 1e-6 of the diagonal's along it), raising the damping tenfold from
+// where it starts leaves the step as long as it was, so each retry would trace the same
+// rejected step again; Within gives a step of at most the length asked, by the least damping
+// doubled to it. PredictedDrop is the quadratic model's fall, exact for a quadratic.
+TEST(LightFit, ARejectedStepIsRetriedShorterAlongAValley) {
+  const double c = std::cos(0.4), s = std::sin(0.4);
+  Eigen::Matrix2d R;
+  R << c, -s, s, c;
+  const Eigen::MatrixXd H = R * Eigen::Vector2d(1.0, 1e-6).asDiagonal() * R.transpose();
+  const Eigen::VectorXd g = R * Eigen::Vector2d(1e-3, 1e-3);
+  const DampedStep damped(H, g);
+  double mu = 1e-8;
+  const Eigen::VectorXd first = damped.Within(INFINITY, &mu);
+  EXPECT_EQ(mu, 1e-8);  // no length asked: the damping as it was
+  // Tenfold more damping: the step's length hardly changes (the old retry).
+  const Eigen::MatrixXd M = H + 1e-7 * Eigen::MatrixXd(H.diagonal().asDiagonal());
+  const Eigen::VectorXd tenfold = M.ldlt().solve(g);
+  EXPECT_GT(damped.Length(tenfold), 0.5 * damped.Length(first));
+  // A quarter as long, by doubling: within it, and the damping half that not (the least).
+  const double radius = damped.Length(first) / 4;
+  const Eigen::VectorXd shorter = damped.Within(radius, &mu);
+  EXPECT_LE(damped.Length(shorter), radius);
+  EXPECT_GT(mu, 1e-8);
+  const Eigen::MatrixXd half = H + 0.5 * mu * Eigen::MatrixXd(H.diagonal().asDiagonal());
+  EXPECT_GT(damped.Length(half.ldlt().solve(g)), radius);
+  // The model's fall against the quadratic itself: E(x) = (x - x*).H.(x - x*) / 2 with its
+  // minimum x* = H^-1 g, whose descent direction at 0 is g.
+  const Eigen::VectorXd best = H.ldlt().solve(g);
+  const auto E = [&](const Eigen::VectorXd& x) { return 0.5 * (x - best).dot(H * (x - best)); };
+  for (const Eigen::VectorXd& step : {first, shorter}) {
+    const double fall = E(Eigen::VectorXd::Zero(2)) - E(step);
+    EXPECT_NEAR(damped.PredictedDrop(step), fall, 1e-9 * std::abs(fall));
+    EXPECT_GT(fall, 0);
+  }
+}
+
 TEST(LightFit, ALampAndASunAreRefinedTogether) {
   // The one Levenberg-Marquardt over a list of two kinds: the image of a lamp and a sun
   // (their columns), both started off (the lamp 25 cm, the sun 4 degrees, wrong scales),
