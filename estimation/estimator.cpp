@@ -223,16 +223,14 @@ void Estimator::RunRounds() {
     const SolveResult sr = Solve(rp, round, &info, round == 1);
     const std::vector<double> full = TakeSolution(rp, sr, &info);
     FitLights(rp, full, &info);
-    // A changed prior is solved again in its round, and the round's change counts that solve.
-    // The map alone (its prior chosen in the first round on every pixel, whose transport was
-    // sampled for round 1's map) takes one more round after it (the demo's changed the image
-    // by 2.6 %); beside lamps, chosen a round later, the change decides as in any round (the
-    // round after it changed lamp-and-sky's and lamp-4m's images by 0.4-0.5 %, for a quarter
-    // of their estimates' time: docs/benchmarks.md, session 43).
+    // A changed prior is solved again in its round; one more round follows it (the transport
+    // was sampled for the old prior's map). Beside lamps it refits them under the new prior:
+    // ended by the change alone, lamp-and-sky's lamp came back 0.2 -> 0.7 cm off, seed 5's
+    // 0.4 -> 1.3 cm (docs/benchmarks.md, session 43).
     const bool prior_changed = PriorRound(round, last) && ChoosePrior(&info);
     EndRound(sr, &info);
-    const bool prior_ahead = PriorAhead(), after_prior = prior_changed && points_.empty();
-    if (round > first && info.image_change < opt_.change_threshold && !info.lights_moved && !after_prior &&
+    const bool prior_ahead = PriorAhead();
+    if (round > first && info.image_change < opt_.change_threshold && !info.lights_moved && !prior_changed &&
         !prior_ahead)
       break;
   }
@@ -246,7 +244,7 @@ void Estimator::RunRounds() {
 /// Whether this round (of `last`) chooses the map's prior (once): beside lamps the
 /// kPriorRound-th on every pixel, after they were refined there (refined once, a far lamp was
 /// still 7-8 cm off, a weak prior's sky that is not there took up its error, and the lamp
-/// followed it: docs/method.md, "The map's prior"), or the last but one, so that a round follows the
+/// followed it: docs/method.md, "The map's prior"), or the last but one, so that a round can follow the
 /// choice; without lamps the first on every pixel. Until then, where it will not be chosen
 /// that is said at once (the rounds then need not wait for it).
 bool Estimator::PriorRound(int round, int last) {
