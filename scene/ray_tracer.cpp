@@ -114,21 +114,32 @@ bool RayTracer::Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, Su
   return true;
 }
 
-bool RayTracer::Occluded(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double tmax) const {
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
+namespace {
+
+/// An Embree shadow ray from `o` along `d`, t in (tnear, tfar).
+RTCRay ShadowQuery(const Eigen::Vector3f& o, const Eigen::Vector3f& d, float tnear, float tfar) {
   RTCRay ray;
-  ray.org_x = static_cast<float>(o.x());
-  ray.org_y = static_cast<float>(o.y());
-  ray.org_z = static_cast<float>(o.z());
-  ray.dir_x = static_cast<float>(d.x());
-  ray.dir_y = static_cast<float>(d.y());
-  ray.dir_z = static_cast<float>(d.z());
-  ray.tnear = static_cast<float>(epsilon_);
-  ray.tfar = static_cast<float>(std::min(tmax, 1e30));
+  ray.org_x = o.x();
+  ray.org_y = o.y();
+  ray.org_z = o.z();
+  ray.dir_x = d.x();
+  ray.dir_y = d.y();
+  ray.dir_z = d.z();
+  ray.tnear = tnear;
+  ray.tfar = tfar;
   ray.mask = 0xFFFFFFFFu;
   ray.flags = 0;
   ray.time = 0;
+  return ray;
+}
+
+}  // namespace
+
+bool RayTracer::Occluded(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double tmax) const {
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRay ray = ShadowQuery(o.cast<float>(), d.cast<float>(), static_cast<float>(epsilon_),
+                           static_cast<float>(std::min(tmax, 1e30)));
   rtcOccluded1(impl_->scene, &ctx, &ray);
   return ray.tfar < 0;
 }
@@ -136,20 +147,8 @@ bool RayTracer::Occluded(const Eigen::Vector3d& o, const Eigen::Vector3d& d, dou
 void RayTracer::OccludedMany(const std::vector<ShadowRay>& rays, std::vector<std::uint8_t>* blocked) const {
   thread_local std::vector<RTCRay> stream;
   stream.resize(rays.size());
-  for (std::size_t i = 0; i < rays.size(); ++i) {
-    RTCRay& ray = stream[i];
-    ray.org_x = rays[i].origin.x();
-    ray.org_y = rays[i].origin.y();
-    ray.org_z = rays[i].origin.z();
-    ray.dir_x = rays[i].dir.x();
-    ray.dir_y = rays[i].dir.y();
-    ray.dir_z = rays[i].dir.z();
-    ray.tnear = static_cast<float>(epsilon_);
-    ray.tfar = rays[i].tmax;
-    ray.mask = 0xFFFFFFFFu;
-    ray.flags = 0;
-    ray.time = 0;
-  }
+  for (std::size_t i = 0; i < rays.size(); ++i)
+    stream[i] = ShadowQuery(rays[i].origin, rays[i].dir, static_cast<float>(epsilon_), rays[i].tmax);
   RTCIntersectContext ctx;
   rtcInitIntersectContext(&ctx);
   ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;

@@ -35,7 +35,8 @@ int ConeShadowRays(const Eigen::Vector3d& p, const Eigen::Vector3d& l, double an
 
 double ConeVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const Eigen::Vector3d& l, double angular_radius,
                       std::uint64_t key, int rays) {
-  std::vector<RayTracer::ShadowRay> cone;
+  thread_local std::vector<RayTracer::ShadowRay> cone;  // (the renders ask per vertex: no allocation each)
+  cone.clear();
   const int n = ConeShadowRays(p, l, angular_radius, key, rays, &cone);
   int seen = 0;
   for (const RayTracer::ShadowRay& r : cone) seen += !scene.Occluded(r.origin.cast<double>(), r.dir.cast<double>());

@@ -57,7 +57,8 @@ int DiscShadowRays(const Eigen::Vector3d& p, const Eigen::Vector3d& q, double ra
 
 double SphereVisibility(const RayTracer& scene, const Eigen::Vector3d& p, const Eigen::Vector3d& q, double radius,
                         const Eigen::Vector3d& l, double d, std::uint64_t key, int rays) {
-  std::vector<RayTracer::ShadowRay> disc;
+  thread_local std::vector<RayTracer::ShadowRay> disc;  // (the renders ask per vertex: no allocation each)
+  disc.clear();
   const int n = DiscShadowRays(p, q, radius, l, d, key, rays, &disc);
   if (n == 0) return 1.0;
   int seen = 0;
