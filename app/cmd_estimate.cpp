@@ -142,9 +142,17 @@ static json ModelJson(const EstimateOptions& o, const EstimateResult& r) {
   if (const std::size_t n = r.lighting.Count<PointLight>()) chosen += " + " + std::to_string(n) + " point light(s)";
   if (const std::size_t n = r.lighting.Count<DirectionalLight>())
     chosen += " + " + std::to_string(n) + " directional light(s)";
+  json seen = json::array();
+  for (const SeenLamp& l : r.seen_lamps)
+    seen.push_back({{"position", {l.position.x(), l.position.y(), l.position.z()}},
+                    {"how", l.how},
+                    {"views", l.views},
+                    {"pixels", l.pixels},
+                    {"gap", l.gap}});
   return {{"chosen", chosen},
           {"max_point_lights", o.point_lights.max_lights},
           {"choices", r.point_light_choices},
+          {"seen_lamps", seen},
           {"rule", Fmt("round 1 looks for lamps with the map dark: greedily the candidate position around the "
                        "scene that best explains what the lights so far leave, all of them refined together "
                        "(Levenberg-Marquardt on positions and intensities), while each lowers the loss by %g %%; "

@@ -42,6 +42,9 @@ Run AddSynth(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--depth-noise", o->depth_noise,
                 "with --frames: structured-light depth noise and holes (Xtion-like; default exact depth)");
+  cmd->add_flag("--lamps-seen", o->lamps_seen,
+                "with --frames: the lamps' spheres seen by the colour camera at their radiance (clipped in the 8-bit "
+                "frames) and returning no depth, as a bare bulb does");
   cmd->add_option("--data", *data, "data directory (mesh/ for frag115, hdri/ for env-*)")->capture_default_str();
   cmd->add_option("--threads", *threads, "worker threads (0 = all cores)")->capture_default_str();
   cmd->add_option("--min-triangles", *min_triangles,

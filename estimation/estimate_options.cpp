@@ -47,6 +47,10 @@ std::vector<EstimateOption> LightOptions() {
        "1 = the lights' fit takes their columns' Monte Carlo noise out of its objective (alone it stops a lamp's "
        "drift out along its ray; in the estimate not better so far: docs/method.md); 0 = the plain objective",
        Type::kBool, 0, 1, false, LP_GET(point_lights.debiased), LP_SET(point_lights.debiased, bool), "", 0, 0, {}},
+      {"seen-lamps", "seen_lamps",
+       "1 = the search for lamps also tries the places where the cameras saw clipped blobs (by the mesh's depth, or "
+       "triangulated across views where the bulb returned no depth); 0 = the grid around the scene alone",
+       Type::kBool, 0, 1, false, LP_GET(point_lights.seen), LP_SET(point_lights.seen, bool), "", 0, 0, {}},
       {"polish-spp", "polish_spp",
        "after the last round the lamps are refined again on fresh paths, this many per pixel on a share of the rows "
        "(the fit debiased); 0 = not; -1 = 64 on a scan (an albedo pass de-lit the colours seen) and where the paths' "

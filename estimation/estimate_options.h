@@ -101,6 +101,8 @@ struct PointLightOptions {
   int spp = 8;
   /// The same for the first round's candidates (many columns, so fewer paths).
   int candidate_spp = 1;
+  /// The search also tries the places where the cameras saw clipped blobs (SeenLamps).
+  bool seen = true;
   /// The lights' fit takes the columns' Monte Carlo noise out of its objective
   /// (LightFitProblem::debiased): without, a lamp drifts along its ray by about 1 / spp.
   bool debiased = false;

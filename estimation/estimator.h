@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "estimation/seen_lamps.h"
 #include "estimation/estimate_options.h"
 #include "estimation/light_render.h"
 #include "estimation/light_uncertainty.h"
@@ -183,6 +184,8 @@ struct EstimateResult {
   std::vector<Eigen::Vector3d> dominant;  ///< the strongest light directions (map and directional lights)
   /// Why each light was kept or dropped (model selection), one line each.
   std::vector<std::string> point_light_choices;
+  /// The places where the cameras saw clipped blobs, tried by the search (seen_lamps.h).
+  std::vector<SeenLamp> seen_lamps;
   Eigen::Vector3d scene_centre = Eigen::Vector3d::Zero();  ///< the mesh's bounding box's centre
   double final_position_error_m = std::nan("");  ///< as ConvergenceRow::position_error_m
   /// The worst near true light's position error over its distance from the scene centre.

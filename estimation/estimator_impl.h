@@ -27,6 +27,7 @@
 #include "estimation/lights/light.h"
 #include "estimation/robust_loss.h"
 #include "estimation/sampling.h"
+#include "estimation/seen_lamps.h"
 #include "estimation/vertex_radiance.h"
 #include "estimation/estimator.h"
 #include "estimation/truth_scorer.h"
@@ -268,6 +269,8 @@ class Estimator {
   RoundProblem WithLights(const std::vector<PointLight>& lights);
   bool FitPointLights(const RoundProblem& rp, const std::vector<double>& full, RoundInfo* info);
   std::vector<PointLight> Candidates(RoundInfo* info);
+  const std::vector<SeenLamp>& SeenLampsOnce();
+  std::vector<Eigen::Vector3d> SearchPlaces(std::size_t* first_seen, std::size_t* first_grid);
   void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const char* step = "lights",
                        bool shadows = true);
   void SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info, bool graduated);
@@ -423,6 +426,7 @@ class Estimator {
   std::vector<View> views_;
   int stride_ = 0;
   int after_grid_ = 0;  ///< the first round on every pixel after round 1's grid (0: none)
+  std::optional<std::vector<SeenLamp>> seen_lamps_;  ///< SeenLampsOnce
   int rounds_past_grid_ = 0;  ///< the rounds on every pixel so far (PriorRound)
   bool warm_ = false;  ///< round 1 starts from a live estimate's map (EstimateOptions::warm)
   /// The share of the rendered light that is the map's (the rest the lights'), after the last round.

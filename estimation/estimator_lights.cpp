@@ -58,6 +58,36 @@ bool WeightedIntensity(const std::vector<float>& col, const std::vector<double>&
 
 }  // namespace
 
+/// The places where the cameras saw clipped blobs (seen_lamps.h), found and said once.
+const std::vector<SeenLamp>& Estimator::SeenLampsOnce() {
+  if (seen_lamps_) return *seen_lamps_;
+  seen_lamps_ = opt_.point_lights.seen ? SeenLamps(bundle_.views, *scene_) : std::vector<SeenLamp>();
+  res_.seen_lamps = *seen_lamps_;
+  for (const SeenLamp& l : *seen_lamps_) {
+    const std::string line = Fmt("search: a lamp's place where the camera saw a clipped blob: (%.3f, %.3f, %.3f), %s",
+                                 l.position.x(), l.position.y(), l.position.z(), l.how.c_str()) +
+                             (l.how == "depth" ? "" : Fmt(" from %d views (rays within %.3f m)", l.views, l.gap)) +
+                             Fmt(", %d pixels", l.pixels);
+    res_.point_light_choices.push_back(line);
+    Progress(line);
+  }
+  return *seen_lamps_;
+}
+
+/// The search's candidate places: a live estimate's lamps first (EstimateOptions::warm),
+/// then where the cameras saw clipped blobs (from `first_seen`), then the grid around the
+/// scene (from `first_grid`).
+std::vector<Eigen::Vector3d> Estimator::SearchPlaces(std::size_t* first_seen, std::size_t* first_grid) {
+  std::vector<Eigen::Vector3d> positions;
+  if (opt_.warm)
+    for (const PointLight& l : opt_.warm->lighting.Of<PointLight>()) positions.push_back(l.position);
+  *first_seen = positions.size();
+  for (const SeenLamp& l : SeenLampsOnce()) positions.push_back(l.position);
+  *first_grid = positions.size();
+  for (const Eigen::Vector3d& p : CandidatePositions(centre_, radius_, bundle_.up)) positions.push_back(p);
+  return positions;
+}
+
 /// Round 1's search for lamps, the map left dark so that a lamp gets its light before the
 /// map can spread it over many cells: greedily, the candidate position around the scene
 /// (columns from fewer paths) whose column best explains what the lights so far leave
@@ -73,11 +103,8 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
   topt.spp = opt_.point_lights.candidate_spp;
   topt.seed = opt_.tracer.seed * 1000003ull + 400;
   const ShadingVertices coarse = GatherShadingVertices(*scene_, views_, topt);
-  // A live estimate's lamps first (EstimateOptions::warm), then the grid around the scene.
-  std::vector<Eigen::Vector3d> positions;
-  if (opt_.warm)
-    for (const PointLight& l : opt_.warm->lighting.Of<PointLight>()) positions.push_back(l.position);
-  for (const Eigen::Vector3d& p : CandidatePositions(centre_, radius_, bundle_.up)) positions.push_back(p);
+  std::size_t first_seen = 0, first_grid = 0;
+  const std::vector<Eigen::Vector3d> positions = SearchPlaces(&first_seen, &first_grid);
   std::vector<std::vector<float>> columns(positions.size());
   for (std::size_t i = 0; i < positions.size(); ++i) {
     CheckCancel();
@@ -108,6 +135,12 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
       if (e < best_score) best_score = e, best = static_cast<int>(i), best_I = I;
     }
     if (best < 0) break;
+    const std::size_t from = static_cast<std::size_t>(best);
+    res_.point_light_choices.push_back(
+        Fmt("search: light %zu starts from ", lights.size() + 1) +
+        (from < first_seen   ? "the last estimate's lamp"
+         : from < first_grid ? Fmt("the place where the camera saw clipped blob %zu", from - first_seen + 1)
+                             : Fmt("the grid around the scene (candidate %zu)", from - first_grid + 1)));
     std::vector<PointLight> trial = lights;
     trial.push_back({positions[best], best_I, 0});
     RefinePositions(&trial, info, "search", false);

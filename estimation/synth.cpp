@@ -407,6 +407,40 @@ SynthScene MakeSynth(const std::string& name, const SynthOptions& o, const fs::p
   return scene_out;
 }
 
+namespace {
+
+/// Along a camera ray, where it enters the nearest of `lights` (infinity where it misses them).
+double NearestSphere(const std::vector<SphereLight>& lights, const Vector3d& origin, const Vector3d& dir, int* which) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < lights.size(); ++i) {
+    const Vector3d to = lights[i].position - origin;
+    const double b = dir.dot(to), c = to.squaredNorm() - lights[i].radius * lights[i].radius, disc = b * b - c;
+    if (disc < 0) continue;
+    const double t = b - std::sqrt(disc);
+    if (t > 0 && t < best) best = t, *which = static_cast<int>(i);
+  }
+  return best;
+}
+
+/// The lamps' spheres in `frame` where they are nearer than the surface: their radiance in
+/// colour (a pixel's centre decides) and no depth.
+void ShowLamps(const std::vector<SphereLight>& lights, const Camera& cam, SynthFrame* frame) {
+  const Vector3d axis = cam.world_from_camera.block<3, 1>(0, 2);
+  ParallelFor(0, frame->depth.size(), [&](std::size_t p) {
+    const int x = static_cast<int>(p % cam.width), y = static_cast<int>(p / cam.width);
+    const Vector3d dir = cam.RayDirection(x, y);
+    int which = -1;
+    const double t = NearestSphere(lights, cam.center(), dir, &which);
+    const double surface = frame->depth[p] > 0 ? frame->depth[p] / dir.dot(axis) : std::numeric_limits<double>::infinity();
+    if (which < 0 || t >= surface) return;
+    const Vector3d radiance = lights[which].Radiance();
+    for (int c = 0; c < 3; ++c) frame->color.at(x, y)[c] = static_cast<float>(radiance[c]);
+    frame->depth[p] = 0;
+  });
+}
+
+}  // namespace
+
 std::vector<SynthFrame> RenderSynthFrames(const std::string& name, const SynthOptions& o, const fs::path& data_dir,
                                           int frames, std::string* truth_json) {
   if (frames < 1 || frames > 10000) throw InputError("synthetic frames: the frame count must be between 1 and 10000");
@@ -454,6 +488,7 @@ std::vector<SynthFrame> RenderSynthFrames(const std::string& name, const SynthOp
       const double u1 = std::max(rng.Uniform(), 1e-12), u2 = rng.Uniform();
       depth[p] = static_cast<float>(z + sigma * std::sqrt(-2 * std::log(u1)) * std::cos(2 * kPi * u2));
     });
+    if (o.lamps_seen) ShowLamps(scene.lighting.lights, cam, &out[k]);
     if (o.depth_noise) {  // structured light loses depth along jumps (shadowed / mixed pixels)
       const std::vector<float> d0 = depth;
       for (int y = 1; y + 1 < cam.height; ++y)

@@ -36,6 +36,9 @@ struct SynthOptions {
   /// holes where the surface is seen at grazing angles (|cos| < 0.2), on half the pixels at
   /// depth discontinuities and on 0.5 % of pixels at random.
   bool depth_noise = false;
+  /// RenderSynthFrames only: the sphere lights seen by the colour camera at their radiance,
+  /// with no depth where they are (a bare bulb returns none to a structured-light sensor).
+  bool lamps_seen = false;
 };
 
 /// The true lighting of a synthetic scene, for evaluation (never read by the estimator).

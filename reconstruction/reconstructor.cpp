@@ -41,28 +41,32 @@ bool GoodIntrinsics(const Camera& k) {
 /// Averages a view down by `f` x `f` blocks (linear radiance: the mean is what a camera
 /// with bigger pixels would see). A block is valid only if all its pixels are valid and
 /// none is saturated (a mean over clipped pixels is biased low); a block whose pixels are
-/// all inside the mask and one of them saturated is `clipped` (its mean a lower bound).
+/// all inside the mask and one of them saturated is `clipped` (its mean a lower bound); one
+/// holding a pixel `clipped_off` the mesh is that.
 void Downsample(View* v, int f) {
   if (f <= 1) return;
   Camera& c = v->camera;
   const int w = c.width / f, h = c.height / f;
   ImageRGB image(w, h);
-  std::vector<std::uint8_t> valid(static_cast<std::size_t>(w) * h, 0), clipped(valid.size(), 0);
+  std::vector<std::uint8_t> valid(static_cast<std::size_t>(w) * h, 0), clipped(valid.size(), 0),
+      clipped_off(valid.size(), 0);
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) {
       float sum[3] = {0, 0, 0};
-      bool inside = true, saturated = false;
+      bool inside = true, saturated = false, off = false;
       for (int dy = 0; dy < f; ++dy)
         for (int dx = 0; dx < f; ++dx) {
           const int sx = x * f + dx, sy = y * f + dy;
           const float* p = v->image.at(sx, sy);
           inside = inside && v->valid[static_cast<std::size_t>(sy) * c.width + sx];
+          off = off || v->clipped_off[static_cast<std::size_t>(sy) * c.width + sx];
           saturated = saturated || std::max({p[0], p[1], p[2]}) >= v->saturation;
           for (int ch = 0; ch < 3; ++ch) sum[ch] += p[ch];
         }
       for (int ch = 0; ch < 3; ++ch) image.at(x, y)[ch] = sum[ch] / (f * f);
       valid[static_cast<std::size_t>(y) * w + x] = inside && !saturated;
       clipped[static_cast<std::size_t>(y) * w + x] = inside && saturated;
+      clipped_off[static_cast<std::size_t>(y) * w + x] = off;
     }
   // Pixel centres at integers: block x covers source pixels [f x, f x + f - 1].
   c.cx = (c.cx + 0.5) / f - 0.5;
@@ -74,6 +78,18 @@ void Downsample(View* v, int f) {
   v->image = std::move(image);
   v->valid = std::move(valid);
   v->clipped = std::move(clipped);
+  v->clipped_off = std::move(clipped_off);
+}
+
+/// The pixels the camera clipped off the mesh (outside the mask: no depth, or depth that
+/// disagrees with the model there; View::clipped_off).
+std::vector<std::uint8_t> ClippedOffMesh(const View& v) {
+  std::vector<std::uint8_t> off(v.valid.size(), 0);
+  for (std::size_t p = 0; p < off.size(); ++p) {
+    const float* c = &v.image.data[3 * p];
+    off[p] = !v.valid[p] && std::max({c[0], c[1], c[2]}) >= v.saturation;
+  }
+  return off;
 }
 
 }  // namespace
@@ -590,6 +606,7 @@ SceneBundle FinishBundle(bool started, const ReconstructionOptions& o, const Tsd
         }
         v.valid[p] = 1;
       }
+    v.clipped_off = ClippedOffMesh(v);
     if (o.view_width > 0) Downsample(&v, std::max(1, static_cast<int>(std::lround(static_cast<double>(w) / o.view_width))));
     char name[32];
     std::snprintf(name, sizeof name, "view%zu.exr", b.views.size());

@@ -73,6 +73,10 @@ SceneBundle ParseSceneJson(const std::string& text, const std::string& name) {
       if (!v["clipped"].is_string()) throw InputError(name, where + " \"clipped\" must be a string");
       view.clipped_file = v["clipped"].get<std::string>();
     }
+    if (v.contains("clipped_off")) {
+      if (!v["clipped_off"].is_string()) throw InputError(name, where + " \"clipped_off\" must be a string");
+      view.clipped_off_file = v["clipped_off"].get<std::string>();
+    }
     Camera& c = view.camera;
     const double w = Number(v, "width", name, where), h = Number(v, "height", name, where);
     if (w < 1 || h < 1 || w > 16384 || h > 16384 || w != std::floor(w) || h != std::floor(h))
@@ -125,6 +129,24 @@ void MarkUnusablePixels(View* view) {
   }
 }
 
+namespace {
+
+/// Reads a view's mask of clipped pixels named `file` (none when empty) into `flags`: 1
+/// where it is non-zero, and those pixels are not valid.
+void ReadClippedMask(const fs::path& dir, const std::string& file, const std::string& what, View* v,
+                     std::vector<std::uint8_t>* flags) {
+  if (file.empty()) return;
+  const fs::path cp = dir / file;
+  Mask m = ReadMask(cp);
+  if (m.width != v->image.width || m.height != v->image.height)
+    throw InputError(cp.string(), what + " mask size does not match the image");
+  flags->assign(m.data.size(), 0);
+  for (std::size_t i = 0; i < m.data.size(); ++i)
+    if (m.data[i]) (*flags)[i] = 1, v->valid[i] = 0;
+}
+
+}  // namespace
+
 SceneBundle LoadSceneBundle(const fs::path& dir) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw InputError(dir.string(), "scene directory not found");
@@ -153,15 +175,8 @@ SceneBundle LoadSceneBundle(const fs::path& dir) {
       for (std::size_t i = 0; i < m.data.size(); ++i)
         if (!m.data[i]) { v.valid[i] = 0; ++v.masked_out; }
     }
-    if (!v.clipped_file.empty()) {
-      const fs::path cp = dir / v.clipped_file;
-      Mask m = ReadMask(cp);
-      if (m.width != v.image.width || m.height != v.image.height)
-        throw InputError(cp.string(), "clipped mask size does not match the image");
-      v.clipped.assign(m.data.size(), 0);
-      for (std::size_t i = 0; i < m.data.size(); ++i)
-        if (m.data[i]) v.clipped[i] = 1, v.valid[i] = 0;
-    }
+    ReadClippedMask(dir, v.clipped_file, "clipped", &v, &v.clipped);
+    ReadClippedMask(dir, v.clipped_off_file, "clipped_off", &v, &v.clipped_off);
     MarkUnusablePixels(&v);
   }
   const fs::path truth = dir / "truth.json";
@@ -195,12 +210,14 @@ void WriteSceneBundle(const fs::path& dir, const SceneBundle& bundle) {
         for (std::size_t i = 0; i < v.valid.size(); ++i) m.data[i] = v.valid[i] ? 255 : 0;
         WriteMask(tmp / jv["mask"].get<std::string>(), m);
       }
-      if (std::find(v.clipped.begin(), v.clipped.end(), 1) != v.clipped.end()) {
-        jv["clipped"] = "clipped" + std::to_string(k) + ".png";
+      for (const auto& [key, flags] : {std::pair<std::string, const std::vector<std::uint8_t>*>{"clipped", &v.clipped},
+                                       {"clipped_off", &v.clipped_off}}) {
+        if (std::find(flags->begin(), flags->end(), 1) == flags->end()) continue;
+        jv[key] = key + std::to_string(k) + ".png";
         Mask m{c.width, c.height, {}};
-        m.data.resize(v.clipped.size());
-        for (std::size_t i = 0; i < v.clipped.size(); ++i) m.data[i] = v.clipped[i] ? 255 : 0;
-        WriteMask(tmp / jv["clipped"].get<std::string>(), m);
+        m.data.resize(flags->size());
+        for (std::size_t i = 0; i < flags->size(); ++i) m.data[i] = (*flags)[i] ? 255 : 0;
+        WriteMask(tmp / jv[key].get<std::string>(), m);
       }
       if (std::isfinite(v.saturation)) jv["saturation"] = v.saturation;
       jv["width"] = c.width;

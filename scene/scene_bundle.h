@@ -28,7 +28,12 @@ struct View {
   /// channel at `saturation`, or a keyframe's block holding such a pixel): its value is then a
   /// lower bound (a block's mean over its clipped pixels), and it is not `valid`.
   std::vector<std::uint8_t> clipped;
-  std::string image_file, mask_file, clipped_file;  ///< as named in scene.json (relative)
+  /// Per pixel, or empty (none known): 1 where the camera clipped a pixel off the mesh (no
+  /// depth, or depth in front of the surface the mesh puts there: a bulb, which often returns
+  /// no depth, or a lamp before a wall). Never `valid`; the estimator proposes lamps where
+  /// such blobs are (estimation/seen_lamps.h).
+  std::vector<std::uint8_t> clipped_off;
+  std::string image_file, mask_file, clipped_file, clipped_off_file;  ///< as named in scene.json (relative)
   /// Pixels with any channel at or above this are clipped by the camera and not used
   /// (scene.json "saturation"; an 8-bit or 16-bit PNG defaults to its top code, 1.0).
   double saturation = std::numeric_limits<double>::infinity();

@@ -371,6 +371,35 @@ TEST(Bundle, ClippedPixelsRoundTripAsLowerBoundsNotUsed) {
   EXPECT_TRUE(LoadSceneBundle(d).views[0].clipped.empty());
 }
 
+TEST(Bundle, PixelsClippedOffTheMeshRoundTripApartFromTheClipped) {
+  // A pixel clipped where the mesh is not (a bulb with no depth) is written in
+  // clipped_off<k>.png and read back as that, not valid and not `clipped` (which the
+  // estimator takes as a glowing surface of the mesh).
+  const fs::path d = TempDir("clipped_off") / "scene";
+  SceneBundle b = SmallBundle();
+  b.views[0].clipped_off.assign(b.views[0].valid.size(), 0);
+  b.views[0].clipped_off[4] = 1;
+  b.views[0].valid[4] = 0;
+  WriteSceneBundle(d, b);
+  EXPECT_TRUE(fs::exists(d / "clipped_off0.png"));
+  EXPECT_FALSE(fs::exists(d / "clipped0.png"));
+  const View v = LoadSceneBundle(d).views[0];
+  ASSERT_EQ(v.clipped_off.size(), v.valid.size());
+  int off = 0;
+  for (std::uint8_t c : v.clipped_off) off += c;
+  EXPECT_EQ(off, 1);
+  EXPECT_EQ(v.clipped_off[4], 1);
+  EXPECT_EQ(v.valid[4], 0);
+  EXPECT_TRUE(v.clipped.empty());
+  // A mask of another size is one clear error naming the file.
+  WriteSceneBundle(d, SmallBundle());
+  std::string json = ReadTextFile(d / "scene.json");
+  json.insert(json.find("\"image\""), "\"clipped_off\": \"../other.png\", ");
+  WriteTextAtomically(d / "scene.json", json);
+  WriteMask(d.parent_path() / "other.png", Mask{3, 2, std::vector<std::uint8_t>(6, 255)});
+  EXPECT_NE(test::ErrorOf([&] { LoadSceneBundle(d); }).find("clipped_off mask size does not match"), std::string::npos);
+}
+
 TEST(Ply, EmittersLabelAndRadianceRoundTrip) {
   Mesh m = UvSphere({0, 0, 0}, 1, {0.4f, 0.5f, 0.6f}, 6, 8);
   for (std::size_t v = 0; v < m.positions.size(); ++v) {
