@@ -382,6 +382,7 @@ class Estimator {
   std::vector<EmitterLight> GlowingSegments();
   struct Glow;
   Glow GlowingTriangles();
+  std::vector<double> Bounded(const RoundProblem& rp, std::vector<double> lambda) const;
   /// Raises each emitter's radiance to what its clipped pixels show at least (emitter_floor_).
   void BoundEmitters();
   /// The emitters of `lights` on the bundle's own mesh (its triangles on the traced mesh's

@@ -189,7 +189,7 @@ void UnitColumn(const RayTracer& scene, const ShadingVertices& v, const EmitterL
               PointOn(s, (i + turn) / kEmitterShadowRays, HashUnit(static_cast<std::uint64_t>(k) << 3 ^ i), &t);
           e_sum += Transfer(scene, s, p, n, g, q, t);
         }
-        row.Add(v.Half(k), v.weight[k].cast<double>() * (e_sum * s.area / kEmitterShadowRays));
+        row.Add(v.Half(k), v.weight[k].cast<double>() * std::min(e_sum * s.area / kEmitterShadowRays, kPi));
       }
       row.Store(r, out);
     }
@@ -203,7 +203,7 @@ Eigen::Vector3d Irradiance(const RayTracer& scene, const EmitterLight& light, co
   int t = 0;
   const Eigen::Vector3d q = PointOn(*light.shape, HashUnit(key * 0x9E3779B9ull + 5), HashUnit(key ^ 0x5DEECE66Dull), &t);
   ++*rays;
-  return light.radiance * (Transfer(scene, *light.shape, origin, n, g, q, t) * light.shape->area);
+  return light.radiance * std::min(Transfer(scene, *light.shape, origin, n, g, q, t) * light.shape->area, kPi);
 }
 
 }  // namespace lp

@@ -81,14 +81,18 @@ struct EmitterLight {
 
 /// The column of the emitter at unit radiance: out[3*row + c], the light its triangles send
 /// to each row's shading vertices (kEmitterShadowRays each, shadowed, one-sided) plus the
-/// camera's direct view of it (ShadingVertices::camera of the vertices on it). It has no
-/// shape: its derivatives are all zeros. ColumnOut: with the halves' difference when asked.
+/// camera's direct view of it (ShadingVertices::camera of the vertices on it). A vertex's
+/// estimate is at most pi (the irradiance a unit-radiance emitter can give: all of the
+/// hemisphere): a vertex beside it draws points a centimetre away at a few of its 4 rays,
+/// and cos cos / d^2 made fireflies that changed the 3DJ recording's fit by 84 % a round
+/// (docs/benchmarks.md, session 44). It has no shape: its derivatives are all zeros.
+/// ColumnOut: with the halves' difference when asked.
 void UnitColumn(const RayTracer& scene, const ShadingVertices& vertices, const EmitterLight& light,
                 const ColumnOut& out);
 
 /// The irradiance (image units) the emitter sends to a surface point `origin` of shading
 /// normal `n` and geometric normal `g`: one shadow ray to a point of its triangles drawn by
-/// area from `key`, counted in `rays`.
+/// area from `key`, counted in `rays`; at most pi x its radiance (as UnitColumn's).
 Eigen::Vector3d Irradiance(const RayTracer& scene, const EmitterLight& light, const Eigen::Vector3d& origin,
                            const Eigen::Vector3d& n, const Eigen::Vector3d& g, std::uint64_t key,
                            std::int64_t* rays);
