@@ -65,17 +65,13 @@ SceneBundle ParseSceneJson(const std::string& text, const std::string& name) {
         throw InputError(name, where + " \"saturation\" must be a positive number");
       view.saturation = v["saturation"].get<double>();
     }
-    if (v.contains("mask")) {
-      if (!v["mask"].is_string()) throw InputError(name, where + " \"mask\" must be a string");
-      view.mask_file = v["mask"].get<std::string>();
-    }
-    if (v.contains("clipped")) {
-      if (!v["clipped"].is_string()) throw InputError(name, where + " \"clipped\" must be a string");
-      view.clipped_file = v["clipped"].get<std::string>();
-    }
-    if (v.contains("clipped_off")) {
-      if (!v["clipped_off"].is_string()) throw InputError(name, where + " \"clipped_off\" must be a string");
-      view.clipped_off_file = v["clipped_off"].get<std::string>();
+    // The optional files beside the image: "" where not named.
+    for (const auto& [key, file] : {std::pair<const char*, std::string*>{"mask", &view.mask_file},
+                                    {"clipped", &view.clipped_file},
+                                    {"clipped_off", &view.clipped_off_file}}) {
+      if (!v.contains(key)) continue;
+      if (!v[key].is_string()) throw InputError(name, where + " \"" + key + "\" must be a string");
+      *file = v[key].get<std::string>();
     }
     Camera& c = view.camera;
     const double w = Number(v, "width", name, where), h = Number(v, "height", name, where);
