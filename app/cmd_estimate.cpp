@@ -148,7 +148,11 @@ static json ModelJson(const EstimateOptions& o, const EstimateResult& r) {
                     {"how", l.how},
                     {"views", l.views},
                     {"pixels", l.pixels},
-                    {"gap", l.gap}});
+                    {"gap", l.gap},
+                    {"held", std::any_of(r.lighting.lights.begin(), r.lighting.lights.end(), [&](const Light& k) {
+                       const PointLight* p = std::get_if<PointLight>(&k);
+                       return p && p->held && (p->position - l.position).norm() < 1e-9;
+                     })}});
   return {{"chosen", chosen},
           {"max_point_lights", o.point_lights.max_lights},
           {"choices", r.point_light_choices},

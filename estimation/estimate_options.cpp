@@ -51,6 +51,10 @@ std::vector<EstimateOption> LightOptions() {
        "1 = the search for lamps also tries the places where the cameras saw clipped blobs (by the mesh's depth, or "
        "triangulated across views where the bulb returned no depth); 0 = the grid around the scene alone",
        Type::kBool, 0, 1, false, LP_GET(point_lights.seen), LP_SET(point_lights.seen, bool), "", 0, 0, {}},
+      {"hold-seen", "hold_seen",
+       "1 = a lamp whose search started from a triangulated seen place and stayed near it is held there (its place "
+       "measured; its intensity and radius fitted); 0 = refined from there like any lamp",
+       Type::kBool, 0, 1, false, LP_GET(point_lights.hold_seen), LP_SET(point_lights.hold_seen, bool), "", 0, 0, {}},
       {"polish-spp", "polish_spp",
        "after the last round the lamps are refined again on fresh paths, this many per pixel on a share of the rows "
        "(the fit debiased); 0 = not; -1 = 64 on a scan (an albedo pass de-lit the colours seen) and where the paths' "

@@ -630,6 +630,7 @@ int Estimator::PolishSpp(std::optional<std::vector<LightUncertainty>>* rounds) {
 /// ray (docs/method.md, "The lamps polished"). False where it does not run.
 bool Estimator::PolishLamps(int spp) {
   if (spp <= 0 || points_.empty() || vertices_.rows() != A_.rows()) return false;
+  if (std::all_of(points_.begin(), points_.end(), [](const PointLight& l) { return l.held; })) return false;
   CheckCancel();
   Stopwatch watch;
   // The rows, observations, rest of the image and albedo segments of LightFitSubset's share;
@@ -715,6 +716,11 @@ std::vector<LightUncertainty> Estimator::Uncertainty() {
       out[k].paths_ratio = LargestVarianceRatio(noise[k], out[k].shape_covariance);
     out[k].shape_covariance += noise[k];
   }
+  // A lamp held where the cameras saw it: its place is as sure as the triangulation.
+  for (std::size_t k = 0; k < out.size(); ++k)
+    if (const PointLight* l = std::get_if<PointLight>(&lights[k]); l && l->held)
+      for (const SeenLamp& s : SeenLampsOnce())
+        if ((s.position - l->position).norm() < 1e-9) out[k].shape_covariance = s.covariance;
   Progress(Fmt("the lights' uncertainty in %.2f s", us.Seconds()));
   return out;
 }

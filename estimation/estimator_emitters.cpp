@@ -255,11 +255,13 @@ const EmitterLight* Estimator::ShadeOf(const PointLight& lamp) const {
 
 bool Estimator::LampInside(const EmitterLight& candidate, const std::vector<EmitterLight>& with, double* objective,
                            double* held) {
-  if (points_.empty()) return false;
   const Eigen::Vector3d inside = Inside(candidate);
-  std::size_t nearest = 0;
-  for (std::size_t k = 1; k < points_.size(); ++k)
-    if ((points_[k].position - inside).norm() < (points_[nearest].position - inside).norm()) nearest = k;
+  std::size_t nearest = points_.size();  // (a lamp held where the cameras saw it stays)
+  for (std::size_t k = 0; k < points_.size(); ++k)
+    if (!points_[k].held && (nearest == points_.size() || (points_[k].position - inside).norm() <
+                                                              (points_[nearest].position - inside).norm()))
+      nearest = k;
+  if (nearest == points_.size()) return false;
   const std::vector<PointLight> before = points_;
   points_[nearest].position = inside;
   const double objective_moved = ObjectiveWith(with), held_moved = HoldoutLoss(points_);

@@ -88,6 +88,25 @@ std::vector<Eigen::Vector3d> Estimator::SearchPlaces(std::size_t* first_seen, st
   return positions;
 }
 
+void Estimator::HoldAtSeen(std::vector<PointLight>* trial, const SeenLamp& seen, RoundInfo* info) {
+  if (!opt_.point_lights.hold_seen || seen.how != "triangulated") return;
+  PointLight& light = trial->back();
+  const double off = (light.position - seen.position).norm();
+  const double reach = std::max(kSeenHoldReachMin, kSeenHoldReach * (seen.position - centre_).norm());
+  const bool hold = off <= reach;
+  const std::string line =
+      Fmt("search: the light started from the seen place (%.3f, %.3f, %.3f) was refined %.3g m from it (%.3g m at "
+          "most): ",
+          seen.position.x(), seen.position.y(), seen.position.z(), off, reach) +
+      (hold ? "held there" : "not held");
+  res_.point_light_choices.push_back(line);
+  Progress(line);
+  if (!hold) return;
+  light.position = seen.position;
+  light.held = true;
+  RefinePositions(trial, info, "search", false);  // the intensities at the held place (the others' places too)
+}
+
 /// Round 1's search for lamps, the map left dark so that a lamp gets its light before the
 /// map can spread it over many cells: greedily, the candidate position around the scene
 /// (columns from fewer paths) whose column best explains what the lights so far leave
@@ -144,6 +163,7 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
     std::vector<PointLight> trial = lights;
     trial.push_back({positions[best], best_I, 0});
     RefinePositions(&trial, info, "search", false);
+    if (from >= first_seen && from < first_grid) HoldAtSeen(&trial, SeenLampsOnce()[from - first_seen], info);
     // What the lights leave, and whether the new one earned its place.
     std::vector<double> r = y_;
     std::vector<float> col;

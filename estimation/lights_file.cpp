@@ -21,7 +21,9 @@ namespace {
 json Vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
 
 json ToJson(const PointLight& l) {
-  return {{"position", Vec(l.position)}, {"intensity", Vec(l.intensity)}, {"radius", l.radius}};
+  json j = {{"position", Vec(l.position)}, {"intensity", Vec(l.intensity)}, {"radius", l.radius}};
+  if (l.held) j["held"] = true;  // (its place where the cameras saw it, not fitted)
+  return j;
 }
 json ToJson(const DirectionalLight& l) {
   return {{"direction", Vec(l.direction)}, {"irradiance", Vec(l.irradiance)}, {"angular_radius", l.angular_radius}};
@@ -108,6 +110,10 @@ void Read(const json& l, const FieldReader& r, PointLight* p) {
   p->intensity = r.Vec3(l, "point light", "intensity");
   if (p->intensity.minCoeff() < 0) throw InputError(r.name, "a point light's intensity is negative");
   if (l.contains("radius")) p->radius = r.Number(l, "point light", "radius", HUGE_VAL);
+  if (l.contains("held")) {
+    if (!l["held"].is_boolean()) throw InputError(r.name, "a point light's \"held\" must be true or false");
+    p->held = l["held"].get<bool>();
+  }
 }
 
 void Read(const json& l, const FieldReader& r, DirectionalLight* d) {

@@ -51,11 +51,24 @@ void ViewBlobs(const View& view, int index, std::vector<ClippedBlob>* out) {
 
 struct Ray {
   Eigen::Vector3d origin, dir;
+  double pixel = 0;  ///< a pixel's angle (radians) there: 1 / the focal length
 };
 
 Ray BlobRay(const std::vector<View>& views, const ClippedBlob& b) {
   const Camera& c = views[b.view].camera;
-  return {c.center(), c.RayDirection(b.u, b.v)};
+  return {c.center(), c.RayDirection(b.u, b.v), 1 / std::max(c.fx, 1e-9)};
+}
+
+/// The covariance of the least-squares meeting point of rays a and b, reached `s` and `t`
+/// along them, each ray's direction kSeenPixelSigma pixels off: the inverse of the sum of
+/// their information, (I - d d^T) / sigma^2 with sigma the pixel's width there.
+Eigen::Matrix3d MeetingCovariance(const Ray& a, double s, const Ray& b, double t) {
+  Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+  for (const auto& [ray, along] : {std::pair<const Ray&, double>{a, s}, {b, t}}) {
+    const double sigma = std::max(kSeenPixelSigma * ray.pixel * along, 1e-6);
+    information += (Eigen::Matrix3d::Identity() - ray.dir * ray.dir.transpose()) / (sigma * sigma);
+  }
+  return information.inverse();
 }
 
 /// Where two blobs' rays (from different views) meet: false when they are too near
@@ -80,6 +93,7 @@ bool Triangulate(const Ray& a, const Ray& b, const RayTracer& scene, const SeenL
   out->position = mid;
   out->how = "triangulated";
   out->gap = 0.5 * gap;
+  out->covariance = MeetingCovariance(a, s, b, t) + out->gap * out->gap * Eigen::Matrix3d::Identity();
   return true;
 }
 
@@ -100,6 +114,7 @@ std::vector<SeenLamp> Merged(std::vector<SeenLamp> lamps, const SeenLampOptions&
     near->pixels += l.pixels;
     near->views = std::max(near->views, l.views);
     near->gap = std::max(near->gap, l.gap);
+    if (l.covariance.trace() > near->covariance.trace()) near->covariance = l.covariance;  // (the less sure)
   }
   std::stable_sort(out.begin(), out.end(), [](const SeenLamp& x, const SeenLamp& y) { return x.pixels > y.pixels; });
   if (static_cast<int>(out.size()) > o.max_lamps) out.resize(o.max_lamps);

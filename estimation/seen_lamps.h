@@ -21,7 +21,14 @@ struct SeenLamp {
   int views = 0;     ///< the views whose blobs placed it
   int pixels = 0;    ///< its blobs' pixels, over those views
   double gap = 0;    ///< triangulated: the largest distance between its rays and the place (m)
+  /// Triangulated: the place's covariance (m^2), the rays' least-squares meeting point's
+  /// with each blob's mean pixel kSeenPixelSigma off, plus the gap's square on every axis.
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
 };
+
+/// A blob's mean pixel's standard error (pixels), in each direction: its edge pixels are
+/// partly covered, and the bulb's glare is not quite round.
+constexpr double kSeenPixelSigma = 0.5;
 
 struct SeenLampOptions {
   int min_pixels = 1;               ///< a blob's pixels at least

@@ -127,7 +127,9 @@ std::vector<Eigen::Vector3d> CandidatePositions(const Eigen::Vector3d& centre, d
 bool FoldInto(PointLight* into, const PointLight& other, double distance) {
   if (!((into->position - other.position).norm() < 0.1 * distance)) return false;
   const double wk = into->intensity.sum(), wl = other.intensity.sum();
-  into->position = (wk * into->position + wl * other.position) / (wk + wl);
+  if (other.held) into->position = other.position;
+  else if (!into->held) into->position = (wk * into->position + wl * other.position) / (wk + wl);
+  into->held = into->held || other.held;
   into->intensity += other.intensity;
   return true;
 }

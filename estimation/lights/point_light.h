@@ -22,6 +22,10 @@ struct PointLight {
   /// receives intensity / d^2 (W/sr when the images are radiance).
   Eigen::Vector3d intensity = Eigen::Vector3d::Zero();
   double radius = 0;  ///< metres; 0: a point. A sphere's radius only softens its shadows
+  /// Its place measured where the cameras saw it (a bulb's clipped blobs triangulated;
+  /// docs/method.md, "A lamp where the camera saw it"), not fitted: its shape has no
+  /// coordinates (no step or search moves it); its intensity and radius are fitted.
+  bool held = false;
 };
 
 /// The share of a spherical light of `radius` centred at q that `p` sees (l, d: the unit
@@ -69,16 +73,17 @@ inline const Eigen::Vector3d& Scale(const PointLight& l) { return l.intensity; }
 /// Its shape is its position: 3 coordinates, along the axes (ShapeBasis: the directions, as
 /// columns, a step of each coordinate moves the position; a column's derivative along them
 /// is its Jacobian's entries). Moved takes a step of them.
-inline int ShapeDims(const PointLight&) { return 3; }
+/// A held lamp's shape has none: no step moves it.
+inline int ShapeDims(const PointLight& l) { return l.held ? 0 : 3; }
 inline Eigen::Matrix3d ShapeBasis(const PointLight&) { return Eigen::Matrix3d::Identity(); }
 inline PointLight Moved(PointLight l, const double* step) {
-  l.position += Eigen::Vector3d(step[0], step[1], step[2]);
+  if (!l.held) l.position += Eigen::Vector3d(step[0], step[1], step[2]);
   return l;
 }
 
 /// A compass search's moves: along each axis both ways (6), by `step` times its distance
 /// from `centre` (CompassUnit) in metres.
-inline int CompassMoves(const PointLight&) { return 6; }
+inline int CompassMoves(const PointLight& l) { return l.held ? 0 : 6; }
 inline double CompassUnit(const PointLight& l, const Eigen::Vector3d& centre) {
   return std::max((l.position - centre).norm(), 1e-6);
 }
@@ -88,7 +93,7 @@ inline double ShapeDistance(const PointLight& now, const PointLight& was, const 
   return (now.position - was.position).norm() / CompassUnit(was, centre);
 }
 inline PointLight CompassMove(PointLight l, int move, double step) {
-  l.position[move / 2] += move % 2 ? -step : step;
+  if (!l.held) l.position[move / 2] += move % 2 ? -step : step;
   return l;
 }
 
@@ -101,8 +106,8 @@ std::vector<Eigen::Vector3d> CandidatePositions(const Eigen::Vector3d& centre, d
                                                 const std::vector<double>& radii = {0.35, 0.6, 1.0, 1.6});
 
 /// Two lights closer than a tenth of `distance` (`other`'s from the scene's centre) are one:
-/// then `into` takes `other`'s intensity, at the intensity-weighted mean of their places,
-/// and FoldInto returns true.
+/// then `into` takes `other`'s intensity, at the intensity-weighted mean of their places
+/// (at the held one's place where either is held), and FoldInto returns true.
 bool FoldInto(PointLight* into, const PointLight& other, double distance);
 
 }  // namespace lp

@@ -177,6 +177,71 @@ TEST(LightFit, ALampAndASunAreRefinedTogether) {
   EXPECT_LT((s.irradiance - sun.irradiance).norm(), 0.03 * sun.irradiance.norm());
 }
 
+TEST(LightFit, AHeldLampKeepsItsPlaceAndGetsItsIntensity) {
+  // A lamp held where the cameras saw it (PointLight::held), 10 cm off the lamp that made
+  // the image, beside a free one started 25 cm off: Levenberg-Marquardt and the compass
+  // search move the free lamp back and never the held one, whose intensity they fit (its
+  // column's least-squares share of what the free lamp leaves). Unheld, the same start
+  // moves both (the test's control).
+  const RayTracer scene(PlaneAndBall());
+  const ShadingVertices v = Vertices(scene, 8);
+  const PointLight a{{0.5, 0.4, 1.2}, {3, 2.5, 2}, 0}, b{{-0.6, -0.2, 1.0}, {1, 1, 1.5}, 0};
+  std::vector<float> ca, cb;
+  UnitColumn(scene, v, Light{a}, &ca);
+  UnitColumn(scene, v, Light{b}, &cb);
+  std::vector<double> y(ca.size()), base(ca.size(), 0.0);
+  for (std::size_t i = 0; i < y.size(); ++i) y[i] = a.intensity[i % 3] * ca[i] + b.intensity[i % 3] * cb[i];
+  const LightFitProblem fit{&scene, &v, &y, &base, CauchyLoss{0.5}, 0};
+  const Eigen::Vector3d held_at = b.position + Eigen::Vector3d(0.1, 0, 0);
+  for (const bool held : {true, false}) {
+    PointLight second{held_at, {1, 1, 1}, 0};
+    second.held = held;
+    std::vector<Light> lights{PointLight{a.position + Eigen::Vector3d(0.15, -0.15, 0.15), {1, 1, 1}, 0}, second};
+    EXPECT_EQ(ShapeDims(lights[1]), held ? 0 : 3);
+    EXPECT_EQ(CompassMoves(lights[1]), held ? 0 : 6);
+    EXPECT_GT(RefineLights(fit, &lights, 60), 0);
+    CompassOptions compass;
+    SearchLights(fit, &lights, Eigen::Vector3d::Zero(), compass, nullptr);
+    const PointLight& free = std::get<PointLight>(lights[0]);
+    const PointLight& second_after = std::get<PointLight>(lights[1]);
+    EXPECT_EQ(second_after.held, held);
+    if (!held) {  // both move (the control)
+      EXPECT_GT((second_after.position - held_at).norm(), 0.02) << second_after.position.transpose();
+      continue;
+    }
+    EXPECT_EQ(second_after.position, held_at);
+    EXPECT_LT((free.position - a.position).norm(), 0.05) << free.position.transpose();
+    // Its intensity: the least-squares scale of its column against what the free lamp leaves.
+    std::vector<float> cf, ch;
+    UnitColumn(scene, v, Light{free}, &cf);
+    UnitColumn(scene, v, Light{second_after}, &ch);
+    for (int c = 0; c < 3; ++c) {
+      double num = 0, den = 0;
+      for (std::size_t i = c; i < y.size(); i += 3) {
+        num += ch[i] * (y[i] - free.intensity[c] * cf[i]);
+        den += double(ch[i]) * ch[i];
+      }
+      EXPECT_NEAR(second_after.intensity[c], num / den, 0.05 * num / den) << c;
+    }
+  }
+}
+
+TEST(LightKinds, AHeldLampFoldsOthersIntoItsPlace) {
+  PointLight held{{1, 0, 2}, {1, 1, 1}, 0}, near{{1.05, 0, 2}, {3, 3, 3}, 0};
+  held.held = true;
+  PointLight into = near;
+  ASSERT_TRUE(FoldInto(&into, held, 2));  // (the held one folded into the other: its place stays)
+  EXPECT_EQ(into.position, held.position);
+  EXPECT_TRUE(into.held);
+  EXPECT_EQ(into.intensity, Eigen::Vector3d(4, 4, 4));
+  into = held;
+  ASSERT_TRUE(FoldInto(&into, near, 2));
+  EXPECT_EQ(into.position, held.position);
+  PointLight free = near;  // (two free lights: their intensity-weighted mean)
+  ASSERT_TRUE(FoldInto(&free, PointLight{{1, 0, 2}, {1, 1, 1}, 0}, 2));
+  EXPECT_NEAR(free.position.x(), 1.0375, 1e-12);
+}
+
 TEST(LightFit, SegmentMultipliersAreEachSegmentsLeastSquaresRatio) {
   // Each segment's multiplier is the ratio that fits its rows (closed form: y = k model
   // exactly there, per channel); rows of no segment, and of a segment under

@@ -24,6 +24,13 @@ TEST(LightsFile, RoundTripsAndRefusesBadLights) {
   EXPECT_EQ(lamps[0].position, Eigen::Vector3d(1, 2, 3));
   EXPECT_EQ(lamps[0].intensity, Eigen::Vector3d(0.5, 0.25, 0));
   EXPECT_EQ(lamps[0].radius, 0.05);
+  EXPECT_FALSE(lamps[0].held);
+  EXPECT_EQ(LightsJson(in).find("held"), std::string::npos);  // (written only where held)
+  PointLight seen{{1, 2, 3}, {1, 1, 1}, 0};
+  seen.held = true;
+  EXPECT_TRUE(OfKind<PointLight>(ParseLightsJson(LightsJson({"", {seen}, {}}), "x").lights).at(0).held);
+  EXPECT_THROW(ParseLightsJson(R"({"point_lights": [{"position": [0, 0, 0], "intensity": [1, 1, 1], "held": 1}]})", "x"),
+               InputError);
   EXPECT_NE(LightsJson(in).find("\"directional_lights\": []"), std::string::npos);  // always present
   // Directional lights: the direction is normalized, the rest kept.
   LightsFile sun;

@@ -47,6 +47,34 @@ TEST(SeenLamps, ABulbWithNoDepthIsTriangulatedWhereItIs) {
   EXPECT_LT(seen[0].gap, 0.01);
 }
 
+TEST(SeenLamps, ATriangulatedPlacesCovarianceIsTheRaysClosedForm) {
+  // Two views 1 m apart, 2 m before a bulb at their images' centres: rays at +-phi about the
+  // bisector (y), each kSeenPixelSigma pixels off (sigma = that times the distance over the
+  // focal length). Their least-squares meeting point's variance is sigma^2 / (2 sin^2 phi)
+  // along the bisector, sigma^2 / (2 cos^2 phi) across it in their plane (x) and sigma^2 / 2
+  // out of it (z); the gap (none here) adds to every axis.
+  const RayTracer scene{test::Plane(4, 0.7)};
+  const Eigen::Vector3d bulb(0, 0, 0.8);
+  std::vector<View> views{BlankView(LookAt({0.5, -2, 0.8}, bulb, 161, 121, 60)),
+                          BlankView(LookAt({-0.5, -2, 0.8}, bulb, 161, 121, 60))};
+  for (View& v : views) {  // the bulb's blob: a 3 x 3 square about the centre pixel (80, 60)
+    v.clipped_off.assign(v.valid.size(), 0);
+    for (int y = 59; y <= 61; ++y)
+      for (int x = 79; x <= 81; ++x) v.clipped_off[static_cast<std::size_t>(y) * 161 + x] = 1;
+  }
+  const std::vector<SeenLamp> seen = SeenLamps(views, scene);
+  ASSERT_EQ(seen.size(), 1u);
+  ASSERT_LT((seen[0].position - bulb).norm(), 1e-6) << seen[0].position.transpose();
+  const double distance = std::sqrt(0.25 + 4), phi = std::atan2(0.5, 2);
+  const double sigma = kSeenPixelSigma * distance / views[0].camera.fx;
+  const Eigen::Matrix3d& c = seen[0].covariance;
+  EXPECT_NEAR(c(1, 1), sigma * sigma / (2 * std::sin(phi) * std::sin(phi)), 1e-3 * c(1, 1));
+  EXPECT_NEAR(c(0, 0), sigma * sigma / (2 * std::cos(phi) * std::cos(phi)), 1e-3 * c(0, 0));
+  EXPECT_NEAR(c(2, 2), sigma * sigma / 2, 1e-3 * c(2, 2));
+  EXPECT_NEAR(c(0, 1), 0, 1e-9);
+  EXPECT_NEAR(c(1, 2), 0, 1e-9);
+}
+
 TEST(SeenLamps, ABlobOnTheMeshIsPlacedJustBeforeItsSurface) {
   FloorAndTwoViews s;
   const Eigen::Vector3d spot(-0.4, 0.3, 0);  // a glowing patch of floor (clipped, depth seen)
