@@ -52,8 +52,8 @@ std::vector<EstimateOption> LightOptions() {
        "triangulated across views where the bulb returned no depth); 0 = the grid around the scene alone",
        Type::kBool, 0, 1, false, LP_GET(point_lights.seen), LP_SET(point_lights.seen, bool), "", 0, 0, {}},
       {"hold-seen", "hold_seen",
-       "1 = a lamp whose search started from a triangulated seen place and stayed near it is held there (its place "
-       "measured; its intensity and radius fitted); 0 = refined from there like any lamp",
+       "1 = the lamp round 1 kept nearest a triangulated seen place, if near it, is held there (its place measured; "
+       "its intensity and radius fitted); 0 = refined like any lamp",
        Type::kBool, 0, 1, false, LP_GET(point_lights.hold_seen), LP_SET(point_lights.hold_seen, bool), "", 0, 0, {}},
       {"polish-spp", "polish_spp",
        "after the last round the lamps are refined again on fresh paths, this many per pixel on a share of the rows "

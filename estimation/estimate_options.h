@@ -103,9 +103,9 @@ struct PointLightOptions {
   int candidate_spp = 1;
   /// The search also tries the places where the cameras saw clipped blobs (SeenLamps).
   bool seen = true;
-  /// A lamp the search started from a triangulated seen place and refined to within
-  /// kSeenHoldReach of it is held there (PointLight::held): the rounds, the albedo passes
-  /// and the polish do not move it.
+  /// The lamp round 1 kept nearest a triangulated seen place, within kSeenHoldReach of it,
+  /// is held there (PointLight::held): the rounds, the albedo passes and the polish do not
+  /// move it.
   bool hold_seen = true;
   /// The lights' fit takes the columns' Monte Carlo noise out of its objective
   /// (LightFitProblem::debiased): without, a lamp drifts along its ray by about 1 / spp.

@@ -68,10 +68,9 @@ constexpr double kDecisiveSunRatio = 0.5;
 /// The rows (every n-th) the lights' shadow-seeing refinements look at: a quarter of a
 /// 160 x 120 view's (what a column costs on all rows: docs/benchmarks.md).
 constexpr std::size_t kShadowRows = 4800;
-/// A lamp the search started from a triangulated seen place is held there
-/// (PointLightOptions::hold_seen) when its refinement (the colours seen as albedo, the map
-/// dark) left it within this share of its distance from the scene's centre, or
-/// kSeenHoldReachMin metres, of the place.
+/// A lamp round 1 kept within this share of a triangulated seen place's distance from the
+/// scene's centre, or kSeenHoldReachMin metres, of the place is held there
+/// (PointLightOptions::hold_seen).
 constexpr double kSeenHoldReach = 0.25;
 constexpr double kSeenHoldReachMin = 0.15;
 /// Levenberg-Marquardt steps of each part's refit for the columns' noise in the lamps'
@@ -277,10 +276,10 @@ class Estimator {
   std::vector<PointLight> Candidates(RoundInfo* info);
   const std::vector<SeenLamp>& SeenLampsOnce();
   std::vector<Eigen::Vector3d> SearchPlaces(std::size_t* first_seen, std::size_t* first_grid);
-  /// The search's newest light (trial->back()), started from seen place `seen`: held there
-  /// when it is triangulated and the refinement left the light near it (kSeenHoldReach), the
-  /// lights' intensities then refitted. Says why either way.
-  void HoldAtSeen(std::vector<PointLight>* trial, const SeenLamp& seen, RoundInfo* info);
+  /// After round 1's model selection: the kept lamp nearest each triangulated seen place,
+  /// when round 1 left it within kSeenHoldReach of it, is put there and held
+  /// (PointLight::held), the map and the intensities then solved again. Says why either way.
+  void HoldAtSeen(std::vector<PointLight>* lights, RoundInfo* info);
   void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const char* step = "lights",
                        bool shadows = true);
   void SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info, bool graduated);

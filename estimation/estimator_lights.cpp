@@ -88,23 +88,33 @@ std::vector<Eigen::Vector3d> Estimator::SearchPlaces(std::size_t* first_seen, st
   return positions;
 }
 
-void Estimator::HoldAtSeen(std::vector<PointLight>* trial, const SeenLamp& seen, RoundInfo* info) {
-  if (!opt_.point_lights.hold_seen || seen.how != "triangulated") return;
-  PointLight& light = trial->back();
-  const double off = (light.position - seen.position).norm();
-  const double reach = std::max(kSeenHoldReachMin, kSeenHoldReach * (seen.position - centre_).norm());
-  const bool hold = off <= reach;
-  const std::string line =
-      Fmt("search: the light started from the seen place (%.3f, %.3f, %.3f) was refined %.3g m from it (%.3g m at "
-          "most): ",
-          seen.position.x(), seen.position.y(), seen.position.z(), off, reach) +
-      (hold ? "held there" : "not held");
-  res_.point_light_choices.push_back(line);
-  Progress(line);
-  if (!hold) return;
-  light.position = seen.position;
-  light.held = true;
-  RefinePositions(trial, info, "search", false);  // the intensities at the held place (the others' places too)
+void Estimator::HoldAtSeen(std::vector<PointLight>* lights, RoundInfo* info) {
+  if (!opt_.point_lights.hold_seen) return;
+  bool held = false;
+  for (const SeenLamp& seen : SeenLampsOnce()) {
+    if (seen.how != "triangulated") continue;
+    PointLight* nearest = nullptr;
+    for (PointLight& l : *lights)
+      if (!l.held && (!nearest || (l.position - seen.position).norm() < (nearest->position - seen.position).norm()))
+        nearest = &l;
+    if (!nearest) continue;
+    const double off = (nearest->position - seen.position).norm();
+    const double reach = std::max(kSeenHoldReachMin, kSeenHoldReach * (seen.position - centre_).norm());
+    const bool hold = off <= reach;
+    const std::string line =
+        Fmt("point light at (%.3f, %.3f, %.3f): %.3g m from the place where the cameras saw a bulb, (%.3f, %.3f, "
+            "%.3f) (%.3g m at most): ",
+            nearest->position.x(), nearest->position.y(), nearest->position.z(), off, seen.position.x(),
+            seen.position.y(), seen.position.z(), reach) +
+        (hold ? "held there" : "not held");
+    res_.point_light_choices.push_back(line);
+    Progress(line);
+    if (!hold) continue;
+    nearest->position = seen.position;
+    nearest->held = true;
+    held = true;
+  }
+  if (held) SolveWithLights(lights, info, false);  // the map and the intensities with the lamps where they were seen
 }
 
 /// Round 1's search for lamps, the map left dark so that a lamp gets its light before the
@@ -163,7 +173,6 @@ std::vector<PointLight> Estimator::Candidates(RoundInfo* info) {
     std::vector<PointLight> trial = lights;
     trial.push_back({positions[best], best_I, 0});
     RefinePositions(&trial, info, "search", false);
-    if (from >= first_seen && from < first_grid) HoldAtSeen(&trial, SeenLampsOnce()[from - first_seen], info);
     // What the lights leave, and whether the new one earned its place.
     std::vector<double> r = y_;
     std::vector<float> col;
@@ -253,6 +262,7 @@ bool Estimator::FitPointLights(const RoundProblem& rp, const std::vector<double>
     SelectModel(&kept);
     if (kept.empty()) lambda_ = map;  // no lamp after all: round 1's map stands, as without the search
     else if (kept.size() < found) SolveWithLights(&kept, info, false);  // the map takes the dropped lights' light
+    HoldAtSeen(&kept, info);
   }
   bool moved = kept.size() != points_.size();
   for (std::size_t k = 0; k < kept.size() && !moved; ++k)
