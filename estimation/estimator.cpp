@@ -28,6 +28,54 @@ std::vector<double> CollectObservations(const std::vector<View>& views) {
 namespace lp::detail {
 namespace {
 
+bool Flagged(const std::vector<std::uint8_t>& flags, std::size_t p) { return p < flags.size() && flags[p]; }
+
+/// Whether a pixel within kBloomMargin of (x, y) in a w x h view is `flagged`.
+template <typename Flag>
+bool Beside(int x, int y, int w, int h, const Flag& flagged) {
+  for (int dy = -kBloomMargin; dy <= kBloomMargin; ++dy)
+    for (int dx = -kBloomMargin; dx <= kBloomMargin; ++dx) {
+      const int nx = x + dx, ny = y + dy;
+      if ((dx || dy) && nx >= 0 && ny >= 0 && nx < w && ny < h && flagged(static_cast<std::size_t>(ny) * w + nx))
+        return true;
+    }
+  return false;
+}
+
+/// The pixels clipped on the mesh (on the grid of `stride`) become rows, except beside a
+/// pixel clipped off it (a bulb's partly covered pixels on the wall behind it); the valid
+/// pixels beside any clipped pixel are left out (bloom). Returns {clipped rows, left out}.
+std::pair<int, int> ClippedAsRows(View* v, int stride) {
+  const int w = v->camera.width, h = v->camera.height;
+  if (v->clipped.empty() && v->clipped_off.empty()) return {0, 0};
+  const auto off = [&](std::size_t q) { return Flagged(v->clipped_off, q); };
+  const auto any = [&](std::size_t q) { return Flagged(v->clipped, q) || Flagged(v->clipped_off, q); };
+  std::vector<std::uint8_t> valid = v->valid;
+  int rows = 0, left = 0;
+  for (std::size_t p = 0; p < valid.size(); ++p) {
+    const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
+    if (Flagged(v->clipped, p)) {
+      valid[p] = OnGrid(p, w, stride) && !Flagged(v->clipped_off, p) && !Beside(x, y, w, h, off);
+      rows += valid[p];
+    } else if (valid[p] && Beside(x, y, w, h, any)) {
+      valid[p] = 0;
+      ++left;
+    }
+  }
+  v->valid = std::move(valid);
+  return {rows, left};
+}
+
+/// Per entry of the observations of `views` (CollectObservations' order): 1 where its pixel
+/// is clipped (its value a lower bound).
+std::vector<std::uint8_t> ClippedEntries(const std::vector<View>& views) {
+  std::vector<std::uint8_t> out;
+  for (const View& v : views)
+    for (std::size_t p = 0; p < v.valid.size(); ++p)
+      if (v.valid[p]) out.insert(out.end(), 3, Flagged(v.clipped, p) ? 1 : 0);
+  return out;
+}
+
 /// The rounds' uncertainty (`u`, of the lights `before`) carried to the polished lights
 /// (`after`): the polish moves a lamp by millimetres, a small part of its region, so the
 /// region is kept; an intensity's standard deviation keeps its share of the intensity. Computed
@@ -158,8 +206,19 @@ void Estimator::UseViews(int stride) {
     for (View& v : views_)
       for (std::size_t p = 0; p < v.valid.size(); ++p)
         if (!OnGrid(p, v.camera.width, stride)) v.valid[p] = 0;
+  res_.clipped_rows = res_.bloom_left_out = 0;
+  for (View& v : views_) {
+    if (!opt_.clipped_rows) break;
+    const auto [rows, left] = ClippedAsRows(&v, stride);
+    res_.clipped_rows += rows;
+    res_.bloom_left_out += left;
+  }
+  if (res_.clipped_rows + res_.bloom_left_out > 0)
+    Progress(Fmt("%d pixels clipped on the mesh fitted as lower bounds; %d beside clipped pixels left out (bloom)",
+                 res_.clipped_rows, res_.bloom_left_out));
   y_ = CollectObservations(views_);
   for (double& v : y_) v /= res_.image_mean;
+  one_sided_ = ClippedEntries(views_);
   // alpha is given per 19,200 observed pixels (one 160x120 view): the data term grows with
   // the number of observations, and so must the penalty, or the balance between them
   // (how many cells light the scene) would change with resolution and view count.
@@ -239,6 +298,28 @@ void Estimator::RunRounds() {
     res_.prior.why = Fmt("the rounds ended (--rounds %d) before the round that chooses the map's prior: the given --alpha",
                          opt_.max_rounds);
   }
+}
+
+std::vector<double> Estimator::Residuals(const std::vector<double>& y, const std::vector<double>& render,
+                                         const std::vector<std::uint8_t>* keep) const {
+  std::vector<double> r(y.size());
+  for (std::size_t i = 0; i < r.size(); ++i) r[i] = y[i] - render[i];
+  if (one_sided_.size() != y_.size()) return r;
+  std::size_t i = 0;  // the entries of r, in order
+  for (std::size_t row = 0; row < one_sided_.size() / 3 && i < r.size(); ++row) {
+    if (keep && !(*keep)[row]) continue;
+    for (int c = 0; c < 3; ++c, ++i)
+      if (one_sided_[3 * row + c] && r[i] < 0) r[i] = 0;
+  }
+  return r;
+}
+
+std::vector<std::uint8_t> Estimator::OneSidedRows(const std::vector<std::uint8_t>& keep, bool want) const {
+  std::vector<std::uint8_t> out;
+  if (one_sided_.size() != y_.size() || res_.clipped_rows == 0) return out;
+  for (std::size_t row = 0; row < keep.size(); ++row)
+    if (static_cast<bool>(keep[row]) == want) out.insert(out.end(), &one_sided_[3 * row], &one_sided_[3 * row] + 3);
+  return out;
 }
 
 /// Whether this round (of `last`) chooses the map's prior (once): beside lamps the
@@ -327,6 +408,7 @@ int Estimator::MapSamples(int round) const {
 /// the lights' columns to it (WithColumns), so G is summed again only for those.
 void Estimator::MakeMapProblem() {
   map_problem_ = std::make_shared<LinearProblem>(MakeLinearProblem(A_, y_));
+  if (res_.clipped_rows > 0) map_problem_->one_sided = one_sided_;
   map_problem_->base_normal = MakeNormalMatrices(*map_problem_);
   holdout_fit_.reset();
   holdout_held_ = TransportMatrix();

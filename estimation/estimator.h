@@ -177,6 +177,9 @@ struct EstimateResult {
   int traced_triangles = 0, traced_vertices = 0;
   double trace_cell_m = 0, cluster_seconds = 0;
   int observations = 0;   ///< valid pixels over all views
+  /// The rounds' last rows: the pixels clipped on the mesh fitted as lower bounds, and the
+  /// valid pixels left out beside a clipped one (bloom; EstimateOptions::clipped_rows).
+  int clipped_rows = 0, bloom_left_out = 0;
   double final_rmse = 0, final_relative_rmse = 0;
   double final_angular_error_deg = std::nan("");
   double kkt_violation = 0;

@@ -55,6 +55,11 @@ inline bool OnGrid(std::size_t p, int width, int stride) {
   return (p % width) % stride == 0 && (p / width) % stride == 0;
 }
 
+/// Pixels within this many (Chebyshev distance, at the bundle's resolution) of a clipped
+/// pixel are left out of the fit (EstimateOptions::clipped_rows): a lamp's bloom and the
+/// lens's flare brighten them, and a bulb's partly covered pixels clip on the wall behind it.
+constexpr int kBloomMargin = 1;
+
 /// The map's prior is fitted on every kPriorStride-th pixel of every kPriorStride-th row
 /// outside the fold (ChoosePrior; the fold's pixels are all scored).
 constexpr int kPriorStride = 2;
@@ -280,6 +285,12 @@ class Estimator {
   /// when round 1 left it within kSeenHoldReach of it, is put there and held
   /// (PointLight::held), the map and the intensities then solved again. Says why either way.
   void HoldAtSeen(std::vector<PointLight>* lights, RoundInfo* info);
+  /// `y` - `render` with one_sided_'s entries (`keep`'s rows of them where given) above
+  /// their level counted as 0.
+  std::vector<double> Residuals(const std::vector<double>& y, const std::vector<double>& render,
+                                const std::vector<std::uint8_t>* keep = nullptr) const;
+  /// one_sided_ of `keep`'s rows (`want`: those kept, or those not).
+  std::vector<std::uint8_t> OneSidedRows(const std::vector<std::uint8_t>& keep, bool want) const;
   void RefinePositions(std::vector<PointLight>* lights, RoundInfo* info, const char* step = "lights",
                        bool shadows = true);
   void SolveWithLights(std::vector<PointLight>* lights, RoundInfo* info, bool graduated);
@@ -408,6 +419,7 @@ class Estimator {
     fit.scene = scene_.get();
     fit.vertices = &vertices_;
     fit.y = &y_;
+    if (one_sided_.size() == y_.size() && res_.clipped_rows > 0) fit.one_sided = &one_sided_;
     fit.base = base;
     fit.loss = CauchyLoss{res_.objective_params.sigma};
     fit.alpha = res_.objective_params.alpha * opt_.point_lights.weight;
@@ -442,6 +454,9 @@ class Estimator {
   /// The share of the rendered light that is the map's (the rest the lights'), after the last round.
   double map_share_ = 1;
   std::vector<double> y_;  ///< their observations over the mean of all the valid pixels'
+  /// Per entry of y_: 1 where its row is a pixel clipped on the mesh (its value a lower bound
+  /// the render must reach: LinearProblem::one_sided).
+  std::vector<std::uint8_t> one_sided_;
   std::unique_ptr<RayTracer> scene_;
   /// Per vertex of the bundle's mesh: its vertex in the traced mesh (empty: the same mesh).
   std::vector<int> cluster_;

@@ -553,6 +553,7 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
     for (int c = 0; c < 3; ++c) (holdout_[r] ? y_held : y_fit).push_back(y_[3 * r + c]);
   if (!holdout_fit_) {  // once per A_: the map's part of the fit, with its normal matrices
     holdout_fit_ = std::make_shared<LinearProblem>(MakeLinearProblem(SelectRows(A_, holdout_, false), y_fit));
+    holdout_fit_->one_sided = OneSidedRows(holdout_, false);
     holdout_fit_->base_normal = MakeNormalMatrices(*holdout_fit_);
     holdout_held_ = SelectRows(A_, holdout_, true);
   }
@@ -571,10 +572,9 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
   SolverOptions so;
   so.max_iterations = 50;
   const SolveResult sr = lp::Solve(opt_.solver, Objective(problem, params), init, so);
-  std::vector<double> residual =
+  const std::vector<double> render =
       HeldOutRender(holdout_held_, held_columns, Scattered(problem, sr.lambda, cells_ + columns.size()));
-  for (std::size_t i = 0; i < residual.size(); ++i) residual[i] = y_held[i] - residual[i];
-  return CauchyLoss{params.sigma}.Sum(residual);
+  return CauchyLoss{params.sigma}.Sum(Residuals(y_held, render, &holdout_));
 }
 
 }  // namespace lp::detail

@@ -264,6 +264,7 @@ Estimator::PriorFolds Estimator::PriorLosses(const std::vector<Light>& lights, c
       held_columns.push_back(Rows(scored[l], held, true));
     }
     LinearProblem problem = MakeLinearProblem(SelectRows(A_, fitted, true), Rows(y_, fitted, true));
+    problem.one_sided = OneSidedRows(fitted, true);
     if (!columns.empty()) problem = WithColumns(problem, cells_, fit_columns);
     problem.base_normal = MakeNormalMatrices(problem);  // once for every weight's solve
     const TransportMatrix held_map = SelectRows(A_, held, true);
@@ -280,11 +281,11 @@ Estimator::PriorFolds Estimator::PriorLosses(const std::vector<Light>& lights, c
       const Objective objective(problem, CellWeights(problem, params, weights[a].alpha));
       x = lp::Solve(opt_.solver, objective, x, so).lambda;
       std::vector<double> full = Scattered(problem, x, cells_ + lights.size());
-      const std::vector<double> render = HeldOutRender(held_map, held_columns, full);
+      const std::vector<double> residual = Residuals(y_held, HeldOutRender(held_map, held_columns, full), &held);
       std::size_t h = 0;  // the held-out rows in order
       for (std::size_t r = 0; r < held.size(); ++r) {
         if (!held[r]) continue;
-        for (int c = 0; c < 3; ++c, ++h) out.loss[a][block[r]] += cauchy.Value(y_held[h] - render[h]);
+        for (int c = 0; c < 3; ++c, ++h) out.loss[a][block[r]] += cauchy.Value(residual[h]);
       }
       solution[f].push_back(std::move(full));
     }

@@ -63,7 +63,7 @@ Fitted Residual(const LightFitProblem& p, const std::vector<Light>& lights, cons
   Fitted f;
   f.mult = SegmentMultipliers(p, model, noise);
   f.r.resize(model.size());
-  for (std::size_t i = 0; i < model.size(); ++i) f.r[i] = (*p.y)[i] - f.mult[i] * model[i];
+  for (std::size_t i = 0; i < model.size(); ++i) f.r[i] = p.RowResidual(i, f.mult[i] * model[i]);
   for (std::size_t i = 0; i < noise.size(); ++i) noise[i] *= f.mult[i];
   f.noise = std::move(noise);
   return f;
@@ -217,12 +217,14 @@ LightFitSubset::LightFitSubset(const LightFitProblem& full, std::size_t max_rows
     for (int c = 0; c < 3; ++c) {
       y.push_back((*full.y)[3 * r + c]);
       base.push_back((*full.base)[3 * r + c]);
+      if (full.one_sided) one_sided.push_back((*full.one_sided)[3 * r + c]);
     }
     if (full.segment) segment.push_back((*full.segment)[r]);
   }
   problem.vertices = &vertices;
   problem.y = &y;
   problem.base = &base;
+  problem.one_sided = full.one_sided ? &one_sided : nullptr;
   if (full.segment) problem.segment = &segment;
   problem.alpha /= stride;
 }
@@ -369,6 +371,7 @@ double RefitScale(const LightFitProblem& p, const SplitColumn& column, const Spl
     for (std::size_t i = 0; i < col.size(); ++i) {
       const double left = (*p.y)[i] - m[i] * rest[i], mc = m[i] * col[i];
       const double r = left - scale[i % 3] * mc, w = p.loss.Weight(r);
+      if (p.RowResidual(i, m[i] * rest[i] + scale[i % 3] * mc) == 0 && r < 0) continue;  // (a bound it passes)
       num[i % 3] += w * mc * left;
       den[i % 3] += w * mc * mc;
       if (debiased) {
@@ -383,7 +386,7 @@ double RefitScale(const LightFitProblem& p, const SplitColumn& column, const Spl
   const std::vector<double> final_model = model(&noise);
   if (p.segment) m = SegmentMultipliers(p, final_model, noise);
   std::vector<double> r(col.size());
-  for (std::size_t i = 0; i < col.size(); ++i) r[i] = (*p.y)[i] - m[i] * final_model[i];
+  for (std::size_t i = 0; i < col.size(); ++i) r[i] = p.RowResidual(i, m[i] * final_model[i]);
   for (std::size_t i = 0; i < noise.size(); ++i) noise[i] *= m[i];
   *sse = SquaredSum(r);
   return LossSum(p.loss, r, noise) + Penalty(p, scale);

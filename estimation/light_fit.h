@@ -44,6 +44,13 @@ struct LightFitProblem {
   /// Per row: the segment of the surface it sees (0 ..), or -1 (its albedo held); null: every
   /// albedo held.
   const std::vector<int>* segment = nullptr;
+  /// Per entry of y: 1 where it is a lower bound (LinearProblem::one_sided); null: none.
+  const std::vector<std::uint8_t>* one_sided = nullptr;
+  /// y - model with a lower bound's excess over it counted as 0.
+  double RowResidual(std::size_t i, double model) const {
+    const double r = (*y)[i] - model;
+    return one_sided && (*one_sided)[i] && r < 0 ? 0.0 : r;
+  }
   bool debiased = false;
   /// E at these lights; `sse`, when given, receives the sum of squared residuals.
   double Value(const std::vector<Light>& lights, double* sse = nullptr) const;
@@ -66,6 +73,7 @@ struct LightFitSubset {
   ShadingVertices vertices;
   std::vector<double> y, base;
   std::vector<int> segment;
+  std::vector<std::uint8_t> one_sided;
   LightFitProblem problem;
 };
 

@@ -199,6 +199,7 @@ LinearProblem WithColumns(const LinearProblem& base, int cells, const std::vecto
     p.col_start.push_back(static_cast<std::int64_t>(p.col_row.size()));
   }
   p.y = base.y;
+  p.one_sided = base.one_sided;
   if (base.base_normal && base.base_normal->cell_of.size() == static_cast<std::size_t>(base.unknown_cells))
     p.base_normal = base.base_normal;
   return p;
@@ -320,7 +321,12 @@ double Objective::DataPass(const std::vector<double>& lambda, std::vector<double
         a1 += p_.val[k][1] * l[1];
         a2 += p_.val[k][2] * l[2];
       }
-      const double r0 = p_.y[3 * r] - a0, r1 = p_.y[3 * r + 1] - a1, r2 = p_.y[3 * r + 2] - a2;
+      double r0 = p_.y[3 * r] - a0, r1 = p_.y[3 * r + 1] - a1, r2 = p_.y[3 * r + 2] - a2;
+      if (!p_.one_sided.empty() && p_.one_sided[3 * r]) {  // a lower bound: above it costs nothing
+        r0 = std::max(r0, 0.0);
+        r1 = std::max(r1, 0.0);
+        r2 = std::max(r2, 0.0);
+      }
       if (residual) {
         (*residual)[3 * r] = r0;
         (*residual)[3 * r + 1] = r1;

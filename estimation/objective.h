@@ -54,6 +54,9 @@ struct LinearProblem {
   std::vector<std::array<float, 3>> col_val;
   std::vector<std::int64_t> col_pos;    ///< CSR position of each CSC entry
   std::vector<double> y;  ///< 3*rows observations
+  /// Per entry of y: 1 where it is a lower bound (a clipped pixel: the residual counts only
+  /// where the model is below it, max(0, y - A lambda)); empty: none.
+  std::vector<std::uint8_t> one_sided;
   /// The normal matrices of this problem's leading unknowns, when they are known (a
   /// problem made by WithColumns from one whose matrices were built): the solver then
   /// builds only the appended unknowns' rows and columns of G.

@@ -19,6 +19,22 @@ ObjectiveParams Smooth(ObjectiveParams prm, int cells) {
   return prm;
 }
 
+/// The objective's gradient at `lambda` against central differences of step `h`, each within
+/// `tolerance` of max(1, |g|).
+void ExpectGradientIsCentralDifferences(const Objective& obj, const std::vector<double>& lambda, double h,
+                                        double tolerance) {
+  std::vector<double> g;
+  obj.ValueAndGradient(lambda, &g);
+  for (std::size_t i = 0; i < lambda.size(); ++i) {
+    std::vector<double> lp = lambda, lm = lambda;
+    lp[i] += h;
+    lm[i] -= h;
+    const double fd = (obj.Value(lp) - obj.Value(lm)) / (2 * h);
+    EXPECT_LT(std::abs(fd - g[i]), tolerance * std::max(1.0, std::abs(g[i])))
+        << "unknown " << i << " fd " << fd << " analytic " << g[i];
+  }
+}
+
 // (the last case: the map's smoothness beside the weighted penalty)
 TEST(Objective, GradientMatchesCentralFiniteDifferences) {
   const auto rp = test::MakeRandomProblem(120, 20, 0.3, 0.2, 11);
@@ -32,18 +48,39 @@ TEST(Objective, GradientMatchesCentralFiniteDifferences) {
     const Objective obj(p, prm);
     std::vector<double> lambda(obj.unknowns());
     for (std::size_t i = 0; i < lambda.size(); ++i) lambda[i] = 0.2 + 0.05 * (i % 7);
-    std::vector<double> g;
-    obj.ValueAndGradient(lambda, &g);
-    for (std::size_t i = 0; i < lambda.size(); ++i) {
-      const double h = 1e-5;
-      std::vector<double> lp = lambda, lm = lambda;
-      lp[i] += h;
-      lm[i] -= h;
-      const double fd = (obj.Value(lp) - obj.Value(lm)) / (2 * h);
-      EXPECT_LT(std::abs(fd - g[i]), 1e-6 * std::max(1.0, std::abs(g[i])))
-          << "unknown " << i << " fd " << fd << " analytic " << g[i];
-    }
+    ExpectGradientIsCentralDifferences(obj, lambda, 1e-5, 1e-6);
   }
+}
+
+TEST(Objective, AOneSidedRowCountsOnlyBelowItsLevel) {
+  // A clipped pixel's value is a lower bound: its residual is max(0, y - A lambda). The
+  // problem with every third row one-sided against the same problem without those rows and
+  // with them two-sided, at points where the model is above and below them; and the
+  // gradient against central differences (the loss is C1 at the level).
+  const auto rp = test::MakeRandomProblem(90, 12, 0.3, 0.2, 5);
+  LinearProblem one = MakeLinearProblem(rp.A, rp.y), two = one;
+  one.one_sided.assign(one.y.size(), 0);
+  for (std::size_t r = 0; r < one.rows(); r += 3) std::fill_n(&one.one_sided[3 * r], 3, 1);
+  const ObjectiveParams prm{0.3, 0.0, 1.0, {}, 0, {}};  // (the data term alone)
+  const Objective o1(one, prm), o2(two, prm);
+  for (const double level : {0.0, 0.35, 5.0}) {  // the model below every bound, mixed, above every bound
+    std::vector<double> lambda(o1.unknowns(), level);
+    std::vector<double> r1, r2;
+    const double e1 = o1.Value(lambda, &r1), e2 = o2.Value(lambda, &r2);
+    double expected = 0;
+    const double s2 = prm.sigma * prm.sigma;
+    for (std::size_t i = 0; i < r2.size(); ++i) {
+      const double r = one.one_sided[i] ? std::max(0.0, r2[i]) : r2[i];
+      EXPECT_EQ(r1[i], r) << i;
+      expected += 0.5 * s2 * std::log1p(r * r / s2);
+    }
+    EXPECT_NEAR(e1, expected, 1e-9 * std::max(1.0, expected));
+    EXPECT_LE(e1, e2);                       // (a bound never costs more than an observation)
+    if (level == 5.0) EXPECT_LT(e1, e2);  // (above them all: the bounds cost nothing)
+    ExpectGradientIsCentralDifferences(o1, lambda, 1e-6, 1e-5);
+  }
+  // WithColumns keeps the flags.
+  EXPECT_EQ(WithColumns(one, rp.A.cells, {std::vector<float>(one.y.size(), 0.1f)}).one_sided, one.one_sided);
 }
 
 TEST(Objective, UnreachedCellsAreLeftOut) {

@@ -942,17 +942,22 @@ TEST(Stability, APanelSeenByOnePixelIsNotAnEmitter) {
 TEST(Stability, APanelClippedEverywhereIsBoundedBelowNotFitted) {
   // The panel fills most of the view and every pixel of it is clipped (saturation 1 against
   // its radiance 4): what the camera saw of it says only "at least 1"; its light on the floor
-  // says the rest.
+  // says the rest. Its pixels are rows of the fit, one-sided: the render above 1 costs
+  // nothing there (fitted as observations of 1, they held the panel at 1.000).
   const PanelScene s = PanelRoom({{0.0, 1.0, 0.9, {4, 4, 4}}}, 96, 72, 1.0);
   int clipped = 0;
   for (std::uint8_t c : s.bundle.views[0].clipped) clipped += c;
   ASSERT_GT(clipped, 96 * 72 / 3);
-  const EstimateResult r = Estimate(s.bundle, Small());
+  EstimateOptions eo = Small();
+  eo.clipped_rows = true;
+  const EstimateResult r = Estimate(s.bundle, eo);
   ExpectHealthy(r, false);
   ASSERT_EQ(r.lighting.Count<EmitterLight>(), 1u);
   const EmitterLight e = r.lighting.Of<EmitterLight>()[0];
   std::printf("clipped panel: radiance %.3f %.3f %.3f (truth 4; at least 1)\n", e.radiance.x(), e.radiance.y(), e.radiance.z());
   for (int c = 0; c < 3; ++c) EXPECT_GE(e.radiance[c], 1.0 - 1e-9);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(e.radiance[c], 4.0, 1.0) << c;
+  EXPECT_EQ(r.clipped_rows, clipped);  // (each of them a row of the last rounds, on every pixel)
 }
 
 }  // namespace
