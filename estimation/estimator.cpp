@@ -207,18 +207,18 @@ void Estimator::UseViews(int stride) {
       for (std::size_t p = 0; p < v.valid.size(); ++p)
         if (!OnGrid(p, v.camera.width, stride)) v.valid[p] = 0;
   res_.clipped_rows = res_.bloom_left_out = 0;
-  for (View& v : views_) {
-    if (!opt_.clipped_rows) break;
-    const auto [rows, left] = ClippedAsRows(&v, stride);
-    res_.clipped_rows += rows;
-    res_.bloom_left_out += left;
-  }
+  if (opt_.clipped_rows)
+    for (View& v : views_) {
+      const auto [rows, left] = ClippedAsRows(&v, stride);
+      res_.clipped_rows += rows;
+      res_.bloom_left_out += left;
+    }
   if (res_.clipped_rows + res_.bloom_left_out > 0)
     Progress(Fmt("%d pixels clipped on the mesh fitted as lower bounds; %d beside clipped pixels left out (bloom)",
                  res_.clipped_rows, res_.bloom_left_out));
   y_ = CollectObservations(views_);
   for (double& v : y_) v /= res_.image_mean;
-  one_sided_ = ClippedEntries(views_);
+  one_sided_ = res_.clipped_rows > 0 ? ClippedEntries(views_) : std::vector<std::uint8_t>();
   // alpha is given per 19,200 observed pixels (one 160x120 view): the data term grows with
   // the number of observations, and so must the penalty, or the balance between them
   // (how many cells light the scene) would change with resolution and view count.
@@ -304,7 +304,6 @@ std::vector<double> Estimator::Residuals(const std::vector<double>& y, const std
                                          const std::vector<std::uint8_t>* keep) const {
   std::vector<double> r(y.size());
   for (std::size_t i = 0; i < r.size(); ++i) r[i] = y[i] - render[i];
-  if (one_sided_.size() != y_.size()) return r;
   std::size_t i = 0;  // the entries of r, in order
   for (std::size_t row = 0; row < one_sided_.size() / 3 && i < r.size(); ++row) {
     if (keep && !(*keep)[row]) continue;
@@ -316,8 +315,7 @@ std::vector<double> Estimator::Residuals(const std::vector<double>& y, const std
 
 std::vector<std::uint8_t> Estimator::OneSidedRows(const std::vector<std::uint8_t>& keep, bool want) const {
   std::vector<std::uint8_t> out;
-  if (one_sided_.size() != y_.size() || res_.clipped_rows == 0) return out;
-  for (std::size_t row = 0; row < keep.size(); ++row)
+  for (std::size_t row = 0; row < keep.size() && !one_sided_.empty(); ++row)
     if (static_cast<bool>(keep[row]) == want) out.insert(out.end(), &one_sided_[3 * row], &one_sided_[3 * row] + 3);
   return out;
 }
@@ -408,7 +406,7 @@ int Estimator::MapSamples(int round) const {
 /// the lights' columns to it (WithColumns), so G is summed again only for those.
 void Estimator::MakeMapProblem() {
   map_problem_ = std::make_shared<LinearProblem>(MakeLinearProblem(A_, y_));
-  if (res_.clipped_rows > 0) map_problem_->one_sided = one_sided_;
+  map_problem_->one_sided = one_sided_;
   map_problem_->base_normal = MakeNormalMatrices(*map_problem_);
   holdout_fit_.reset();
   holdout_held_ = TransportMatrix();

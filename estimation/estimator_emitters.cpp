@@ -67,7 +67,7 @@ Estimator::Glow Estimator::GlowingTriangles() {
   const std::vector<double> render = Plus(A_.Multiply(lambda_), LightsRender(points_, suns_));
   Glow g(scene_->mesh().triangles.size());
   for (std::size_t r = 0; r < A_.rows(); ++r) {
-    if (one_sided_.size() == y_.size() && one_sided_[3 * r]) continue;  // (a clipped row: below)
+    if (!one_sided_.empty() && one_sided_[3 * r]) continue;  // (a clipped row: below)
     const double y = (y_[3 * r] + y_[3 * r + 1] + y_[3 * r + 2]) / 3,
                  f = std::max(0.0, (render[3 * r] + render[3 * r + 1] + render[3 * r + 2]) / 3);
     const Camera& cam = views_[A_.row_view[r]].camera;

@@ -419,7 +419,7 @@ class Estimator {
     fit.scene = scene_.get();
     fit.vertices = &vertices_;
     fit.y = &y_;
-    if (one_sided_.size() == y_.size() && res_.clipped_rows > 0) fit.one_sided = &one_sided_;
+    if (!one_sided_.empty()) fit.one_sided = &one_sided_;
     fit.base = base;
     fit.loss = CauchyLoss{res_.objective_params.sigma};
     fit.alpha = res_.objective_params.alpha * opt_.point_lights.weight;
@@ -455,7 +455,7 @@ class Estimator {
   double map_share_ = 1;
   std::vector<double> y_;  ///< their observations over the mean of all the valid pixels'
   /// Per entry of y_: 1 where its row is a pixel clipped on the mesh (its value a lower bound
-  /// the render must reach: LinearProblem::one_sided).
+  /// the render must reach: LinearProblem::one_sided); empty where no row is.
   std::vector<std::uint8_t> one_sided_;
   std::unique_ptr<RayTracer> scene_;
   /// Per vertex of the bundle's mesh: its vertex in the traced mesh (empty: the same mesh).

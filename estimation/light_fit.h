@@ -46,10 +46,11 @@ struct LightFitProblem {
   const std::vector<int>* segment = nullptr;
   /// Per entry of y: 1 where it is a lower bound (LinearProblem::one_sided); null: none.
   const std::vector<std::uint8_t>* one_sided = nullptr;
+  bool OneSided(std::size_t i) const { return one_sided && (*one_sided)[i]; }
   /// y - model with a lower bound's excess over it counted as 0.
   double RowResidual(std::size_t i, double model) const {
     const double r = (*y)[i] - model;
-    return one_sided && (*one_sided)[i] && r < 0 ? 0.0 : r;
+    return r < 0 && OneSided(i) ? 0.0 : r;
   }
   bool debiased = false;
   /// E at these lights; `sse`, when given, receives the sum of squared residuals.
