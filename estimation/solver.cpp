@@ -234,6 +234,29 @@ void Report(const SolverOptions& o, int it, double e, const std::vector<double>&
   o.on_iteration(info);
 }
 
+}  // namespace
+
+double OneSidedCurvature(double v) {
+  if (!(v > 0)) return 1;
+  // g(u) = log(1 + u^2) / (u + v)^2 rises from 0 at u = 0 to one maximum and falls after it:
+  // g'(u) = 0 where u (u + v) = (1 + u^2) log(1 + u^2). Bisect that on a bracket.
+  const auto slope = [v](double u) { return u * (u + v) - (1 + u * u) * std::log1p(u * u); };
+  double lo = 0, hi = 1;
+  while (slope(hi) > 0 && hi < 1e150) {
+    lo = hi;
+    hi *= 2;
+  }
+  for (int i = 0; i < 200 && hi - lo > 1e-12 * hi; ++i) {
+    const double mid = 0.5 * (lo + hi);
+    (slope(mid) > 0 ? lo : hi) = mid;
+  }
+  const double u = 0.5 * (lo + hi);
+  // (a relative margin: the bisection's u is the maximum's to 1e-12, g flat there)
+  return std::min(1.0, std::log1p(u * u) / ((u + v) * (u + v)) * (1 + 1e-9));
+}
+
+namespace {
+
 /// Majorize-minimize. The Cauchy loss has curvature rho'' <= 1, so around the current
 /// point lambda_k the data term is majorized by a quadratic with the constant matrix
 /// G = A^T A (plus a tiny proximal term mu*I that keeps it positive definite):
@@ -259,10 +282,12 @@ class MajorizeMinimize {
       for (int j = 0; j < L_; ++j) trace += G_[c][static_cast<std::size_t>(j) * L_ + j];
       const double mu = 1e-10 * trace / std::max(1, L_) + 1e-300;
       for (int j = 0; j < L_; ++j) G_[c][static_cast<std::size_t>(j) * L_ + j] += mu;
-      qp_[c] = std::make_unique<NnqpSolver>(G_[c].data(), L_,
-                                            prm_.smooth > 0 ? NnqpSolver::kMaxExactSmoothSupport
-                                                            : NnqpSolver::kMaxExactSupport);
+      MakeQp(c);
     }
+    for (std::size_t r = 0; r < p_.one_sided.size() / 3; ++r)
+      if (p_.one_sided[3 * r] || p_.one_sided[3 * r + 1] || p_.one_sided[3 * r + 2]) one_sided_rows_.push_back(r);
+    if (!one_sided_rows_.empty())
+      for (int c = 0; c < 3; ++c) G_unit_[c] = G_[c];
   }
 
   SolveResult Run(std::vector<double> lambda, const SolverOptions& o) {
@@ -328,8 +353,44 @@ class MajorizeMinimize {
   }
 
  private:
-  /// Fixes the expansion point lambda_k and h = A^T psi there.
+  void MakeQp(int c) {
+    qp_[c] = std::make_unique<NnqpSolver>(G_[c].data(), L_,
+                                          prm_.smooth > 0 ? NnqpSolver::kMaxExactSmoothSupport
+                                                          : NnqpSolver::kMaxExactSupport);
+  }
+
+  /// The curvature of each one-sided row at lambda_k: 1 where the render is below its level
+  /// (the Cauchy loss's bound), OneSidedCurvature of how far above it where it is above
+  /// (the loss is flat there and rises only past the level): G = A^T W A, the unit matrix's
+  /// G less (1 - w) a a^T for each such row and channel. With unit curvature everywhere a
+  /// row far above its level held lambda near lambda_k along its columns, and the solver
+  /// crawled (3DJ: 200 iterations a round, docs/benchmarks.md session 45).
+  void Reweigh(const std::vector<double>& lambda) {
+    if (one_sided_rows_.empty()) return;
+    const double sigma = prm_.sigma;
+    for (int c = 0; c < 3; ++c) {
+      G_[c] = G_unit_[c];
+      for (std::size_t r : one_sided_rows_) {
+        if (!p_.one_sided[3 * r + c]) continue;
+        double render = 0;
+        for (std::int64_t k = p_.row_start[r]; k < p_.row_start[r + 1]; ++k)
+          render += p_.val[k][c] * lambda[3 * static_cast<std::size_t>(p_.col[k]) + c];
+        const double above = render - p_.y[3 * r + c];
+        if (!(above > 0)) continue;
+        const double less = 1 - OneSidedCurvature(above / sigma);
+        if (less <= 0) continue;
+        for (std::int64_t k = p_.row_start[r]; k < p_.row_start[r + 1]; ++k)
+          for (std::int64_t m = p_.row_start[r]; m < p_.row_start[r + 1]; ++m)
+            G_[c][static_cast<std::size_t>(p_.col[m]) * L_ + p_.col[k]] -=
+                less * static_cast<double>(p_.val[k][c]) * p_.val[m][c];
+      }
+      MakeQp(c);
+    }
+  }
+
+  /// Fixes the expansion point lambda_k and h = A^T psi there (and G, where rows are one-sided).
   void SetCentre(const std::vector<double>& lambda, const std::vector<double>& h) {
+    Reweigh(lambda);
     centre_ = lambda;
     // The smoothness is in G (its curvature): its gradient at the centre leaves h.
     h_ = h;
@@ -395,6 +456,8 @@ class MajorizeMinimize {
   const ObjectiveParams& prm_;
   const int L_;
   std::vector<double> G_[3];
+  std::vector<double> G_unit_[3];  ///< G with every row's curvature 1 (kept where rows are one-sided)
+  std::vector<std::size_t> one_sided_rows_;
   std::unique_ptr<NnqpSolver> qp_[3];
   std::vector<double> centre_, h_, b0_[3];
   double penalty_centre_ = 0;

@@ -49,6 +49,13 @@ struct SolveResult {
 SolveResult Solve(SolverKind kind, const Objective& objective, std::vector<double> initial,
                   const SolverOptions& options);
 
+/// The least curvature w of a quadratic 1/2 w (u + v)^2 that lies on or above a one-sided
+/// Cauchy row's loss 1/2 log(1 + max(0, u)^2) (in units of sigma) everywhere, touching it
+/// with zero slope at u = -v, a render v sigmas above the row's level: sup over u > 0 of
+/// log(1 + u^2) / (u + v)^2. 1 at v <= 0 (the loss's own curvature bound), falling towards
+/// 0 as v grows (the loss is flat above the level). The fast solver's majorizer uses it.
+double OneSidedCurvature(double v);
+
 /// Minimizes 0.5 x^T G x - b^T x subject to x >= 0 (G symmetric positive definite,
 /// n x n column-major), warm-started from x; coordinate descent then active set.
 /// Returns the number of active-set iterations.
