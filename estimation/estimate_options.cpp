@@ -48,8 +48,8 @@ std::vector<EstimateOption> LightOptions() {
        "drift out along its ray; in the estimate not better so far: docs/method.md); 0 = the plain objective",
        Type::kBool, 0, 1, false, LP_GET(point_lights.debiased), LP_SET(point_lights.debiased, bool), "", 0, 0, {}},
       {"clipped-rows", "clipped_rows",
-       "1 = the pixels the camera clipped on the mesh are fitted as lower bounds (the render must reach them), the "
-       "pixels next to any clipped pixel left out (bloom); 0 (the default) = clipped pixels dropped, a glowing "
+       "1 (the default) = the pixels the camera clipped on the mesh are fitted as lower bounds (the render must "
+       "reach them), the pixels next to any clipped pixel left out (bloom); 0 = clipped pixels dropped, a glowing "
        "surface's radiance bounded below by them",
        Type::kBool, 0, 1, false, LP_GET(clipped_rows), LP_SET(clipped_rows, bool), "", 0, 0, {}},
       {"seen-lamps", "seen_lamps",

@@ -218,11 +218,10 @@ struct EstimateOptions {
   bool combine_rounds = true;
   /// The pixels the camera clipped on the mesh (View::clipped) are rows whose value is a
   /// lower bound (one-sided residuals: the render must reach it), and the pixels within
-  /// kBloomMargin of any clipped pixel are left out (bloom); false (the default, so far):
-  /// clipped pixels dropped, a glowing surface's radiance bounded below by them instead
-  /// (docs/method.md, "Clipped pixels as lower bounds": the solver crawls where many such
-  /// rows lie far above their level).
-  bool clipped_rows = false;
+  /// kBloomMargin of any clipped pixel are left out (bloom; the default); false: clipped
+  /// pixels dropped, a glowing surface's radiance bounded below by them instead
+  /// (docs/method.md, "Clipped pixels as lower bounds").
+  bool clipped_rows = true;
   /// The final relit render of the fitted views (EstimateResult::renders): N > 0 traces every
   /// pixel again at N samples (an independent render, at N / tracer.spp of a round's cost per
   /// pixel); 0 (the default): the clean render below. (EstimateResult::fits is the fit
