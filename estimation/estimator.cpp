@@ -358,7 +358,7 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   // the pixels and sampled uniformly, is more spread (sun-and-sky's seed 8: 0.225 there,
   // 0.43 after round 2's solve; without the vertices no light was tried).
   const bool sun = SunRound(round) && BrightestNeighbourhood().second >= 0.5 * opt_.directional.min_map_share;
-  if ((NearLights() && round == 1) || sun || !points_.empty() || !suns_.empty())
+  if ((NearLights() && round == 1) || sun || !points_.empty() || !suns_.empty() || !emitters_.empty())
     GatherVertices(round, first);
   RoundProblem rp = WithLights(points_);
   Progress(Fmt("round %d: A traced at %d samples per pixel in %.2f s", round, topt.spp, trace_a) +

@@ -385,6 +385,8 @@ class Estimator {
   /// Whether the map's prior is still to be chosen, in a round on every pixel (PriorRound).
   bool PriorAhead() const { return PastFirstGrid() && !res_.prior.done; }
   bool ProposeEmitters(RoundInfo* info);
+  /// SelectModel on the lamps again beside the glowing surfaces kept (solved again if one goes).
+  void ReselectLamps(RoundInfo* info);
   /// Keeps `candidate` beside `kept` when the objective and the held-out loss say so (both
   /// updated then).
   bool TryEmitter(const EmitterLight& candidate, std::vector<EmitterLight>* kept, double* objective, double* held);

@@ -318,14 +318,26 @@ TEST(Stability, BadPixelsAreMaskedCountedAndChangeNothingElse) {
   EXPECT_EQ(v.negative, 1);
   EXPECT_EQ(v.saturated, 1);
   for (std::size_t i : at) EXPECT_EQ(v.valid[i], 0);
-  // The same as masking those pixels by hand (with finite values there).
+  // Those pixels masked by hand (with finite values there).
   for (std::size_t i : at) {
     expected.views[0].valid[i] = 0;
     for (int c = 0; c < 3; ++c) expected.views[0].image.data[3 * i + c] = 0;
   }
-  const EstimateResult bad = Estimate(b, Small()), hand = Estimate(expected, Small());
+  // With clipped pixels dropped (--clipped-rows 0) the same as masking those pixels by hand.
+  EstimateOptions dropped = Small();
+  dropped.clipped_rows = false;
+  const EstimateResult bad = Estimate(b, dropped), hand = Estimate(expected, dropped);
   ExpectHealthy(bad);
   EXPECT_EQ(bad.lighting.map, hand.lighting.map);
+  // By default the clipped one is a lower bound instead (a row of the fit: the render must
+  // reach 50), and its 8 neighbours are left out (bloom); the same lights found.
+  const EstimateResult bound = Estimate(b, Small());
+  ExpectHealthy(bound);
+  EXPECT_EQ(bound.lighting.Count<DirectionalLight>(), hand.lighting.Count<DirectionalLight>());
+  EXPECT_EQ(bound.lighting.lights.size(), hand.lighting.lights.size());
+  EXPECT_EQ(bound.clipped_rows, 1);
+  EXPECT_EQ(bound.bloom_left_out, 8);
+  EXPECT_EQ(bound.observations, clean.observations - 5);
   EXPECT_EQ(bad.observations, clean.observations - 5);
 }
 
