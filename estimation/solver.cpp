@@ -365,11 +365,13 @@ class MajorizeMinimize {
   /// G less (1 - w) a a^T for each such row and channel. With unit curvature everywhere a
   /// row far above its level held lambda near lambda_k along its columns, and the solver
   /// crawled (3DJ: 200 iterations a round, docs/benchmarks.md session 45).
+  /// A channel whose rows all lie at or below their levels keeps the unit G and its solver
+  /// (with the Cholesky factor it caches) from the step before.
   void Reweigh(const std::vector<double>& lambda) {
     if (one_sided_rows_.empty()) return;
     const double sigma = prm_.sigma;
     for (int c = 0; c < 3; ++c) {
-      G_[c] = G_unit_[c];
+      std::vector<std::pair<std::size_t, double>> less;  // (row, 1 - w) where w < 1
       for (std::size_t r : one_sided_rows_) {
         if (!p_.one_sided[3 * r + c]) continue;
         double render = 0;
@@ -377,13 +379,17 @@ class MajorizeMinimize {
           render += p_.val[k][c] * lambda[3 * static_cast<std::size_t>(p_.col[k]) + c];
         const double above = render - p_.y[3 * r + c];
         if (!(above > 0)) continue;
-        const double less = 1 - OneSidedCurvature(above / sigma);
-        if (less <= 0) continue;
+        const double l = 1 - OneSidedCurvature(above / sigma);
+        if (l > 0) less.emplace_back(r, l);
+      }
+      if (less.empty() && unit_[c]) continue;
+      G_[c] = G_unit_[c];
+      for (const auto& [r, l] : less)
         for (std::int64_t k = p_.row_start[r]; k < p_.row_start[r + 1]; ++k)
           for (std::int64_t m = p_.row_start[r]; m < p_.row_start[r + 1]; ++m)
             G_[c][static_cast<std::size_t>(p_.col[m]) * L_ + p_.col[k]] -=
-                less * static_cast<double>(p_.val[k][c]) * p_.val[m][c];
-      }
+                l * static_cast<double>(p_.val[k][c]) * p_.val[m][c];
+      unit_[c] = less.empty();
       MakeQp(c);
     }
   }
@@ -458,6 +464,7 @@ class MajorizeMinimize {
   std::vector<double> G_[3];
   std::vector<double> G_unit_[3];  ///< G with every row's curvature 1 (kept where rows are one-sided)
   std::vector<std::size_t> one_sided_rows_;
+  bool unit_[3] = {true, true, true};  ///< whether G_[c] is G_unit_[c]
   std::unique_ptr<NnqpSolver> qp_[3];
   std::vector<double> centre_, h_, b0_[3];
   double penalty_centre_ = 0;
