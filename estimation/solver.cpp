@@ -261,10 +261,12 @@ namespace {
 /// point lambda_k the data term is majorized by a quadratic with the constant matrix
 /// G = A^T A (plus a tiny proximal term mu*I that keeps it positive definite):
 ///   M(x) = E(lambda_k) - h'(x - lambda_k) + 1/2 (x - lambda_k)' G (x - lambda_k) + P(x) - P(lambda_k),
-/// h = A^T psi(y - A lambda_k), with the log penalty P kept exact. G is built once per solve;
-/// each outer step costs one pass over A (residual, E and h together) and then works in
-/// the L-dimensional space only: M is minimized by reweighted l1 (P majorized by its
-/// tangent, a non-negative QP per channel), each inner step lowering M. E(next) <= M(next)
+/// h = A^T psi(y - A lambda_k), with the log penalty P kept exact. G is built once per solve
+/// and then only updated where a row's curvature changes (Reweigh: rows far off the fit and
+/// one-sided rows above their level need less than 1); each outer step costs one pass over A
+/// (residual, E and h together) and then works in the L-dimensional space only: M is
+/// minimized by reweighted l1 (P majorized by its tangent, a non-negative QP per channel),
+/// each inner step lowering M. E(next) <= M(next)
 /// <= M(lambda_k) = E(lambda_k), so E never increases.
 /// Once progress slows (a step gains < 1 % of E), each outer step also tries a
 /// continuation on the penalty weight (alpha/256, /64, /16, /4, then alpha; a few QPs in
@@ -284,10 +286,7 @@ class MajorizeMinimize {
       for (int j = 0; j < L_; ++j) G_[c][static_cast<std::size_t>(j) * L_ + j] += mu;
       MakeQp(c);
     }
-    for (std::size_t r = 0; r < p_.one_sided.size() / 3; ++r)
-      if (p_.one_sided[3 * r] || p_.one_sided[3 * r + 1] || p_.one_sided[3 * r + 2]) one_sided_rows_.push_back(r);
-    if (!one_sided_rows_.empty())
-      for (int c = 0; c < 3; ++c) G_unit_[c] = G_[c];
+    curvature_.assign(p_.y.size(), 1.0);
   }
 
   SolveResult Run(std::vector<double> lambda, const SolverOptions& o) {
@@ -297,10 +296,10 @@ class MajorizeMinimize {
     double e = obj_.DataPass(lambda, &r, &h) + obj_.Penalty(lambda);
     double last_decrease = HUGE_VAL;
     for (int it = 1; it <= o.max_iterations; ++it) {
-      SetCentre(lambda, h);
       // Far from convergence the support still moves: approximate QPs are enough there
       // (M is checked either way); exact ones take over when progress slows.
       const bool settling = last_decrease < 1e-2 * std::abs(e);
+      SetCentre(lambda, h, r, settling);
       std::vector<double> next = InnerMinimize(lambda, 1.0, settling ? 20 : 3, settling);
       if (!settling && next == lambda) next = InnerMinimize(lambda, 1.0);
       if (prm_.alpha > 0 && settling) {
@@ -359,44 +358,55 @@ class MajorizeMinimize {
                                                           : NnqpSolver::kMaxExactSupport);
   }
 
-  /// The curvature of each one-sided row at lambda_k: 1 where the render is below its level
-  /// (the Cauchy loss's bound), OneSidedCurvature of how far above it where it is above
-  /// (the loss is flat there and rises only past the level): G = A^T W A, the unit matrix's
-  /// G less (1 - w) a a^T for each such row and channel. With unit curvature everywhere a
-  /// row far above its level held lambda near lambda_k along its columns, and the solver
-  /// crawled (3DJ: 200 iterations a round, docs/benchmarks.md session 45).
-  /// A channel whose rows all lie at or below their levels keeps the unit G and its solver
-  /// (with the Cholesky factor it caches) from the step before.
-  void Reweigh(const std::vector<double>& lambda) {
-    if (one_sided_rows_.empty()) return;
+  /// Each row's curvature in the majorizer at lambda_k, G = A^T W A. Unit curvature (the
+  /// Cauchy loss's bound, G built once) is loose where a row's residual is large: there the
+  /// loss is flat, and rows the fit treats as outliers held lambda near lambda_k along their
+  /// columns while the solve crawled along a valley of E (a glowing surface and the map
+  /// cells that light the room alike: 3DJ with 2 keyframes, 9 of 20 rounds at the
+  /// 200-iteration cap, docs/benchmarks.md session 47). So a row whose residual u (in sigma)
+  /// lies beyond kOutlier gets the Cauchy loss's own reweighting, 1 / (1 + u^2) (the loss is
+  /// concave in r^2: the quadratic with that curvature and the loss's slope lies above it and
+  /// touches it at r), and a one-sided row above its level v sigma gets OneSidedCurvature(v)
+  /// (its loss is flat there). A row's curvature may stay above what it needs (still a
+  /// majorizer): it changes, by a rank-one update of G, only where it must rise or where it
+  /// would fall to under half, so a step costs the rows that changed.
+  void Reweigh(const std::vector<double>& lambda, const std::vector<double>& residual, bool settling) {
     const double sigma = prm_.sigma;
+    const std::size_t rows = p_.row_start.size() - 1;
     for (int c = 0; c < 3; ++c) {
-      std::vector<std::pair<std::size_t, double>> less;  // (row, 1 - w) where w < 1
-      for (std::size_t r : one_sided_rows_) {
-        if (!p_.one_sided[3 * r + c]) continue;
-        double render = 0;
-        for (std::int64_t k = p_.row_start[r]; k < p_.row_start[r + 1]; ++k)
-          render += p_.val[k][c] * lambda[3 * static_cast<std::size_t>(p_.col[k]) + c];
-        const double above = render - p_.y[3 * r + c];
-        if (!(above > 0)) continue;
-        const double l = 1 - OneSidedCurvature(above / sigma);
-        if (l > 0) less.emplace_back(r, l);
+      std::vector<std::pair<std::size_t, double>> change;  // (row, new curvature - old)
+      for (std::size_t r = 0; r < rows; ++r) {
+        const std::size_t i = 3 * r + c;
+        double need = 1;
+        if (!p_.one_sided.empty() && p_.one_sided[i]) {
+          double render = 0;
+          for (std::int64_t k = p_.row_start[r]; k < p_.row_start[r + 1]; ++k)
+            render += p_.val[k][c] * lambda[3 * static_cast<std::size_t>(p_.col[k]) + c];
+          const double above = render - p_.y[i];
+          if (above > 0) need = OneSidedCurvature(above / sigma);
+        }
+        const double u = residual[i] / sigma;
+        if (std::abs(u) > kOutlier && (settling || curvature_[i] < 1)) need = std::min(need, 1 / (1 + u * u));
+        if (need > curvature_[i] || need < 0.5 * curvature_[i]) {
+          const double w = std::min(1.0, kHeadroom * need);
+          change.emplace_back(r, w - curvature_[i]);
+          curvature_[i] = w;
+        }
       }
-      if (less.empty() && unit_[c]) continue;
-      G_[c] = G_unit_[c];
-      for (const auto& [r, l] : less)
+      if (change.empty()) continue;
+      for (const auto& [r, d] : change)
         for (std::int64_t k = p_.row_start[r]; k < p_.row_start[r + 1]; ++k)
           for (std::int64_t m = p_.row_start[r]; m < p_.row_start[r + 1]; ++m)
-            G_[c][static_cast<std::size_t>(p_.col[m]) * L_ + p_.col[k]] -=
-                l * static_cast<double>(p_.val[k][c]) * p_.val[m][c];
-      unit_[c] = less.empty();
+            G_[c][static_cast<std::size_t>(p_.col[m]) * L_ + p_.col[k]] +=
+                d * static_cast<double>(p_.val[k][c]) * p_.val[m][c];
       MakeQp(c);
     }
   }
 
-  /// Fixes the expansion point lambda_k and h = A^T psi there (and G, where rows are one-sided).
-  void SetCentre(const std::vector<double>& lambda, const std::vector<double>& h) {
-    Reweigh(lambda);
+  /// Fixes the expansion point lambda_k and h = A^T psi there (and G's rows' curvatures).
+  void SetCentre(const std::vector<double>& lambda, const std::vector<double>& h, const std::vector<double>& residual,
+                 bool settling) {
+    Reweigh(lambda, residual, settling);
     centre_ = lambda;
     // The smoothness is in G (its curvature): its gradient at the centre leaves h.
     h_ = h;
@@ -462,9 +472,12 @@ class MajorizeMinimize {
   const ObjectiveParams& prm_;
   const int L_;
   std::vector<double> G_[3];
-  std::vector<double> G_unit_[3];  ///< G with every row's curvature 1 (kept where rows are one-sided)
-  std::vector<std::size_t> one_sided_rows_;
-  bool unit_[3] = {true, true, true};  ///< whether G_[c] is G_unit_[c]
+  /// Residuals (in sigma) past which a row's curvature is the loss's own reweighting.
+  static constexpr double kOutlier = 3;
+  /// A row's curvature when it changes: this much above what it needs (so that small changes
+  /// of its residual do not each cost an update of G).
+  static constexpr double kHeadroom = 1.25;
+  std::vector<double> curvature_;  ///< each row and channel's curvature in G_
   std::unique_ptr<NnqpSolver> qp_[3];
   std::vector<double> centre_, h_, b0_[3];
   double penalty_centre_ = 0;
