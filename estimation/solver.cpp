@@ -299,7 +299,7 @@ class MajorizeMinimize {
       // Far from convergence the support still moves: approximate QPs are enough there
       // (M is checked either way); exact ones take over when progress slows.
       const bool settling = last_decrease < 1e-2 * std::abs(e);
-      SetCentre(lambda, h, r, settling);
+      SetCentre(lambda, h, r, settling && it > kOutlierAfter);
       std::vector<double> next = InnerMinimize(lambda, 1.0, settling ? 20 : 3, settling);
       if (!settling && next == lambda) next = InnerMinimize(lambda, 1.0);
       if (prm_.alpha > 0 && settling) {
@@ -370,7 +370,7 @@ class MajorizeMinimize {
   /// (its loss is flat there). A row's curvature may stay above what it needs (still a
   /// majorizer): it changes, by a rank-one update of G, only where it must rise or where it
   /// would fall to under half, so a step costs the rows that changed.
-  void Reweigh(const std::vector<double>& lambda, const std::vector<double>& residual, bool settling) {
+  void Reweigh(const std::vector<double>& lambda, const std::vector<double>& residual, bool outliers) {
     const double sigma = prm_.sigma;
     const std::size_t rows = p_.row_start.size() - 1;
     for (int c = 0; c < 3; ++c) {
@@ -378,15 +378,18 @@ class MajorizeMinimize {
       for (std::size_t r = 0; r < rows; ++r) {
         const std::size_t i = 3 * r + c;
         double need = 1;
-        if (!p_.one_sided.empty() && p_.one_sided[i]) {
+        if (!p_.one_sided.empty() && p_.one_sided[i]) {  // (exactly what it needs, each step)
           double render = 0;
           for (std::int64_t k = p_.row_start[r]; k < p_.row_start[r + 1]; ++k)
             render += p_.val[k][c] * lambda[3 * static_cast<std::size_t>(p_.col[k]) + c];
           const double above = render - p_.y[i];
           if (above > 0) need = OneSidedCurvature(above / sigma);
+          if (need != curvature_[i]) change.emplace_back(r, need - curvature_[i]);
+          curvature_[i] = need;
+          continue;
         }
         const double u = residual[i] / sigma;
-        if (std::abs(u) > kOutlier && (settling || curvature_[i] < 1)) need = std::min(need, 1 / (1 + u * u));
+        if (std::abs(u) > kOutlier && (outliers || curvature_[i] < 1)) need = 1 / (1 + u * u);
         if (need > curvature_[i] || need < 0.5 * curvature_[i]) {
           const double w = std::min(1.0, kHeadroom * need);
           change.emplace_back(r, w - curvature_[i]);
@@ -474,6 +477,10 @@ class MajorizeMinimize {
   std::vector<double> G_[3];
   /// Residuals (in sigma) past which a row's curvature is the loss's own reweighting.
   static constexpr double kOutlier = 3;
+  /// ... in a solve that has run this many outer steps (and settled): most solves end
+  /// before, as they did with unit curvature (docs/method.md: past one sigma and from the
+  /// start, the map-alone scenes and Cycles' frosted window came back poorer).
+  static constexpr int kOutlierAfter = 60;
   /// A row's curvature when it changes: this much above what it needs (so that small changes
   /// of its residual do not each cost an update of G).
   static constexpr double kHeadroom = 1.25;

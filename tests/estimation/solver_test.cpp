@@ -230,7 +230,8 @@ TEST(Solver, RowsAboveTheirLevelKeepTheFastSolverMonotone) {
 // rows far off the fit that see only column 0 (outliers: residuals ~300 sigma) barely pull.
 // With unit curvature on every row those outliers made the majorizer ~300 times steeper than
 // E along the valley and the fast solver crawled (at the cap, short of the minimum); with the
-// Cauchy loss's own reweighting past 3 sigma it reaches the minimum in a few steps.
+// Cauchy loss's own reweighting past 3 sigma (from the 61st step) it reaches the minimum a few
+// steps after.
 TEST(Solver, OutliersDoNotHoldTheFastSolverInAShallowValley) {
   Rows rows(2);
   for (int i = 0; i < 200; ++i) {
@@ -249,7 +250,7 @@ TEST(Solver, OutliersDoNotHoldTheFastSolverInAShallowValley) {
   const LoggedRun grad = SolveLogged(SolverKind::kGradient, obj, o, 1e-3);  // (200 x 100 steps)
   ExpectSane(fast);
   ExpectSane(grad);
-  EXPECT_LT(fast.result.iterations, 60);
+  EXPECT_LT(fast.result.iterations, 80);  // (the outliers reweighted from the 61st step)
   EXPECT_LT(fast.result.kkt_violation, 1e-8);
   EXPECT_NEAR(fast.result.objective, grad.result.objective, 1e-9 * std::abs(grad.result.objective));
   // The outliers' pull (~sigma^2/r each, 0.034 together) against the valley's curvature
