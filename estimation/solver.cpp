@@ -266,8 +266,8 @@ namespace {
 /// one-sided rows above their level need less than 1); each outer step costs one pass over A
 /// (residual, E and h together) and then works in the L-dimensional space only: M is
 /// minimized by reweighted l1 (P majorized by its tangent, a non-negative QP per channel),
-/// each inner step lowering M. E(next) <= M(next)
-/// <= M(lambda_k) = E(lambda_k), so E never increases.
+/// each inner step lowering M. E(next) <= M(next) <= M(lambda_k) = E(lambda_k), so E never
+/// increases.
 /// Once progress slows (a step gains < 1 % of E), each outer step also tries a
 /// continuation on the penalty weight (alpha/256, /64, /16, /4, then alpha; a few QPs in
 /// L-space) and keeps whichever candidate has the lower M: reweighted l1 at full weight
@@ -371,6 +371,9 @@ class MajorizeMinimize {
   /// majorizer): it changes, by a rank-one update of G, only where it must rise or where it
   /// would fall to under half, so a step costs the rows that changed.
   void Reweigh(const std::vector<double>& lambda, const std::vector<double>& residual, bool outliers) {
+    // Nothing to change before the outliers' turn, in a problem without one-sided rows.
+    outliers_seen_ = outliers_seen_ || outliers;
+    if (!outliers_seen_ && p_.one_sided.empty()) return;
     const double sigma = prm_.sigma;
     const std::size_t rows = p_.row_start.size() - 1;
     for (int c = 0; c < 3; ++c) {
@@ -408,8 +411,8 @@ class MajorizeMinimize {
 
   /// Fixes the expansion point lambda_k and h = A^T psi there (and G's rows' curvatures).
   void SetCentre(const std::vector<double>& lambda, const std::vector<double>& h, const std::vector<double>& residual,
-                 bool settling) {
-    Reweigh(lambda, residual, settling);
+                 bool outliers) {
+    Reweigh(lambda, residual, outliers);
     centre_ = lambda;
     // The smoothness is in G (its curvature): its gradient at the centre leaves h.
     h_ = h;
@@ -485,6 +488,7 @@ class MajorizeMinimize {
   /// of its residual do not each cost an update of G).
   static constexpr double kHeadroom = 1.25;
   std::vector<double> curvature_;  ///< each row and channel's curvature in G_
+  bool outliers_seen_ = false;     ///< whether any step so far reweighted the outliers
   std::unique_ptr<NnqpSolver> qp_[3];
   std::vector<double> centre_, h_, b0_[3];
   double penalty_centre_ = 0;
