@@ -67,8 +67,13 @@ static void WriteConvergencePlot(const fs::path& path, const std::vector<Converg
     if (row.sigma != rows.back().sigma) label += ", sigma " + Num(row.sigma);
     if (row.albedo_pass > 0) label += ", albedo pass " + std::to_string(row.albedo_pass);
     if (std::string(row.step) != "solve") label += ", " + std::string(row.step);
+    // The model selection's trial solves, each its own descent of its own problem: small
+    // dots, not joined, one colour in every round.
+    const bool trial = std::string(row.step) == "trial";
+    if (trial) label = "trial solves (choosing lights and prior)";
     for (PlotPanel* p : {&rmse, &objective, &angle, &position})
-      if (p->series.empty() || p->series.back().label != label) p->series.push_back({label, {}, {}, true, true});
+      if (p->series.empty() || p->series.back().label != label)
+        p->series.push_back({label, {}, {}, !trial, true, trial ? 1 : 3});
     rmse.series.back().x.push_back(row.wall_seconds);
     rmse.series.back().y.push_back(row.relative_rmse);
     objective.series.back().x.push_back(row.wall_seconds);

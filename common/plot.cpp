@@ -184,7 +184,7 @@ void DrawPanel(cv::Mat& m, int ox, int oy, const PlotPanel& p, const std::map<st
       for (std::size_t i = 1; i < pts.size(); ++i) cv::line(clip, pts[i - 1], pts[i], c, 2, cv::LINE_AA);
     const bool all = s.markers || pts.size() <= 1;
     for (std::size_t i = 0; i < pts.size(); ++i)
-      if (all || i + 1 == pts.size()) cv::circle(clip, pts[i], 3, c, cv::FILLED, cv::LINE_AA);
+      if (all || i + 1 == pts.size()) cv::circle(clip, pts[i], s.marker_radius, c, cv::FILLED, cv::LINE_AA);
   }
   if (!any) cv::putText(m, "no data", {(x0 + x1) / 2 - 25, (y0 + y1) / 2}, kFont, 0.45, grey, 1, cv::LINE_AA);
 }

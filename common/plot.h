@@ -13,6 +13,7 @@ struct PlotSeries {
   std::vector<double> x, y;   ///< points (non-finite ones, and non-positive on log axes, are skipped)
   bool lines = true;          ///< join consecutive points
   bool markers = true;        ///< draw a marker at each point (only the last one if false and many points)
+  int marker_radius = 3;      ///< in pixels
 };
 
 struct PlotPanel {

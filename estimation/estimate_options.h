@@ -55,6 +55,9 @@ constexpr int kPriorBlocksAcross = 4;
 /// not there took up its error (`lamp-4m` 8-14 cm off on 7 of 25 seeds; docs/benchmarks.md,
 /// session 41).
 constexpr int kPriorRound = 2;
+/// The iterations of a model's trial solve (a candidate light's held-out fit, a prior's, a
+/// glowing surface's objective): each a "trial" row of the convergence log.
+constexpr int kTrialIterations = 50;
 
 /// Round 1 (the cold start) solves at this Cauchy scale first when a smaller one is asked
 /// for, then halves it down to the one asked for, each solve warm-started (graduated

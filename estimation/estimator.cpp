@@ -277,7 +277,7 @@ void Estimator::RunRounds() {
       since = round;
     }
     RoundInfo info;
-    info.round = round;
+    info.round = round_ = round;
     const RoundProblem rp = TraceRound(round, since, &info);
     const SolveResult sr = Solve(rp, round, &info, round == 1);
     const std::vector<double> full = TakeSolution(rp, sr, &info);

@@ -227,9 +227,8 @@ void Estimator::BoundEmitters() {
 double Estimator::ObjectiveWith(const std::vector<EmitterLight>& emitters) {
   emitters_ = emitters;
   const RoundProblem rp = WithLights(points_);
-  SolverOptions so;
-  so.max_iterations = 50;
-  return lp::Solve(opt_.solver, Objective(*rp.problem, CellWeights(*rp.problem, res_.objective_params)), rp.init, so)
+  return lp::Solve(opt_.solver, Objective(*rp.problem, CellWeights(*rp.problem, res_.objective_params)), rp.init,
+                   TrialOptions(kTrialIterations))
       .objective;
 }
 

@@ -326,6 +326,32 @@ class Estimator {
     row.photometric_rmse = row.relative_rmse * res_.image_mean;
     return row;
   }
+  /// A model's trial solve (the held-out fits that choose the lights and the prior, a
+  /// glowing surface's objective), at most `iterations`: each iteration a convergence row
+  /// "trial" of the trial's own problem (its objective and RMSE), so that the time the
+  /// choices take shows in the log and its plot. With `sink` (a solve on a worker thread)
+  /// the rows go there, for the caller to Push in its thread.
+  SolverOptions TrialOptions(int iterations, std::vector<ConvergenceRow>* sink = nullptr) {
+    SolverOptions so;
+    so.max_iterations = iterations;
+    so.on_iteration = [this, sink](const IterationInfo& it) {
+      ConvergenceRow row;
+      row.wall_seconds = Now();
+      row.round = round_;
+      row.iteration = it.iteration;
+      row.sigma = res_.objective_params.sigma;
+      row.albedo_pass = res_.albedo_passes;
+      row.step = "trial";
+      row.objective = it.objective;
+      row.relative_rmse = it.Rmse();
+      row.photometric_rmse = row.relative_rmse * res_.image_mean;
+      row.point_lights = static_cast<int>(points_.size());
+      if (!sink) return Push(row);
+      sink->push_back(row);
+      CheckCancel();
+    };
+    return so;
+  }
   /// Appends a convergence row, tells the caller's callback, and stops here when cancelled.
   void Push(const ConvergenceRow& row) {
     res_.convergence.push_back(row);
@@ -452,6 +478,7 @@ class Estimator {
   int after_grid_ = 0;  ///< the first round on every pixel after round 1's grid (0: none)
   std::optional<std::vector<SeenLamp>> seen_lamps_;  ///< SeenLampsOnce
   int rounds_past_grid_ = 0;  ///< the rounds on every pixel so far (PriorRound)
+  int round_ = 0;             ///< the round running (RunRounds), for TrialOptions' rows
   bool warm_ = false;  ///< round 1 starts from a live estimate's map (EstimateOptions::warm)
   /// The share of the rendered light that is the map's (the rest the lights'), after the last round.
   double map_share_ = 1;

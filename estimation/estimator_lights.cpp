@@ -569,9 +569,7 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
   params.alpha *= static_cast<double>(holdout_fit_->rows()) / std::max<std::size_t>(1, holdout_.size());
   params = CellWeights(problem, params);
   const std::vector<double> init = StartOf(problem, all);
-  SolverOptions so;
-  so.max_iterations = 50;
-  const SolveResult sr = lp::Solve(opt_.solver, Objective(problem, params), init, so);
+  const SolveResult sr = lp::Solve(opt_.solver, Objective(problem, params), init, TrialOptions(kTrialIterations));
   const std::vector<double> render =
       HeldOutRender(holdout_held_, held_columns, Scattered(problem, sr.lambda, cells_ + columns.size()));
   return CauchyLoss{params.sigma}.Sum(Residuals(y_held, render, &holdout_));

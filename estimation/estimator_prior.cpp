@@ -244,6 +244,7 @@ Estimator::PriorFolds Estimator::PriorLosses(const std::vector<Light>& lights, c
       scored[l] = TracedSunColumn(*d, nullptr, opt_.tracer.spp, 960);
   const CauchyLoss cauchy{res_.objective_params.sigma};
   std::vector<std::uint8_t> empty(kPriorFolds, 0);
+  std::vector<std::vector<ConvergenceRow>> rows(kPriorFolds);  // (their trial solves', logged after)
   // Each block is one fold's: the folds write disjoint entries of out.loss.
   ParallelFor(0, kPriorFolds, [&](std::size_t f) {
     CheckCancel();
@@ -276,10 +277,8 @@ Estimator::PriorFolds Estimator::PriorLosses(const std::vector<Light>& lights, c
       ObjectiveParams params = res_.objective_params;
       params.alpha = weights[a].alpha * static_cast<double>(problem.rows()) / kAlphaReferencePixels;
       params.smooth = weights[a].smooth;
-      SolverOptions so;
-      so.max_iterations = 50;
       const Objective objective(problem, CellWeights(problem, params, weights[a].alpha));
-      x = lp::Solve(opt_.solver, objective, x, so).lambda;
+      x = lp::Solve(opt_.solver, objective, x, TrialOptions(kTrialIterations, &rows[f])).lambda;
       std::vector<double> full = Scattered(problem, x, cells_ + lights.size());
       const std::vector<double> residual = Residuals(y_held, HeldOutRender(held_map, held_columns, full), &held);
       std::size_t h = 0;  // the held-out rows in order
@@ -290,6 +289,11 @@ Estimator::PriorFolds Estimator::PriorLosses(const std::vector<Light>& lights, c
       solution[f].push_back(std::move(full));
     }
   });
+  std::vector<ConvergenceRow> log;  // in the order of their times (the folds ran side by side)
+  for (const std::vector<ConvergenceRow>& fold : rows) log.insert(log.end(), fold.begin(), fold.end());
+  std::stable_sort(log.begin(), log.end(),
+                   [](const ConvergenceRow& a, const ConvergenceRow& b) { return a.wall_seconds < b.wall_seconds; });
+  for (const ConvergenceRow& row : log) Push(row);
   if (std::count(empty.begin(), empty.end(), 1) > 0) return {};
   out.mean.assign(alphas, std::vector<double>(unknowns, 0.0));
   for (std::size_t a = 0; a < alphas; ++a)

@@ -617,6 +617,10 @@ void Viewer::PlotConvergence(float width, float height) {
   for (const ConvergenceRow& r : est_.rows) {
     if (!(r.relative_rmse > 0)) continue;
     const ImVec2 p(X(r.wall_seconds), Y(r.relative_rmse));
+    if (std::string(r.step) == "trial") {  // (a model's trial solve: a dot, off the line)
+      dl->AddCircleFilled(p, 1.5f, IM_COL32(130, 130, 140, 255));
+      continue;
+    }
     if (prev_round == r.round) dl->AddLine(prev, p, IM_COL32(90, 200, 255, 255), 2);
     else dl->AddCircleFilled(p, 3, IM_COL32(255, 200, 80, 255));  // a round starts
     prev = p;
