@@ -134,10 +134,11 @@ static std::string Fmt(const char* fmt, double a, double b, double c, double d, 
 /// lights.json: the map (when it lights anything), the point lights, the directional ones
 /// and the emitters (their triangles first, in emitters.ply: a reader of lights.json finds them).
 static void WriteLights(const fs::path& out, const EstimateResult& r) {
-  LightsFile lights{"", r.lighting.lights, r.uncertainty};
+  LightsFile lights{"", r.lighting.lights, r.uncertainty, r.openings};
   for (double v : r.lighting.map)
     if (v > 0) lights.environment = "envmap.exr";
   WriteEmittersPly(out / "emitters.ply", r.lighting.lights);
+  WriteOpeningsPly(out / "openings.ply", r.openings);
   WriteTextAtomically(out / "lights.json", LightsJson(lights));
 }
 
@@ -322,7 +323,7 @@ static json LeftOutJson(const SceneBundle& bundle, const EstimateResult& r) {
 /// per light of `lighting`, when given).
 template <class T>
 static json LightsOfKind(const Lighting& lighting, const std::vector<LightUncertainty>& uncertainty = {}) {
-  return json::parse(LightsJson({"", lighting.lights, uncertainty}))[LightsKey(T{})];
+  return json::parse(LightsJson({"", lighting.lights, uncertainty, {}}))[LightsKey(T{})];
 }
 
 static json RoundsJson(const EstimateResult& r) {

@@ -101,7 +101,7 @@ Run AddRender(CLI::App& app) {
       if (!file.environment.empty())
         lambda = ReadEnvironment((fs::path(*lights).parent_path() / file.environment).string(), env);
     }
-    RayTracer tracer(b.mesh);
+    RayTracer tracer(b.mesh, TrianglesOnShapes(b.mesh, file.openings));  // (a window's opening: no surface)
     // The map and the lights on the same paths (a lights.json without a map: a dark one;
     // with nothing at all, everything is black).
     if (lambda.empty()) lambda.assign(3 * env.size(), 0.0);

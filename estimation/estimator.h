@@ -204,6 +204,10 @@ struct EstimateResult {
   /// The refined per-vertex albedo the estimate was made under (empty: the bundle's, unrefined).
   std::vector<Eigen::Vector3f> albedo;
   int albedo_passes = 0, albedo_segments = 0;
+  /// Surfaces seen glowing that the data chose as a window's opening (the map seen through
+  /// it, its triangles no surface) over a glowing pane or a plain one (docs/method.md,
+  /// "Windows: a pane or an opening"), on the bundle's mesh; lights.json's "openings".
+  std::vector<std::shared_ptr<const EmitterShape>> openings;
   double albedo_seconds = 0;  ///< de-lighting and segmenting (the extra rounds are in `rounds`)
   /// How far the last albedo pass moved the lights (EstimateOptions::albedo_settle's
   /// measure; NaN without a pass).

@@ -193,29 +193,21 @@ std::vector<EmitterLight> Estimator::GlowingSegments() {
   return out;
 }
 
-void Estimator::OnBundleMesh(std::vector<Light>* lights) const {
+void Estimator::OnBundleMesh(std::vector<Light>* lights) {
   if (cluster_.empty()) return;  // (the bundle's mesh is the traced one)
   const Mesh& full = mesh_.positions.empty() ? bundle_.mesh : mesh_;
   for (Light& l : *lights) {
     EmitterLight* e = std::get_if<EmitterLight>(&l);
     if (!e || !e->shape) continue;
-    std::vector<int> triangles;
-    std::vector<Eigen::Vector3f> facing;
-    for (std::size_t t = 0; t < full.triangles.size(); ++t) {
-      const Eigen::Vector3i& f = full.triangles[t];
-      const Eigen::Vector3d centroid =
-          ((full.positions[f[0]] + full.positions[f[1]] + full.positions[f[2]]) / 3).cast<double>();
-      if (const int on = EmitterTriangleAt(*e->shape, centroid); on >= 0) {
-        triangles.push_back(static_cast<int>(t));
-        facing.push_back(e->shape->normal[on]);
-      }
-    }
-    if (triangles.empty()) continue;  // (keeps the traced mesh's)
+    auto on = ShapeOnMesh(full, *e->shape);
+    if (!on) continue;  // (keeps the traced mesh's)
     const double area = e->Area();
-    e->shape = MakeEmitterShape(full, triangles, facing);
+    e->shape = std::move(on);
     Progress(Fmt("emitter %d: %zu triangles of the bundle's mesh, %.4g m^2 (%.4g on the traced mesh)", e->id,
-                 triangles.size(), e->Area(), area));
+                 e->shape->a.size(), e->Area(), area));
   }
+  for (auto& opening : res_.openings)
+    if (auto on = ShapeOnMesh(full, *opening)) opening = std::move(on);
 }
 
 void Estimator::BoundEmitters() {
@@ -224,11 +216,11 @@ void Estimator::BoundEmitters() {
       e.radiance = e.radiance.cwiseMax(it->second);
 }
 
-double Estimator::ObjectiveWith(const std::vector<EmitterLight>& emitters) {
+double Estimator::ObjectiveWith(const std::vector<EmitterLight>& emitters, int iterations) {
   emitters_ = emitters;
   const RoundProblem rp = WithLights(points_);
   return lp::Solve(opt_.solver, Objective(*rp.problem, CellWeights(*rp.problem, res_.objective_params)), rp.init,
-                   TrialOptions(kTrialIterations))
+                   TrialOptions(iterations))
       .objective;
 }
 
@@ -238,12 +230,7 @@ namespace {
 /// the cameras see glow): behind its centre, against the side it glows on, by half its
 /// extent; a surface seen glowing all round (its sides' normals cancel) has it at its centre.
 Eigen::Vector3d Inside(const EmitterLight& e) {
-  Eigen::Vector3d facing = Eigen::Vector3d::Zero();
-  double previous = 0;
-  for (std::size_t t = 0; t < e.shape->a.size(); ++t) {
-    facing += (e.shape->cumulative[t] - previous) * e.shape->normal[t].cast<double>();
-    previous = e.shape->cumulative[t];
-  }
+  const Eigen::Vector3d facing = FacingSum(*e.shape);
   if (!(e.shape->area > 0)) return Centroid(*e.shape);
   return Centroid(*e.shape) - facing / e.shape->area * 0.5 * std::sqrt(e.Area());
 }
@@ -297,6 +284,12 @@ bool Estimator::TryEmitter(const EmitterLight& candidate, std::vector<EmitterLig
                                candidate.Area(), objective_with, *objective, held_with, *held, keep ? "kept" : "left out");
   res_.point_light_choices.push_back(line);
   Progress(line);
+  // A window's clear glass: the surface as an opening instead, where it could be one.
+  emitters_ = *kept;
+  if (TryOpening(candidate, keep ? with : *kept, objective, held)) {
+    points_ = lamps;  // (no lamp inside an opening)
+    return true;
+  }
   if (!keep) return false;
   *kept = with;
   kept->back().id = static_cast<int>(kept->size()) - 1;

@@ -301,7 +301,7 @@ class Estimator {
   /// against the map alone, whose columns have those paths); else from the shading vertices,
   /// as a lamp's are (against a lamp: the same noise).
   double HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalLight* directional = nullptr,
-                     bool traced = false);
+                     bool traced = false, int iterations = kTrialIterations);
   std::vector<float> HeldOutSunColumn(const DirectionalLight& light);
   std::vector<float> TracedSunColumn(DirectionalLight light, const std::vector<std::uint8_t>* rows, int spp,
                                      std::uint64_t seed);
@@ -413,6 +413,20 @@ class Estimator {
   bool ProposeEmitters(RoundInfo* info);
   /// SelectModel on the lamps again beside the glowing surfaces kept (solved again if one goes).
   void ReselectLamps(RoundInfo* info);
+  // Windows (estimator_openings.cpp): a glowing surface that could be a window tried as an opening.
+  /// `candidate` (not in emitters_) as an opening against the lights `as_is` (emitters_ with
+  /// it, where its trial kept it, or without), both on fresh paths; true where the data
+  /// chose the opening: the round's state is then the opening's, with its `objective` and
+  /// `held`-out loss.
+  bool TryOpening(const EmitterLight& candidate, const std::vector<EmitterLight>& as_is, double* objective,
+                  double* held);
+  /// Flat, and most rays out of its back leave the scene (`opened`: the scene with it open).
+  bool CouldBeWindow(const EmitterLight& e, const RayTracer& opened) const;
+  /// Per triangle of the traced mesh: open already, or its centre on `shape`.
+  std::vector<std::uint8_t> TrianglesOn(const std::shared_ptr<const EmitterShape>& shape) const;
+  /// A_, its problem and the shading vertices traced afresh on scene_ (every cell sampled).
+  void TraceAfresh(int round);
+  struct TracedState;
   /// Keeps `candidate` beside `kept` when the objective and the held-out loss say so (both
   /// updated then).
   bool TryEmitter(const EmitterLight& candidate, std::vector<EmitterLight>* kept, double* objective, double* held);
@@ -424,7 +438,7 @@ class Estimator {
   /// (given for where it is) both fall; they are then the new ones.
   bool LampInside(const EmitterLight& candidate, const std::vector<EmitterLight>& with, double* objective, double* held);
   /// The round's whole objective solved again with `emitters` (left as emitters_) beside the map and the lights.
-  double ObjectiveWith(const std::vector<EmitterLight>& emitters);
+  double ObjectiveWith(const std::vector<EmitterLight>& emitters, int iterations = kTrialIterations);
   /// The traced mesh's segments the views see brighter than a white surface under the
   /// lights so far (at least kMinEmitterPixels each), as emitters of a first radiance.
   std::vector<EmitterLight> GlowingSegments();
@@ -435,7 +449,7 @@ class Estimator {
   void BoundEmitters();
   /// The emitters of `lights` on the bundle's own mesh (its triangles on the traced mesh's
   /// emitter), as emitters.ply holds them; as they are when the mesh is traced as it is.
-  void OnBundleMesh(std::vector<Light>* lights) const;
+  void OnBundleMesh(std::vector<Light>* lights);
   bool ProposeDirectionalLight(DirectionalProposal* out);
   bool ShapeDirectionalLight(DirectionalProposal* proposal, SunFit* fit);
   void SettleDirectionalLight(DirectionalProposal* proposal, SunFit* fit, RoundInfo* info);

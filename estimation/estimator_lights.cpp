@@ -542,7 +542,7 @@ double Estimator::RenderedShare(const PointLight& light) {
 /// The Cauchy loss on the held-out rows of the map and `lights` (and a directional light)
 /// fitted on the other rows.
 double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const DirectionalLight* directional,
-                              bool traced) {
+                              bool traced, int iterations) {
   std::vector<Light> all = AsLights(lights);
   if (directional) all.push_back(*directional);
   for (const EmitterLight& e : emitters_) all.push_back(e);  // (the glowing surfaces so far beside them)
@@ -569,7 +569,7 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
   params.alpha *= static_cast<double>(holdout_fit_->rows()) / std::max<std::size_t>(1, holdout_.size());
   params = CellWeights(problem, params);
   const std::vector<double> init = StartOf(problem, all);
-  const SolveResult sr = lp::Solve(opt_.solver, Objective(problem, params), init, TrialOptions(kTrialIterations));
+  const SolveResult sr = lp::Solve(opt_.solver, Objective(problem, params), init, TrialOptions(iterations));
   const std::vector<double> render =
       HeldOutRender(holdout_held_, held_columns, Scattered(problem, sr.lambda, cells_ + columns.size()));
   return CauchyLoss{params.sigma}.Sum(Residuals(y_held, render, &holdout_));

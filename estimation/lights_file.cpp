@@ -157,6 +157,11 @@ std::string LightsJson(const LightsFile& lights) {
           j[LightsKey(l)].push_back(entry);
         },
         lights.lights[k]);
+  if (!lights.openings.empty()) {
+    j["openings"] = json::array();
+    for (std::size_t k = 0; k < lights.openings.size(); ++k)
+      j["openings"].push_back({{"id", k}, {"area", lights.openings[k] ? lights.openings[k]->area : 0.0}});
+  }
   return j.dump(2) + "\n";
 }
 
@@ -196,16 +201,23 @@ LightsFile ParseLightsJson(const std::string& text, const std::string& name) {
     unknown.scale_sigma.setConstant(INFINITY);
     out.uncertainty.resize(out.lights.size(), unknown);
   }
+  if (j.contains("openings")) {
+    if (!j["openings"].is_array()) throw InputError(name, "\"openings\" must be an array");
+    for (const json& o : j["openings"])
+      if (!o.is_object() || !o.contains("id") || !o["id"].is_number_integer() ||
+          o["id"].get<long long>() != static_cast<long long>(out.openings.size()))
+        throw InputError(name, "\"openings\" must hold {\"id\": 0, ...}, {\"id\": 1, ...} in order");
+      else
+        out.openings.push_back(nullptr);  // (the shapes: openings.ply, ReadLightsFile)
+  }
   return out;
 }
 
-LightsFile ReadLightsFile(const std::filesystem::path& path) {
-  LightsFile file = ParseLightsJson(ReadTextFile(path), path.string());
-  bool any = false;
-  for (const Light& l : file.lights) any |= std::holds_alternative<EmitterLight>(l);
-  if (!any) return file;
-  const std::filesystem::path ply = path.parent_path() / "emitters.ply";
-  if (!std::filesystem::exists(ply)) throw InputError(ply.string(), "missing: lights.json names emitters");
+namespace {
+
+/// Each id's triangles of `ply` (emitters.ply's layout), as shapes facing their vertices' normals.
+std::map<int, std::shared_ptr<const EmitterShape>> ShapesOf(const std::filesystem::path& ply, const char* what) {
+  if (!std::filesystem::exists(ply)) throw InputError(ply.string(), std::string("missing: lights.json names ") + what);
   const Mesh mesh = ReadPly(ply);
   if (mesh.label.size() != mesh.positions.size()) throw InputError(ply.string(), "its vertices have no \"emitter\" id");
   std::map<int, std::vector<int>> triangles;  // per id
@@ -215,11 +227,34 @@ LightsFile ReadLightsFile(const std::filesystem::path& path) {
     triangles[mesh.label[v]].push_back(static_cast<int>(t));
     facing[mesh.label[v]].push_back(mesh.normals.empty() ? Eigen::Vector3f::Zero() : mesh.normals[v]);
   }
+  std::map<int, std::shared_ptr<const EmitterShape>> out;
+  for (const auto& [id, ts] : triangles) out[id] = MakeEmitterShape(mesh, ts, facing[id]);
+  return out;
+}
+
+}  // namespace
+
+LightsFile ReadLightsFile(const std::filesystem::path& path) {
+  LightsFile file = ParseLightsJson(ReadTextFile(path), path.string());
+  if (!file.openings.empty()) {
+    const std::filesystem::path ply = path.parent_path() / "openings.ply";
+    const auto shapes = ShapesOf(ply, "openings");
+    for (std::size_t k = 0; k < file.openings.size(); ++k) {
+      const auto it = shapes.find(static_cast<int>(k));
+      if (it == shapes.end()) throw InputError(ply.string(), "has no triangles of opening " + std::to_string(k));
+      file.openings[k] = it->second;
+    }
+  }
+  bool any = false;
+  for (const Light& l : file.lights) any |= std::holds_alternative<EmitterLight>(l);
+  if (!any) return file;
+  const std::filesystem::path ply = path.parent_path() / "emitters.ply";
+  const auto shapes = ShapesOf(ply, "emitters");
   for (Light& l : file.lights)
     if (EmitterLight* e = std::get_if<EmitterLight>(&l)) {
-      if (!triangles.count(e->id))
-        throw InputError(ply.string(), "has no triangles of emitter " + std::to_string(e->id));
-      e->shape = MakeEmitterShape(mesh, triangles[e->id], facing[e->id]);
+      const auto it = shapes.find(e->id);
+      if (it == shapes.end()) throw InputError(ply.string(), "has no triangles of emitter " + std::to_string(e->id));
+      e->shape = it->second;
     }
   return file;
 }
@@ -244,6 +279,26 @@ void WriteEmittersPly(const std::filesystem::path& file, const std::vector<Light
       // (wound so that its normal is the side that emits)
       const bool along = (s.b[t] - s.a[t]).cross(s.c[t] - s.a[t]).dot(s.normal[t]) >= 0;
       out.triangles.emplace_back(base, along ? base + 1 : base + 2, along ? base + 2 : base + 1);
+    }
+  }
+  if (!out.triangles.empty()) WritePly(file, out);
+}
+
+void WriteOpeningsPly(const std::filesystem::path& file,
+                      const std::vector<std::shared_ptr<const EmitterShape>>& openings) {
+  Mesh out;
+  for (std::size_t k = 0; k < openings.size(); ++k) {
+    if (!openings[k]) continue;
+    const EmitterShape& s = *openings[k];
+    for (std::size_t t = 0; t < s.a.size(); ++t) {
+      const int base = static_cast<int>(out.positions.size());
+      for (const Eigen::Vector3f& p : {s.a[t], s.b[t], s.c[t]}) {
+        out.positions.push_back(p);
+        out.normals.push_back(s.normal[t]);
+        out.albedo.push_back(Eigen::Vector3f::Ones());
+        out.label.push_back(static_cast<int>(k));
+      }
+      out.triangles.emplace_back(base, base + 1, base + 2);
     }
   }
   if (!out.triangles.empty()) WritePly(file, out);

@@ -25,6 +25,10 @@ struct LightsFile {
   /// "direction_covariance" (3 x 3 in its tangent plane, radians^2) and "irradiance_sigma";
   /// an entry the data do not fix is null (infinite).
   std::vector<LightUncertainty> uncertainty;
+  /// Windows' openings (EstimateResult::openings): in the file "openings", one {"id": k,
+  /// "area": m^2} each (k = 0, 1, ...), their triangles in openings.ply beside it. A
+  /// renderer leaves the mesh's triangles on them out (rays pass through).
+  std::vector<std::shared_ptr<const EmitterShape>> openings;
 };
 
 /// The file's key for the lights of each kind ("point_lights", "directional_lights").
@@ -50,6 +54,12 @@ LightsFile ReadLightsFile(const std::filesystem::path& path);
 /// normal of the side that emits, a colour to look at, the `emitter` id and the
 /// `radiance_r/g/b` they emit. Written atomically; none when `lights` has no emitter.
 void WriteEmittersPly(const std::filesystem::path& file, const std::vector<Light>& lights);
+
+/// openings.ply (docs/formats.md): the openings' triangles in emitters.ply's layout, the
+/// `emitter` property holding the opening's id, no radiance. Written atomically; none when
+/// there is no opening.
+void WriteOpeningsPly(const std::filesystem::path& file,
+                      const std::vector<std::shared_ptr<const EmitterShape>>& openings);
 
 /// Reads an equirectangular map file (.exr/.pfm/.png linear, or Radiance .hdr: lights.json's
 /// `environment`, `render --envmap`). Throws InputError naming the file when it is not

@@ -205,7 +205,7 @@ namespace {
 /// their uncertainty where the estimate gave one), each position, direction and covariance
 /// also in the y-up frame (G v, G C G^T; a covariance with an unknown entry as it is).
 void AddLightsByValue(const ExportScene& s, const Eigen::Matrix3d& G, json* out) {
-  const json file = json::parse(LightsJson({"", s.lights, s.uncertainty}));
+  const json file = json::parse(LightsJson({"", s.lights, s.uncertainty, {}}));
   const auto turned_covariance = [&](const json& c) {
     Eigen::Matrix3d m;
     for (int r = 0; r < 3; ++r)

@@ -2,6 +2,7 @@
 
 #include "common/parallel.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -20,8 +21,18 @@ struct RayTracer::Impl {
   }
 };
 
-RayTracer::RayTracer(Mesh mesh) : impl_(std::make_unique<Impl>()), mesh_(std::move(mesh)) {
+RayTracer::RayTracer(Mesh mesh) : RayTracer(std::move(mesh), {}) {}
+
+RayTracer::RayTracer(Mesh mesh, const std::vector<std::uint8_t>& open)
+    : impl_(std::make_unique<Impl>()), mesh_(std::move(mesh)) {
   LP_CHECK(!mesh_.triangles.empty(), "empty mesh");
+  LP_CHECK(open.empty() || open.size() == mesh_.triangles.size(), "open: one flag per triangle");
+  if (std::find(open.begin(), open.end(), 1) != open.end()) {
+    open_ = open;
+    for (std::size_t t = 0; t < open.size(); ++t)
+      if (!open[t]) triangle_of_.push_back(static_cast<int>(t));
+    LP_CHECK(!triangle_of_.empty(), "every triangle open");
+  }
   LP_CHECK(mesh_.normals.size() == mesh_.positions.size(), "mesh lacks normals (call SanitizeMesh)");
   BoundingSphere(mesh_, &center_, &radius_);
   epsilon_ = 1e-5 * radius_;
@@ -37,10 +48,13 @@ RayTracer::RayTracer(Mesh mesh) : impl_(std::make_unique<Impl>()), mesh_(std::mo
                                                         3 * sizeof(float), mesh_.positions.size()));
   for (std::size_t i = 0; i < mesh_.positions.size(); ++i)
     for (int c = 0; c < 3; ++c) v[3 * i + c] = mesh_.positions[i][c];
+  const std::size_t prims = triangle_of_.empty() ? mesh_.triangles.size() : triangle_of_.size();
   auto* idx = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                             3 * sizeof(unsigned), mesh_.triangles.size()));
-  for (std::size_t i = 0; i < mesh_.triangles.size(); ++i)
-    for (int c = 0; c < 3; ++c) idx[3 * i + c] = static_cast<unsigned>(mesh_.triangles[i][c]);
+                                                             3 * sizeof(unsigned), prims));
+  for (std::size_t i = 0; i < prims; ++i) {
+    const Eigen::Vector3i& t = mesh_.triangles[triangle_of_.empty() ? i : triangle_of_[i]];
+    for (int c = 0; c < 3; ++c) idx[3 * i + c] = static_cast<unsigned>(t[c]);
+  }
   rtcCommitGeometry(geom);
   rtcAttachGeometry(impl_->scene, geom);
   rtcReleaseGeometry(geom);
@@ -94,7 +108,7 @@ bool RayTracer::Intersect(const Eigen::Vector3d& o, const Eigen::Vector3d& d, Su
                         static_cast<float>(std::min(tmax, 1e30)));
   rtcIntersect1(impl_->scene, &ctx, &rh);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
-  const int prim = static_cast<int>(rh.hit.primID);
+  const int prim = triangle_of_.empty() ? static_cast<int>(rh.hit.primID) : triangle_of_[rh.hit.primID];
   const Eigen::Vector3i& t = mesh_.triangles[prim];
   const double u = rh.hit.u, v = rh.hit.v, w = 1 - u - v;
   hit->triangle = prim;

@@ -27,6 +27,9 @@ class RayTracer {
  public:
   /// Builds the BVH over a sanitized mesh (see SanitizeMesh); keeps a copy of it.
   explicit RayTracer(Mesh mesh);
+  /// ... without the triangles where `open` is 1 (an opening: rays pass through them); the
+  /// others keep their indices (SurfacePoint::triangle, mesh()).
+  RayTracer(Mesh mesh, const std::vector<std::uint8_t>& open);
   ~RayTracer();
   RayTracer(const RayTracer&) = delete;
   RayTracer& operator=(const RayTracer&) = delete;
@@ -52,6 +55,8 @@ class RayTracer {
   /// Ray offset used to leave a surface, proportional to the scene size.
   double epsilon() const { return epsilon_; }
   const Mesh& mesh() const { return mesh_; }
+  /// Per triangle: 1 where it is left out of the BVH (empty: none is).
+  const std::vector<std::uint8_t>& open() const { return open_; }
   /// Centre and radius of the bounding sphere of the mesh's bounding box.
   Eigen::Vector3d center() const { return center_; }
   double radius() const { return radius_; }
@@ -60,6 +65,8 @@ class RayTracer {
   struct Impl;
   std::unique_ptr<Impl> impl_;
   Mesh mesh_;
+  std::vector<std::uint8_t> open_;
+  std::vector<int> triangle_of_;  ///< per BVH primitive: its triangle (empty: the same)
   double epsilon_ = 1e-4;
   Eigen::Vector3d center_;
   double radius_ = 1;

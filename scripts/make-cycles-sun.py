@@ -22,6 +22,12 @@
 #             bright (radiance WINDOW_SKY) only behind that wall (directions with x < -0.3),
 #             dark elsewhere, so the room is lit through the hole; each view's mask0.png keeps
 #             the pixels whose ray hits the room (a scan has no depth through a window);
+#   glazed-window  the open window's room, its world bright (radiance 4) only in a cone of
+#             37 degrees about -x, whose light comes through the hole as a beam onto the floor,
+#             rendered without glass (clear glass); the
+#             bundle's mesh has a pane in the hole (a depth camera that saw the glass), and
+#             each view's mask0.png keeps the pixels whose ray hits that mesh (the pane's
+#             included): the data must choose the opening (issue 43);
 #   shade     a lamp in a lamp shade: a 16-sided open band (radius 0.15 m, 0.25 m tall, a
 #             Translucent BSDF of colour SHADE_TRANSMISSION, reflecting nothing) around a
 #             40 W warm point light hidden from the camera; the shade glows with the light it
@@ -46,7 +52,7 @@ argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
 out_dir = os.path.abspath(argv[0] if argv else "tests/data/cycles/sun")
 spp = int(argv[1]) if len(argv) > 1 else 1024
 KIND = argv[2] if len(argv) > 2 else "sun"
-KINDS = ("sun", "sky", "lamp-sky", "two-lamps", "hdr", "glow", "screen", "shade", "open-window")
+KINDS = ("sun", "sky", "lamp-sky", "two-lamps", "hdr", "glow", "screen", "shade", "open-window", "glazed-window")
 if KIND not in KINDS:
     raise SystemExit("KIND is one of %s, not %s" % (", ".join(KINDS), KIND))
 HDR = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "assets", "hdri", "studio_small_03_1k.hdr")
@@ -64,9 +70,12 @@ if KIND == "sky":
     SKY_RADIANCE = 1.0 / math.pi
 elif KIND == "lamp-sky":
     SKY_RADIANCE = LAMP_INTENSITY / (LAMP_POSITION - CENTRE).length_squared / 20 / math.pi
-elif KIND in ("two-lamps", "glow", "screen", "shade", "open-window"):
+elif KIND in ("two-lamps", "glow", "screen", "shade", "open-window", "glazed-window"):
     SKY_RADIANCE = 0.0
 WINDOW_SKY, WINDOW_SKY_X = 2.0, -0.3  # open-window: the world's radiance where direction.x < WINDOW_SKY_X
+OPENING = KIND in ("open-window", "glazed-window")  # the frosted window's place in the wall x = 0, open
+if KIND == "glazed-window":  # a narrower bright sky behind the wall (a cone of 37 degrees about -x)
+    WINDOW_SKY, WINDOW_SKY_X = 4.0, -0.8
 # glow, screen: the pane's wall (the axis it lies across, 0 = x, 1 = y), its ranges along the
 # wall and up, its albedo (sRGB) and the radiance it emits (W/(m^2 sr), linear RGB).
 PANES = {"glow": (0, (1.2, 2.0), (0.5, 1.3), (200, 200, 200), (3.0, 2.7, 2.25)),
@@ -135,7 +144,7 @@ PANE_SPEC = PANES.get(KIND)
 PANE = -1
 for axis in (0, 1):
     on_this = PANE_SPEC is not None and PANE_SPEC[0] == axis
-    if KIND == "open-window" and axis == 0:  # the frosted window's place, open
+    if OPENING and axis == 0:  # the frosted window's place, open
         wall(axis, (PANES["glow"][1], PANES["glow"][2], None))
         continue
     k = wall(axis, (PANE_SPEC[1], PANE_SPEC[2], PANE_SPEC[3]) if on_this else None)
@@ -152,16 +161,20 @@ if KIND == "shade":
 box(0.9, 1.5, 0.8, 1.4, 0.5, BOX)
 box(1.9, 2.2, 1.7, 2.0, 1.1, BLOCK)
 # --- the scene bundle's mesh (ASCII PLY, sRGB uchar colours) ---
+bundle_quads = list(quads)
+if KIND == "glazed-window":  # the glass as the depth camera saw it: a pane in the hole (not rendered)
+    (u0, u1), (z0, z1) = PANES["glow"][1], PANES["glow"][2]
+    bundle_quads.append((((0, u0, z0), (0, u1, z0), (0, u1, z1), (0, u0, z1)), WALL))
 os.makedirs(out_dir, exist_ok=True)
 with open(os.path.join(out_dir, "mesh.ply"), "w") as f:
     f.write("ply\nformat ascii 1.0\ncomment made by scripts/make-cycles-sun.py\n")
-    f.write("element vertex %d\nproperty float x\nproperty float y\nproperty float z\n" % (4 * len(quads)))
+    f.write("element vertex %d\nproperty float x\nproperty float y\nproperty float z\n" % (4 * len(bundle_quads)))
     f.write("property uchar red\nproperty uchar green\nproperty uchar blue\n")
-    f.write("element face %d\nproperty list uchar int vertex_indices\nend_header\n" % len(quads))
-    for corners, c in quads:
+    f.write("element face %d\nproperty list uchar int vertex_indices\nend_header\n" % len(bundle_quads))
+    for corners, c in bundle_quads:
         for p in corners:
             f.write("%g %g %g %d %d %d\n" % (p[0], p[1], p[2], c[0], c[1], c[2]))
-    for k in range(len(quads)):
+    for k in range(len(bundle_quads)):
         f.write("4 %d %d %d %d\n" % (4 * k, 4 * k + 1, 4 * k + 2, 4 * k + 3))
 
 # --- the same in Blender ---
@@ -238,7 +251,7 @@ if KIND == "hdr":
     links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
     links.new(tex.outputs["Color"], bg.inputs["Color"])
     bg.inputs["Strength"].default_value = 1.0
-if KIND == "open-window":  # WINDOW_SKY where the direction's x < WINDOW_SKY_X, else black
+if OPENING:  # WINDOW_SKY where the direction's x < WINDOW_SKY_X, else black
     nodes, links = world.node_tree.nodes, world.node_tree.links
     coord, split, below = nodes.new("ShaderNodeTexCoord"), nodes.new("ShaderNodeSeparateXYZ"), nodes.new("ShaderNodeMath")
     below.operation = "LESS_THAN"
@@ -308,9 +321,9 @@ if SHADE:
 
 def write_room_mask(path, eye, R, fx, width, height):
     """mask0.png: 255 where the pixel centre's ray (OpenCV camera, R its world-from-camera
-    rotation) hits one of the quads, else 0."""
+    rotation) hits one of the bundle's quads (glazed-window: the pane too), else 0."""
     from mathutils.geometry import intersect_ray_tri
-    tris = [(c[0], c[1], c[2]) for c, _ in quads] + [(c[0], c[2], c[3]) for c, _ in quads]
+    tris = [(c[0], c[1], c[2]) for c, _ in bundle_quads] + [(c[0], c[2], c[3]) for c, _ in bundle_quads]
     tris = [tuple(mathutils.Vector(p) for p in t) for t in tris]
     img = bpy.data.images.new("mask", width, height, alpha=False)
     pixels = [0.0] * (4 * width * height)
@@ -373,7 +386,7 @@ scene.camera = cam
 truth = {"scene": "cycles-" + KIND, "blender_version": bpy.app.version_string, "spp": spp,
          "lights": truth_lights,
          "emitters": truth_emitters,
-         "world": {"type": "uniform", "radiance": [SKY_RADIANCE] * 3} if KIND != "open-window" else
+         "world": {"type": "uniform", "radiance": [SKY_RADIANCE] * 3} if not OPENING else
                   {"type": "step", "radiance": [WINDOW_SKY] * 3, "where": "direction x < %g" % WINDOW_SKY_X},
          "render": {"engine": "CYCLES", "max_bounces": 64, "diffuse_bounces": 64, "pixel_filter": "BOX",
                     "filter_width_px": 1.0, "view_transform": "Standard", "denoising": False,
@@ -399,7 +412,7 @@ for k, (eye, target) in enumerate(VIEWS):
     fx = cam_data.lens / cam_data.sensor_width * W
     view = {"image": image, "width": W, "height": H, "fx": fx, "fy": fx, "cx": (W - 1) / 2,
             "cy": (H - 1) / 2, "world_from_camera": wfc}
-    if KIND in ("hdr", "open-window"):
+    if KIND in ("hdr", "open-window", "glazed-window"):
         # A scan has no depth past the room: only the pixels whose ray hits the mesh are used
         # (mask0.png, 255 there; unmasked, the softboxes seen directly dominate the fit).
         mask = "mask%d.png" % len(bundle_views.get(d, []))

@@ -119,6 +119,43 @@ int EmitterTriangleAt(const EmitterShape& shape, const Eigen::Vector3d& point) {
   return -1;
 }
 
+namespace {
+Eigen::Vector3d TriangleCentre(const Mesh& mesh, std::size_t t) {
+  const Eigen::Vector3i& f = mesh.triangles[t];
+  return ((mesh.positions[f[0]] + mesh.positions[f[1]] + mesh.positions[f[2]]) / 3).cast<double>();
+}
+}  // namespace
+
+std::vector<std::uint8_t> TrianglesOnShapes(const Mesh& mesh,
+                                            const std::vector<std::shared_ptr<const EmitterShape>>& shapes) {
+  std::vector<std::uint8_t> on(mesh.triangles.size(), 0);
+  for (std::size_t t = 0; t < on.size() && !shapes.empty(); ++t)
+    for (const auto& s : shapes)
+      if (s && EmitterTriangleAt(*s, TriangleCentre(mesh, t)) >= 0) on[t] = 1;
+  return on;
+}
+
+std::shared_ptr<const EmitterShape> ShapeOnMesh(const Mesh& mesh, const EmitterShape& shape) {
+  std::vector<int> triangles;
+  std::vector<Eigen::Vector3f> facing;
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
+    if (const int on = EmitterTriangleAt(shape, TriangleCentre(mesh, t)); on >= 0) {
+      triangles.push_back(static_cast<int>(t));
+      facing.push_back(shape.normal[on]);
+    }
+  return triangles.empty() ? nullptr : MakeEmitterShape(mesh, triangles, facing);
+}
+
+Eigen::Vector3d FacingSum(const EmitterShape& s) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double previous = 0;
+  for (std::size_t t = 0; t < s.a.size(); ++t) {
+    sum += (s.cumulative[t] - previous) * s.normal[t].cast<double>();
+    previous = s.cumulative[t];
+  }
+  return sum;
+}
+
 Eigen::Vector3d Centroid(const EmitterShape& s) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   double previous = 0;

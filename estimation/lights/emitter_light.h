@@ -51,6 +51,17 @@ bool OnEmitter(const EmitterShape& shape, const Eigen::Vector3d& point, const Ei
 /// The shape's triangle `point` lies on (as OnEmitter, either side), or -1.
 int EmitterTriangleAt(const EmitterShape& shape, const Eigen::Vector3d& point);
 
+/// Per triangle of `mesh`: 1 where its centre lies on one of `shapes` (EmitterTriangleAt;
+/// a window's opening: the triangles a tracer leaves out, RayTracer(mesh, open)).
+std::vector<std::uint8_t> TrianglesOnShapes(const Mesh& mesh,
+                                            const std::vector<std::shared_ptr<const EmitterShape>>& shapes);
+/// The shape of the triangles of `mesh` on `shape` (facing as its own), or null when none is:
+/// a shape moved onto another mesh of the same surface (a traced mesh's onto the bundle's).
+std::shared_ptr<const EmitterShape> ShapeOnMesh(const Mesh& mesh, const EmitterShape& shape);
+
+/// The sum of its triangles' normals (the side each emits on) weighted by their areas: its
+/// length is the area for a flat shape, less the more it bends.
+Eigen::Vector3d FacingSum(const EmitterShape& shape);
 /// The shape's centre: its triangles' centroids weighted by their areas.
 Eigen::Vector3d Centroid(const EmitterShape& shape);
 /// The shape's outline: the edges of its triangles that no other of its triangles shares

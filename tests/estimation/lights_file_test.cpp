@@ -15,7 +15,7 @@ namespace {
 namespace fs = std::filesystem;
 
 TEST(LightsFile, RoundTripsAndRefusesBadLights) {
-  const LightsFile in{"envmap.exr", {PointLight{{1, 2, 3}, {0.5, 0.25, 0}, 0.05}}, {}};
+  const LightsFile in{"envmap.exr", {PointLight{{1, 2, 3}, {0.5, 0.25, 0}, 0.05}}, {}, {}};
   const LightsFile out = ParseLightsJson(LightsJson(in), "lights.json");
   EXPECT_EQ(out.environment, "envmap.exr");
   const std::vector<PointLight> lamps = OfKind<PointLight>(out.lights);
@@ -28,7 +28,7 @@ TEST(LightsFile, RoundTripsAndRefusesBadLights) {
   EXPECT_EQ(LightsJson(in).find("held"), std::string::npos);  // (written only where held)
   PointLight seen{{1, 2, 3}, {1, 1, 1}, 0};
   seen.held = true;
-  EXPECT_TRUE(OfKind<PointLight>(ParseLightsJson(LightsJson({"", {seen}, {}}), "x").lights).at(0).held);
+  EXPECT_TRUE(OfKind<PointLight>(ParseLightsJson(LightsJson({"", {seen}, {}, {}}), "x").lights).at(0).held);
   EXPECT_THROW(ParseLightsJson(R"({"point_lights": [{"position": [0, 0, 0], "intensity": [1, 1, 1], "held": 1}]})", "x"),
                InputError);
   EXPECT_NE(LightsJson(in).find("\"directional_lights\": []"), std::string::npos);  // always present
@@ -42,7 +42,7 @@ TEST(LightsFile, RoundTripsAndRefusesBadLights) {
   EXPECT_EQ(d.irradiance, Eigen::Vector3d(2, 1.5, 1));
   EXPECT_EQ(d.angular_radius, 0.0046);
   // Both kinds in one file come back, each under its key.
-  const LightsFile both{"", {DirectionalLight{{0, 0, 1}, {1, 1, 1}, 0}, PointLight{{0, 0, 2}, {3, 3, 3}, 0}}, {}};
+  const LightsFile both{"", {DirectionalLight{{0, 0, 1}, {1, 1, 1}, 0}, PointLight{{0, 0, 2}, {3, 3, 3}, 0}}, {}, {}};
   const LightsFile both_back = ParseLightsJson(LightsJson(both), "lights.json");
   EXPECT_EQ(OfKind<PointLight>(both_back.lights).size(), 1u);
   EXPECT_EQ(OfKind<DirectionalLight>(both_back.lights).size(), 1u);
@@ -74,7 +74,7 @@ TEST(LightsFile, EachLightsUncertaintyRoundTripsUnknownAsNull) {
   lamp.scale_sigma = {0.1, 0.2, 0.3};
   sun.shape_covariance = Eigen::Vector3d(1e-6, 4e-6, 0).asDiagonal();
   sun.scale_sigma = {0.01, INFINITY, 0.03};
-  const LightsFile in{"", {DirectionalLight{{0, 0, 1}, {1, 1, 1}, 0}, PointLight{{0, 0, 2}, {3, 3, 3}, 0}}, {sun, lamp}};
+  const LightsFile in{"", {DirectionalLight{{0, 0, 1}, {1, 1, 1}, 0}, PointLight{{0, 0, 2}, {3, 3, 3}, 0}}, {sun, lamp}, {}};
   const std::string text = LightsJson(in);
   EXPECT_NE(text.find("\"position_covariance\""), std::string::npos);
   EXPECT_NE(text.find("\"direction_covariance\""), std::string::npos);
@@ -86,7 +86,7 @@ TEST(LightsFile, EachLightsUncertaintyRoundTripsUnknownAsNull) {
     EXPECT_EQ(out.uncertainty[k].shape_covariance, expect.shape_covariance) << k;
     EXPECT_EQ(out.uncertainty[k].scale_sigma, expect.scale_sigma) << k;
   }
-  EXPECT_TRUE(ParseLightsJson(LightsJson({"", in.lights, {}}), "x").uncertainty.empty());
+  EXPECT_TRUE(ParseLightsJson(LightsJson({"", in.lights, {}, {}}), "x").uncertainty.empty());
   const LightsFile partly = ParseLightsJson(
       R"({"point_lights": [{"position": [0, 0, 1], "intensity": [1, 1, 1]},
                            {"position": [0, 0, 2], "intensity": [1, 1, 1], "intensity_sigma": [0.5, 0.5, 0.5]}]})",

@@ -236,7 +236,7 @@ fs::path TruePaneEstimate(const fs::path& estimate) {
   pane.radiance = {3.0, 2.7, 2.25};
   const std::vector<Light> lights{pane};
   WriteEmittersPly(estimate / "emitters.ply", lights);
-  WriteTextAtomically(estimate / "lights.json", LightsJson({"", lights, {}}));
+  WriteTextAtomically(estimate / "lights.json", LightsJson({"", lights, {}, {}}));
   return fs::path(LIGHTPROBE_SOURCE_DIR) / "tests" / "data" / "cycles" / "glow";
 }
 

@@ -1,6 +1,7 @@
 // A glowing surface (estimation/lights/emitter_light.h): its column against the closed form
 // of a uniform rectangle's irradiance, the camera's own view of it, its back side, its
 // shadow, a render that sees it, and lights.json + emitters.ply read back.
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
@@ -144,7 +145,7 @@ TEST(EmitterLight, LightsJsonAndEmittersPlyGiveItBack) {
   std::filesystem::create_directories(dir);
   const std::vector<Light> lights{PointLight{{1, 2, 3}, {4, 4, 4}, 0}, s.light};
   WriteEmittersPly(dir / "emitters.ply", lights);
-  WriteTextAtomically(dir / "lights.json", LightsJson({"", lights, {}}));
+  WriteTextAtomically(dir / "lights.json", LightsJson({"", lights, {}, {}}));
   const LightsFile back = ReadLightsFile(dir / "lights.json");
   ASSERT_EQ(back.lights.size(), 2u);
   const EmitterLight& e = std::get<EmitterLight>(back.lights[1]);
@@ -162,6 +163,34 @@ TEST(EmitterLight, LightsJsonAndEmittersPlyGiveItBack) {
   // lights.json without its emitters.ply: one clear error.
   std::filesystem::remove(dir / "emitters.ply");
   EXPECT_NE(test::ErrorOf([&] { ReadLightsFile(dir / "lights.json"); }).find("emitters.ply: missing"), std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
+// A window's opening (EstimateResult::openings): lights.json's "openings" and openings.ply
+// give its shape back, and a tracer of the mesh with the triangles on it left out (as
+// `render --lights` builds it) lets a ray from the floor through the panel; bad files refused.
+TEST(EmitterLight, AnOpeningRoundTripsAndLetsRaysThrough) {
+  FloorAndPanel s;
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "lp_opening_test";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  WriteOpeningsPly(dir / "openings.ply", {s.light.shape});
+  WriteTextAtomically(dir / "lights.json", LightsJson({"", {}, {}, {s.light.shape}}));
+  const LightsFile back = ReadLightsFile(dir / "lights.json");
+  ASSERT_EQ(back.openings.size(), 1u);
+  ASSERT_TRUE(back.openings[0]);
+  EXPECT_NEAR(back.openings[0]->area, 0.36, 1e-6);
+  const std::vector<std::uint8_t> open = TrianglesOnShapes(s.mesh, back.openings);
+  EXPECT_EQ(std::count(open.begin(), open.end(), 1), 2);  // the panel's two, not the floor's
+  const Eigen::Vector3d from(0.2, -0.1, 0.01), up(0, 0, 1);
+  EXPECT_TRUE(RayTracer(s.mesh).Occluded(from, up));
+  EXPECT_FALSE(RayTracer(s.mesh, open).Occluded(from, up));
+  // Ids out of order, and a lights.json without its openings.ply: one clear error each.
+  EXPECT_NE(test::ErrorOf([&] { ParseLightsJson(R"({"openings": [{"id": 1}]})", "x"); }).find("in order"),
+            std::string::npos);
+  std::filesystem::remove(dir / "openings.ply");
+  EXPECT_NE(test::ErrorOf([&] { ReadLightsFile(dir / "lights.json"); }).find("openings.ply: missing"),
+            std::string::npos);
   std::filesystem::remove_all(dir);
 }
 
