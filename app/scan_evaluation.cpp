@@ -424,7 +424,8 @@ ScanScore EvaluateScan(const fs::path& truth_dir, const fs::path& run_dir, int s
   if (lit.normals.size() != lit.positions.size()) ComputeVertexNormals(&lit);
   if (has_held_out) {
     const HeldOutView held = ReadHeldOutView(truth_dir / "holdout" / "holdout.json");
-    const RayTracer tracer(std::move(lit));
+    const std::vector<std::uint8_t> open = TrianglesOnShapes(lit, lights.openings);  // (as render --lights)
+    const RayTracer tracer(std::move(lit), open);
     const std::vector<Eigen::Vector3f> hits = HitAlbedos(tracer, held);
     s.albedo_scale = ScaleAndError(hits, held, &s.albedo_samples, &s.albedo_error);
     RelitError(held, tracer, hits, lights, estimate_dir, bundle.up, spp, &s);

@@ -92,7 +92,7 @@ bool Estimator::RefineAlbedo(int pass) {
       // The bundle's mesh itself (a clustered mesh folds where a flat surface crosses a
       // cell's boundary, and a vertex there can sit behind its neighbours' triangles).
       std::unique_ptr<RayTracer> full;
-      if (!cluster_.empty()) full = std::make_unique<RayTracer>(mesh_);
+      if (!cluster_.empty()) full = std::make_unique<RayTracer>(mesh_, TrianglesOnShapes(mesh_, res_.openings));
       VertexRadiance radiance(full ? *full : *scene_, env_, {lambda_, Joined(suns_, points_)}, opt_.tracer.bounces,
                               opt_.tracer.seed * 7919 + pass);
       for (int done = 0; done < paths; done += 2) {  // Cancel is polled between steps
@@ -120,7 +120,9 @@ bool Estimator::RefineAlbedo(int pass) {
     return false;
   }
   res_.albedo_segments = segments;
-  scene_ = std::make_unique<RayTracer>(WithAlbedoOf(mesh_, irradiance));
+  Mesh traced = WithAlbedoOf(mesh_, irradiance);
+  const std::vector<std::uint8_t> open = TrianglesOnShapes(traced, res_.openings);  // (a window's opening stays one)
+  scene_ = std::make_unique<RayTracer>(std::move(traced), open);
   columns_.clear();  // they saw the old albedo
   res_.albedo_passes = pass;
   Progress(Fmt("albedo pass %d: de-lit %zu vertices into %d segments in %.2f s", pass, mesh_.positions.size(),

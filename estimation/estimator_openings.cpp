@@ -80,7 +80,6 @@ void Estimator::TraceAfresh(int round) {
 
 /// What an opening's trial changes, to put back where the pane stays.
 struct Estimator::TracedState {
-  std::unique_ptr<RayTracer> scene;
   TransportMatrix A;
   std::shared_ptr<LinearProblem> map_problem, holdout_fit;
   TransportMatrix holdout_held;
@@ -91,19 +90,21 @@ struct Estimator::TracedState {
 bool Estimator::TryOpening(const EmitterLight& candidate, const std::vector<EmitterLight>& as_is, double* objective,
                            double* held) {
   CheckCancel();
+  // (a surface seen glowing again where a kept one lies is that one: its own trial decided)
+  const Eigen::Vector3d centre = Centroid(*candidate.shape);
+  for (const EmitterLight& e : emitters_)
+    if (e.shape && EmitterTriangleAt(*e.shape, centre) >= 0) return false;
   auto opened = std::make_unique<RayTracer>(scene_->mesh(), TrianglesOn(candidate.shape));
   if (!CouldBeWindow(candidate, *opened)) return false;
   Stopwatch sw;
   const std::vector<EmitterLight> kept = emitters_;  // (without the candidate)
-  TracedState before{std::move(scene_), std::move(A_), map_problem_, holdout_fit_, std::move(holdout_held_),
-                     vertices_, vertex_samples_};
+  TracedState before{std::move(A_), map_problem_, holdout_fit_, std::move(holdout_held_), vertices_, vertex_samples_};
   // The surface as the candidate's trial left it (`as_is`: glowing or not), on fresh paths.
-  scene_ = std::make_unique<RayTracer>(before.scene->mesh(), before.scene->open());
   TraceAfresh(round_);
   const double closed_objective = ObjectiveWith(as_is, kOpeningIterations),
                closed_held = HoldoutLoss(points_, nullptr, false, kOpeningIterations);
   // The opening, on the same paths' seed and samples: the surface neither glows nor blocks.
-  scene_ = std::move(opened);
+  std::swap(scene_, opened);  // (`opened` the closed scene now)
   TraceAfresh(round_);
   const double open_objective = ObjectiveWith(kept, kOpeningIterations),
                open_held = HoldoutLoss(points_, nullptr, false, kOpeningIterations);
@@ -117,7 +118,7 @@ bool Estimator::TryOpening(const EmitterLight& candidate, const std::vector<Emit
   Progress(line);
   emitters_ = kept;
   if (!open) {
-    scene_ = std::move(before.scene);
+    scene_ = std::move(opened);
     A_ = std::move(before.A);
     map_problem_ = before.map_problem;
     holdout_fit_ = before.holdout_fit;
