@@ -339,10 +339,7 @@ bool Estimator::PriorRound(int round, int last) {
 RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   Stopwatch ts;
   CellSampler sampler(env_, round == 1 && !warm_ ? std::vector<double>() : lambda_, reachable_, opt_.tracer.nee_floor);
-  TracerOptions topt = opt_.tracer;
-  topt.seed = opt_.tracer.seed * 1000003ull + round;
-  topt.cancelled = opt_.cancelled;  // a cancelled trace stops within 64 pixels
-  topt.spp = MapSamples(round);
+  const TracerOptions topt = MapTracer(round, 0);
   info->spp = topt.spp;
   info->pixels = static_cast<int>(y_.size() / 3);
   TransportMatrix Ar = TraceTransport(*scene_, env_, views_, sampler, topt, &res_.trace);
@@ -369,16 +366,30 @@ RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   const LinearProblem& problem = *rp.problem;
   info->unknown_cells = static_cast<int>(  // the map's (the lights' columns are unknowns too)
       std::count_if(problem.cell_of.begin(), problem.cell_of.end(), [&](int j) { return j < cells_; }));
-  // Cells no sampled path reached are not unknowns, and are not sampled again.
-  std::fill(reachable_.begin(), reachable_.end(), 0);
-  for (int j : problem.cell_of)
-    if (j < cells_) reachable_[j] = 1;
+  MarkReachable(problem);
   Progress(Fmt("round %d: traced in %.2f s, %d unknown cells of ", round, info->trace_seconds,
                info->unknown_cells) +
            std::to_string(cells_) + ", " + std::to_string(A_.nonzeros()) + " non-zeros");
   if (info->unknown_cells == 0)
     throw InputError(SceneFile(), "no sampled path reaches the environment (camera inside closed geometry?)");
   return rp;
+}
+
+/// The map's tracer options in `round`: its samples, a seed of its own (`stream` apart from
+/// the round's trace, 0), the cancel flag (a cancelled trace stops within 64 pixels).
+TracerOptions Estimator::MapTracer(int round, std::uint64_t stream) const {
+  TracerOptions topt = opt_.tracer;
+  topt.seed = opt_.tracer.seed * 1000003ull + stream + round;
+  topt.cancelled = opt_.cancelled;
+  topt.spp = MapSamples(round);
+  return topt;
+}
+
+/// Cells no sampled path of `problem` reached are not unknowns, and are not sampled again.
+void Estimator::MarkReachable(const LinearProblem& problem) {
+  std::fill(reachable_.begin(), reachable_.end(), 0);
+  for (int j : problem.cell_of)
+    if (j < cells_) reachable_[j] = 1;
 }
 
 /// The share of the estimate's rendered light (over the fitted pixels) that is the map's.

@@ -424,6 +424,8 @@ class Estimator {
   bool CouldBeWindow(const EmitterLight& e, const RayTracer& opened) const;
   /// Per triangle of the traced mesh: open already, or its centre on `shape`.
   std::vector<std::uint8_t> TrianglesOn(const std::shared_ptr<const EmitterShape>& shape) const;
+  TracerOptions MapTracer(int round, std::uint64_t stream) const;
+  void MarkReachable(const LinearProblem& problem);
   /// A_, its problem and the shading vertices traced afresh on scene_ (every cell sampled).
   void TraceAfresh(int round);
   struct TracedState;

@@ -1,6 +1,6 @@
 // Windows: a glowing surface the cameras saw may be glass that lets the sky through
-// (docs/method.md, "Windows: a pane or an opening"). Each kept glowing surface that could be
-// a window (flat, nothing behind it) is tried as an opening: its triangles left out of the
+// (docs/method.md, "Windows: a pane or an opening"). Each surface seen glowing that could be
+// a window (flat, nothing behind it) is tried as an opening, after its own trial: its triangles left out of the
 // traced scene, so that the pixels on it see the map through it and the map lights the
 // room through it with its directions; the pane and the opening each traced afresh (the
 // same paths' seed and samples), the opening kept where the held-out pixels say so.
@@ -68,11 +68,7 @@ bool Estimator::CouldBeWindow(const EmitterLight& e, const RayTracer& opened) co
 void Estimator::TraceAfresh(int round) {
   // (every cell reachable: an opening lets the map in where the pane did not)
   CellSampler sampler(env_, lambda_, std::vector<std::uint8_t>(cells_, 1), opt_.tracer.nee_floor);
-  TracerOptions topt = opt_.tracer;
-  topt.seed = opt_.tracer.seed * 1000003ull + 7001 + round;
-  topt.cancelled = opt_.cancelled;
-  topt.spp = MapSamples(round);
-  A_ = TraceTransport(*scene_, env_, views_, sampler, topt, &res_.trace);
+  A_ = TraceTransport(*scene_, env_, views_, sampler, MapTracer(round, 7001), &res_.trace);
   CheckCancel();
   MakeMapProblem();
   GatherVertices(round, round);  // (their own, not combined with the rounds' before)
@@ -128,9 +124,7 @@ bool Estimator::TryOpening(const EmitterLight& candidate, const std::vector<Emit
     columns_.clear();
     return false;
   }
-  std::fill(reachable_.begin(), reachable_.end(), 0);
-  for (int j : map_problem_->cell_of)
-    if (j < cells_) reachable_[j] = 1;
+  MarkReachable(*map_problem_);
   res_.openings.push_back(candidate.shape);
   *objective = open_objective;
   *held = open_held;

@@ -129,9 +129,11 @@ Eigen::Vector3d TriangleCentre(const Mesh& mesh, std::size_t t) {
 std::vector<std::uint8_t> TrianglesOnShapes(const Mesh& mesh,
                                             const std::vector<std::shared_ptr<const EmitterShape>>& shapes) {
   std::vector<std::uint8_t> on(mesh.triangles.size(), 0);
-  for (std::size_t t = 0; t < on.size() && !shapes.empty(); ++t)
+  for (std::size_t t = 0; t < on.size() && !shapes.empty(); ++t) {
+    const Eigen::Vector3d centre = TriangleCentre(mesh, t);
     for (const auto& s : shapes)
-      if (s && EmitterTriangleAt(*s, TriangleCentre(mesh, t)) >= 0) on[t] = 1;
+      if (s && EmitterTriangleAt(*s, centre) >= 0) on[t] = 1;
+  }
   return on;
 }
 
