@@ -26,10 +26,11 @@ Run AddExport(CLI::App& app) {
     const ExportScene s = LoadExportScene(*scene, *estimate);
     const std::vector<std::string> files = WriteExport(s, f, *out);
     std::printf("export %s: mesh from %s (%zu triangles), %zu keyframe camera(s), %s map, %zu point light(s), "
-                "%zu directional light(s)\n",
+                "%zu directional light(s), %zu glowing surface(s), %zu opening(s) (%zu triangles left out)\n",
                 ToString(f), s.mesh_source.c_str(), s.mesh.triangles.size(), s.cameras.size(),
                 s.environment.height ? "a" : "no", OfKind<PointLight>(s.lights).size(),
-                OfKind<DirectionalLight>(s.lights).size());
+                OfKind<DirectionalLight>(s.lights).size(), OfKind<EmitterLight>(s.lights).size(), s.openings,
+                s.opening_triangles);
     const fs::path dir = fs::absolute(*out).lexically_normal();
     std::printf("wrote %s in %.2f s:", dir.c_str(), sw.Seconds());
     for (const std::string& name : files) std::printf(" %s", name.c_str());

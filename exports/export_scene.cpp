@@ -6,6 +6,7 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/image_io.h"
+#include "estimation/lights/emitter_light.h"
 #include "estimation/lights_file.h"
 #include "exports/blender.h"
 #include "exports/gltf.h"
@@ -36,6 +37,10 @@ ExportScene LoadExportScene(const fs::path& scene_dir, const fs::path& estimate_
     s.mesh_source = (b.dir / b.mesh_file).string();
   }
   if (s.mesh.normals.size() != s.mesh.positions.size()) ComputeVertexNormals(&s.mesh);
+  const std::size_t triangles = s.mesh.triangles.size();
+  s.mesh = WithoutTriangles(s.mesh, TrianglesOnShapes(s.mesh, lights.openings));
+  s.openings = lights.openings.size();
+  s.opening_triangles = triangles - s.mesh.triangles.size();
   s.mesh.shaded.clear();
   for (const View& v : b.views) s.cameras.push_back(v.camera);
   return s;

@@ -22,6 +22,10 @@ struct ExportScene {
   Eigen::Vector3d up = Eigen::Vector3d::UnitZ();
   Mesh mesh;                    ///< with vertex normals; the refined albedo when the estimate made one
   std::string mesh_source;      ///< the file it came from (for the log)
+  /// Windows' openings of lights.json (openings.ply): their triangles are left out of `mesh`
+  /// (no surface: the map is seen and lights the room through them); how many and how many
+  /// triangles that took out.
+  std::size_t openings = 0, opening_triangles = 0;
   std::vector<Camera> cameras;  ///< the keyframes', in order
   ImageRGB environment;         ///< the map, EnvMap's equirectangular convention; empty when none
   std::vector<Light> lights;    ///< every kind (each exporter writes each kind its own way)
@@ -30,7 +34,8 @@ struct ExportScene {
 };
 
 /// Reads SCENE_DIR's bundle and ESTIMATE_DIR/lights.json with the map it names, and
-/// ESTIMATE_DIR/albedo_mesh.ply in place of the bundle's mesh when it exists. Throws
+/// ESTIMATE_DIR/albedo_mesh.ply in place of the bundle's mesh when it exists, with the
+/// estimate's openings (windows seen through) left out of the mesh. Throws
 /// InputError naming the file on any problem.
 ExportScene LoadExportScene(const std::filesystem::path& scene_dir, const std::filesystem::path& estimate_dir);
 

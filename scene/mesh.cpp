@@ -164,6 +164,14 @@ int SanitizeMesh(Mesh* mesh, const std::string& name) {
   return removed;
 }
 
+Mesh WithoutTriangles(const Mesh& mesh, const std::vector<std::uint8_t>& drop) {
+  Mesh out = mesh;
+  out.triangles.clear();
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
+    if (t >= drop.size() || !drop[t]) out.triangles.push_back(mesh.triangles[t]);
+  return out;
+}
+
 void MeshBounds(const Mesh& mesh, Eigen::Vector3f* lo, Eigen::Vector3f* hi) {
   *lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
   *hi = Eigen::Vector3f::Constant(-std::numeric_limits<float>::max());

@@ -1,5 +1,6 @@
 #pragma once
 /// Triangle mesh with per-vertex linear albedo: the scene geometry the estimator traces.
+#include <cstdint>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -64,6 +65,11 @@ int SanitizeMesh(Mesh* mesh, const std::string& name);
 /// interpolated; the neighbour is not split, so the new vertex is a T-junction on a
 /// surface that does not change). For scaling tests and benchmarks.
 Mesh RefineMesh(const Mesh& mesh, int min_triangles);
+
+/// The mesh with the triangles marked in `drop` (one flag per triangle) left out; every
+/// vertex and per-vertex value kept, so values per vertex still line up (a window's opening
+/// drawn or exported as no surface).
+Mesh WithoutTriangles(const Mesh& mesh, const std::vector<std::uint8_t>& drop);
 
 /// Axis-aligned bounds of the vertices used by triangles.
 void MeshBounds(const Mesh& mesh, Eigen::Vector3f* lo, Eigen::Vector3f* hi);

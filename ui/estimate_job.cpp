@@ -5,6 +5,7 @@
 
 #include "common/error.h"
 #include "common/parallel.h"
+#include "estimation/lights/emitter_light.h"
 #include "estimation/truth.h"
 #include "estimation/truth_scorer.h"
 #include "estimation/vertex_radiance.h"
@@ -188,7 +189,8 @@ void EstimateJob::Run(SceneSource source) {
   try {  // the estimate's scene, its refined albedo, traced by both steps after it
     Mesh mesh = scene->mesh;
     if (result->albedo.size() == mesh.positions.size()) mesh.albedo = result->albedo;
-    const RayTracer tracer(std::move(mesh));
+    std::vector<std::uint8_t> open = TrianglesOnShapes(mesh, result->openings);  // (windows: no surface)
+    const RayTracer tracer(std::move(mesh), std::move(open));
     RefineLit(tracer, *scene, *result);
     CleanRender(tracer, *scene, *result);
   } catch (const std::exception& e) {

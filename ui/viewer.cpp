@@ -173,8 +173,7 @@ void Viewer::ResetCamera() {
 /// The mesh shown: the estimate's snapshot once there is one, else the live model.
 void Viewer::SyncModel() {
   const bool want_snapshot = est_.scene != nullptr;
-  std::shared_ptr<const Mesh> mesh = want_snapshot ? std::shared_ptr<const Mesh>(est_.scene, &est_.scene->mesh)
-                                                   : live_.model;
+  std::shared_ptr<const Mesh> mesh = want_snapshot ? SnapshotMesh() : live_.model;
   if (mesh == shown_mesh_ && want_snapshot == showing_snapshot_) return;
   if (!want_snapshot && live_.model_version == model_version_ && !showing_snapshot_) return;
   model_version_ = live_.model_version;
@@ -196,6 +195,20 @@ void Viewer::SyncModel() {
   }
   lit_version_ = ~0ull;  // recolour
   shaded_ = Shading::kNormals;
+}
+
+std::shared_ptr<const Mesh> Viewer::SnapshotMesh() {
+  if (!est_.result || est_.result->openings.empty()) {
+    opened_for_.reset();
+    opened_mesh_.reset();
+    return std::shared_ptr<const Mesh>(est_.scene, &est_.scene->mesh);
+  }
+  if (opened_for_ != est_.result) {
+    opened_for_ = est_.result;
+    opened_mesh_ = std::make_shared<const Mesh>(
+        WithoutTriangles(est_.scene->mesh, TrianglesOnShapes(est_.scene->mesh, est_.result->openings)));
+  }
+  return opened_mesh_;
 }
 
 void Viewer::SyncShading() {
@@ -320,10 +333,7 @@ void Viewer::DrawScene(const Rect& r) {
   // The lamps over everything: they are often behind a wall or outside the scan.
   glDisable(GL_DEPTH_TEST);
   lines_.Clear();
-  AddLampMarkers(size);
-  AddEmitterOutlines();
-  AddSunMarkers(size);
-  AddRegions();
+  AddLightMarkers(size);
   lines_.Draw();
   view_projection_ = vp;
   RenderTarget::Unbind();
@@ -342,6 +352,15 @@ Eigen::Vector3f MarkerColour(const Eigen::Vector3d& rgb) {
 }
 
 }  // namespace
+
+/// Every light's marker, each opening's outline and the lights' 95 % regions.
+void Viewer::AddLightMarkers(float size) {
+  AddLampMarkers(size);
+  AddEmitterOutlines();
+  AddOpeningOutlines();
+  AddSunMarkers(size);
+  AddRegions();
+}
 
 /// Each point light as a small octahedron with its axes, in its colour (brightest channel
 /// at full scale), sized by the square root of its share of the brightest lamp.
@@ -376,6 +395,16 @@ void Viewer::AddEmitterOutlines() {
     const Eigen::Vector3f color = MarkerColour(e.radiance);
     for (const OutlineEdge& edge : OutlineOf(e.shape))
       lines_.Add(edge.from + 0.01f * edge.normal, edge.to + 0.01f * edge.normal, color);
+  }
+}
+
+void Viewer::AddOpeningOutlines() {
+  if (!est_.result) return;
+  const Eigen::Vector3f sky(0.45f, 0.75f, 1.f);
+  for (const auto& shape : est_.result->openings) {
+    if (!shape) continue;
+    for (const OutlineEdge& edge : OutlineOf(shape))
+      for (const float side : {0.01f, -0.01f}) lines_.Add(edge.from + side * edge.normal, edge.to + side * edge.normal, sky);
   }
 }
 
@@ -677,6 +706,14 @@ void Viewer::LightsList() {
     const Eigen::Vector3d c = Centroid(*e.shape);
     ImGui::Text("(%.2f, %.2f, %.2f) m  %.3g m^2  L %.3g %.3g %.3g", c.x(), c.y(), c.z(), e.Area(), e.radiance.x(),
                 e.radiance.y(), e.radiance.z());
+  }
+  const std::size_t openings = est_.result ? est_.result->openings.size() : 0;
+  for (std::size_t k = 0; k < openings; ++k) {
+    const auto& shape = est_.result->openings[k];
+    if (!shape) continue;
+    if (k == 0) ImGui::Text("openings (windows seen through; outlined in blue):");
+    const Eigen::Vector3d c = Centroid(*shape);
+    ImGui::Text("(%.2f, %.2f, %.2f) m  %.3g m^2", c.x(), c.y(), c.z(), shape->area);
   }
 }
 
@@ -1033,6 +1070,24 @@ nlohmann::json Viewer::EstimateStateJson() const {
           {"age_seconds", std::isnan(est_.finished_at) ? json() : json(session_.seconds() - est_.finished_at)}};
 }
 
+/// The glowing surfaces ("emitters") and the openings as the 3D view outlines them.
+void Viewer::SurfacesState(nlohmann::json* estimate) const {
+  using nlohmann::json;
+  auto vec = [](const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); };
+  (*estimate)["emitters"] = json::array();
+  for (const EmitterLight& e : est_.lighting.Of<EmitterLight>())
+    if (e.shape)
+      (*estimate)["emitters"].push_back({{"id", e.id}, {"radiance", vec(e.radiance)}, {"area", e.Area()},
+                                         {"centroid", vec(Centroid(*e.shape))},
+                                         {"outline_edges", OutlineOf(e.shape).size()}});
+  (*estimate)["openings"] = json::array();
+  if (est_.result)
+    for (const auto& shape : est_.result->openings)
+      if (shape)
+        (*estimate)["openings"].push_back({{"area", shape->area}, {"centroid", vec(Centroid(*shape))},
+                                           {"outline_edges", OutlineOf(shape).size()}});
+}
+
 void Viewer::WriteState(const std::string& path) const {
   using nlohmann::json;
   auto rect = [](const Rect& r) { return json::array({r.x, r.y, r.w, r.h}); };
@@ -1075,12 +1130,7 @@ void Viewer::WriteState(const std::string& path) const {
   };
   j["estimate"]["point_lights"] = json::array();
   j["estimate"]["directional_lights"] = json::array();  // and where the 3D view draws each
-  j["estimate"]["emitters"] = json::array();
-  for (const EmitterLight& e : est_.lighting.Of<EmitterLight>())
-    if (e.shape)
-      j["estimate"]["emitters"].push_back({{"id", e.id}, {"radiance", vec(e.radiance)}, {"area", e.Area()},
-                                           {"centroid", vec(Centroid(*e.shape))},
-                                           {"outline_edges", OutlineOf(e.shape).size()}});
+  SurfacesState(&j["estimate"]);
   for (std::size_t k = 0; k < est_.lighting.lights.size(); ++k) {
     if (const PointLight* l = std::get_if<PointLight>(&est_.lighting.lights[k]))
       j["estimate"]["point_lights"].push_back(

@@ -52,10 +52,18 @@ class Viewer {
  private:
   friend class ScriptRunner;
   void SyncModel();
+  /// The estimate's scene mesh as drawn: with the finished estimate's openings (windows seen
+  /// through) left out, built once per result; the snapshot's own mesh when it has none.
+  std::shared_ptr<const Mesh> SnapshotMesh();
+  std::shared_ptr<const EstimateResult> opened_for_;
+  std::shared_ptr<const Mesh> opened_mesh_;
   void SyncShading();
   void DrawScene(const Rect& r);
+  void AddLightMarkers(float size);
   void AddLampMarkers(float size);
   void AddEmitterOutlines();
+  /// Each opening's outline in sky blue, a centimetre off its surface on both sides.
+  void AddOpeningOutlines();
   /// An emitter's outline (Outline), computed once per shape: drawn every frame.
   const std::vector<OutlineEdge>& OutlineOf(const std::shared_ptr<const EmitterShape>& shape) const;
   mutable std::map<std::shared_ptr<const EmitterShape>, std::vector<OutlineEdge>> outlines_;
@@ -82,6 +90,7 @@ class Viewer {
   void ResetCamera();
   void WriteState(const std::string& path) const;
   nlohmann::json EstimateStateJson() const;
+  void SurfacesState(nlohmann::json* estimate) const;
   void Screenshot(const std::string& path);
 
   ViewerOptions options_;

@@ -16,6 +16,7 @@
 #include "common/atomic_file.h"
 #include "common/image_io.h"
 #include "estimation/envmap.h"
+#include "estimation/lights/emitter_light.h"
 #include "estimation/lights_file.h"
 #include "estimation/light_fit.h"
 #include "estimation/light_render.h"
@@ -222,17 +223,23 @@ TEST(GltfExport, ACyclesRenderThroughBlendersGltfImporterMatchesLightprobesRende
   ExpectSamePicture(ReadImageLinear(f.root / "cycles1.exr"), ReadImageLinear(f.root / "cycles2.exr"), f);
 }
 
+/// The pane of the Cycles window scenes (their truth.json; make-cycles-sun.py's PANES["glow"]):
+/// x = 0, y 1.2-2.0, z 0.5-1.3, facing +x (into the room).
+std::shared_ptr<const EmitterShape> ThePane() {
+  Mesh quad;
+  quad.positions = {{0, 1.2f, 0.5f}, {0, 2.0f, 0.5f}, {0, 2.0f, 1.3f}, {0, 1.2f, 1.3f}};
+  quad.albedo.assign(4, Eigen::Vector3f::Zero());
+  quad.triangles = {{0, 1, 2}, {0, 2, 3}};
+  return MakeEmitterShape(quad, {0, 1}, {Eigen::Vector3f::UnitX(), Eigen::Vector3f::UnitX()});
+}
+
 /// The Cycles frosted window (tests/data/cycles/glow: its view rendered by Cycles from the
 /// original scene, a pane of radiance (3, 2.7, 2.25) in a wall, no other light) with the
 /// true pane as an estimate's only light, written into `estimate`.
 fs::path TruePaneEstimate(const fs::path& estimate) {
   fs::create_directories(estimate);
-  Mesh quad;  // the pane of truth.json: x = 0, y 1.2-2.0, z 0.5-1.3, glowing towards +x
-  quad.positions = {{0, 1.2f, 0.5f}, {0, 2.0f, 0.5f}, {0, 2.0f, 1.3f}, {0, 1.2f, 1.3f}};
-  quad.albedo.assign(4, Eigen::Vector3f::Zero());
-  quad.triangles = {{0, 1, 2}, {0, 2, 3}};
   EmitterLight pane;
-  pane.shape = MakeEmitterShape(quad, {0, 1}, {Eigen::Vector3f::UnitX(), Eigen::Vector3f::UnitX()});
+  pane.shape = ThePane();
   pane.radiance = {3.0, 2.7, 2.25};
   const std::vector<Light> lights{pane};
   WriteEmittersPly(estimate / "emitters.ply", lights);
@@ -240,9 +247,29 @@ fs::path TruePaneEstimate(const fs::path& estimate) {
   return fs::path(LIGHTPROBE_SOURCE_DIR) / "tests" / "data" / "cycles" / "glow";
 }
 
-/// A Cycles render of the export against the original scene's view 0.
-void ExpectTheOriginalGlow(const ImageRGB& ours, const fs::path& glow) {
-  const ImageRGB original = LoadSceneBundle(glow).views[0].image;
+/// A Cycles render of the export against the original scene's view 0 (as Cycles rendered it).
+/// The picture averaged over each pixel's 3 x 3 neighbourhood (within the image).
+ImageRGB Blur3(const ImageRGB& in) {
+  ImageRGB out(in.width, in.height);
+  for (int y = 0; y < in.height; ++y)
+    for (int x = 0; x < in.width; ++x) {
+      double sum[3] = {0, 0, 0};
+      int n = 0;
+      for (int v = std::max(0, y - 1); v <= std::min(in.height - 1, y + 1); ++v)
+        for (int u = std::max(0, x - 1); u <= std::min(in.width - 1, x + 1); ++u, ++n)
+          for (int c = 0; c < 3; ++c) sum[c] += in.at(u, v)[c];
+      for (int c = 0; c < 3; ++c) out.at(x, y)[c] = static_cast<float>(sum[c] / n);
+    }
+  return out;
+}
+
+/// `blur`: both pictures compared after Blur3, where the scene's silhouettes stand against
+/// a bright world: the bundle's camera and mesh, written from Cycles' scene, put an edge a
+/// fraction of a pixel off, which shows as whole edge pixels of the world's radiance.
+void ExpectTheOriginalPicture(const ImageRGB& export_render, const fs::path& original_scene, bool blur = false) {
+  const ImageRGB original = blur ? Blur3(LoadSceneBundle(original_scene).views[0].image)
+                                 : LoadSceneBundle(original_scene).views[0].image;
+  const ImageRGB ours = blur ? Blur3(export_render) : export_render;
   ASSERT_EQ(ours.width, original.width);
   const double error = Rmse(ours, original);
   double mean_o = 0, mean_e = 0;
@@ -253,33 +280,86 @@ void ExpectTheOriginalGlow(const ImageRGB& ours, const fs::path& glow) {
   EXPECT_NEAR(mean_e / mean_o, 1.0, 0.03);
 }
 
+/// Cycles' render (256 samples) of keyframe 0 of `scene` exported in `format` under `root`:
+/// the Blender export's scene.py, or the glTF export through Blender's glTF importer.
+ImageRGB CyclesRenderOfTheExport(const ExportScene& scene, ExportFormat format, const fs::path& root) {
+  const fs::path out = root / ToString(format);
+  WriteExport(scene, format, out);
+  const std::string args =
+      format == ExportFormat::kBlender
+          ? "--python '" + (out / "scene.py").string() + "' -- --samples 256 --render '" + (root / "cycles1.exr").string() + "'"
+          : "--python '" + (fs::path(LIGHTPROBE_SOURCE_DIR) / "tests/exports/render_gltf.py").string() + "' -- '" +
+                out.string() + "' '" + (root / "cycles").string() + "' 256 1";
+  RunBlender(args, root / "render.log");
+  return ReadImageLinear(root / "cycles1.exr");
+}
+
+/// Writes the estimate `make` makes (returning its original scene), exports it in `format`
+/// and expects Cycles' render of the export to be the original scene's view 0.
+void ExpectTheExportRendersTheOriginal(const std::string& name, fs::path (*make)(const fs::path&), ExportFormat format,
+                                       bool blur = false) {
+  const fs::path root = Scratch(name), estimate = root / "estimate";
+  const fs::path original = make(estimate);
+  ImageRGB render;
+  ASSERT_NO_FATAL_FAILURE(render = CyclesRenderOfTheExport(LoadExportScene(original, estimate), format, root));
+  ExpectTheOriginalPicture(render, original, blur);
+  fs::remove_all(root);
+}
+
 // Issue 43: a glowing surface in the Blender export. With the true pane as the estimate's
 // emitter, scene.py must build a scene whose Cycles render is the original's (the emitter
 // just off the wall, glowing on its side, the wall's own reflection showing through it).
 TEST(BlenderExport, AGlowingSurfaceRendersAsTheOriginalCyclesScene) {
-  const fs::path root = Scratch("glow"), estimate = root / "estimate";
-  const fs::path glow = TruePaneEstimate(estimate);
-  const fs::path out = root / "blender";
-  WriteExport(LoadExportScene(glow, estimate), ExportFormat::kBlender, out);
-  ASSERT_NO_FATAL_FAILURE(RunBlender("--python '" + (out / "scene.py").string() + "' -- --samples 256 --render '" +
-                                         (root / "cycles.exr").string() + "'",
-                                     root / "render.log"));
-  ExpectTheOriginalGlow(ReadImageLinear(root / "cycles.exr"), glow);
-  fs::remove_all(root);
+  ExpectTheExportRendersTheOriginal("glow", TruePaneEstimate, ExportFormat::kBlender);
 }
 
 // The same through glTF: the wall's faces on the pane get the emissive material (the pane's
 // radiance in nits), and Blender's glTF importer builds the original scene from it.
 TEST(GltfExport, AGlowingSurfaceRendersAsTheOriginalCyclesScene) {
-  const fs::path root = Scratch("glow_gltf"), estimate = root / "estimate";
-  const fs::path glow = TruePaneEstimate(estimate);
-  const fs::path out = root / "gltf";
-  WriteExport(LoadExportScene(glow, estimate), ExportFormat::kGltf, out);
-  ASSERT_NO_FATAL_FAILURE(RunBlender("--python '" + (fs::path(LIGHTPROBE_SOURCE_DIR) / "tests/exports/render_gltf.py").string() +
-                                         "' -- '" + out.string() + "' '" + (root / "cycles").string() + "' 256 1",
-                                     root / "render.log"));
-  ExpectTheOriginalGlow(ReadImageLinear(root / "cycles1.exr"), glow);
+  ExpectTheExportRendersTheOriginal("glow_gltf", TruePaneEstimate, ExportFormat::kGltf);
+}
+
+/// The Cycles glazed window (tests/data/cycles/glazed_window: the room rendered with nothing
+/// in the window's hole, the world bright (radiance 4) only in a cone of 37 degrees about -x;
+/// the bundle's mesh has a pane in the hole) with its true world as an estimate's map and the
+/// pane as its opening, written into `estimate`.
+fs::path TrueOpeningEstimate(const fs::path& estimate) {
+  fs::create_directories(estimate);
+  const fs::path glazed = fs::path(LIGHTPROBE_SOURCE_DIR) / "tests" / "data" / "cycles" / "glazed_window";
+  const EnvMap frame(13, LoadSceneBundle(glazed).up);  // (only its frame: the picture is the world itself)
+  ImageRGB world(1024, 512);
+  for (int y = 0; y < world.height; ++y)
+    for (int x = 0; x < world.width; ++x) {
+      const double theta = (y + 0.5) / world.height * M_PI, phi = (x + 0.5) / world.width * 2 * M_PI;
+      const float radiance = frame.FromSpherical(theta, phi).x() < -0.8 ? 4.f : 0.f;
+      for (int c = 0; c < 3; ++c) world.at(x, y)[c] = radiance;
+    }
+  WriteExr(estimate / "envmap.exr", world);
+  const std::vector<std::shared_ptr<const EmitterShape>> openings{ThePane()};
+  WriteOpeningsPly(estimate / "openings.ply", openings);
+  WriteTextAtomically(estimate / "lights.json", LightsJson({"envmap.exr", {}, {}, openings}));
+  return glazed;
+}
+
+// Issue 43: a window's opening in the exports. With the glazed window's true world as the map
+// and its pane as the estimate's opening, the export leaves the pane's triangles out of the
+// mesh, so Blender's world shines through the hole as Cycles' original did: the beam on the
+// floor and the world seen through the window. Measured: relative RMSE 0.038 (3 x 3 blurred),
+// the means within 0.1 %; with the pane left in the mesh, 1.17 and the mean 21 % low.
+TEST(BlenderExport, AWindowsOpeningRendersAsTheOriginalCyclesScene) {
+  const fs::path root = Scratch("opening_load"), estimate = root / "estimate";
+  const fs::path glazed = TrueOpeningEstimate(estimate);
+  const ExportScene scene = LoadExportScene(glazed, estimate);
+  EXPECT_EQ(scene.openings, 1u);
+  EXPECT_EQ(scene.opening_triangles, 2u);
+  EXPECT_EQ(scene.mesh.triangles.size(), LoadSceneBundle(glazed).mesh.triangles.size() - 2);
   fs::remove_all(root);
+  ExpectTheExportRendersTheOriginal("opening", TrueOpeningEstimate, ExportFormat::kBlender, true);
+}
+
+// The same through glTF: the mesh without the pane, environment.hdr as Blender's world.
+TEST(GltfExport, AWindowsOpeningRendersAsTheOriginalCyclesScene) {
+  ExpectTheExportRendersTheOriginal("opening_gltf", TrueOpeningEstimate, ExportFormat::kGltf, true);
 }
 
 }  // namespace
