@@ -105,7 +105,7 @@ std::vector<EstimateOption> MakeTable() {
       {"max-rounds", "max_rounds", "sequential Monte Carlo rounds at most", Type::kInt, 1, kInf, false,
        LP_GET(max_rounds), LP_SET(max_rounds, int), "rounds", 1, 6, {}, "rounds"},
       {"change", "change_threshold",
-       "stop when the rendered estimate changes by less than this share between rounds (0: run every round)",
+       "stop when the rendered estimate changes by less than this share between rounds (beside a window's opening the map too; 0: run every round)",
        Type::kReal, 0, kInf, false, LP_GET(change_threshold), LP_SET(change_threshold, double), "", 0, 0, {}},
       {"albedo-passes", "albedo_passes",
        "albedo refinements of a reconstructed mesh at most (de-lit by the estimate, segmented again, rounds go on; a "

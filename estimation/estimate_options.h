@@ -46,7 +46,8 @@ constexpr int kPriorFolds = 4;
 /// A weaker prior than the given one is taken only where it lowers the held-out loss by
 /// more than this share of the given one's (as a light must, PointLightOptions::min_gain):
 /// gains of 1-2 % came with two lamps' and a stiff case's compact light spread over its neighbours
-/// (docs/benchmarks.md, session 27).
+/// (docs/benchmarks.md, session 27). Beside a window's opening the least loss's weight is
+/// taken instead (the light through a window is a sky's: docs/method.md, "The map's prior").
 constexpr double kPriorMinGain = 0.03;
 constexpr int kPriorBlocksAcross = 4;
 /// Beside lamps the prior is chosen in this round on every pixel (after round 1's grid), so
@@ -215,7 +216,9 @@ struct EstimateOptions {
   /// reconstructed mesh, nor below the default Cauchy scale). false: objective.alpha as given.
   bool choose_prior = true;
   /// Stop when the rendered estimate changes by less than this between rounds:
-  /// |A (lambda_k - lambda_{k-1})| / |A lambda_k| < 2 % (over the observed pixels).
+  /// |A (lambda_k - lambda_{k-1})| / |A lambda_k| < 2 % (over the observed pixels); beside a
+  /// window's opening also |lambda_k - lambda_{k-1}| / |lambda_k| (the map lights the room
+  /// through it where the views hardly see: docs/method.md, "The map's prior").
   double change_threshold = 0.02;
   /// Average A over rounds, weighted by sample counts (all rounds are unbiased).
   bool combine_rounds = true;

@@ -289,8 +289,13 @@ void Estimator::RunRounds() {
     const bool prior_changed = PriorRound(round, last) && ChoosePrior(&info);
     EndRound(sr, &info);
     const bool prior_ahead = PriorAhead();
+    // Beside a window's opening the map must settle too: the views hardly see the cells that
+    // light the room only through it, which keep moving while the fitted image does not
+    // (Cycles' glazed window: the map 21, 12, 9.5 % a round, the image 0.5, 0.3, 0.2 %; the
+    // held-out view relit 1.33, 1.13, 1.05 times the true world's error after rounds 2-4).
+    const bool map_moving = !res_.openings.empty() && info.change >= opt_.change_threshold;
     if (round > first && info.image_change < opt_.change_threshold && !info.lights_moved && !prior_changed &&
-        !prior_ahead)
+        !prior_ahead && !map_moving)
       break;
   }
   if (!res_.prior.done) {

@@ -137,10 +137,13 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   pc.folds = kPriorFolds;
   pc.blocks = static_cast<int>(std::count(used.begin(), used.end(), 1));
   // Of each kind, the strongest weight within one standard error of its best that gains
-  // kPriorMinGain over the given one.
+  // kPriorMinGain over the given one; where the map lights the room through a window's
+  // opening, the best: the light through a window is a sky's, extended, and the views'
+  // blocks hardly see the cells that light the room only through it (Cycles' glazed window: docs/method.md, "The map's prior").
   std::vector<double> with_loss, with_se, alone_loss, alone_se;
   const auto choose = [&](const PriorFolds& folds, std::vector<double>* loss, std::vector<double>* se) {
-    return StrongestThatGains(folds.loss, used, kPriorMinGain, loss, se);
+    const std::size_t k = StrongestThatGains(folds.loss, used, kPriorMinGain, loss, se);
+    return res_.openings.empty() ? k : static_cast<std::size_t>(std::min_element(loss->begin(), loss->end()) - loss->begin());
   };
   const std::size_t kw = choose(with, &with_loss, &with_se);
   const std::size_t ka = alone_alphas.empty() ? 0 : choose(alone, &alone_loss, &alone_se);
@@ -200,11 +203,15 @@ void Estimator::SayPrior(const std::vector<double>& loss, const std::vector<doub
   PriorChoice& pc = res_.prior;
   const std::size_t best = std::min_element(loss.begin(), loss.end()) - loss.begin();
   const PriorChoice::Tried& least = pc.tried[(pc.lights_dropped ? pc.tried.size() - loss.size() : 0) + best];
+  const std::string rule =
+      res_.openings.empty()
+          ? Fmt("the strongest prior whose loss is within one standard error of that and %g %% below the given one's",
+                100 * kPriorMinGain)
+          : std::string("beside a window's opening (the light through it a sky's, extended) that least one");
   pc.why = Fmt("with %zu light(s) the held-out loss is least at alpha %g, smoothness %g (%.6g over %d blocks in %d "
-               "folds); the strongest prior whose loss is within one standard error of that and %g %% below the given "
-               "one's: alpha %g, smoothness %g (%.6g, more by %.3g, standard error %.3g)",
+               "folds); %s: alpha %g, smoothness %g (%.6g, more by %.3g, standard error %.3g)",
                pc.lights_dropped ? 0 : lights, least.alpha, least.smooth, loss[best], pc.blocks, pc.folds,
-               100 * kPriorMinGain, pc.chosen, pc.chosen_smooth, loss[k], loss[k] - loss[best], se[k]);
+               rule.c_str(), pc.chosen, pc.chosen_smooth, loss[k], loss[k] - loss[best], se[k]);
   if (pc.tried.size() > loss.size()) {  // the map alone was tried beside the lights
     const PriorChoice::Tried* alone = &pc.tried.back();
     for (const PriorChoice::Tried& t : pc.tried)
