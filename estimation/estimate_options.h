@@ -213,7 +213,8 @@ struct EstimateOptions {
   /// each of kPriorFactors on three quarters of the pixels and scored on the fourth (four
   /// folds of large blocks), the strongest weight within one standard error of the best
   /// kept, and the rounds after it run at it (docs/method.md, "The map's prior"; not on a
-  /// reconstructed mesh, nor below the default Cauchy scale). false: objective.alpha as given.
+  /// reconstructed mesh but beside a window's opening, whose cells' prior alone is chosen then;
+  /// nor below the default Cauchy scale). false: objective.alpha as given.
   bool choose_prior = true;
   /// Stop when the rendered estimate changes by less than this between rounds:
   /// |A (lambda_k - lambda_{k-1})| / |A lambda_k| < 2 % (over the observed pixels); beside a

@@ -420,6 +420,7 @@ class Estimator {
   /// `held`-out loss.
   bool TryOpening(const EmitterLight& candidate, const std::vector<EmitterLight>& as_is, double* objective,
                   double* held);
+  void MarkWindowCells(const EmitterShape& opening);
   /// Flat, and most rays out of its back leave the scene (`opened`: the scene with it open).
   bool CouldBeWindow(const EmitterLight& e, const RayTracer& opened) const;
   /// Per triangle of the traced mesh: open already, or its centre on `shape`.
@@ -485,6 +486,11 @@ class Estimator {
   /// (directional.min_map_share of the map's power) when the prior was chosen, which keeps
   /// the given prior (CellWeights); empty: none.
   std::vector<std::uint8_t> sparse_cells_;
+  /// Per cell: whether its direction lies behind a window's opening (in the half of the
+  /// sphere its glass faces away from the room), where the map's light through the window is
+  /// a sky's; beside an opening the prior chosen applies to these cells alone and the others
+  /// keep the given one (CellWeights); empty: no opening.
+  std::vector<std::uint8_t> window_cells_;
   std::vector<EnvMap::Neighbours> adjacency_;  ///< env_.Adjacency(), for the map's smoothness
   int cells_ = 0;
   /// The views the rounds fit (the bundle's, or round 1's grid of their pixels: UseViews)

@@ -126,9 +126,20 @@ bool Estimator::TryOpening(const EmitterLight& candidate, const std::vector<Emit
   }
   MarkReachable(*map_problem_);
   res_.openings.push_back(candidate.shape);
+  MarkWindowCells(*candidate.shape);
   *objective = open_objective;
   *held = open_held;
   return true;
+}
+
+/// window_cells_ gains the cells behind `opening`: those whose direction leaves the room
+/// through it (against the side its pixels were seen from, the side it faced as a glowing
+/// candidate).
+void Estimator::MarkWindowCells(const EmitterShape& opening) {
+  window_cells_.resize(cells_, 0);
+  const Eigen::Vector3d out = -FacingSum(opening).normalized();
+  for (int j = 0; j < cells_; ++j)
+    if (env_.direction(j).dot(out) > 0) window_cells_[j] = 1;
 }
 
 }  // namespace lp::detail

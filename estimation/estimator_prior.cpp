@@ -88,7 +88,10 @@ std::string Estimator::PriorLeftOut(const std::vector<Light>& lights) const {
     return Fmt("a directional light that predicts the held-out pixels far better than the cells it replaced (its "
                "held-out loss %.3g of theirs, under %g): a sun, not a flat sky; the given --alpha",
                sun_held_out_ratio_, kDecisiveSunRatio);
-  if (!bundle_.mesh.shaded.empty())
+  // (beside a window's opening its cells' prior is chosen alone, the others keeping the given
+  // one: the light through a window is a sky's, and a sparse prior there leaves its light to
+  // a spurious lamp; Cycles' glazed window scanned, docs/method.md)
+  if (!bundle_.mesh.shaded.empty() && window_cells_.empty())
     return "a reconstructed mesh (its albedo is not known, and a weaker prior would let the map explain its "
            "errors): the given --alpha";
   return "";

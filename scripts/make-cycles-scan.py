@@ -24,7 +24,11 @@
 # glowing at PANE_RADIANCE, brighter than the 8-bit frames hold, and the dim sky; issue 43),
 # bulb-seen (one bare bulb at 1.35 m, in view of most frames: the camera sees its 5 cm sphere
 # at its radiance, clipped, and, as a structured-light sensor blinded by it, no depth there;
-# the held-out view's mask leaves it out; issue 43's seen lamps).
+# the held-out view's mask leaves it out; issue 43's seen lamps), glazed-window (no lamp: the
+# frosted window's place in the back wall a hole, clear glass that Cycles does not render,
+# and the world bright (CONE_RADIANCE) in a cone of CONE_DEG about CONE_AXIS behind it, the
+# dim sky elsewhere, so a beam comes through; the depth frames see the glass as a pane, as a
+# depth camera that returned depth on it; gt_mesh.ply has the pane; issue 43's windows).
 # Defaults: 150 frames, 32 spp, 320 px wide (4:3).
 # (apt-get install blender; Debian 12 has 3.4.1; numpy comes with it.)
 import json
@@ -45,7 +49,8 @@ FRAMES = int(argv[2]) if len(argv) > 2 else 150
 SPP = int(argv[3]) if len(argv) > 3 else 32
 W = int(argv[4]) if len(argv) > 4 else 320
 H = W * 3 // 4
-KINDS = ("one-lamp", "two-lamps", "lamp-and-sun", "heavy-texture", "dark-room", "frosted-window", "bulb-seen")
+KINDS = ("one-lamp", "two-lamps", "lamp-and-sun", "heavy-texture", "dark-room", "frosted-window", "bulb-seen",
+         "glazed-window")
 if KIND not in KINDS:
     sys.exit("make-cycles-scan: KIND must be one of " + ", ".join(KINDS))
 SEED = 1000 + KINDS.index(KIND)
@@ -93,7 +98,14 @@ def sphere_part(name, centre, r, rings=24, segments=48):
 HALF, WALL_H = 1.5, 2.2
 quad_part("floor", (-HALF, -HALF, 0), (HALF, -HALF, 0), (HALF, HALF, 0), (-HALF, HALF, 0))
 quad_part("wall_left", (-HALF, -HALF, 0), (-HALF, -HALF, WALL_H), (-HALF, HALF, WALL_H), (-HALF, HALF, 0))
-quad_part("wall_back", (-HALF, HALF, 0), (-HALF, HALF, WALL_H), (HALF, HALF, WALL_H), (HALF, HALF, 0))
+PANE = (0.45, 1.25, 1.0, 1.7)  # frosted-window: x0, x1, z0, z1 on the back wall, 4 mm in front of it
+if KIND == "glazed-window":  # the back wall around a hole at PANE (four quads)
+    wall_quads = [(-HALF, HALF, 0, PANE[2]), (-HALF, HALF, PANE[3], WALL_H), (-HALF, PANE[0], PANE[2], PANE[3]),
+                  (PANE[1], HALF, PANE[2], PANE[3])]
+    add_part("wall_back", [(x, HALF, z) for x0, x1, z0, z1 in wall_quads for x, z in ((x0, z0), (x0, z1), (x1, z1), (x1, z0))],
+             [(4 * k, 4 * k + 1, 4 * k + 2, 4 * k + 3) for k in range(4)])
+else:
+    quad_part("wall_back", (-HALF, HALF, 0), (-HALF, HALF, WALL_H), (HALF, HALF, WALL_H), (HALF, HALF, 0))
 quad_part("wall_right", (HALF, HALF, 0), (HALF, HALF, WALL_H), (HALF, -HALF, WALL_H), (HALF, -HALF, 0))
 quad_part("rug", (-0.9, -0.5, 0.004), (0.1, -0.5, 0.004), (0.1, 0.4, 0.004), (-0.9, 0.4, 0.004))
 quad_part("poster", (-0.5, HALF - 0.004, 0.9), (-0.5, HALF - 0.004, 1.7), (0.3, HALF - 0.004, 1.7),
@@ -102,7 +114,6 @@ box_part("table", 0.45, 1.25, 0.35, 1.05, 0.0, 0.72)
 box_part("box_red", -1.2, -0.75, 0.75, 1.2, 0.0, 0.45)
 box_part("box_blue", 0.75, 1.1, -0.9, -0.55, 0.0, 0.6)
 sphere_part("sphere", (-0.35, 0.9, 0.3), 0.3)
-PANE = (0.45, 1.25, 1.0, 1.7)  # frosted-window: x0, x1, z0, z1 on the back wall, 4 mm in front of it
 PANE_RADIANCE = (1.6, 1.5, 1.35)
 if KIND == "frosted-window":
     quad_part("pane", (PANE[0], HALF - 0.004, PANE[2]), (PANE[0], HALF - 0.004, PANE[3]),
@@ -187,6 +198,7 @@ LAMPS = {
                   ("cool", (-0.9, -0.2, 2.2), 70.0 / 4, (0.6, 0.75, 1.0))],
     "lamp-and-sun": [("lamp", (-0.6, 0.6, 2.35), 25.0, (1.0, 0.9, 0.78))],
     "frosted-window": [],
+    "glazed-window": [],
     "bulb-seen": [("bulb", (-0.5, 0.5, 1.35), 30.0, (1.0, 0.9, 0.75))],
 }[KIND]
 BULB_SEEN = KIND == "bulb-seen"
@@ -221,6 +233,22 @@ world = bpy.data.worlds.new("sky")
 world.use_nodes = True
 world.node_tree.nodes["Background"].inputs["Color"].default_value = list(SKY) + [1]
 world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
+GLAZED = KIND == "glazed-window"
+CONE_AXIS, CONE_DEG, CONE_RADIANCE = mathutils.Vector((0.0, 1.0, 0.45)).normalized(), 30.0, 8.0
+if GLAZED:  # CONE_RADIANCE (white) within CONE_DEG of CONE_AXIS, SKY elsewhere
+    nodes, links = world.node_tree.nodes, world.node_tree.links
+    coord, dot, inside = nodes.new("ShaderNodeTexCoord"), nodes.new("ShaderNodeVectorMath"), nodes.new("ShaderNodeMath")
+    mix = nodes.new("ShaderNodeMixRGB")
+    dot.operation = "DOT_PRODUCT"
+    dot.inputs[1].default_value = tuple(CONE_AXIS)
+    inside.operation = "GREATER_THAN"
+    inside.inputs[1].default_value = math.cos(math.radians(CONE_DEG))
+    links.new(coord.outputs["Generated"], dot.inputs[0])
+    links.new(dot.outputs["Value"], inside.inputs[0])
+    links.new(inside.outputs["Value"], mix.inputs["Fac"])
+    mix.inputs["Color1"].default_value = list(SKY) + [1]
+    mix.inputs["Color2"].default_value = [CONE_RADIANCE] * 3 + [1]
+    links.new(mix.outputs["Color"], world.node_tree.nodes["Background"].inputs["Color"])
 bpy.context.scene.world = world
 
 # ---------------------------------------------------------------- render settings
@@ -346,6 +374,23 @@ def kinect_depth(z):
     return np.clip(mm, 0, 65535).astype(np.uint16)
 
 
+def glass_depth(z, wfc):
+    """glazed-window: the planar depth z with the glass in the back wall's hole where a ray
+    meets it before the surface behind (a depth camera that returned depth on the glass)."""
+    if not GLAZED:
+        return z
+    R = np.array([row[:3] for row in wfc[:3]])
+    t = np.array([row[3] for row in wfc[:3]])
+    u, v = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
+    rays = np.stack([(u - (W - 1) / 2) / FOCAL, (v - (H - 1) / 2) / FOCAL, np.ones_like(u)], axis=2)  # planar z = 1
+    world_rays = rays @ R.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = (HALF - t[1]) / world_rays[:, :, 1]  # the plane y = HALF, at planar depth s
+    x, zz = t[0] + s * world_rays[:, :, 0], t[2] + s * world_rays[:, :, 2]
+    on = (s > 0) & (x > PANE[0]) & (x < PANE[1]) & (zz > PANE[2]) & (zz < PANE[3]) & (s < z)
+    return np.where(on, s, z).astype(z.dtype)
+
+
 def bulb_pixels(z, wfc):
     """The pixels whose ray passes within a lamp's radius of its centre before the surface
     behind (where the camera sees the bulb; none unless bulb-seen)."""
@@ -381,7 +426,7 @@ for k in range(FRAMES):
     wfc = look(eye, target, roll_deg=4.2 * math.sin(2 * math.pi * t * 2.1))
     scene.render.filepath = os.path.join(OUT, "color", "%05d.png" % k)
     scene.cycles.seed = SEED * 1000 + k
-    z = render_passes()["Depth"][:, :, 0]
+    z = glass_depth(render_passes()["Depth"][:, :, 0], wfc)
     write_png(os.path.join(OUT, "depth", "%05d.png" % k), np.where(bulb_pixels(z, wfc), 0, kinect_depth(z)), 16)
     log.append("%d %d %d" % (k, k, k + 1))
     log.extend(" ".join("%.10f" % v for v in row) for row in wfc)
@@ -417,6 +462,9 @@ with open(os.path.join(OUT, "holdout", "holdout.json"), "w") as f:
 
 # ---------------------------------------------------------------- gt_mesh.ply and truth.json
 verts, faces = [], []
+if GLAZED:  # the glass, as the depth camera saw it
+    add_part("glass", [(PANE[0], HALF, PANE[2]), (PANE[0], HALF, PANE[3]), (PANE[1], HALF, PANE[3]),
+                       (PANE[1], HALF, PANE[2])], [(0, 1, 2, 3)])
 for name, (v, f) in parts.items():
     base = len(verts)
     verts.extend(v)
@@ -435,7 +483,12 @@ truth = {
         {"name": "pane", "corners": [list(p) for p in parts["pane"][0]], "normal": [0, -1, 0],
          "radiance": list(PANE_RADIANCE), "area": (PANE[1] - PANE[0]) * (PANE[3] - PANE[2]),
          "power": [math.pi * r * (PANE[1] - PANE[0]) * (PANE[3] - PANE[2]) for r in PANE_RADIANCE]}],
-    "world": {"type": "uniform", "radiance_rgb": list(SKY)},
+    "world": {"type": "uniform", "radiance_rgb": list(SKY)} if not GLAZED else
+             {"type": "cone", "radiance_rgb": list(SKY), "cone_radiance_rgb": [CONE_RADIANCE] * 3,
+              "cone_axis": list(CONE_AXIS), "cone_half_angle_deg": CONE_DEG},
+    "openings": [] if not GLAZED else [
+        {"name": "glass", "corners": [list(p) for p in parts["glass"][0]], "area": (PANE[1] - PANE[0]) * (PANE[3] - PANE[2]),
+         "note": "clear glass: not rendered; the depth frames and gt_mesh.ply have it"}],
     "camera": {"width": W, "height": H, "fx": FOCAL, "fy": FOCAL, "cx": (W - 1) / 2, "cy": (H - 1) / 2,
                "convention": "OpenCV; trajectory.log = world_from_camera, world z up, metres"},
     "trajectory": {"frames": FRAMES, "arc_centre_xy": [0.0, 0.25], "arc_radius_m": 1.95,

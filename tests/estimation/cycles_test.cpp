@@ -445,10 +445,10 @@ TEST(Cycles, AClearWindowTheDepthCameraSawComesBackAsAnOpening) {
               "%.2fx; with the pane in place %.4f)\n",
               r.openings.size(), r.openings[0]->area, r.lighting.Count<EmitterLight>(), relit, floor, relit / floor,
               as_pane);
-  // Measured 0.358 against the true world's 0.342 (1.05x; 1.05-1.24x over the tracer's seeds
-  // 1-5), and 3.90 with the pane in place. Before the map's prior beside an opening was the
-  // least held-out loss's and its rounds ran until the map settled: 0.736 (2.15x), the sparse
-  // prior keeping a quarter of the cone's power (docs/method.md, "Windows").
+  // Measured 0.349 against the true world's 0.342 (1.02x; 1.02-1.09x over the tracer's seeds
+  // 1-5), and 3.90 with the pane in place. Before the prior of the cells behind an opening was
+  // the least held-out loss's and its rounds ran until the map settled: 0.736 (2.15x), the
+  // sparse prior keeping a quarter of the cone's power (docs/method.md, "Windows").
   EXPECT_LT(relit, 1.25 * floor);
   EXPECT_GT(as_pane, 3 * relit);
 }
