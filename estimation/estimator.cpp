@@ -293,7 +293,7 @@ void Estimator::RunRounds() {
     // light the room only through it, which keep moving while the fitted image does not
     // (Cycles' glazed window: the map 21, 12, 9.5 % a round, the image 0.5, 0.3, 0.2 %; the
     // held-out view relit 1.33, 1.13, 1.05 times the true world's error after rounds 2-4).
-    const bool map_moving = !res_.openings.empty() && info.change >= opt_.change_threshold;
+    const bool map_moving = !window_cells_.empty() && info.change >= opt_.change_threshold;
     if (round > first && info.image_change < opt_.change_threshold && !info.lights_moved && !prior_changed &&
         !prior_ahead && !map_moving)
       break;
@@ -333,6 +333,7 @@ std::vector<std::uint8_t> Estimator::OneSidedRows(const std::vector<std::uint8_t
 /// that is said at once (the rounds then need not wait for it).
 bool Estimator::PriorRound(int round, int last) {
   if (!PriorAhead()) return false;
+  MarkSeenWindows();  // (a window's cells have their prior chosen on a reconstructed mesh too)
   if (points_.empty() || ++rounds_past_grid_ >= kPriorRound || round + 1 >= last) return true;
   res_.prior.why = PriorLeftOut(ColumnOrder(points_));
   res_.prior.done = !res_.prior.why.empty();

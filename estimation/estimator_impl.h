@@ -28,6 +28,7 @@
 #include "estimation/robust_loss.h"
 #include "estimation/sampling.h"
 #include "estimation/seen_lamps.h"
+#include "estimation/seen_windows.h"
 #include "estimation/vertex_radiance.h"
 #include "estimation/estimator.h"
 #include "estimation/truth_scorer.h"
@@ -420,7 +421,9 @@ class Estimator {
   /// `held`-out loss.
   bool TryOpening(const EmitterLight& candidate, const std::vector<EmitterLight>& as_is, double* objective,
                   double* held);
-  void MarkWindowCells(const EmitterShape& opening);
+  void MarkWindowCells(const Eigen::Vector3d& out);
+  void MarkSeenWindows();
+  bool seen_windows_done_ = false;
   /// Flat, and most rays out of its back leave the scene (`opened`: the scene with it open).
   bool CouldBeWindow(const EmitterLight& e, const RayTracer& opened) const;
   /// Per triangle of the traced mesh: open already, or its centre on `shape`.
@@ -486,10 +489,10 @@ class Estimator {
   /// (directional.min_map_share of the map's power) when the prior was chosen, which keeps
   /// the given prior (CellWeights); empty: none.
   std::vector<std::uint8_t> sparse_cells_;
-  /// Per cell: whether its direction lies behind a window's opening (in the half of the
-  /// sphere its glass faces away from the room), where the map's light through the window is
-  /// a sky's; beside an opening the prior chosen applies to these cells alone and the others
-  /// keep the given one (CellWeights); empty: no opening.
+  /// Per cell: whether its direction lies behind a window, an opening or a hole the cameras
+  /// saw (in the half of the sphere its wall faces away from the room), where the map's light
+  /// through the window is a sky's; beside a window the prior chosen applies to these cells
+  /// alone and the others keep the given one (CellWeights); empty: no window.
   std::vector<std::uint8_t> window_cells_;
   std::vector<EnvMap::Neighbours> adjacency_;  ///< env_.Adjacency(), for the map's smoothness
   int cells_ = 0;

@@ -126,20 +126,35 @@ bool Estimator::TryOpening(const EmitterLight& candidate, const std::vector<Emit
   }
   MarkReachable(*map_problem_);
   res_.openings.push_back(candidate.shape);
-  MarkWindowCells(*candidate.shape);
+  MarkWindowCells(-FacingSum(*candidate.shape).normalized());
   *objective = open_objective;
   *held = open_held;
   return true;
 }
 
-/// window_cells_ gains the cells behind `opening`: those whose direction leaves the room
-/// through it (against the side its pixels were seen from, the side it faced as a glowing
-/// candidate).
-void Estimator::MarkWindowCells(const EmitterShape& opening) {
+/// window_cells_ gains the cells behind a window: those whose direction leaves the room
+/// through its wall (`out`: an opening's, against the side its pixels were seen from, the side
+/// it faced as a glowing candidate; a hole's, against its wall's normal into the room).
+void Estimator::MarkWindowCells(const Eigen::Vector3d& out) {
   window_cells_.resize(cells_, 0);
-  const Eigen::Vector3d out = -FacingSum(opening).normalized();
   for (int j = 0; j < cells_; ++j)
     if (env_.direction(j).dot(out) > 0) window_cells_[j] = 1;
+}
+
+/// The windows the cameras saw as holes (seen_windows.h), found, said and their cells marked
+/// once.
+void Estimator::MarkSeenWindows() {
+  if (seen_windows_done_) return;
+  seen_windows_done_ = true;
+  for (const SeenWindow& w : SeenWindows(bundle_.views, *scene_)) {
+    const std::string line =
+        Fmt("a window the cameras saw as a hole (view %d, %d clipped pixels off the mesh, their rays leaving the scene): "
+            "at (%.3f, %.3f, %.3f) in a wall facing (%.2f, %.2f, %.2f); the map's cells behind it are the window's",
+            w.view, w.pixels, w.centre.x(), w.centre.y(), w.centre.z(), w.normal.x(), w.normal.y(), w.normal.z());
+    res_.point_light_choices.push_back(line);
+    Progress(line);
+    MarkWindowCells(-w.normal);
+  }
 }
 
 }  // namespace lp::detail

@@ -146,7 +146,7 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   std::vector<double> with_loss, with_se, alone_loss, alone_se;
   const auto choose = [&](const PriorFolds& folds, std::vector<double>* loss, std::vector<double>* se) {
     const std::size_t k = StrongestThatGains(folds.loss, used, kPriorMinGain, loss, se);
-    return res_.openings.empty() ? k : static_cast<std::size_t>(std::min_element(loss->begin(), loss->end()) - loss->begin());
+    return window_cells_.empty() ? k : static_cast<std::size_t>(std::min_element(loss->begin(), loss->end()) - loss->begin());
   };
   const std::size_t kw = choose(with, &with_loss, &with_se);
   const std::size_t ka = alone_alphas.empty() ? 0 : choose(alone, &alone_loss, &alone_se);
@@ -207,10 +207,10 @@ void Estimator::SayPrior(const std::vector<double>& loss, const std::vector<doub
   const std::size_t best = std::min_element(loss.begin(), loss.end()) - loss.begin();
   const PriorChoice::Tried& least = pc.tried[(pc.lights_dropped ? pc.tried.size() - loss.size() : 0) + best];
   const std::string rule =
-      res_.openings.empty()
+      window_cells_.empty()
           ? Fmt("the strongest prior whose loss is within one standard error of that and %g %% below the given one's",
                 100 * kPriorMinGain)
-          : std::string("beside a window's opening (the light through it a sky's, extended) that least one");
+          : std::string("beside a window (the light through it a sky's, extended), for its cells, that least one");
   pc.why = Fmt("with %zu light(s) the held-out loss is least at alpha %g, smoothness %g (%.6g over %d blocks in %d "
                "folds); %s: alpha %g, smoothness %g (%.6g, more by %.3g, standard error %.3g)",
                pc.lights_dropped ? 0 : lights, least.alpha, least.smooth, loss[best], pc.blocks, pc.folds,

@@ -28,7 +28,9 @@
 # frosted window's place in the back wall a hole, clear glass that Cycles does not render,
 # and the world bright (CONE_RADIANCE) in a cone of CONE_DEG about CONE_AXIS behind it, the
 # dim sky elsewhere, so a beam comes through; the depth frames see the glass as a pane, as a
-# depth camera that returned depth on it; gt_mesh.ply has the pane; issue 43's windows).
+# depth camera that returned depth on it; gt_mesh.ply has the pane; issue 43's windows),
+# clear-window (the same, the glass returning no depth, as clear glass does to a depth
+# camera: a hole in the scan).
 # Defaults: 150 frames, 32 spp, 320 px wide (4:3).
 # (apt-get install blender; Debian 12 has 3.4.1; numpy comes with it.)
 import json
@@ -50,7 +52,7 @@ SPP = int(argv[3]) if len(argv) > 3 else 32
 W = int(argv[4]) if len(argv) > 4 else 320
 H = W * 3 // 4
 KINDS = ("one-lamp", "two-lamps", "lamp-and-sun", "heavy-texture", "dark-room", "frosted-window", "bulb-seen",
-         "glazed-window")
+         "glazed-window", "clear-window")
 if KIND not in KINDS:
     sys.exit("make-cycles-scan: KIND must be one of " + ", ".join(KINDS))
 SEED = 1000 + KINDS.index(KIND)
@@ -99,7 +101,7 @@ HALF, WALL_H = 1.5, 2.2
 quad_part("floor", (-HALF, -HALF, 0), (HALF, -HALF, 0), (HALF, HALF, 0), (-HALF, HALF, 0))
 quad_part("wall_left", (-HALF, -HALF, 0), (-HALF, -HALF, WALL_H), (-HALF, HALF, WALL_H), (-HALF, HALF, 0))
 PANE = (0.45, 1.25, 1.0, 1.7)  # frosted-window: x0, x1, z0, z1 on the back wall, 4 mm in front of it
-if KIND == "glazed-window":  # the back wall around a hole at PANE (four quads)
+if KIND in ("glazed-window", "clear-window"):  # the back wall around a hole at PANE (four quads)
     wall_quads = [(-HALF, HALF, 0, PANE[2]), (-HALF, HALF, PANE[3], WALL_H), (-HALF, PANE[0], PANE[2], PANE[3]),
                   (PANE[1], HALF, PANE[2], PANE[3])]
     add_part("wall_back", [(x, HALF, z) for x0, x1, z0, z1 in wall_quads for x, z in ((x0, z0), (x0, z1), (x1, z1), (x1, z0))],
@@ -199,6 +201,7 @@ LAMPS = {
     "lamp-and-sun": [("lamp", (-0.6, 0.6, 2.35), 25.0, (1.0, 0.9, 0.78))],
     "frosted-window": [],
     "glazed-window": [],
+    "clear-window": [],
     "bulb-seen": [("bulb", (-0.5, 0.5, 1.35), 30.0, (1.0, 0.9, 0.75))],
 }[KIND]
 BULB_SEEN = KIND == "bulb-seen"
@@ -233,9 +236,10 @@ world = bpy.data.worlds.new("sky")
 world.use_nodes = True
 world.node_tree.nodes["Background"].inputs["Color"].default_value = list(SKY) + [1]
 world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
-GLAZED = KIND == "glazed-window"
+GLAZED = KIND == "glazed-window"  # (the glass in the depth frames and gt_mesh.ply)
+WINDOW = KIND in ("glazed-window", "clear-window")  # (the hole and the cone of world behind it)
 CONE_AXIS, CONE_DEG, CONE_RADIANCE = mathutils.Vector((0.0, 1.0, 0.45)).normalized(), 30.0, 8.0
-if GLAZED:  # CONE_RADIANCE (white) within CONE_DEG of CONE_AXIS, SKY elsewhere
+if WINDOW:  # CONE_RADIANCE (white) within CONE_DEG of CONE_AXIS, SKY elsewhere
     nodes, links = world.node_tree.nodes, world.node_tree.links
     coord, dot, inside = nodes.new("ShaderNodeTexCoord"), nodes.new("ShaderNodeVectorMath"), nodes.new("ShaderNodeMath")
     mix = nodes.new("ShaderNodeMixRGB")
@@ -483,12 +487,14 @@ truth = {
         {"name": "pane", "corners": [list(p) for p in parts["pane"][0]], "normal": [0, -1, 0],
          "radiance": list(PANE_RADIANCE), "area": (PANE[1] - PANE[0]) * (PANE[3] - PANE[2]),
          "power": [math.pi * r * (PANE[1] - PANE[0]) * (PANE[3] - PANE[2]) for r in PANE_RADIANCE]}],
-    "world": {"type": "uniform", "radiance_rgb": list(SKY)} if not GLAZED else
+    "world": {"type": "uniform", "radiance_rgb": list(SKY)} if not WINDOW else
              {"type": "cone", "radiance_rgb": list(SKY), "cone_radiance_rgb": [CONE_RADIANCE] * 3,
               "cone_axis": list(CONE_AXIS), "cone_half_angle_deg": CONE_DEG},
-    "openings": [] if not GLAZED else [
-        {"name": "glass", "corners": [list(p) for p in parts["glass"][0]], "area": (PANE[1] - PANE[0]) * (PANE[3] - PANE[2]),
-         "note": "clear glass: not rendered; the depth frames and gt_mesh.ply have it"}],
+    "openings": [] if not WINDOW else [
+        {"name": "glass", "area": (PANE[1] - PANE[0]) * (PANE[3] - PANE[2]),
+         "corners": [[PANE[0], HALF, PANE[2]], [PANE[0], HALF, PANE[3]], [PANE[1], HALF, PANE[3]], [PANE[1], HALF, PANE[2]]],
+         "note": "clear glass: not rendered; " + ("the depth frames and gt_mesh.ply have it" if GLAZED else
+                                                  "no depth on it: a hole in the scan")}],
     "camera": {"width": W, "height": H, "fx": FOCAL, "fy": FOCAL, "cx": (W - 1) / 2, "cy": (H - 1) / 2,
                "convention": "OpenCV; trajectory.log = world_from_camera, world z up, metres"},
     "trajectory": {"frames": FRAMES, "arc_centre_xy": [0.0, 0.25], "arc_radius_m": 1.95,

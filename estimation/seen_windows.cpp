@@ -1,0 +1,74 @@
+#include "estimation/seen_windows.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "estimation/seen_lamps.h"
+
+namespace lp {
+
+namespace {
+
+struct RimHit {
+  Eigen::Vector3d position, normal;  ///< the normal towards the camera
+};
+
+/// The ring of rays around the blob's mean pixel that hit the mesh.
+std::vector<RimHit> RimHits(const Camera& c, const ClippedBlob& b, const RayTracer& scene, const SeenWindowOptions& o) {
+  const double radius = o.rim_scale * std::sqrt(b.pixels / M_PI) + 2;
+  std::vector<RimHit> out;
+  for (int k = 0; k < o.rim_rays; ++k) {
+    const double a = 2 * M_PI * k / o.rim_rays, u = b.u + radius * std::cos(a), v = b.v + radius * std::sin(a);
+    if (u < 0 || v < 0 || u > c.width - 1 || v > c.height - 1) continue;
+    const Eigen::Vector3d dir = c.RayDirection(u, v);
+    SurfacePoint hit;
+    if (!scene.Intersect(c.center(), dir, &hit)) continue;
+    out.push_back({hit.position, hit.geometric});  // (facing the ray: towards the camera)
+  }
+  return out;
+}
+
+/// The wall the rim lies on: its normal (towards the camera), when enough of the ring's rays
+/// hit one flat surface.
+bool RimWall(const std::vector<RimHit>& hits, int rays, const SeenWindowOptions& o, Eigen::Vector3d* normal,
+             Eigen::Vector3d* point) {
+  if (hits.size() < o.min_rim_share * rays) return false;
+  Eigen::Vector3d n = Eigen::Vector3d::Zero(), c = Eigen::Vector3d::Zero();
+  for (const RimHit& h : hits) n += h.normal, c += h.position;
+  if (n.norm() < 1e-9) return false;
+  n.normalize();
+  c /= static_cast<double>(hits.size());
+  const auto flat = std::count_if(hits.begin(), hits.end(), [&](const RimHit& h) {
+    return h.normal.dot(n) > o.flat_cos && std::abs((h.position - c).dot(n)) < o.plane_distance;
+  });
+  if (flat < o.flat_share * hits.size()) return false;
+  *normal = n;
+  *point = c;
+  return true;
+}
+
+}  // namespace
+
+std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTracer& scene, const SeenWindowOptions& o) {
+  std::vector<SeenWindow> out;
+  for (const ClippedBlob& b : ClippedBlobs(views)) {
+    if (b.pixels < o.min_pixels || 2 * b.off_mesh <= b.pixels) continue;
+    const Camera& c = views[b.view].camera;
+    const Eigen::Vector3d dir = c.RayDirection(b.u, b.v);
+    SurfacePoint hit;
+    if (scene.Intersect(c.center(), dir, &hit)) continue;  // (a bulb before a wall: the lamps')
+    Eigen::Vector3d normal, point;
+    if (!RimWall(RimHits(c, b, scene, o), o.rim_rays, o, &normal, &point)) continue;
+    const double along = normal.dot(dir);
+    if (along > -1e-3) continue;  // (the wall seen edge on)
+    SeenWindow w{b.view, b.pixels, c.center() + (point - c.center()).dot(normal) / along * dir, normal};
+    auto same = std::find_if(out.begin(), out.end(), [&](const SeenWindow& x) {
+      return (x.centre - w.centre).norm() < o.merge && x.normal.dot(w.normal) > o.flat_cos;
+    });
+    if (same == out.end()) out.push_back(w);
+    else if (w.pixels > same->pixels) *same = w;
+  }
+  return out;
+}
+
+}  // namespace lp

@@ -1,0 +1,38 @@
+#pragma once
+/// Windows the cameras saw as holes (issue 43): clear glass returns no depth, so a window is
+/// a blob of clipped pixels off the mesh whose rays leave the scene, ringed by one flat wall.
+/// The directions that leave the room through that wall are the window's: beside one, the
+/// map's prior is chosen for those cells (docs/method.md, "The map's prior").
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "scene/ray_tracer.h"
+#include "scene/scene_bundle.h"
+
+namespace lp {
+
+struct SeenWindow {
+  int view = 0;              ///< the view whose blob showed it (the largest, where several did)
+  int pixels = 0;            ///< that blob's pixels
+  Eigen::Vector3d centre;    ///< where the blob's mean ray crosses the wall's plane
+  Eigen::Vector3d normal;    ///< the wall's unit normal, into the room (towards the camera)
+};
+
+struct SeenWindowOptions {
+  int min_pixels = 12;           ///< a blob's pixels at least
+  int rim_rays = 24;             ///< rays cast on a ring around the blob's mean pixel
+  double rim_scale = 1.5;        ///< the ring's radius: this times the blob's (sqrt(pixels / pi)), plus 2 pixels
+  double min_rim_share = 0.6;    ///< of the ring's rays at least this share hit the mesh ...
+  double flat_share = 0.8;       ///< ... and of those this share lie on one plane:
+  double flat_cos = 0.9;         ///< their normals within acos(0.9) = 26 degrees of their mean,
+  double plane_distance = 0.05;  ///< their points within this (m) of the plane through their mean
+  double merge = 0.3;            ///< windows closer than this (m), facing alike, are one
+};
+
+/// The windows of every view's blobs (ClippedBlobs) that are mostly off the mesh, whose mean
+/// pixel's ray leaves the scene and whose ring of rays meets one flat wall; one per place.
+std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTracer& scene,
+                                    const SeenWindowOptions& options = {});
+
+}  // namespace lp

@@ -1,0 +1,108 @@
+// Windows the cameras saw as holes (issue 43): clipped pixels off the mesh whose rays leave
+// the scene, ringed by one flat wall, against the wall and the hole they were drawn from.
+#include <gtest/gtest.h>
+
+#include "estimation/seen_windows.h"
+#include "tests/test_util.h"
+
+namespace lp {
+namespace {
+
+using test::BlankView;
+using test::LookAt;
+
+constexpr double kWallY = 2;
+/// The hole's x and z ranges in the wall.
+constexpr double kX0 = 0.2, kX1 = 1.0, kZ0 = 1.0, kZ1 = 1.8;
+
+/// A quad (two triangles) of corners a, b, c, d, grey.
+Mesh Quad(const Eigen::Vector3f& a, const Eigen::Vector3f& b, const Eigen::Vector3f& c, const Eigen::Vector3f& d) {
+  Mesh m;
+  m.positions = {a, b, c, d};
+  m.albedo.assign(4, Eigen::Vector3f::Constant(0.5f));
+  m.triangles = {{0, 1, 2}, {0, 2, 3}};
+  return m;
+}
+
+/// A wall y = kWallY, x -2..2, z 0..3, facing -y, with the hole at [kX0, kX1] x [kZ0, kZ1]
+/// when `hole` (else whole).
+Mesh Wall(bool hole) {
+  const float y = static_cast<float>(kWallY);
+  const auto quad = [&](double x0, double x1, double z0, double z1) {
+    return Quad({float(x0), y, float(z0)}, {float(x0), y, float(z1)}, {float(x1), y, float(z1)}, {float(x1), y, float(z0)});
+  };
+  Mesh m = quad(-2, 2, 0, hole ? kZ0 : 3);
+  if (hole) {
+    m.Append(quad(-2, 2, kZ1, 3));
+    m.Append(quad(-2, kX0, kZ0, kZ1));
+    m.Append(quad(kX1, 2, kZ0, kZ1));
+  }
+  ComputeVertexNormals(&m);
+  return m;
+}
+
+/// Marks clipped off the mesh (and not valid) the pixels of `v` whose centre's ray `hits`; the count.
+template <class F>
+int ClipOff(View* v, F hits) {
+  v->clipped_off.assign(v->valid.size(), 0);
+  int n = 0;
+  const Camera& c = v->camera;
+  for (std::size_t p = 0; p < v->valid.size(); ++p)
+    if (hits(c.center(), c.RayDirection(static_cast<double>(p % c.width), static_cast<double>(p / c.width))))
+      v->clipped_off[p] = 1, v->valid[p] = 0, ++n;
+  return n;
+}
+
+/// Whether a ray crosses the wall's plane inside [x0, x1] x [z0, z1].
+bool ThroughWall(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double x0, double x1, double z0, double z1) {
+  if (d.y() <= 0) return false;
+  const Eigen::Vector3d p = o + (kWallY - o.y()) / d.y() * d;
+  return p.x() > x0 && p.x() < x1 && p.z() > z0 && p.z() < z1;
+}
+
+TEST(SeenWindows, AHoleInAWallSeenBrightIsAWindowFacingTheRoom) {
+  const RayTracer scene(Wall(true));
+  std::vector<View> views{BlankView(LookAt({0.3, -1, 1.3}, {0.5, kWallY, 1.3}, 160, 120, 60)),
+                          BlankView(LookAt({1.2, -0.8, 1.2}, {0.4, kWallY, 1.4}, 160, 120, 60))};
+  for (View& v : views)
+    ASSERT_GT(ClipOff(&v, [](const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+                return ThroughWall(o, d, kX0, kX1, kZ0, kZ1);
+              }), 100);
+  const std::vector<SeenWindow> seen = SeenWindows(views, scene);
+  ASSERT_EQ(seen.size(), 1u) << "the two views' blobs are one window";
+  EXPECT_NEAR(seen[0].normal.y(), -1, 1e-6) << seen[0].normal.transpose();
+  EXPECT_NEAR(seen[0].centre.y(), kWallY, 1e-6);
+  // The blob's mean pixel's ray: near the hole's centre (perspective moves it a little).
+  EXPECT_LT((seen[0].centre - Eigen::Vector3d(0.5 * (kX0 + kX1), kWallY, 0.5 * (kZ0 + kZ1))).norm(), 0.06)
+      << seen[0].centre.transpose();
+}
+
+TEST(SeenWindows, ABulbBeforeAWallIsNotAWindow) {
+  // Clipped pixels off the mesh whose rays meet the wall behind them: a bulb that returned no
+  // depth (the lamps' to place, SeenLamps), not a hole.
+  const RayTracer scene(Wall(false));
+  std::vector<View> views{BlankView(LookAt({0.3, -1, 1.3}, {0.5, kWallY, 1.3}, 160, 120, 60))};
+  const Eigen::Vector3d bulb(0.5, 0.5, 1.4);
+  ASSERT_GT(ClipOff(&views[0], [&](const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+              const Eigen::Vector3d to = bulb - o;
+              return (to - to.dot(d) * d).norm() < 0.08;
+            }), 20);
+  EXPECT_TRUE(SeenWindows(views, scene).empty());
+}
+
+TEST(SeenWindows, ABrightSkyAboveAWallsTopIsNotAWindow) {
+  // The rays leave the scene, but half the ring around the blob leaves it too: no wall rings it.
+  Mesh wall = Wall(false);
+  const RayTracer scene(std::move(wall));
+  std::vector<View> views{BlankView(LookAt({0.3, -1, 2.6}, {0.5, kWallY, 3.0}, 160, 120, 60))};
+  ASSERT_GT(ClipOff(&views[0], [](const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+              return ThroughWall(o, d, 0.1, 0.9, 3.0, 3.6);
+            }), 100);
+  EXPECT_TRUE(SeenWindows(views, scene).empty());
+  SeenWindowOptions loose;  // (what refuses it: the ring, of which about half meets the wall)
+  loose.min_rim_share = 0.3;
+  EXPECT_EQ(SeenWindows(views, scene, loose).size(), 1u);
+}
+
+}  // namespace
+}  // namespace lp
