@@ -129,7 +129,9 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   const std::vector<Light> glowing(emitters_.begin(), emitters_.end());
   PriorFolds alone = alone_alphas.empty() ? PriorFolds() : PriorLosses(glowing, alone_alphas, block);
   // The map alone (no lamp beside it) also smooth, where its weakest weight scored best.
-  if (points_.empty() && alone_alphas.empty()) TrySmoothMaps(lights, block, &with_alphas, &with);
+  // (not beside a window: the smoothness would reach every cell, not its cells alone)
+  if (points_.empty() && alone_alphas.empty() && window_cells_.empty())
+    TrySmoothMaps(lights, block, &with_alphas, &with);
   if (!alone_alphas.empty()) TrySmoothMaps(glowing, block, &alone_alphas, &alone);
   if (with.loss.empty() || (!alone_alphas.empty() && alone.loss.empty())) {
     pc.why = "a fold of the views' blocks has no pixels (too few valid pixels): the given --alpha";

@@ -711,7 +711,7 @@ void Viewer::LightsList() {
   for (std::size_t k = 0; k < openings; ++k) {
     const auto& shape = est_.result->openings[k];
     if (!shape) continue;
-    if (k == 0) ImGui::Text("openings (windows seen through; outlined in blue):");
+    if (k == 0 || !est_.result->openings[k - 1]) ImGui::Text("openings (windows seen through; outlined in blue):");
     const Eigen::Vector3d c = Centroid(*shape);
     ImGui::Text("(%.2f, %.2f, %.2f) m  %.3g m^2", c.x(), c.y(), c.z(), shape->area);
   }
