@@ -28,23 +28,27 @@ std::vector<RimHit> RimHits(const Camera& c, const ClippedBlob& b, const RayTrac
   return out;
 }
 
-/// The wall the rim lies on: its normal (towards the camera), when enough of the ring's rays
-/// hit one flat surface.
-bool RimWall(const std::vector<RimHit>& hits, int rays, const SeenWindowOptions& o, Eigen::Vector3d* normal,
-             Eigen::Vector3d* point) {
-  if (hits.size() < o.min_rim_share * rays) return false;
+/// The mean normal and position of `hits`; false when their normals cancel.
+bool MeanPlane(const std::vector<RimHit>& hits, Eigen::Vector3d* normal, Eigen::Vector3d* point) {
   Eigen::Vector3d n = Eigen::Vector3d::Zero(), c = Eigen::Vector3d::Zero();
   for (const RimHit& h : hits) n += h.normal, c += h.position;
-  if (n.norm() < 1e-9) return false;
-  n.normalize();
-  c /= static_cast<double>(hits.size());
-  const auto flat = std::count_if(hits.begin(), hits.end(), [&](const RimHit& h) {
-    return h.normal.dot(n) > o.flat_cos && std::abs((h.position - c).dot(n)) < o.plane_distance;
-  });
-  if (flat < o.flat_share * hits.size()) return false;
-  *normal = n;
-  *point = c;
+  if (hits.empty() || n.norm() < 1e-9) return false;
+  *normal = n.normalized();
+  *point = c / static_cast<double>(hits.size());
   return true;
+}
+
+/// The wall the rim lies on: its normal (towards the camera) and a point of it, refitted over
+/// the hits on it, when enough of the ring's rays hit one flat surface.
+bool RimWall(const std::vector<RimHit>& hits, int rays, const SeenWindowOptions& o, Eigen::Vector3d* normal,
+             Eigen::Vector3d* point) {
+  Eigen::Vector3d n, c;
+  if (hits.size() < o.min_rim_share * rays || !MeanPlane(hits, &n, &c)) return false;
+  std::vector<RimHit> flat;
+  for (const RimHit& h : hits)
+    if (h.normal.dot(n) > o.flat_cos && std::abs((h.position - c).dot(n)) < o.plane_distance) flat.push_back(h);
+  if (flat.size() < o.flat_share * hits.size()) return false;
+  return MeanPlane(flat, normal, point);  // (without the hits off the wall: a sill, a frame)
 }
 
 }  // namespace

@@ -77,6 +77,27 @@ TEST(SeenWindows, AHoleInAWallSeenBrightIsAWindowFacingTheRoom) {
       << seen[0].centre.transpose();
 }
 
+TEST(SeenWindows, ASillBelowTheHoleDoesNotMoveItsWall) {
+  // A sill 15 cm deep under the hole: some of the ring's rays meet its front, off the wall's
+  // plane; the wall is fitted again without them, so the window lies on the wall itself.
+  Mesh mesh = Wall(true);
+  const float front = static_cast<float>(kWallY - 0.15), x0 = static_cast<float>(kX0 - 0.1),
+              x1 = static_cast<float>(kX1 + 0.1), z = static_cast<float>(kZ0);
+  Mesh sill = Quad({x0, front, z - 0.15f}, {x0, front, z}, {x1, front, z}, {x1, front, z - 0.15f});
+  sill.Append(Quad({x0, front, z}, {x0, float(kWallY), z}, {x1, float(kWallY), z}, {x1, front, z}));
+  ComputeVertexNormals(&sill);
+  mesh.Append(sill);
+  const RayTracer scene(std::move(mesh));
+  std::vector<View> views{BlankView(LookAt({0.3, -1, 1.3}, {0.5, kWallY, 1.3}, 160, 120, 60))};
+  ASSERT_GT(ClipOff(&views[0], [](const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+              return ThroughWall(o, d, kX0, kX1, kZ0, kZ1);
+            }), 100);
+  const std::vector<SeenWindow> seen = SeenWindows(views, scene);
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_NEAR(seen[0].centre.y(), kWallY, 1e-6) << seen[0].centre.transpose();
+  EXPECT_NEAR(seen[0].normal.y(), -1, 1e-6) << seen[0].normal.transpose();
+}
+
 TEST(SeenWindows, ABulbBeforeAWallIsNotAWindow) {
   // Clipped pixels off the mesh whose rays meet the wall behind them: a bulb that returned no
   // depth (the lamps' to place, SeenLamps), not a hole.
