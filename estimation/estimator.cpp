@@ -476,7 +476,7 @@ void Estimator::GatherVertices(int round, int first) {
 /// one, a point light's PointLightOptions::weight. Under a map's prior weaker than the given
 /// one (`prior`, as EstimateOptions' alpha; 0: alpha_), the lights and the map's cells
 /// within 2.5 ring spacings of a light's direction (a lamp's from the scene's centre) or in
-/// sparse_cells_, and beside a window's opening those not behind one (window_cells_), keep
+/// sparse_cells_, and beside a window (an opening or a hole seen) those not behind one (window_cells_), keep
 /// the given weight: those cells' columns are nearly the light's (a far
 /// lamp's too), and a weak prior there lets the map take its power or spread a compact light
 /// (docs/method.md, "The map's prior").
@@ -495,7 +495,7 @@ ObjectiveParams Estimator::CellWeights(const LinearProblem& problem, ObjectivePa
     bool near = !sparse_cells_.empty() && sparse_cells_[j];
     for (const DirectionalLight& d : suns_) near = near || env_.direction(j).dot(d.direction) > reach;
     for (const PointLight& p : points_) near = near || env_.direction(j).dot((p.position - centre_).normalized()) > reach;
-    near = near || (!window_cells_.empty() && !window_cells_[j]);  // (beside an opening: its cells alone)
+    near = near || (!window_cells_.empty() && !window_cells_[j]);  // (beside a window: its cells alone)
     if (near) params.cell_weight[k] *= keep;
   }
   if (params.smooth > 0) params = WithSmoothness(problem, params);

@@ -88,7 +88,7 @@ std::string Estimator::PriorLeftOut(const std::vector<Light>& lights) const {
     return Fmt("a directional light that predicts the held-out pixels far better than the cells it replaced (its "
                "held-out loss %.3g of theirs, under %g): a sun, not a flat sky; the given --alpha",
                sun_held_out_ratio_, kDecisiveSunRatio);
-  // (beside a window's opening its cells' prior is chosen alone, the others keeping the given
+  // (beside a window, an opening or a hole seen, its cells' prior is chosen alone, the others keeping the given
   // one: the light through a window is a sky's, and a sparse prior there leaves its light to
   // a spurious lamp; Cycles' glazed window scanned, docs/method.md)
   if (!bundle_.mesh.shaded.empty() && window_cells_.empty())
@@ -142,8 +142,8 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   pc.folds = kPriorFolds;
   pc.blocks = static_cast<int>(std::count(used.begin(), used.end(), 1));
   // Of each kind, the strongest weight within one standard error of its best that gains
-  // kPriorMinGain over the given one; where the map lights the room through a window's
-  // opening, the best: the light through a window is a sky's, extended, and the views'
+  // kPriorMinGain over the given one; where the map lights the room through a window (an
+  // opening or a hole seen), the best: the light through a window is a sky's, extended, and the views'
   // blocks hardly see the cells that light the room only through it (Cycles' glazed window: docs/method.md, "The map's prior").
   std::vector<double> with_loss, with_se, alone_loss, alone_se;
   const auto choose = [&](const PriorFolds& folds, std::vector<double>* loss, std::vector<double>* se) {

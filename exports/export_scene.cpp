@@ -38,7 +38,7 @@ ExportScene LoadExportScene(const fs::path& scene_dir, const fs::path& estimate_
   }
   if (s.mesh.normals.size() != s.mesh.positions.size()) ComputeVertexNormals(&s.mesh);
   const std::size_t triangles = s.mesh.triangles.size();
-  s.mesh = WithoutTriangles(s.mesh, TrianglesOnShapes(s.mesh, lights.openings));
+  s.mesh = WithoutShapes(s.mesh, lights.openings);
   s.openings = lights.openings.size();
   s.opening_triangles = triangles - s.mesh.triangles.size();
   s.mesh.shaded.clear();

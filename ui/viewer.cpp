@@ -205,8 +205,7 @@ std::shared_ptr<const Mesh> Viewer::SnapshotMesh() {
   }
   if (opened_for_ != est_.result) {
     opened_for_ = est_.result;
-    opened_mesh_ = std::make_shared<const Mesh>(
-        WithoutTriangles(est_.scene->mesh, TrianglesOnShapes(est_.scene->mesh, est_.result->openings)));
+    opened_mesh_ = std::make_shared<const Mesh>(WithoutShapes(est_.scene->mesh, est_.result->openings));
   }
   return opened_mesh_;
 }

@@ -137,6 +137,10 @@ std::vector<std::uint8_t> TrianglesOnShapes(const Mesh& mesh,
   return on;
 }
 
+Mesh WithoutShapes(const Mesh& mesh, const std::vector<std::shared_ptr<const EmitterShape>>& shapes) {
+  return WithoutTriangles(mesh, TrianglesOnShapes(mesh, shapes));
+}
+
 std::shared_ptr<const EmitterShape> ShapeOnMesh(const Mesh& mesh, const EmitterShape& shape) {
   std::vector<int> triangles;
   std::vector<Eigen::Vector3f> facing;

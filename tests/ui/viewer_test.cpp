@@ -68,16 +68,22 @@ int YellowAround(const ImageRgb8& img, double cx, double cy) {
   return n;
 }
 
-/// Pixels within `radius` of (cx, cy) whose colour is near-white (a white lamp's marker).
-int WhiteAround(const ImageRgb8& img, double cx, double cy, int radius) {
+/// Pixels within `radius` of (cx, cy) whose colour (RGB, 0-255) passes `is`.
+template <class Is>
+int PixelsAround(const ImageRgb8& img, double cx, double cy, int radius, Is is) {
   int n = 0;
   for (int y = static_cast<int>(cy) - radius; y <= static_cast<int>(cy) + radius; ++y)
     for (int x = static_cast<int>(cx) - radius; x <= static_cast<int>(cx) + radius; ++x) {
       if (x < 0 || y < 0 || x >= img.width || y >= img.height) continue;
-      const std::uint8_t* p = &img.data[3 * (static_cast<std::size_t>(y) * img.width + x)];
-      n += p[0] > 200 && p[1] > 190 && p[2] > 170;
+      n += is(&img.data[3 * (static_cast<std::size_t>(y) * img.width + x)]);
     }
   return n;
+}
+
+/// Pixels within `radius` of (cx, cy) whose colour is near-white (a white lamp's marker).
+int WhiteAround(const ImageRgb8& img, double cx, double cy, int radius) {
+  return PixelsAround(img, cx, cy, radius,
+                      [](const std::uint8_t* p) { return p[0] > 200 && p[1] > 190 && p[2] > 170; });
 }
 
 /// Where the 3D view draws world point `w` (window pixels), from the projection and the
@@ -378,14 +384,9 @@ TEST(Viewer, AGlowingPaneIsListedAndOutlined) {
 
 /// Pixels within `radius` of (cx, cy) in the openings' sky blue (0.45, 0.75, 1).
 int SkyBlueAround(const ImageRgb8& img, double cx, double cy, int radius) {
-  int n = 0;
-  for (int y = static_cast<int>(cy) - radius; y <= static_cast<int>(cy) + radius; ++y)
-    for (int x = static_cast<int>(cx) - radius; x <= static_cast<int>(cx) + radius; ++x) {
-      if (x < 0 || y < 0 || x >= img.width || y >= img.height) continue;
-      const std::uint8_t* p = &img.data[3 * (static_cast<std::size_t>(y) * img.width + x)];
-      n += p[0] > 90 && p[0] < 140 && p[1] > 170 && p[1] < 215 && p[2] > 235;
-    }
-  return n;
+  return PixelsAround(img, cx, cy, radius, [](const std::uint8_t* p) {
+    return p[0] > 90 && p[0] < 140 && p[1] > 170 && p[1] < 215 && p[2] > 235;
+  });
 }
 
 // A window's opening (issue 43): Cycles' glazed window (tests/data/cycles/glazed_window: clear
