@@ -56,6 +56,9 @@ constexpr int kPriorBlocksAcross = 4;
 /// not there took up its error (`lamp-4m` 8-14 cm off on 7 of 25 seeds; docs/benchmarks.md,
 /// session 41).
 constexpr int kPriorRound = 2;
+/// Beside a window, the share of the map's next events aimed through its opening (a portal:
+/// a point uniform over it) rather than at a cell (docs/method.md, "Windows").
+constexpr double kPortalShare = 0.5;
 /// The iterations of a model's trial solve (a candidate light's held-out fit, a prior's, a
 /// glowing surface's objective): each a "trial" row of the convergence log.
 constexpr int kTrialIterations = 50;

@@ -118,6 +118,7 @@ Estimator::Estimator(const SceneBundle& bundle, const EstimateOptions& options, 
   // Start dark and uniform (paper): every cell equally likely to be sampled.
   lambda_.assign(3 * cells_, 1e-3);
   reachable_.assign(cells_, 1);
+  StartBesideSeenWindows();
   if (opt_.warm) StartWarm(*opt_.warm);
 }
 
@@ -334,10 +335,10 @@ std::vector<std::uint8_t> Estimator::OneSidedRows(const std::vector<std::uint8_t
 /// that is said at once (the rounds then need not wait for it).
 bool Estimator::PriorRound(int round, int last) {
   if (!PriorAhead()) return false;
-  MarkSeenWindows();  // (a window's cells have their prior chosen on a reconstructed mesh too)
   if (points_.empty() || ++rounds_past_grid_ >= kPriorRound || round + 1 >= last) return true;
   res_.prior.why = PriorLeftOut(ColumnOrder(points_));
   res_.prior.done = !res_.prior.why.empty();
+  if (res_.prior.done) KeepTheGivenPrior();
   return false;
 }
 
@@ -345,7 +346,7 @@ bool Estimator::PriorRound(int round, int last) {
 /// with the rounds before under the same albedo, and makes the round's problem.
 RoundProblem Estimator::TraceRound(int round, int first, RoundInfo* info) {
   Stopwatch ts;
-  CellSampler sampler(env_, round == 1 && !warm_ ? std::vector<double>() : lambda_, reachable_, opt_.tracer.nee_floor);
+  const CellSampler sampler = Sampler(round == 1 && !warm_ ? std::vector<double>() : lambda_, reachable_);
   const TracerOptions topt = MapTracer(round, 0);
   info->spp = topt.spp;
   info->pixels = static_cast<int>(y_.size() / 3);
@@ -848,7 +849,7 @@ void Estimator::RenderFittedViews() {
   topt.seed = opt_.tracer.seed * 1000003ull + 999;
   topt.spp = kMaskedRenderSpp;
   topt.cancelled = opt_.cancelled;
-  CellSampler sampler(env_, res_.lighting.map, reachable_, opt_.tracer.nee_floor);
+  const CellSampler sampler = Sampler(res_.lighting.map, reachable_);
   // The fit where it used the pixels, the rest traced.
   res_.fits = RenderLighting(*scene_, env_, res_.lighting, sampler, UnusedPixels(views_), topt, false);
   PutFit(&res_.fits);

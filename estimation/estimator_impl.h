@@ -264,6 +264,7 @@ class Estimator {
                      PriorFolds* folds);
   void SolveAtPrior(MapPrior prior, const std::vector<double>& start, RoundInfo* info);
   std::string PriorLeftOut(const std::vector<Light>& lights) const;
+  std::string PriorGivenByOptions() const;
   void SayPrior(const std::vector<double>& loss, const std::vector<double>& se, std::size_t k, std::size_t lights);
   // The near-light steps (docs/method.md, "Point lights").
   bool NearLights() const { return opt_.point_lights.max_lights > 0; }
@@ -422,8 +423,15 @@ class Estimator {
   bool TryOpening(const EmitterLight& candidate, const std::vector<EmitterLight>& as_is, double* objective,
                   double* held);
   void MarkWindowCells(const Eigen::Vector3d& out);
+  bool KeepTheGivenPrior();
+  /// The map's next-event sampler by `lambda` (empty: uniform) over `reachable`, aiming
+  /// kPortalShare of its samples through portals_ where there are any.
+  CellSampler Sampler(const std::vector<double>& lambda, const std::vector<std::uint8_t>& reachable) const;
   void MarkSeenWindows();
+  void StartBesideSeenWindows();
+  bool BehindASeenWindow(const Eigen::Vector3d& p) const;
   bool seen_windows_done_ = false;
+  std::vector<SeenWindow> seen_windows_;
   /// Flat, and most rays out of its back leave the scene (`opened`: the scene with it open).
   bool CouldBeWindow(const EmitterLight& e, const RayTracer& opened) const;
   /// Per triangle of the traced mesh: open already, or its centre on `shape`.
@@ -494,6 +502,9 @@ class Estimator {
   /// through the window is a sky's; beside a window the prior chosen applies to these cells
   /// alone and the others keep the given one (CellWeights); empty: no window.
   std::vector<std::uint8_t> window_cells_;
+  /// The windows' openings as next-event estimation aims through them (path_tracer.h's
+  /// Portal): every sampler of the map's light aims a share of its samples there (Sampler).
+  std::vector<Portal> portals_;
   std::vector<EnvMap::Neighbours> adjacency_;  ///< env_.Adjacency(), for the map's smoothness
   int cells_ = 0;
   /// The views the rounds fit (the bundle's, or round 1's grid of their pixels: UseViews)

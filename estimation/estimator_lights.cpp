@@ -62,6 +62,10 @@ bool WeightedIntensity(const std::vector<float>& col, const std::vector<double>&
 const std::vector<SeenLamp>& Estimator::SeenLampsOnce() {
   if (seen_lamps_) return *seen_lamps_;
   seen_lamps_ = opt_.point_lights.seen ? SeenLamps(bundle_.views, *scene_) : std::vector<SeenLamp>();
+  // (a window's blobs, triangulated, meet behind its wall: the sky's)
+  seen_lamps_->erase(std::remove_if(seen_lamps_->begin(), seen_lamps_->end(),
+                                    [&](const SeenLamp& l) { return BehindASeenWindow(l.position); }),
+                     seen_lamps_->end());
   res_.seen_lamps = *seen_lamps_;
   for (const SeenLamp& l : *seen_lamps_) {
     const std::string line = Fmt("search: a lamp's place where the camera saw a clipped blob: (%.3f, %.3f, %.3f), %s",

@@ -13,6 +13,20 @@
 namespace lp::detail {
 namespace {
 
+/// The rectangle in an opening's plane (through its area's centre, facing its glass's
+/// normal) that holds its triangles, its first axis horizontal (across `up`).
+Portal PortalOf(const EmitterShape& shape, const Eigen::Vector3d& up) {
+  std::vector<Eigen::Vector3d> corners;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (std::size_t t = 0; t < shape.a.size(); ++t) {
+    const Eigen::Vector3d a = shape.a[t].cast<double>(), b = shape.b[t].cast<double>(), c = shape.c[t].cast<double>();
+    corners.insert(corners.end(), {a, b, c});
+    centre += 0.5 * (b - a).cross(c - a).norm() * (a + b + c) / 3;
+  }
+  const Eigen::Vector3d normal = FacingSum(shape).normalized();
+  return PortalAround(corners, centre / std::max(shape.area, 1e-12), normal, up.cross(normal));
+}
+
 /// A surface is flat when its area-weighted normals sum to this share of its area.
 constexpr double kFlat = 0.95;
 /// Rays cast out of its back (cosine-distributed about the side opposite its glow, from
@@ -67,7 +81,7 @@ bool Estimator::CouldBeWindow(const EmitterLight& e, const RayTracer& opened) co
 
 void Estimator::TraceAfresh(int round) {
   // (every cell reachable: an opening lets the map in where the pane did not)
-  CellSampler sampler(env_, lambda_, std::vector<std::uint8_t>(cells_, 1), opt_.tracer.nee_floor);
+  const CellSampler sampler = Sampler(lambda_, std::vector<std::uint8_t>(cells_, 1));
   A_ = TraceTransport(*scene_, env_, views_, sampler, MapTracer(round, 7001), &res_.trace);
   CheckCancel();
   MakeMapProblem();
@@ -127,9 +141,16 @@ bool Estimator::TryOpening(const EmitterLight& candidate, const std::vector<Emit
   MarkReachable(*map_problem_);
   res_.openings.push_back(candidate.shape);
   MarkWindowCells(-FacingSum(*candidate.shape).normalized());
+  portals_.push_back(PortalOf(*candidate.shape, bundle_.up));
   *objective = open_objective;
   *held = open_held;
   return true;
+}
+
+CellSampler Estimator::Sampler(const std::vector<double>& lambda, const std::vector<std::uint8_t>& reachable) const {
+  CellSampler sampler(env_, lambda, reachable, opt_.tracer.nee_floor);
+  if (!portals_.empty()) sampler.SetPortals(portals_, kPortalShare);
+  return sampler;
 }
 
 /// window_cells_ gains the cells behind a window: those whose direction leaves the room
@@ -142,11 +163,12 @@ void Estimator::MarkWindowCells(const Eigen::Vector3d& out) {
 }
 
 /// The windows the cameras saw as holes (seen_windows.h), found, said and their cells marked
-/// once.
+/// once, each hole a portal.
 void Estimator::MarkSeenWindows() {
   if (seen_windows_done_) return;
   seen_windows_done_ = true;
-  for (const SeenWindow& w : SeenWindows(bundle_.views, *scene_)) {
+  seen_windows_ = SeenWindows(bundle_.views, *scene_);
+  for (const SeenWindow& w : seen_windows_) {
     const std::string line =
         Fmt("a window the cameras saw as a hole (view %d, %d clipped pixels off the mesh, their rays leaving the scene): "
             "at (%.3f, %.3f, %.3f) in a wall facing (%.2f, %.2f, %.2f); the map's cells behind it are the window's",
@@ -154,7 +176,27 @@ void Estimator::MarkSeenWindows() {
     res_.point_light_choices.push_back(line);
     Progress(line);
     MarkWindowCells(-w.normal);
+    if (w.corners.size() == 4) portals_.push_back(PortalAround(w.corners, w.centre, w.normal, bundle_.up.cross(w.normal)));
   }
+}
+
+/// Before round 1: the windows seen as holes; beside one, the map's cells behind it start at
+/// the weakest prior the choice tries (until it chooses), so that a lamp is kept only where
+/// it explains the images better than the light through the window, a sky's, extended (the
+/// clear-window scan: held at the given prior, round 1 put a lamp in the room that rendered
+/// 85 % of the light, and a glowing patch where the light falls).
+void Estimator::StartBesideSeenWindows() {
+  MarkSeenWindows();
+  if (window_cells_.empty() || !PriorGivenByOptions().empty()) return;
+  alpha_ = opt_.objective.alpha * kPriorFactors[std::size(kPriorFactors) - 1];
+  res_.objective_params.alpha = alpha_ * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
+}
+
+/// Whether `p` lies behind the wall of a window seen as a hole (outside the room, where its
+/// rays went): a place seen through the hole is the sky's, not a lamp's.
+bool Estimator::BehindASeenWindow(const Eigen::Vector3d& p) const {
+  return std::any_of(seen_windows_.begin(), seen_windows_.end(),
+                     [&](const SeenWindow& w) { return (p - w.centre).dot(w.normal) < 0; });
 }
 
 }  // namespace lp::detail

@@ -68,8 +68,8 @@ std::vector<T> Rows(const std::vector<T>& v, const std::vector<std::uint8_t>& ke
 
 }  // namespace
 
-/// Why the prior is not chosen here ("": it is).
-std::string Estimator::PriorLeftOut(const std::vector<Light>& lights) const {
+/// Why the options leave the prior as given ("": they do not).
+std::string Estimator::PriorGivenByOptions() const {
   if (!opt_.choose_prior) return "--choose-prior 0: the given --alpha";
   if (!(opt_.objective.alpha > 0 && opt_.objective.beta > 0))
     return "no activation penalty (--alpha 0 or --beta 0): nothing to choose";
@@ -79,6 +79,12 @@ std::string Estimator::PriorLeftOut(const std::vector<Light>& lights) const {
   if (res_.objective_params.sigma < ObjectiveParams{}.sigma)
     return Fmt("a Cauchy scale below the default (--sigma %g < %g): the given --alpha", res_.objective_params.sigma,
                ObjectiveParams{}.sigma);
+  return "";
+}
+
+/// Why the prior is not chosen here ("": it is).
+std::string Estimator::PriorLeftOut(const std::vector<Light>& lights) const {
+  if (std::string why = PriorGivenByOptions(); !why.empty()) return why;
   if (A_.rows() * 3 != y_.size() || (!lights.empty() && vertices_.rows() * 3 != y_.size()))
     return "the last round's rows are not every pixel's: the given --alpha";
   // (a reconstructed mesh's albedo is the colours seen: a weaker prior lets the map explain
@@ -102,7 +108,7 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   pc.done = true;
   const std::vector<Light> lights = ColumnOrder(points_);  // the order of the problem solved again
   pc.why = PriorLeftOut(lights);
-  if (!pc.why.empty()) return false;
+  if (!pc.why.empty()) return KeepTheGivenPrior();
   CheckCancel();
   Stopwatch ps;
   // A compact light in the map (a far lamp or a sun left to it) stays sparse: its
@@ -135,7 +141,7 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   if (!alone_alphas.empty()) TrySmoothMaps(glowing, block, &alone_alphas, &alone);
   if (with.loss.empty() || (!alone_alphas.empty() && alone.loss.empty())) {
     pc.why = "a fold of the views' blocks has no pixels (too few valid pixels): the given --alpha";
-    return false;
+    return KeepTheGivenPrior();
   }
   std::vector<std::uint8_t> used(with.loss[0].size(), 0);
   for (int b : block) used[b] = 1;
@@ -165,7 +171,8 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   pc.chosen_smooth = chosen.smooth;
   pc.lights_dropped = !keep;
   SayPrior(keep ? with_loss : alone_loss, keep ? with_se : alone_se, keep ? kw : ka, lights.size());
-  const bool changed = pc.chosen != opt_.objective.alpha || pc.chosen_smooth != opt_.objective.smooth || !keep;
+  // (against the weight in effect: beside a window seen before round 1 its cells' weakest)
+  const bool changed = pc.chosen != alpha_ || pc.chosen_smooth != opt_.objective.smooth || !keep;
   if (!keep) {
     res_.point_light_choices.push_back("the map's prior: " + pc.why);
     points_.clear();
@@ -330,6 +337,16 @@ void Estimator::RelaxPrior() {
   pc.why += Fmt("; beside the lamps the map solved once more at alpha %g, the weakest tried, so that the prior "
                 "chosen does not shrink the extended light it kept",
                 weakest);
+}
+
+/// Where the prior is not chosen, the rounds after go on at the given one (a window seen
+/// before round 1 started its cells at the weakest: StartBesideSeenWindows); whether that
+/// changed the weight in effect.
+bool Estimator::KeepTheGivenPrior() {
+  const bool changed = alpha_ != opt_.objective.alpha;
+  alpha_ = opt_.objective.alpha;
+  res_.objective_params.alpha = alpha_ * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
+  return changed;
 }
 
 /// The map and the lights' intensities solved again on every pixel at weight `alpha` (as

@@ -45,6 +45,79 @@ CellSampler::CellSampler(const EnvMap& env, const std::vector<double>& lambda,
   }
 }
 
+double Portal::Crossing(const Eigen::Vector3d& origin, const Eigen::Vector3d& w, double* cos) const {
+  const Eigen::Vector3d n = axis_u.cross(axis_v);
+  const double along = w.dot(n);
+  if (std::abs(along) < 1e-9) return 0;
+  const double t = (centre - origin).dot(n) / along;
+  if (!(t > 0)) return 0;
+  const Eigen::Vector3d p = origin + t * w - centre;
+  if (std::abs(p.dot(axis_u)) > half_u || std::abs(p.dot(axis_v)) > half_v) return 0;
+  *cos = std::abs(along);
+  return t;
+}
+
+Portal PortalAround(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& point,
+                    const Eigen::Vector3d& normal, const Eigen::Vector3d& along) {
+  Portal p;
+  const Eigen::Vector3d n = normal.normalized();
+  Eigen::Vector3d u = along - along.dot(n) * n;
+  if (u.norm() < 1e-6) u = n.unitOrthogonal();
+  p.axis_u = u.normalized();
+  p.axis_v = n.cross(p.axis_u);
+  double lo_u = 0, hi_u = 0, lo_v = 0, hi_v = 0;
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const Eigen::Vector3d d = points[k] - point;
+    const double a = d.dot(p.axis_u), b = d.dot(p.axis_v);
+    lo_u = k ? std::min(lo_u, a) : a, hi_u = k ? std::max(hi_u, a) : a;
+    lo_v = k ? std::min(lo_v, b) : b, hi_v = k ? std::max(hi_v, b) : b;
+  }
+  p.centre = point + 0.5 * (lo_u + hi_u) * p.axis_u + 0.5 * (lo_v + hi_v) * p.axis_v;
+  p.half_u = 0.5 * (hi_u - lo_u);
+  p.half_v = 0.5 * (hi_v - lo_v);
+  return p;
+}
+
+void CellSampler::SetPortals(std::vector<Portal> portals, double share) {
+  portals_.clear();
+  portal_cdf_.clear();
+  portal_area_ = 0;
+  for (Portal& p : portals)
+    if (p.Area() > 0) {
+      portal_area_ += p.Area();
+      portal_cdf_.push_back(portal_area_);
+      portals_.push_back(std::move(p));
+    }
+  for (double& c : portal_cdf_) c /= portal_area_;
+  portal_share_ = portals_.empty() ? 0.0 : std::clamp(share, 0.0, 1.0);
+}
+
+double CellSampler::Density(const EnvMap& env, int j, const Eigen::Vector3d& origin, const Eigen::Vector3d& w) const {
+  const double cells = prob_[j] / env.solid_angle(j);
+  if (portals_.empty()) return cells;
+  double through = 0;  // the portals' density: distance^2 / (area x cosine) at each crossing
+  for (const Portal& p : portals_) {
+    double cos = 0;
+    const double t = p.Crossing(origin, w, &cos);
+    if (t > 0) through += t * t / (portal_area_ * cos);
+  }
+  return (1 - portal_share_) * cells + portal_share_ * through;
+}
+
+Eigen::Vector3d CellSampler::SampleDirection(const EnvMap& env, const Eigen::Vector3d& origin, double u0, double u1,
+                                             double u2, int* cell) const {
+  if (u0 < portal_share_) {  // (u0 reused: uniform again within the share)
+    const double u = u0 / portal_share_;
+    const std::size_t k = std::min<std::size_t>(
+        std::upper_bound(portal_cdf_.begin(), portal_cdf_.end(), u) - portal_cdf_.begin(), portals_.size() - 1);
+    const Eigen::Vector3d w = (portals_[k].Point(u1, u2) - origin).normalized();
+    *cell = env.Lookup(w);
+    return w;
+  }
+  *cell = Sample(portals_.empty() ? u0 : (u0 - portal_share_) / (1 - portal_share_));
+  return env.SampleInCell(*cell, u1, u2);
+}
+
 int CellSampler::Sample(double u) const {
   const auto it = std::upper_bound(cdf_.begin(), cdf_.end(), u);
   int j = static_cast<int>(std::min<std::ptrdiff_t>(it - cdf_.begin(), cdf_.size() - 1));
@@ -56,22 +129,22 @@ NextEvent SampleNextEvent(const RayTracer& scene, const EnvMap& env, const CellS
                           const Eigen::Vector3d& n, const Eigen::Vector3d& g, const Eigen::Vector3d& origin, Rng& rng) {
   NextEvent e;
   const double u0 = rng.Uniform(), u1 = rng.Uniform(), u2 = rng.Uniform();
-  e.cell = sampler.Sample(u0);
-  const Eigen::Vector3d w = env.SampleInCell(e.cell, u1, u2);
+  const Eigen::Vector3d w = sampler.SampleDirection(env, origin, u0, u1, u2, &e.cell);
   const double cos_s = n.dot(w);
   if (!(cos_s > 0 && g.dot(w) > 0)) return e;
   e.traced = true;
   if (scene.Occluded(origin, w)) return e;
   e.visible = true;
-  const double pdf_nee = sampler.Probability(e.cell) / env.solid_angle(e.cell);
+  const double pdf_nee = sampler.Density(env, e.cell, origin, w);
   const double pdf_bsdf = cos_s * kInvPi;
   const double mis = PowerHeuristic(pdf_nee, pdf_bsdf);
   e.weight = kInvPi * cos_s * mis / pdf_nee;
   return e;
 }
 
-double EscapeWeight(const EnvMap& env, const CellSampler& sampler, int j, double cos_n) {
-  const double pdf_nee = sampler.Probability(j) / env.solid_angle(j);
+double EscapeWeight(const EnvMap& env, const CellSampler& sampler, int j, double cos_n, const Eigen::Vector3d& origin,
+                    const Eigen::Vector3d& w) {
+  const double pdf_nee = sampler.Density(env, j, origin, w);
   return PowerHeuristic(cos_n * kInvPi, pdf_nee);
 }
 
@@ -120,7 +193,7 @@ void TracePath(const RayTracer& scene, const EnvMap& env, const CellSampler& sam
     SurfacePoint next;
     if (!scene.Intersect(off, w, &next)) {
       const int j = env.Lookup(w);
-      sink(j, T * EscapeWeight(env, sampler, j, n.dot(w)));
+      sink(j, T * EscapeWeight(env, sampler, j, n.dot(w), off, w));
       return;
     }
     if (bounce + 1 >= opt.bounces) {

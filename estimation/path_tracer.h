@@ -47,19 +47,54 @@ struct TraceStats {
   double seconds = 0;
 };
 
+/// A window's opening as next-event estimation sees it (a portal): a rectangle through which
+/// the map is seen from inside the room. `axis_u` and `axis_v` are orthonormal, in its plane.
+struct Portal {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  Eigen::Vector3d axis_u = Eigen::Vector3d::UnitX(), axis_v = Eigen::Vector3d::UnitY();
+  double half_u = 0, half_v = 0;
+  double Area() const { return 4 * half_u * half_v; }
+  /// The point at (u, v) in [0, 1)^2, uniform over the rectangle.
+  Eigen::Vector3d Point(double u, double v) const {
+    return centre + (2 * u - 1) * half_u * axis_u + (2 * v - 1) * half_v * axis_v;
+  }
+  /// Where the ray from `origin` along unit `w` crosses the rectangle: its distance, or 0 when
+  /// it does not (behind the origin, beside the rectangle, or along its plane); `cos` the
+  /// cosine to the rectangle's normal there.
+  double Crossing(const Eigen::Vector3d& origin, const Eigen::Vector3d& w, double* cos) const;
+};
+
+/// The rectangle (in the plane through `point` with unit `normal`) that holds `points`
+/// projected on that plane, its first axis along `along` projected on the plane.
+Portal PortalAround(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& point,
+                    const Eigen::Vector3d& normal, const Eigen::Vector3d& along);
+
 /// NEE importance over cells: q_j = (1-eps)*w_j/sum(w) + eps*Omega_j/Omega_reach, with
 /// w_j = luminance(lambda_j)*Omega_j; cells with `reachable[j] == 0` get q_j = 0.
-/// `lambda` may be empty (uniform by solid angle).
+/// `lambda` may be empty (uniform by solid angle). With portals (a window's openings), a
+/// share of the samples aims at a point uniform over their area instead (a one-sample
+/// mixture: the direction's density is both strategies', Density).
 class CellSampler {
  public:
   CellSampler(const EnvMap& env, const std::vector<double>& lambda, const std::vector<std::uint8_t>& reachable,
               double floor);
   int Sample(double u) const;
-  /// Probability of choosing cell j.
+  /// Probability of choosing cell j (by the cells' strategy).
   double Probability(int j) const { return prob_[j]; }
+  /// A `share` of the samples aims through `portals` (none: every sample by cell).
+  void SetPortals(std::vector<Portal> portals, double share);
+  bool HasPortals() const { return !portals_.empty(); }
+  /// The density (per steradian) of drawing unit direction `w`, in cell `j`, from `origin`.
+  double Density(const EnvMap& env, int j, const Eigen::Vector3d& origin, const Eigen::Vector3d& w) const;
+  /// A direction from `origin` drawn with three uniform numbers (its cell in `cell`).
+  Eigen::Vector3d SampleDirection(const EnvMap& env, const Eigen::Vector3d& origin, double u0, double u1, double u2,
+                                  int* cell) const;
 
  private:
   std::vector<double> prob_, cdf_;
+  std::vector<Portal> portals_;
+  std::vector<double> portal_cdf_;  ///< by area
+  double portal_share_ = 0, portal_area_ = 0;
 };
 
 /// Next-event estimation from a Lambertian surface point (shading normal `n`, geometric
@@ -75,9 +110,10 @@ struct NextEvent {
 NextEvent SampleNextEvent(const RayTracer& scene, const EnvMap& env, const CellSampler& sampler,
                           const Eigen::Vector3d& n, const Eigen::Vector3d& g, const Eigen::Vector3d& origin, Rng& rng);
 
-/// The power-heuristic weight of a cosine-sampled direction (cosine `cos_n` to the shading
-/// normal) that escapes through cell `j`, against next-event estimation.
-double EscapeWeight(const EnvMap& env, const CellSampler& sampler, int j, double cos_n);
+/// The power-heuristic weight of a cosine-sampled direction `w` from `origin` (cosine `cos_n`
+/// to the shading normal) that escapes through cell `j`, against next-event estimation.
+double EscapeWeight(const EnvMap& env, const CellSampler& sampler, int j, double cos_n, const Eigen::Vector3d& origin,
+                    const Eigen::Vector3d& w);
 
 /// Traces every valid pixel of every view and returns A (rows in view, pixel order).
 TransportMatrix TraceTransport(const RayTracer& scene, const EnvMap& env, const std::vector<View>& views,

@@ -23,6 +23,8 @@ void ViewBlobs(const View& view, int index, std::vector<ClippedBlob>* out) {
     ClippedBlob blob;
     blob.view = index;
     double su = 0, sv = 0;
+    blob.min_x = blob.max_x = static_cast<int>(start % w);
+    blob.min_y = blob.max_y = static_cast<int>(start / w);
     seen[start] = 1;
     stack.assign(1, start);
     while (!stack.empty()) {
@@ -33,6 +35,8 @@ void ViewBlobs(const View& view, int index, std::vector<ClippedBlob>* out) {
       blob.off_mesh += Flagged(view.clipped_off, p);
       su += x;
       sv += y;
+      blob.min_x = std::min(blob.min_x, x), blob.max_x = std::max(blob.max_x, x);
+      blob.min_y = std::min(blob.min_y, y), blob.max_y = std::max(blob.max_y, y);
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
           const int nx = x + dx, ny = y + dy;

@@ -47,6 +47,7 @@ struct ClippedBlob {
   int pixels = 0;
   int off_mesh = 0;  ///< of them clipped off the mesh
   double u = 0, v = 0;  ///< the mean pixel (centres at integers)
+  int min_x = 0, max_x = 0, min_y = 0, max_y = 0;  ///< its pixels' bounds
 };
 
 /// The blobs of every view (none where a view carries no clipped pixels).

@@ -65,7 +65,12 @@ std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTra
     if (!RimWall(RimHits(c, b, scene, o), o.rim_rays, o, &normal, &point)) continue;
     const double along = normal.dot(dir);
     if (along > -1e-3) continue;  // (the wall seen edge on)
-    SeenWindow w{b.view, b.pixels, c.center() + (point - c.center()).dot(normal) / along * dir, normal};
+    SeenWindow w{b.view, b.pixels, c.center() + (point - c.center()).dot(normal) / along * dir, normal, {}};
+    for (const double x : {b.min_x - 0.5, b.max_x + 0.5})
+      for (const double y : {b.min_y - 0.5, b.max_y + 0.5}) {
+        const Eigen::Vector3d d = c.RayDirection(x, y);
+        if (normal.dot(d) < -1e-3) w.corners.push_back(c.center() + (point - c.center()).dot(normal) / normal.dot(d) * d);
+      }
     auto same = std::find_if(out.begin(), out.end(), [&](const SeenWindow& x) {
       return (x.centre - w.centre).norm() < o.merge && x.normal.dot(w.normal) > o.flat_cos;
     });

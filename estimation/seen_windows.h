@@ -17,6 +17,9 @@ struct SeenWindow {
   int pixels = 0;            ///< that blob's pixels
   Eigen::Vector3d centre;    ///< where the blob's mean ray crosses the wall's plane
   Eigen::Vector3d normal;    ///< the wall's unit normal, into the room (towards the camera)
+  /// Where the rays through the corners of the blob's pixel bounds (their outer edges) cross
+  /// the wall's plane: the hole's extent, as far as its clipped pixels show it.
+  std::vector<Eigen::Vector3d> corners;
 };
 
 struct SeenWindowOptions {

@@ -70,7 +70,7 @@ void VertexRadiance::Refine(int samples) {
           SurfacePoint hit;
           if (!scene_.Intersect(origin, dir, &hit)) {
             const int j = env_.Lookup(dir);
-            got += throughput.cwiseProduct(cell(j)) * EscapeWeight(env_, *sampler_, j, n.dot(dir));
+            got += throughput.cwiseProduct(cell(j)) * EscapeWeight(env_, *sampler_, j, n.dot(dir), origin, dir);
             break;
           }
           // Cosine sampling cancels cos/pi against the Lambertian albedo/pi: the weight is the albedo.

@@ -43,6 +43,8 @@ class VertexRadiance {
                  std::uint64_t seed = 1);
   ~VertexRadiance();
 
+  /// Aims a `share` of the map's next events through `portals` (a window's openings).
+  void SetPortals(std::vector<Portal> portals, double share) { sampler_->SetPortals(std::move(portals), share); }
   /// Adds `samples` paths per vertex (parallel over vertices; deterministic per seed).
   void Refine(int samples);
   /// Mean outgoing radiance per vertex (linear RGB, the estimate's units): albedo times the

@@ -1,7 +1,10 @@
 // Windows the cameras saw as holes (issue 43): clipped pixels off the mesh whose rays leave
 // the scene, ringed by one flat wall, against the wall and the hole they were drawn from.
+#include <cstdio>
+
 #include <gtest/gtest.h>
 
+#include "estimation/path_tracer.h"
 #include "estimation/seen_windows.h"
 #include "tests/test_util.h"
 
@@ -75,6 +78,22 @@ TEST(SeenWindows, AHoleInAWallSeenBrightIsAWindowFacingTheRoom) {
   // The blob's mean pixel's ray: near the hole's centre (perspective moves it a little).
   EXPECT_LT((seen[0].centre - Eigen::Vector3d(0.5 * (kX0 + kX1), kWallY, 0.5 * (kZ0 + kZ1))).norm(), 0.06)
       << seen[0].centre.transpose();
+  // Its extent (the portal next events aim through): the rectangle holding the blob's pixel
+  // bounds on the wall covers the hole (to a pixel) and is at most 12 cm longer a side (the
+  // bounds of an oblique view's quadrilateral: 0.86 m for the hole's 0.80 when written).
+  ASSERT_EQ(seen[0].corners.size(), 4u);
+  const Portal p = PortalAround(seen[0].corners, seen[0].centre, seen[0].normal, Eigen::Vector3d::UnitX());
+  EXPECT_NEAR(std::abs(p.axis_u.x()), 1, 1e-6);
+  const double x0 = p.centre.x() - p.half_u, x1 = p.centre.x() + p.half_u;
+  const double z0 = p.centre.z() - p.half_v, z1 = p.centre.z() + p.half_v;
+  EXPECT_LT(x0, kX0 + 0.01);
+  EXPECT_GT(x1, kX1 - 0.01);
+  EXPECT_LT(z0, kZ0 + 0.01);
+  EXPECT_GT(z1, kZ1 - 0.01);
+  EXPECT_LT(x1 - x0, kX1 - kX0 + 0.12);
+  EXPECT_LT(z1 - z0, kZ1 - kZ0 + 0.12);
+  std::printf("the hole [%.2f, %.2f] x [%.2f, %.2f]; its portal [%.3f, %.3f] x [%.3f, %.3f]\n", kX0, kX1, kZ0, kZ1, x0,
+              x1, z0, z1);
 }
 
 TEST(SeenWindows, ASillBelowTheHoleDoesNotMoveItsWall) {

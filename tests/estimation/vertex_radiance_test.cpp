@@ -78,6 +78,82 @@ TEST(VertexRadiance, UniformSkyOverAPlaneGivesAlbedoTimesRadiance) {
   EXPECT_NEAR(mean.x() / 0.6, 1, 0.003);
 }
 
+/// A quad p0 p1 p2 p3 (counter-clockwise seen from where `normal` points) of albedo `rho`.
+Mesh Quad(const Eigen::Vector3f& p0, const Eigen::Vector3f& p1, const Eigen::Vector3f& p2, const Eigen::Vector3f& p3,
+          const Eigen::Vector3f& normal, float rho) {
+  Mesh q;
+  q.positions = {p0, p1, p2, p3};
+  q.normals.assign(4, normal);
+  q.albedo.assign(4, Eigen::Vector3f::Constant(rho));
+  q.triangles = {{0, 1, 2}, {0, 2, 3}};
+  return q;
+}
+
+/// A black 4 x 4 x 1 m room with a vertex at the middle of its floor (index 0) and a square
+/// skylight of half side `c` straight above it in the ceiling.
+Mesh RoomWithASkylight(float c) {
+  Mesh room;
+  room.positions = {{0, 0, 0}, {-2, -2, 0}, {2, -2, 0}, {2, 2, 0}, {-2, 2, 0}};
+  room.normals.assign(5, Eigen::Vector3f::UnitZ());
+  room.albedo.assign(5, Eigen::Vector3f::Zero());
+  room.triangles = {{0, 1, 2}, {0, 2, 3}, {0, 3, 4}, {0, 4, 1}};
+  const Eigen::Vector3f down = -Eigen::Vector3f::UnitZ();
+  room.Append(Quad({-2, c, 1}, {2, c, 1}, {2, 2, 1}, {-2, 2, 1}, down, 0));
+  room.Append(Quad({-2, -2, 1}, {2, -2, 1}, {2, -c, 1}, {-2, -c, 1}, down, 0));
+  room.Append(Quad({-2, -c, 1}, {-c, -c, 1}, {-c, c, 1}, {-2, c, 1}, down, 0));
+  room.Append(Quad({c, -c, 1}, {2, -c, 1}, {2, c, 1}, {c, c, 1}, down, 0));
+  room.Append(Quad({-2, -2, 0}, {-2, 2, 0}, {-2, 2, 1}, {-2, -2, 1}, Eigen::Vector3f::UnitX(), 0));
+  room.Append(Quad({2, -2, 0}, {2, 2, 0}, {2, 2, 1}, {2, -2, 1}, -Eigen::Vector3f::UnitX(), 0));
+  room.Append(Quad({-2, -2, 0}, {2, -2, 0}, {2, -2, 1}, {-2, -2, 1}, Eigen::Vector3f::UnitY(), 0));
+  room.Append(Quad({-2, 2, 0}, {2, 2, 0}, {2, 2, 1}, {-2, 2, 1}, -Eigen::Vector3f::UnitY(), 0));
+  return room;
+}
+
+TEST(VertexRadiance, TheSkyThroughASkylightIsItsViewFactorWithAndWithoutAPortal) {
+  // Under a uniform sky of radiance 1 the floor's middle receives E / pi = F, the view factor
+  // of the skylight (half side c, height h) from it: four corner rectangles of a = b = c / h,
+  // F = 4 / (2 pi) [2 a / sqrt(1 + a^2) atan(a / sqrt(1 + a^2))].
+  const double c = 0.3, a = c / 1.0, s = std::sqrt(1 + a * a);
+  const double exact = 4 / (2 * M_PI) * 2 * a / s * std::atan(a / s);
+  const Mesh room = RoomWithASkylight(static_cast<float>(c));
+  const RayTracer scene(room);
+  const EnvMap env(11, Eigen::Vector3d::UnitZ());
+  const std::vector<double> lambda(3 * env.size(), 1.0);
+  // The portal the skylight is, one larger than it (part of it ceiling: those next events are
+  // blocked) and one smaller (the cells' strategy and cosine sampling reach the rest).
+  const auto skylight = [](double half) {
+    Portal p;
+    p.centre = Eigen::Vector3d(0, 0, 1);
+    p.half_u = p.half_v = half;
+    return p;
+  };
+  const std::vector<std::pair<const char*, std::vector<Portal>>> cases = {
+      {"no portal", {}}, {"the skylight", {skylight(c)}}, {"1.5 x larger", {skylight(1.5 * c)}},
+      {"half as large", {skylight(0.5 * c)}}};
+  constexpr int kSeeds = 24, kSamples = 64;
+  std::vector<double> spread;
+  for (const auto& [name, portals] : cases) {
+    double sum = 0, sq = 0;
+    for (int seed = 1; seed <= kSeeds; ++seed) {
+      VertexRadiance vr(scene, env, {lambda, {}}, 1, seed);
+      if (!portals.empty()) vr.SetPortals(portals, 0.5);
+      vr.Refine(kSamples);
+      const double e = vr.Irradiance()[0];
+      sum += e;
+      sq += e * e;
+    }
+    const double mean = sum / kSeeds, sd = std::sqrt(std::max(0.0, sq / kSeeds - mean * mean));
+    std::printf("skylight, %s: %.5f (exact %.5f), standard deviation of %d samples %.5f\n", name, mean, exact,
+                kSamples, sd);
+    EXPECT_NEAR(mean, exact, 4 * sd / std::sqrt(kSeeds) + 1e-4) << name;
+    spread.push_back(sd);
+  }
+  // Half the next events aimed through the skylight: a third of the noise (0.0137 against
+  // 0.0384 when written); a portal larger than the skylight wastes some of them.
+  EXPECT_LT(spread[1], spread[0] / 2.5);
+  EXPECT_LT(spread[2], spread[0] / 1.5);
+}
+
 TEST(VertexRadiance, OneLitCellMatchesTheIrradianceOfASmallSource) {
   // One cell of radiance L at polar angle theta: E ~ L * Omega * cos(theta), L_o = rho/pi * E.
   const RayTracer scene(test::Plane(2.0, 0.5));
