@@ -11,8 +11,8 @@ namespace {
 
 bool Flagged(const std::vector<std::uint8_t>& flags, std::size_t p) { return p < flags.size() && flags[p]; }
 
-/// The blobs of one view: 8-connected clipped pixels, by a flood fill.
-void ViewBlobs(const View& view, int index, std::vector<ClippedBlob>* out) {
+/// The blobs of one view: clipped pixels within `join` of each other, by a flood fill.
+void ViewBlobs(const View& view, int index, int join, std::vector<ClippedBlob>* out) {
   const int w = view.camera.width, h = view.camera.height;
   if (view.clipped.empty() && view.clipped_off.empty()) return;
   const auto clipped = [&](std::size_t p) { return Flagged(view.clipped, p) || Flagged(view.clipped_off, p); };
@@ -32,13 +32,14 @@ void ViewBlobs(const View& view, int index, std::vector<ClippedBlob>* out) {
       stack.pop_back();
       const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
       ++blob.pixels;
+      blob.members.push_back(static_cast<int>(p));
       blob.off_mesh += Flagged(view.clipped_off, p);
       su += x;
       sv += y;
       blob.min_x = std::min(blob.min_x, x), blob.max_x = std::max(blob.max_x, x);
       blob.min_y = std::min(blob.min_y, y), blob.max_y = std::max(blob.max_y, y);
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -join; dy <= join; ++dy)
+        for (int dx = -join; dx <= join; ++dx) {
           const int nx = x + dx, ny = y + dy;
           if (nx < 0 || ny < 0 || nx >= w || ny >= h) continue;
           const std::size_t q = static_cast<std::size_t>(ny) * w + nx;
@@ -127,9 +128,9 @@ std::vector<SeenLamp> Merged(std::vector<SeenLamp> lamps, const SeenLampOptions&
 
 }  // namespace
 
-std::vector<ClippedBlob> ClippedBlobs(const std::vector<View>& views) {
+std::vector<ClippedBlob> ClippedBlobs(const std::vector<View>& views, int join) {
   std::vector<ClippedBlob> out;
-  for (std::size_t k = 0; k < views.size(); ++k) ViewBlobs(views[k], static_cast<int>(k), &out);
+  for (std::size_t k = 0; k < views.size(); ++k) ViewBlobs(views[k], static_cast<int>(k), std::max(1, join), &out);
   return out;
 }
 

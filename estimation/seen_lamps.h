@@ -48,10 +48,12 @@ struct ClippedBlob {
   int off_mesh = 0;  ///< of them clipped off the mesh
   double u = 0, v = 0;  ///< the mean pixel (centres at integers)
   int min_x = 0, max_x = 0, min_y = 0, max_y = 0;  ///< its pixels' bounds
+  std::vector<int> members;                          ///< its pixels (y * width + x)
 };
 
-/// The blobs of every view (none where a view carries no clipped pixels).
-std::vector<ClippedBlob> ClippedBlobs(const std::vector<View>& views);
+/// The blobs of every view (none where a view carries no clipped pixels): clipped pixels
+/// within `join` pixels of each other (on both axes; 1: 8-connected) are one blob.
+std::vector<ClippedBlob> ClippedBlobs(const std::vector<View>& views, int join = 1);
 
 /// Places for lamps where the cameras saw clipped blobs: a blob mostly on the mesh by the
 /// mesh's surface along its mean pixel's ray; blobs mostly off it by triangulation across

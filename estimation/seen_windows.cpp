@@ -51,16 +51,29 @@ bool RimWall(const std::vector<RimHit>& hits, int rays, const SeenWindowOptions&
   return MeanPlane(flat, normal, point);  // (without the hits off the wall: a sill, a frame)
 }
 
+/// Whether most of the blob's pixels' rays (up to 64 of them, spread over its pixels) leave
+/// the scene: a window's do, a bulb's meet the wall behind it, and a window's mullions are few.
+bool MostlyEscapes(const Camera& c, const ClippedBlob& b, const RayTracer& scene, const SeenWindowOptions& o) {
+  const std::size_t n = b.members.size(), step = std::max<std::size_t>(1, n / 64);
+  int tried = 0, escaped = 0;
+  for (std::size_t k = step / 2; k < n; k += step) {
+    const int p = b.members[k];
+    SurfacePoint hit;
+    ++tried;
+    escaped += !scene.Intersect(c.center(), c.RayDirection(p % c.width, p / c.width), &hit);
+  }
+  return tried > 0 && escaped >= o.min_escape_share * tried;
+}
+
 }  // namespace
 
 std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTracer& scene, const SeenWindowOptions& o) {
   std::vector<SeenWindow> out;
-  for (const ClippedBlob& b : ClippedBlobs(views)) {
+  for (const ClippedBlob& b : ClippedBlobs(views, o.join)) {
     if (b.pixels < o.min_pixels || 2 * b.off_mesh <= b.pixels) continue;
     const Camera& c = views[b.view].camera;
     const Eigen::Vector3d dir = c.RayDirection(b.u, b.v);
-    SurfacePoint hit;
-    if (scene.Intersect(c.center(), dir, &hit)) continue;  // (a bulb before a wall: the lamps')
+    if (!MostlyEscapes(c, b, scene, o)) continue;  // (a bulb before a wall: the lamps')
     Eigen::Vector3d normal, point;
     if (!RimWall(RimHits(c, b, scene, o), o.rim_rays, o, &normal, &point)) continue;
     const double along = normal.dot(dir);

@@ -24,6 +24,10 @@ struct SeenWindow {
 
 struct SeenWindowOptions {
   int min_pixels = 12;           ///< a blob's pixels at least
+  /// Clipped pixels this close (pixels, on both axes) are one blob: the panes of one window
+  /// between mullions a few pixels wide.
+  int join = 4;
+  double min_escape_share = 0.5;  ///< of the blob's pixels' rays (up to 64 of them) this share leave the scene
   int rim_rays = 24;             ///< rays cast on a ring around the blob's mean pixel
   double rim_scale = 1.5;        ///< the ring's radius: this times the blob's (sqrt(pixels / pi)), plus 2 pixels
   double min_rim_share = 0.6;    ///< of the ring's rays at least this share hit the mesh ...
@@ -33,8 +37,9 @@ struct SeenWindowOptions {
   double merge = 0.3;            ///< windows closer than this (m), facing alike, are one
 };
 
-/// The windows of every view's blobs (ClippedBlobs) that are mostly off the mesh, whose mean
-/// pixel's ray leaves the scene and whose ring of rays meets one flat wall; one per place.
+/// The windows of every view's blobs (ClippedBlobs, joined across `join` pixels) that are
+/// mostly off the mesh, whose pixels' rays mostly leave the scene and whose ring of rays
+/// meets one flat wall; one per place.
 std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTracer& scene,
                                     const SeenWindowOptions& options = {});
 

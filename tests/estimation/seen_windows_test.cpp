@@ -117,6 +117,37 @@ TEST(SeenWindows, ASillBelowTheHoleDoesNotMoveItsWall) {
   EXPECT_NEAR(seen[0].normal.y(), -1, 1e-6) << seen[0].normal.transpose();
 }
 
+TEST(SeenWindows, AWindowOfFourPanesIsOneWindow) {
+  // The hole split by a cross of mullions 6 cm wide (the depth camera sees them): four blobs
+  // a few pixels apart, the mean pixel's ray on the cross. One window, the hole's extent.
+  constexpr double kBar = 0.03, kXm = 0.5 * (kX0 + kX1), kZm = 0.5 * (kZ0 + kZ1);
+  Mesh mesh = Wall(true);
+  const float y = static_cast<float>(kWallY);
+  const auto bar = [&](double x0, double x1, double z0, double z1) {
+    return Quad({float(x0), y, float(z0)}, {float(x0), y, float(z1)}, {float(x1), y, float(z1)}, {float(x1), y, float(z0)});
+  };
+  Mesh cross = bar(kXm - kBar, kXm + kBar, kZ0, kZ1);
+  cross.Append(bar(kX0, kXm - kBar, kZm - kBar, kZm + kBar));
+  cross.Append(bar(kXm + kBar, kX1, kZm - kBar, kZm + kBar));
+  ComputeVertexNormals(&cross);
+  mesh.Append(cross);
+  const RayTracer scene(std::move(mesh));
+  std::vector<View> views{BlankView(LookAt({0.3, -1, 1.3}, {0.5, kWallY, 1.3}, 160, 120, 60))};
+  const auto through_a_pane = [&](const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+    SurfacePoint hit;
+    return ThroughWall(o, d, kX0, kX1, kZ0, kZ1) && !scene.Intersect(o, d, &hit);
+  };
+  ASSERT_GT(ClipOff(&views[0], through_a_pane), 100);
+  const std::vector<SeenWindow> seen = SeenWindows(views, scene);
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_NEAR(seen[0].normal.y(), -1, 1e-6);
+  const Portal p = PortalAround(seen[0].corners, seen[0].centre, seen[0].normal, Eigen::Vector3d::UnitX());
+  EXPECT_LT(p.centre.x() - p.half_u, kX0 + 0.01);
+  EXPECT_GT(p.centre.x() + p.half_u, kX1 - 0.01);
+  EXPECT_LT(p.centre.z() - p.half_v, kZ0 + 0.01);
+  EXPECT_GT(p.centre.z() + p.half_v, kZ1 - 0.01);
+}
+
 TEST(SeenWindows, ABulbBeforeAWallIsNotAWindow) {
   // Clipped pixels off the mesh whose rays meet the wall behind them: a bulb that returned no
   // depth (the lamps' to place, SeenLamps), not a hole.
