@@ -2,6 +2,8 @@
 
 #include "estimation/estimator_impl.h"
 
+#include <utility>
+
 namespace lp {
 
 const char* ToString(AlbedoLeftOut why) {
@@ -287,7 +289,8 @@ void Estimator::RunRounds() {
     // was sampled for the old prior's map). Beside lamps it refits them under the new prior:
     // ended by the change alone, lamp-and-sky's lamp came back 0.2 -> 0.7 cm off, seed 5's
     // 0.4 -> 1.3 cm (docs/benchmarks.md, session 43).
-    const bool prior_changed = PriorRound(round, last) && ChoosePrior(&info);
+    // (a weight restored where the choice was left out also needs a round at it)
+    const bool prior_changed = (PriorRound(round, last) && ChoosePrior(&info)) || std::exchange(prior_restored_, false);
     EndRound(sr, &info);
     const bool prior_ahead = PriorAhead();
     // Beside a window the map must settle too: the views hardly see the cells that light the
@@ -302,6 +305,7 @@ void Estimator::RunRounds() {
   }
   if (!res_.prior.done) {
     res_.prior.done = true;
+    KeepTheGivenPrior();  // (for the rounds after an albedo pass)
     res_.prior.why = Fmt("the rounds ended (--rounds %d) before the round that chooses the map's prior: the given --alpha",
                          opt_.max_rounds);
   }

@@ -424,6 +424,8 @@ class Estimator {
                   double* held);
   void MarkWindowCells(const Eigen::Vector3d& out);
   bool KeepTheGivenPrior();
+  void MarkSparsePeak();
+  bool prior_restored_ = false;  ///< KeepTheGivenPrior changed the weight: a round follows at it
   /// The map's next-event sampler by `lambda` (empty: uniform) over `reachable`, aiming
   /// kPortalShare of its samples through portals_ where there are any.
   CellSampler Sampler(const std::vector<double>& lambda, const std::vector<std::uint8_t>& reachable) const;

@@ -175,7 +175,8 @@ void Estimator::MarkSeenWindows() {
             w.view, w.pixels, w.centre.x(), w.centre.y(), w.centre.z(), w.normal.x(), w.normal.y(), w.normal.z());
     res_.point_light_choices.push_back(line);
     Progress(line);
-    MarkWindowCells(-w.normal);
+    // (its cells are the window's where the prior is chosen; given by the options, as before)
+    if (PriorGivenByOptions().empty()) MarkWindowCells(-w.normal);
     if (w.corners.size() == 4) portals_.push_back(PortalAround(w.corners, w.centre, w.normal, bundle_.up.cross(w.normal)));
   }
 }
@@ -192,11 +193,19 @@ void Estimator::StartBesideSeenWindows() {
   res_.objective_params.alpha = alpha_ * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
 }
 
-/// Whether `p` lies behind the wall of a window seen as a hole (outside the room, where its
-/// rays went): a place seen through the hole is the sky's, not a lamp's.
+/// Whether `p` lies out beyond a window seen as a hole: behind its wall by more than
+/// kBeyondWindow and within the cone the hole opens onto (its rectangle grown by that depth on
+/// each side); a place seen through the hole is the sky's, not a lamp's. (A lamp on the
+/// window's wall, or in another part of the room, is not.)
 bool Estimator::BehindASeenWindow(const Eigen::Vector3d& p) const {
-  return std::any_of(seen_windows_.begin(), seen_windows_.end(),
-                     [&](const SeenWindow& w) { return (p - w.centre).dot(w.normal) < 0; });
+  constexpr double kBeyondWindow = 0.25;  // m
+  return std::any_of(seen_windows_.begin(), seen_windows_.end(), [&](const SeenWindow& w) {
+    const double depth = (w.centre - p).dot(w.normal);
+    if (depth < kBeyondWindow || w.corners.size() != 4) return false;
+    const Portal hole = PortalAround(w.corners, w.centre, w.normal, bundle_.up.cross(w.normal));
+    const Eigen::Vector3d d = p - hole.centre;
+    return std::abs(d.dot(hole.axis_u)) < hole.half_u + depth && std::abs(d.dot(hole.axis_v)) < hole.half_v + depth;
+  });
 }
 
 }  // namespace lp::detail

@@ -103,6 +103,15 @@ std::string Estimator::PriorLeftOut(const std::vector<Light>& lights) const {
   return "";
 }
 
+/// A compact light in the map (a far lamp or a sun left to it) stays sparse: its
+/// neighbourhood keeps the given prior (sparse_cells_), as a directional light's does.
+void Estimator::MarkSparsePeak() {
+  const auto [peak, share] = BrightestNeighbourhood();
+  if (share < opt_.directional.min_map_share) return;
+  sparse_cells_.assign(cells_, 0);
+  for (int j : peak) sparse_cells_[j] = 1;
+}
+
 bool Estimator::ChoosePrior(RoundInfo* info) {
   PriorChoice& pc = res_.prior;
   pc.done = true;
@@ -111,13 +120,7 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   if (!pc.why.empty()) return KeepTheGivenPrior();
   CheckCancel();
   Stopwatch ps;
-  // A compact light in the map (a far lamp or a sun left to it) stays sparse: its
-  // neighbourhood keeps the given prior, as a directional light's does.
-  const auto [peak, share] = BrightestNeighbourhood();
-  if (share >= opt_.directional.min_map_share) {
-    sparse_cells_.assign(cells_, 0);
-    for (int j : peak) sparse_cells_[j] = 1;
-  }
+  MarkSparsePeak();
   // With the lights: every weight, or only the given one beside a directional light (its
   // column is noisier than the map's, and a weaker prior lets the map take its power).
   // Beside a directional light also the map alone at every weaker weight: a flat sky under the
@@ -172,7 +175,8 @@ bool Estimator::ChoosePrior(RoundInfo* info) {
   pc.lights_dropped = !keep;
   SayPrior(keep ? with_loss : alone_loss, keep ? with_se : alone_se, keep ? kw : ka, lights.size());
   // (against the weight in effect: beside a window seen before round 1 its cells' weakest)
-  const bool changed = pc.chosen != alpha_ || pc.chosen_smooth != opt_.objective.smooth || !keep;
+  const bool changed = pc.chosen != alpha_ || pc.chosen_smooth != opt_.objective.smooth || !keep ||
+                       (!sparse_cells_.empty() && pc.chosen < opt_.objective.alpha);
   if (!keep) {
     res_.point_light_choices.push_back("the map's prior: " + pc.why);
     points_.clear();
@@ -346,6 +350,7 @@ bool Estimator::KeepTheGivenPrior() {
   const bool changed = alpha_ != opt_.objective.alpha;
   alpha_ = opt_.objective.alpha;
   res_.objective_params.alpha = alpha_ * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
+  prior_restored_ = prior_restored_ || changed;
   return changed;
 }
 

@@ -134,8 +134,9 @@ NextEvent SampleNextEvent(const RayTracer& scene, const EnvMap& env, const CellS
   if (!(cos_s > 0 && g.dot(w) > 0)) return e;
   e.traced = true;
   if (scene.Occluded(origin, w)) return e;
-  e.visible = true;
   const double pdf_nee = sampler.Density(env, e.cell, origin, w);
+  if (!(pdf_nee > 0)) return e;  // (a portal's edge rounded off it, in a cell never drawn)
+  e.visible = true;
   const double pdf_bsdf = cos_s * kInvPi;
   const double mis = PowerHeuristic(pdf_nee, pdf_bsdf);
   e.weight = kInvPi * cos_s * mis / pdf_nee;

@@ -51,8 +51,9 @@ bool RimWall(const std::vector<RimHit>& hits, int rays, const SeenWindowOptions&
   return MeanPlane(flat, normal, point);  // (without the hits off the wall: a sill, a frame)
 }
 
-/// Whether most of the blob's pixels' rays (up to 64 of them, spread over its pixels) leave
-/// the scene: a window's do, a bulb's meet the wall behind it, and a window's mullions are few.
+/// Whether most of the blob's pixels' rays (every n/64-th in the flood fill's order: 64 to
+/// 127 of them, or all) leave the scene: a window's do, a bulb's meet the wall behind it, and
+/// a window's mullions are few.
 bool MostlyEscapes(const Camera& c, const ClippedBlob& b, const RayTracer& scene, const SeenWindowOptions& o) {
   const std::size_t n = b.members.size(), step = std::max<std::size_t>(1, n / 64);
   int tried = 0, escaped = 0;
@@ -82,7 +83,8 @@ std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTra
     for (const double x : {b.min_x - 0.5, b.max_x + 0.5})
       for (const double y : {b.min_y - 0.5, b.max_y + 0.5}) {
         const Eigen::Vector3d d = c.RayDirection(x, y);
-        if (normal.dot(d) < -1e-3) w.corners.push_back(c.center() + (point - c.center()).dot(normal) / normal.dot(d) * d);
+        // (a corner seen within 6 degrees of the wall's plane would stretch it far: none then)
+        if (normal.dot(d) < -0.1) w.corners.push_back(c.center() + (point - c.center()).dot(normal) / normal.dot(d) * d);
       }
     auto same = std::find_if(out.begin(), out.end(), [&](const SeenWindow& x) {
       return (x.centre - w.centre).norm() < o.merge && x.normal.dot(w.normal) > o.flat_cos;

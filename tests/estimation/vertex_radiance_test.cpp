@@ -130,7 +130,7 @@ TEST(VertexRadiance, TheSkyThroughASkylightIsItsViewFactorWithAndWithoutAPortal)
   const std::vector<std::pair<const char*, std::vector<Portal>>> cases = {
       {"no portal", {}}, {"the skylight", {skylight(c)}}, {"1.5 x larger", {skylight(1.5 * c)}},
       {"half as large", {skylight(0.5 * c)}}};
-  constexpr int kSeeds = 24, kSamples = 64;
+  constexpr int kSeeds = 24, kSamples = 640;
   std::vector<double> spread;
   for (const auto& [name, portals] : cases) {
     double sum = 0, sq = 0;
@@ -148,10 +148,11 @@ TEST(VertexRadiance, TheSkyThroughASkylightIsItsViewFactorWithAndWithoutAPortal)
     EXPECT_NEAR(mean, exact, 4 * sd / std::sqrt(kSeeds) + 1e-4) << name;
     spread.push_back(sd);
   }
-  // Half the next events aimed through the skylight: a third of the noise (0.0137 against
-  // 0.0384 when written); a portal larger than the skylight wastes some of them.
-  EXPECT_LT(spread[1], spread[0] / 2.5);
-  EXPECT_LT(spread[2], spread[0] / 1.5);
+  // Half the next events aimed through the skylight: half the noise or less (0.0047 against
+  // 0.0093 when written; 0.0137 against 0.0384 at 64 samples, where a miss-or-hit estimate's
+  // spread over 24 seeds is itself noisy); a portal larger than the skylight wastes some.
+  EXPECT_LT(spread[1], spread[0] / 1.6);
+  EXPECT_LT(spread[2], spread[0] / 1.2);
 }
 
 TEST(VertexRadiance, OneLitCellMatchesTheIrradianceOfASmallSource) {
