@@ -13,20 +13,6 @@
 namespace lp::detail {
 namespace {
 
-/// The rectangle in an opening's plane (through its area's centre, facing its glass's
-/// normal) that holds its triangles, its first axis horizontal (across `up`).
-Portal PortalOf(const EmitterShape& shape, const Eigen::Vector3d& up) {
-  std::vector<Eigen::Vector3d> corners;
-  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-  for (std::size_t t = 0; t < shape.a.size(); ++t) {
-    const Eigen::Vector3d a = shape.a[t].cast<double>(), b = shape.b[t].cast<double>(), c = shape.c[t].cast<double>();
-    corners.insert(corners.end(), {a, b, c});
-    centre += 0.5 * (b - a).cross(c - a).norm() * (a + b + c) / 3;
-  }
-  const Eigen::Vector3d normal = FacingSum(shape).normalized();
-  return PortalAround(corners, centre / std::max(shape.area, 1e-12), normal, up.cross(normal));
-}
-
 /// A surface is flat when its area-weighted normals sum to this share of its area.
 constexpr double kFlat = 0.95;
 /// Rays cast out of its back (cosine-distributed about the side opposite its glow, from
@@ -177,7 +163,7 @@ void Estimator::MarkSeenWindows() {
     Progress(line);
     // (its cells are the window's where the prior is chosen; given by the options, as before)
     if (PriorGivenByOptions().empty()) MarkWindowCells(-w.normal);
-    if (w.corners.size() == 4) portals_.push_back(PortalAround(w.corners, w.centre, w.normal, bundle_.up.cross(w.normal)));
+    if (Portal p; PortalOf(w, bundle_.up, &p)) portals_.push_back(p);
   }
 }
 
@@ -201,8 +187,8 @@ bool Estimator::BehindASeenWindow(const Eigen::Vector3d& p) const {
   constexpr double kBeyondWindow = 0.25;  // m
   return std::any_of(seen_windows_.begin(), seen_windows_.end(), [&](const SeenWindow& w) {
     const double depth = (w.centre - p).dot(w.normal);
-    if (depth < kBeyondWindow || w.corners.size() != 4) return false;
-    const Portal hole = PortalAround(w.corners, w.centre, w.normal, bundle_.up.cross(w.normal));
+    Portal hole;
+    if (depth < kBeyondWindow || !PortalOf(w, bundle_.up, &hole)) return false;
     const Eigen::Vector3d d = p - hole.centre;
     return std::abs(d.dot(hole.axis_u)) < hole.half_u + depth && std::abs(d.dot(hole.axis_v)) < hole.half_v + depth;
   });

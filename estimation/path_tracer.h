@@ -8,6 +8,7 @@
 #include "common/image.h"
 #include "common/rng.h"
 #include "estimation/envmap.h"
+#include "estimation/portal.h"
 #include "scene/ray_tracer.h"
 #include "scene/scene_bundle.h"
 #include "estimation/transport.h"
@@ -46,28 +47,6 @@ struct TraceStats {
   std::int64_t stopped_max_bounces = 0;
   double seconds = 0;
 };
-
-/// A window's opening as next-event estimation sees it (a portal): a rectangle through which
-/// the map is seen from inside the room. `axis_u` and `axis_v` are orthonormal, in its plane.
-struct Portal {
-  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-  Eigen::Vector3d axis_u = Eigen::Vector3d::UnitX(), axis_v = Eigen::Vector3d::UnitY();
-  double half_u = 0, half_v = 0;
-  double Area() const { return 4 * half_u * half_v; }
-  /// The point at (u, v) in [0, 1)^2, uniform over the rectangle.
-  Eigen::Vector3d Point(double u, double v) const {
-    return centre + (2 * u - 1) * half_u * axis_u + (2 * v - 1) * half_v * axis_v;
-  }
-  /// Where the ray from `origin` along unit `w` crosses the rectangle: its distance, or 0 when
-  /// it does not (behind the origin, beside the rectangle, or along its plane); `cos` the
-  /// cosine to the rectangle's normal there.
-  double Crossing(const Eigen::Vector3d& origin, const Eigen::Vector3d& w, double* cos) const;
-};
-
-/// The rectangle (in the plane through `point` with unit `normal`) that holds `points`
-/// projected on that plane, its first axis along `along` projected on the plane.
-Portal PortalAround(const std::vector<Eigen::Vector3d>& points, const Eigen::Vector3d& point,
-                    const Eigen::Vector3d& normal, const Eigen::Vector3d& along);
 
 /// NEE importance over cells: q_j = (1-eps)*w_j/sum(w) + eps*Omega_j/Omega_reach, with
 /// w_j = luminance(lambda_j)*Omega_j; cells with `reachable[j] == 0` get q_j = 0.
