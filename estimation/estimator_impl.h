@@ -431,7 +431,6 @@ class Estimator {
   CellSampler Sampler(const std::vector<double>& lambda, const std::vector<std::uint8_t>& reachable) const;
   void MarkSeenWindows();
   void StartBesideSeenWindows();
-  bool BehindASeenWindow(const Eigen::Vector3d& p) const;
   bool seen_windows_done_ = false;
   std::vector<SeenWindow> seen_windows_;
   /// Flat, and most rays out of its back leave the scene (`opened`: the scene with it open).

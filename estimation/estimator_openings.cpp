@@ -179,19 +179,4 @@ void Estimator::StartBesideSeenWindows() {
   res_.objective_params.alpha = alpha_ * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
 }
 
-/// Whether `p` lies out beyond a window seen as a hole: behind its wall by more than
-/// kBeyondWindow and within the cone the hole opens onto (its rectangle grown by that depth on
-/// each side); a place seen through the hole is the sky's, not a lamp's. (A lamp on the
-/// window's wall, or in another part of the room, is not.)
-bool Estimator::BehindASeenWindow(const Eigen::Vector3d& p) const {
-  constexpr double kBeyondWindow = 0.25;  // m
-  return std::any_of(seen_windows_.begin(), seen_windows_.end(), [&](const SeenWindow& w) {
-    const double depth = (w.centre - p).dot(w.normal);
-    Portal hole;
-    if (depth < kBeyondWindow || !PortalOf(w, bundle_.up, &hole)) return false;
-    const Eigen::Vector3d d = p - hole.centre;
-    return std::abs(d.dot(hole.axis_u)) < hole.half_u + depth && std::abs(d.dot(hole.axis_v)) < hole.half_v + depth;
-  });
-}
-
 }  // namespace lp::detail

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "estimation/portal.h"
 #include "estimation/seen_lamps.h"
 
 namespace lp {
@@ -93,6 +94,16 @@ std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTra
     else if (w.pixels > same->pixels) *same = w;
   }
   return out;
+}
+
+bool BeyondAWindow(const std::vector<SeenWindow>& windows, const Eigen::Vector3d& p, const Eigen::Vector3d& up) {
+  return std::any_of(windows.begin(), windows.end(), [&](const SeenWindow& w) {
+    const double depth = (w.centre - p).dot(w.normal);
+    Portal hole;
+    if (depth < kBeyondWindow || !PortalOf(w, up, &hole)) return false;
+    const Eigen::Vector3d d = p - hole.centre;
+    return std::abs(d.dot(hole.axis_u)) < hole.half_u + depth && std::abs(d.dot(hole.axis_v)) < hole.half_v + depth;
+  });
 }
 
 }  // namespace lp

@@ -43,4 +43,11 @@ struct SeenWindowOptions {
 std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTracer& scene,
                                     const SeenWindowOptions& options = {});
 
+/// Whether `p` lies out beyond one of `windows`: behind its wall by more than
+/// kBeyondWindow and within the cone the hole opens onto (its rectangle, PortalOf, grown by
+/// that depth on each side). A place seen through the hole is the sky's, not a lamp's; a lamp
+/// on the window's wall, or in another part of the room behind that wall's plane, is not.
+constexpr double kBeyondWindow = 0.25;  // m
+bool BeyondAWindow(const std::vector<SeenWindow>& windows, const Eigen::Vector3d& p, const Eigen::Vector3d& up);
+
 }  // namespace lp

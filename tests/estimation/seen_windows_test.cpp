@@ -63,6 +63,16 @@ bool ThroughWall(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double x0, 
   return p.x() > x0 && p.x() < x1 && p.z() > z0 && p.z() < z1;
 }
 
+/// The view from in front of the wall, its pixels whose rays pass through the hole's place
+/// marked clipped off the mesh; how many in `clipped`.
+View FrontViewOfTheHole(int* clipped) {
+  View v = BlankView(LookAt({0.3, -1, 1.3}, {0.5, kWallY, 1.3}, 160, 120, 60));
+  *clipped = ClipOff(&v, [](const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+    return ThroughWall(o, d, kX0, kX1, kZ0, kZ1);
+  });
+  return v;
+}
+
 TEST(SeenWindows, AHoleInAWallSeenBrightIsAWindowFacingTheRoom) {
   const RayTracer scene(Wall(true));
   std::vector<View> views{BlankView(LookAt({0.3, -1, 1.3}, {0.5, kWallY, 1.3}, 160, 120, 60)),
@@ -96,6 +106,22 @@ TEST(SeenWindows, AHoleInAWallSeenBrightIsAWindowFacingTheRoom) {
               x1, z0, z1);
 }
 
+TEST(SeenWindows, APlaceSeenThroughTheHoleIsBeyondItALampOnItsWallIsNot) {
+  // What the estimate does not try as a lamp: clipped blobs triangulated out beyond a window.
+  const RayTracer scene(Wall(true));
+  int clipped = 0;
+  const std::vector<View> views{FrontViewOfTheHole(&clipped)};
+  ASSERT_GT(clipped, 100);
+  const std::vector<SeenWindow> seen = SeenWindows(views, scene);
+  ASSERT_EQ(seen.size(), 1u);
+  const Eigen::Vector3d up = Eigen::Vector3d::UnitZ(), middle(0.5 * (kX0 + kX1), kWallY, 0.5 * (kZ0 + kZ1));
+  EXPECT_TRUE(BeyondAWindow(seen, middle + Eigen::Vector3d(0, 2.5, 0.3), up));  // out there, through the hole
+  EXPECT_TRUE(BeyondAWindow(seen, middle + Eigen::Vector3d(1.0, 1.5, 0), up));  // seen obliquely through it
+  EXPECT_FALSE(BeyondAWindow(seen, middle + Eigen::Vector3d(0, -1.0, 0), up));  // in the room
+  EXPECT_FALSE(BeyondAWindow(seen, middle + Eigen::Vector3d(-1.2, 0.1, 0), up));  // a sconce on the wall
+  EXPECT_FALSE(BeyondAWindow(seen, middle + Eigen::Vector3d(-3.0, 1.0, 0), up));  // behind the wall, off the hole's cone
+}
+
 TEST(SeenWindows, ASillBelowTheHoleDoesNotMoveItsWall) {
   // A sill 15 cm deep under the hole: some of the ring's rays meet its front, off the wall's
   // plane; the wall is fitted again without them, so the window lies on the wall itself.
@@ -107,10 +133,9 @@ TEST(SeenWindows, ASillBelowTheHoleDoesNotMoveItsWall) {
   ComputeVertexNormals(&sill);
   mesh.Append(sill);
   const RayTracer scene(std::move(mesh));
-  std::vector<View> views{BlankView(LookAt({0.3, -1, 1.3}, {0.5, kWallY, 1.3}, 160, 120, 60))};
-  ASSERT_GT(ClipOff(&views[0], [](const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
-              return ThroughWall(o, d, kX0, kX1, kZ0, kZ1);
-            }), 100);
+  int clipped = 0;
+  const std::vector<View> views{FrontViewOfTheHole(&clipped)};
+  ASSERT_GT(clipped, 100);
   const std::vector<SeenWindow> seen = SeenWindows(views, scene);
   ASSERT_EQ(seen.size(), 1u);
   EXPECT_NEAR(seen[0].centre.y(), kWallY, 1e-6) << seen[0].centre.transpose();
