@@ -3,6 +3,7 @@
 // estimate its lighting into DIR/estimate with the `estimate` subcommand's defaults.
 #include <cstdio>
 #include <filesystem>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -13,17 +14,18 @@ namespace lp::app {
 namespace {
 
 /// Parses `args` (without the program name) as one subcommand of a fresh app and runs it.
-void RunSubcommand(Run (*add)(CLI::App&), const std::vector<std::string>& args) {
-  CLI::App app;
-  app.require_subcommand(1);
-  const Run run = add(app);
+/// Parses `args` as `add`'s subcommand on `app` (which must outlive the result): its errors
+/// one line, before any work; returns what runs it.
+Run ParseSubcommand(CLI::App* app, Run (*add)(CLI::App&), const std::vector<std::string>& args) {
+  app->require_subcommand(1);
+  const Run run = add(*app);
   std::vector<std::string> reversed(args.rbegin(), args.rend());  // CLI11 takes them reversed
   try {
-    app.parse(reversed);
+    app->parse(reversed);
   } catch (const CLI::ParseError& e) {
     throw InputError(std::string("--headless: ") + e.what());
   }
-  run();
+  return run;
 }
 
 }  // namespace
@@ -37,6 +39,10 @@ int RunHeadless(const std::vector<std::string>& args) {
   app.add_option("--headless", input, "an .oni recording or a frame directory")->required();
   app.add_option("--out", out, "DIR/scene (the bundle) and DIR/estimate (the lighting)")->required();
   AddReconstructOptions(app, &settings);
+  std::string estimate_options;
+  app.add_option("--estimate-options", estimate_options,
+                 "estimate's options for the run, in one quoted string (e.g. \"--seed 2 --render-noise 0\"); not with "
+                 "--live");
   bool live = false;
   LiveSettings live_settings;
   app.add_flag("--live", live,
@@ -59,8 +65,9 @@ int RunHeadless(const std::vector<std::string>& args) {
   } catch (const CLI::ParseError& e) {
     throw InputError(std::string("--headless: ") + e.what() +
                      " (usage: lightprobe --headless INPUT --out DIR [reconstruct's options: --poses FILE, "
-                     "--calibration FILE, --voxel M, --keyframes N, ...])");
+                     "--calibration FILE, --voxel M, --keyframes N, ...] [--estimate-options \"estimate's options\"])");
   }
+  if (live && !estimate_options.empty()) throw InputError("--headless: --estimate-options is not taken with --live");
   if (live) {
     if (!app.count("--fuse-every")) settings.options.fuse_every = ReconstructionOptions{}.fuse_every;  // a camera's pace
     RunLive(input, out, settings, live_settings);
@@ -68,8 +75,13 @@ int RunHeadless(const std::vector<std::string>& args) {
   }
   const std::string scene = (std::filesystem::path(out) / "scene").string();
   const std::string estimate = (std::filesystem::path(out) / "estimate").string();
+  std::vector<std::string> estimate_args = {"estimate", scene, "--out", estimate};
+  std::istringstream words(estimate_options);
+  for (std::string w; words >> w;) estimate_args.push_back(w);
+  CLI::App estimate_app;
+  const Run run_estimate = ParseSubcommand(&estimate_app, &AddEstimate, estimate_args);  // (a bad one before the work)
   Reconstruct(input, scene, settings);
-  RunSubcommand(&AddEstimate, {"estimate", scene, "--out", estimate});
+  run_estimate();
   std::printf("headless pipeline done: %s (scene bundle), %s (lighting)\n", scene.c_str(), estimate.c_str());
   return 0;
 }

@@ -26,6 +26,10 @@ printf 'ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty floa
 expect "mesh.ply: mesh has no non-degenerate triangles" "$exe" estimate "$tmp/s" --out "$tmp/o" --quiet
 expect "unknown solver" "$exe" estimate "$tmp/s" --out "$tmp/o" --solver newton --quiet
 expect "unknown synthetic scene" "$exe" synth nope --out "$tmp/x"
+# --headless's estimate options are checked before the reconstruction's work, and nothing is written
+expect "not expected: 1 --bogus" "$exe" --headless "$tmp/nope.oni" --out "$tmp/hb" --estimate-options "--bogus 1"
+[ -e "$tmp/hb" ] && { echo "FAIL: --headless wrote $tmp/hb before refusing its estimate options"; fail=1; }
+expect "--estimate-options is not taken with --live" "$exe" --headless "$tmp/nope.oni" --out "$tmp/hb" --live --estimate-options "--seed 2"
 expect "exactly one of --envmap, --uniform or --lights" "$exe" render "$tmp/s" --out "$tmp/o"
 printf "{\"point_lights\": [{\"position\": [0, 0, 1], \"intensity\": [1, -1, 1]}]}" > "$tmp/bad_lights.json"
 expect "intensity is negative" "$exe" render "$tmp/s" --out "$tmp/o" --lights "$tmp/bad_lights.json"
