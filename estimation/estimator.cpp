@@ -225,7 +225,7 @@ void Estimator::UseViews(int stride) {
   // alpha is given per 19,200 observed pixels (one 160x120 view): the data term grows with
   // the number of observations, and so must the penalty, or the balance between them
   // (how many cells light the scene) would change with resolution and view count.
-  res_.objective_params.alpha = alpha_ * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
+  UseAlpha(alpha_);
   A_ = TransportMatrix();
   vertices_ = ShadingVertices();
   columns_.clear();

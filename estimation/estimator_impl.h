@@ -424,6 +424,7 @@ class Estimator {
                   double* held);
   void MarkWindowCells(const Eigen::Vector3d& out);
   bool KeepTheGivenPrior();
+  void UseAlpha(double alpha);
   void MarkSparsePeak();
   bool prior_restored_ = false;  ///< KeepTheGivenPrior changed the weight: a round follows at it
   /// The map's next-event sampler by `lambda` (empty: uniform) over `reachable`, aiming
@@ -431,7 +432,6 @@ class Estimator {
   CellSampler Sampler(const std::vector<double>& lambda, const std::vector<std::uint8_t>& reachable) const;
   void MarkSeenWindows();
   void StartBesideSeenWindows();
-  bool seen_windows_done_ = false;
   std::vector<SeenWindow> seen_windows_;
   /// Flat, and most rays out of its back leave the scene (`opened`: the scene with it open).
   bool CouldBeWindow(const EmitterLight& e, const RayTracer& opened) const;

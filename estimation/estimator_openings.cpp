@@ -151,8 +151,6 @@ void Estimator::MarkWindowCells(const Eigen::Vector3d& out) {
 /// The windows the cameras saw as holes (seen_windows.h), found, said and their cells marked
 /// once, each hole a portal.
 void Estimator::MarkSeenWindows() {
-  if (seen_windows_done_) return;
-  seen_windows_done_ = true;
   seen_windows_ = SeenWindows(bundle_.views, *scene_);
   for (const SeenWindow& w : seen_windows_) {
     const std::string line =
@@ -175,8 +173,7 @@ void Estimator::MarkSeenWindows() {
 void Estimator::StartBesideSeenWindows() {
   MarkSeenWindows();
   if (window_cells_.empty() || !PriorGivenByOptions().empty()) return;
-  alpha_ = opt_.objective.alpha * kPriorFactors[std::size(kPriorFactors) - 1];
-  res_.objective_params.alpha = alpha_ * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
+  UseAlpha(opt_.objective.alpha * kPriorFactors[std::size(kPriorFactors) - 1]);
 }
 
 }  // namespace lp::detail

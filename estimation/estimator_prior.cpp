@@ -343,13 +343,19 @@ void Estimator::RelaxPrior() {
                 weakest);
 }
 
+/// The map's prior from now on at `alpha` (as EstimateOptions' alpha): the objective's weight
+/// is given per kAlphaReferencePixels observed pixels.
+void Estimator::UseAlpha(double alpha) {
+  alpha_ = alpha;
+  res_.objective_params.alpha = alpha * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
+}
+
 /// Where the prior is not chosen, the rounds after go on at the given one (a window seen
 /// before round 1 started its cells at the weakest: StartBesideSeenWindows); whether that
 /// changed the weight in effect.
 bool Estimator::KeepTheGivenPrior() {
   const bool changed = alpha_ != opt_.objective.alpha;
-  alpha_ = opt_.objective.alpha;
-  res_.objective_params.alpha = alpha_ * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
+  UseAlpha(opt_.objective.alpha);
   prior_restored_ = prior_restored_ || changed;
   return changed;
 }
@@ -359,8 +365,7 @@ bool Estimator::KeepTheGivenPrior() {
 /// WithLights(points_)); its iterations are convergence rows of step "prior". A lamp left
 /// with no intensity is dropped.
 void Estimator::SolveAtPrior(MapPrior prior, const std::vector<double>& start, RoundInfo* info) {
-  alpha_ = prior.alpha;
-  res_.objective_params.alpha = prior.alpha * static_cast<double>(y_.size() / 3) / kAlphaReferencePixels;
+  UseAlpha(prior.alpha);
   res_.objective_params.smooth = prior.smooth;
   RoundProblem rp = WithLights(points_);
   for (int k = 0; k < rp.problem->unknown_cells; ++k)
