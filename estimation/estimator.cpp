@@ -686,6 +686,7 @@ void Estimator::Conclude() {
   res_.lighting = InImageUnits();
   res_.uncertainty = uncertainty;
   OnBundleMesh(&res_.lighting.lights);
+  SayTheLightThroughWindows();
   for (LightUncertainty& u : res_.uncertainty) u.scale_sigma *= res_.image_mean;
   // The rounds' last error (the polish's rows are on its own fresh vertices: another measure).
   for (auto row = res_.convergence.rbegin(); row != res_.convergence.rend(); ++row)

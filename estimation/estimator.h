@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "estimation/seen_lamps.h"
+#include "estimation/seen_windows.h"
 #include "estimation/estimate_options.h"
 #include "estimation/light_render.h"
 #include "estimation/light_uncertainty.h"
@@ -208,6 +209,9 @@ struct EstimateResult {
   /// it, its triangles no surface) over a glowing pane or a plain one (docs/method.md,
   /// "Windows: a pane or an opening"), on the bundle's mesh; lights.json's "openings".
   std::vector<std::shared_ptr<const EmitterShape>> openings;
+  /// The windows the cameras saw as holes (seen_windows.h): the map lights the room through
+  /// them; lights.json's "windows".
+  std::vector<SeenWindow> windows;
   double albedo_seconds = 0;  ///< de-lighting and segmenting (the extra rounds are in `rounds`)
   /// How far the last albedo pass moved the lights (EstimateOptions::albedo_settle's
   /// measure; NaN without a pass).

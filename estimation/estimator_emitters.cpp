@@ -193,12 +193,44 @@ std::vector<EmitterLight> Estimator::GlowingSegments() {
   return out;
 }
 
+std::vector<EmitterLight> Estimator::PanesOverHoles() {
+  std::vector<EmitterLight> out;
+  for (const SeenWindow& w : res_.windows) {
+    Portal p;
+    if (!PortalOf(w, bundle_.up, &p)) continue;
+    Mesh quad;
+    for (const auto& [u, v] : {std::pair{0.0, 0.0}, {1.0, 0.0}, {1.0, 1.0}, {0.0, 1.0}})
+      quad.positions.push_back(p.Point(u, v).cast<float>());
+    quad.triangles = {{0, 1, 2}, {0, 2, 3}};
+    EmitterLight e;
+    e.shape = MakeEmitterShape(quad, {0, 1}, std::vector<Eigen::Vector3f>(2, w.normal.cast<float>()));
+    e.in_a_hole = true;
+    if (!(e.Area() > 0)) continue;
+    // What its clipped pixels show, at least (the pixels of the view that saw it whose rays
+    // cross its rectangle).
+    const View& v = bundle_.views[w.view];
+    const Camera& cam = v.camera;
+    Eigen::Vector3d floor = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < v.clipped_off.size(); ++i) {
+      double cos = 0;
+      const int x = static_cast<int>(i % cam.width), y = static_cast<int>(i / cam.width);
+      if (!v.clipped_off[i] || !(p.Crossing(cam.center(), cam.RayDirection(x, y), &cos) > 0)) continue;
+      const float* c = v.image.at(x, y);
+      floor = floor.cwiseMax(Eigen::Vector3d(c[0], c[1], c[2]) / res_.image_mean);
+    }
+    e.radiance = floor;
+    if (!floor.isZero()) emitter_floor_[e.shape] = floor;
+    out.push_back(e);
+  }
+  return out;
+}
+
 void Estimator::OnBundleMesh(std::vector<Light>* lights) {
   if (cluster_.empty()) return;  // (the bundle's mesh is the traced one)
   const Mesh& full = mesh_.positions.empty() ? bundle_.mesh : mesh_;
   for (Light& l : *lights) {
     EmitterLight* e = std::get_if<EmitterLight>(&l);
-    if (!e || !e->shape) continue;
+    if (!e || !e->shape || e->in_a_hole) continue;  // (a pane over a hole: on no triangle)
     auto on = ShapeOnMesh(full, *e->shape);
     if (!on) continue;  // (keeps the traced mesh's)
     const double area = e->Area();
@@ -271,22 +303,26 @@ bool Estimator::LampInside(const EmitterLight& candidate, const std::vector<Emit
 
 bool Estimator::TryEmitter(const EmitterLight& candidate, std::vector<EmitterLight>* kept, double* objective,
                            double* held) {
+  const bool over_a_hole = candidate.in_a_hole;
   CheckCancel();
   std::vector<EmitterLight> with = *kept;
   with.push_back(candidate);
   double objective_with = ObjectiveWith(with), held_with = HoldoutLoss(points_);
   const std::vector<PointLight> lamps = points_;
-  LampInside(candidate, with, &objective_with, &held_with);  // (a bulb behind its shade, if the data says so)
+  if (!over_a_hole) LampInside(candidate, with, &objective_with, &held_with);  // (a bulb behind its shade, if the data says so)
   const bool keep = objective_with < (1 - kEmitterGain) * *objective && held_with < (1 + kEmitterGain) * *held;
   if (!keep) points_ = lamps;  // (a lamp moved inside a surface that is not kept goes back)
-  const std::string line = Fmt("glowing surface of %.3g m^2 (seen brighter than a white surface under the lights): "
-                               "objective %.6g with it, %.6g without; held-out loss %.6g with it, %.6g without: %s",
-                               candidate.Area(), objective_with, *objective, held_with, *held, keep ? "kept" : "left out");
+  const std::string line =
+      Fmt("%s of %.3g m^2 (%s): objective %.6g with it, %.6g without; held-out loss %.6g with it, %.6g without: %s",
+          over_a_hole ? "a window seen as a hole, as a glowing pane" : "glowing surface", candidate.Area(),
+          over_a_hole ? "frosted glass or a curtain; else the map's light through it"
+                      : "seen brighter than a white surface under the lights",
+          objective_with, *objective, held_with, *held, keep ? "kept" : "left out");
   res_.point_light_choices.push_back(line);
   Progress(line);
   // A window's clear glass: the surface as an opening instead, where it could be one.
   emitters_ = *kept;
-  if (TryOpening(candidate, keep ? with : *kept, objective, held)) {
+  if (!over_a_hole && TryOpening(candidate, keep ? with : *kept, objective, held)) {
     points_ = lamps;  // (no lamp inside an opening)
     return true;
   }
@@ -305,10 +341,15 @@ bool Estimator::ProposeEmitters(RoundInfo* info) {
   // pixel, the activation penalty included) falls by kEmitterGain and the held-out pixels
   // are fitted no worse by that much; once one is kept the lights are solved with it and the
   // glowing pixels sought again (a wall the kept one lights glows no more).
+  // The windows seen as holes are candidates too, as glowing panes over their openings.
   std::vector<EmitterLight> kept;
+  const std::vector<EmitterLight> panes = PanesOverHoles();
   double objective = ObjectiveWith({}), held = HoldoutLoss(points_);
   for (std::size_t k = 0; k < kMaxEmitterCandidates; ++k) {
     std::vector<EmitterLight> found = GlowingSegments();
+    for (const EmitterLight& p : panes)
+      if (std::none_of(kept.begin(), kept.end(), [&](const EmitterLight& e) { return e.shape == p.shape; }))
+        found.push_back(p);
     std::sort(found.begin(), found.end(),
               [](const EmitterLight& a, const EmitterLight& b) { return a.radiance.sum() > b.radiance.sum(); });
     bool more = false;

@@ -431,8 +431,10 @@ class Estimator {
   /// kPortalShare of its samples through portals_ where there are any.
   CellSampler Sampler(const std::vector<double>& lambda, const std::vector<std::uint8_t>& reachable) const;
   void MarkSeenWindows();
+  /// Says, for each window seen as a hole, its rectangle and the light the estimate sends into
+  /// the room through it: the map's (PowerThrough) and a pane's over it.
+  void SayTheLightThroughWindows();
   void StartBesideSeenWindows();
-  std::vector<SeenWindow> seen_windows_;
   /// Flat, and most rays out of its back leave the scene (`opened`: the scene with it open).
   bool CouldBeWindow(const EmitterLight& e, const RayTracer& opened) const;
   /// Per triangle of the traced mesh: open already, or its centre on `shape`.
@@ -444,7 +446,13 @@ class Estimator {
   struct TracedState;
   /// Keeps `candidate` beside `kept` when the objective and the held-out loss say so (both
   /// updated then).
+  /// A pane over a hole (EmitterLight::in_a_hole) is neither tried with a lamp inside nor as
+  /// an opening (it is one).
   bool TryEmitter(const EmitterLight& candidate, std::vector<EmitterLight>* kept, double* objective, double* held);
+  /// The windows seen as holes (res_.windows), each as a glowing pane over its opening
+  /// (frosted glass or a curtain that returned no depth), its radiance at least what its
+  /// clipped pixels show.
+  std::vector<EmitterLight> PanesOverHoles();
   /// The kept emitter a lamp sits inside (within half its extent of where LampInside puts
   /// one: a bulb in its shade), or null.
   const EmitterLight* ShadeOf(const PointLight& lamp) const;

@@ -64,7 +64,7 @@ const std::vector<SeenLamp>& Estimator::SeenLampsOnce() {
   seen_lamps_ = opt_.point_lights.seen ? SeenLamps(bundle_.views, *scene_) : std::vector<SeenLamp>();
   // (a window's blobs, triangulated, meet behind its wall: the sky's)
   seen_lamps_->erase(std::remove_if(seen_lamps_->begin(), seen_lamps_->end(),
-                                    [&](const SeenLamp& l) { return BeyondAWindow(seen_windows_, l.position, bundle_.up); }),
+                                    [&](const SeenLamp& l) { return BeyondAWindow(res_.windows, l.position, bundle_.up); }),
                      seen_lamps_->end());
   res_.seen_lamps = *seen_lamps_;
   for (const SeenLamp& l : *seen_lamps_) {

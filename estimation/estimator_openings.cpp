@@ -151,8 +151,8 @@ void Estimator::MarkWindowCells(const Eigen::Vector3d& out) {
 /// The windows the cameras saw as holes (seen_windows.h), found, said and their cells marked
 /// once, each hole a portal.
 void Estimator::MarkSeenWindows() {
-  seen_windows_ = SeenWindows(bundle_.views, *scene_);
-  for (const SeenWindow& w : seen_windows_) {
+  res_.windows = SeenWindows(bundle_.views, *scene_);
+  for (const SeenWindow& w : res_.windows) {
     const std::string line =
         Fmt("a window the cameras saw as a hole (view %d, %d clipped pixels off the mesh, their rays leaving the scene): "
             "at (%.3f, %.3f, %.3f) in a wall facing (%.2f, %.2f, %.2f); the map's cells behind it are the window's",
@@ -162,6 +162,24 @@ void Estimator::MarkSeenWindows() {
     // (its cells are the window's where the prior is chosen; given by the options, as before)
     if (PriorGivenByOptions().empty()) MarkWindowCells(-w.normal);
     if (Portal p; PortalOf(w, bundle_.up, &p)) portals_.push_back(p);
+  }
+}
+
+void Estimator::SayTheLightThroughWindows() {
+  for (const SeenWindow& w : res_.windows) {
+    Portal p;
+    if (!PortalOf(w, bundle_.up, &p)) continue;
+    const Eigen::Vector3d map = PowerThrough(p, w.normal, env_, res_.lighting.map);
+    Eigen::Vector3d pane = Eigen::Vector3d::Zero();
+    for (const EmitterLight& e : res_.lighting.Of<EmitterLight>())
+      if (e.in_a_hole && e.shape && (Centroid(*e.shape) - p.centre).norm() < 1e-3) pane += e.Power();
+    const std::string line = Fmt(
+        "the window seen as a hole at (%.3f, %.3f, %.3f): %.2f x %.2f m; the light through it (image units x m^2 x sr) "
+        "%.4g %.4g %.4g from the map, %.4g %.4g %.4g from a glowing pane over it",
+        p.centre.x(), p.centre.y(), p.centre.z(), 2 * p.half_u, 2 * p.half_v, map.x(), map.y(), map.z(), pane.x(),
+        pane.y(), pane.z());
+    res_.point_light_choices.push_back(line);
+    Progress(line);
   }
 }
 

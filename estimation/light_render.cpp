@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "common/error.h"
 #include "common/timer.h"
@@ -29,7 +30,29 @@ std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, 
   SeenLight seen;
   if (lighting.Count<EmitterLight>() > 0)
     seen = [&](const SurfacePoint& hit) { return Emission(lighting.lights, hit.position, hit.geometric); };
-  return RenderEnvironment(scene, env, views, lighting.map, sampler, options, all_pixels, lamps, stats, seen);
+  std::vector<ImageRGB> out =
+      RenderEnvironment(scene, env, views, lighting.map, sampler, options, all_pixels, lamps, stats, seen);
+  AddPanesInHoles(scene, lighting.lights, views, all_pixels, &out);
+  return out;
+}
+
+void AddPanesInHoles(const RayTracer& scene, const std::vector<Light>& lights, const std::vector<View>& views,
+                     bool all_pixels, std::vector<ImageRGB>* images) {
+  std::vector<EmitterLight> panes;
+  for (const EmitterLight& e : OfKind<EmitterLight>(lights))
+    if (e.in_a_hole) panes.push_back(e);
+  if (panes.empty()) return;
+  for (const detail::PixelRef& px : PixelsToTrace(views, all_pixels)) {
+    const Camera& cam = views[px.view].camera;
+    const int x = px.pixel % cam.width, y = px.pixel / cam.width;
+    const Eigen::Vector3d dir = cam.RayDirection(x, y);
+    SurfacePoint hit;
+    const double before = scene.Intersect(cam.center(), dir, &hit) ? hit.distance : std::numeric_limits<double>::infinity();
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    for (const EmitterLight& e : panes) sum += SeenInAHole(e, cam.center(), dir, before);
+    float* p = (*images)[px.view].at(x, y);
+    for (int c = 0; c < 3; ++c) p[c] += static_cast<float>(sum[c]);
+  }
 }
 
 namespace {

@@ -22,6 +22,13 @@ std::vector<ImageRGB> RenderLighting(const RayTracer& scene, const EnvMap& env, 
                                      const CellSampler& sampler, const std::vector<View>& views,
                                      const TracerOptions& options, bool all_pixels, TraceStats* stats = nullptr);
 
+/// Adds to each traced pixel (every pixel when `all_pixels`, else the valid ones) what its
+/// centre's camera ray sees of the panes over holes among `lights` (SeenInAHole): a window
+/// whose glass returned no depth, glowing, is seen through the hole, not on a surface.
+/// RenderLighting does it; a render of the map alone shows what lies beyond.
+void AddPanesInHoles(const RayTracer& scene, const std::vector<Light>& lights, const std::vector<View>& views,
+                     bool all_pixels, std::vector<ImageRGB>* images);
+
 /// One pass of ProgressiveRender: the samples per pixel so far, the seconds since it began,
 /// and the estimated relative noise of the render so far.
 struct RenderPass {

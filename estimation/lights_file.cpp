@@ -29,8 +29,10 @@ json ToJson(const DirectionalLight& l) {
   return {{"direction", Vec(l.direction)}, {"irradiance", Vec(l.irradiance)}, {"angular_radius", l.angular_radius}};
 }
 json ToJson(const EmitterLight& l) {
-  return {{"id", l.id}, {"radiance", Vec(l.radiance)}, {"power", Vec(l.Power())}, {"area", l.Area()},
-          {"two_sided", false}};
+  json j = {{"id", l.id}, {"radiance", Vec(l.radiance)}, {"power", Vec(l.Power())}, {"area", l.Area()},
+            {"two_sided", false}};
+  if (l.in_a_hole) j["in_a_hole"] = true;  // (a window's pane over a hole in the mesh)
+  return j;
 }
 
 /// A number, or null where it is not finite (JSON has no infinity).
@@ -135,6 +137,10 @@ void Read(const json& l, const FieldReader& r, EmitterLight* e) {
   e->id = l["id"].get<int>();
   e->radiance = r.Vec3(l, "emitter", "radiance");
   if (e->radiance.minCoeff() < 0) throw InputError(r.name, "an emitter's radiance is negative");
+  if (l.contains("in_a_hole")) {
+    if (!l["in_a_hole"].is_boolean()) throw InputError(r.name, "an emitter's \"in_a_hole\" must be true or false");
+    e->in_a_hole = l["in_a_hole"].get<bool>();
+  }
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "estimation/envmap.h"
 #include "estimation/lights/emitter_light.h"
 #include "estimation/seen_windows.h"
 
@@ -50,9 +51,25 @@ Portal PortalOf(const EmitterShape& shape, const Eigen::Vector3d& up) {
 }
 
 bool PortalOf(const SeenWindow& w, const Eigen::Vector3d& up, Portal* out) {
-  if (w.corners.size() != 4) return false;
-  *out = PortalAround(w.corners, w.centre, w.normal, up.cross(w.normal));
+  if (w.outline.empty()) return false;
+  *out = PortalAround(w.outline, w.centre, w.normal, up.cross(w.normal));
   return true;
+}
+
+Eigen::Vector3d PowerThrough(const Portal& window, const Eigen::Vector3d& inward, const EnvMap& env,
+                             const std::vector<double>& rgb) {
+  constexpr int kSide = 8;
+  const Eigen::Vector3d n = inward.normalized();
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (int j = 0; j < env.size(); ++j) {
+    const Eigen::Vector3d L(rgb[3 * j], rgb[3 * j + 1], rgb[3 * j + 2]);
+    if (L.isZero()) continue;
+    double cos = 0;
+    for (int a = 0; a < kSide; ++a)
+      for (int b = 0; b < kSide; ++b) cos += std::max(0.0, -env.SampleInCell(j, (a + 0.5) / kSide, (b + 0.5) / kSide).dot(n));
+    sum += L * env.solid_angle(j) * cos / (kSide * kSide);
+  }
+  return window.Area() * sum;
 }
 
 }  // namespace lp

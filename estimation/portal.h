@@ -10,6 +10,7 @@
 
 namespace lp {
 
+class EnvMap;
 struct EmitterShape;
 struct SeenWindow;
 
@@ -39,8 +40,16 @@ Portal PortalAround(const std::vector<Eigen::Vector3d>& points, const Eigen::Vec
 /// summed normal) that holds its triangles, its first axis horizontal (across `up`).
 Portal PortalOf(const EmitterShape& opening, const Eigen::Vector3d& up);
 
-/// The rectangle on a seen hole's wall that holds its corners, its first axis horizontal;
-/// false where the hole has no corners (seen too near edge on).
+/// The rectangle on a seen hole's wall that holds its outline, its first axis horizontal;
+/// false where the hole has none (seen too near edge on).
 bool PortalOf(const SeenWindow& hole, const Eigen::Vector3d& up, Portal* out);
+
+/// The light a map (`rgb`: 3 * env.size() radiances) sends into a room through `window`, a
+/// hole in a thin wall whose unit normal `inward` points into the room: its area times, over
+/// the directions out through it, the radiance times the cosine to the wall (image units x
+/// m^2 x sr: watts when the images are radiance; a diffuse pane of radiance L sends
+/// pi L area). Each cell's cosine is averaged over 64 stratified directions in it.
+Eigen::Vector3d PowerThrough(const Portal& window, const Eigen::Vector3d& inward, const EnvMap& env,
+                             const std::vector<double>& rgb);
 
 }  // namespace lp

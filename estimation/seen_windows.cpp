@@ -67,6 +67,61 @@ bool MostlyEscapes(const Camera& c, const ClippedBlob& b, const RayTracer& scene
   return tried > 0 && escaped >= o.min_escape_share * tried;
 }
 
+/// Whether the wall lies at `q` (a point of its plane): a ray along the wall's normal from
+/// `distance` before it meets the mesh within `distance` beyond.
+bool WallAt(const RayTracer& scene, const Eigen::Vector3d& q, const Eigen::Vector3d& normal, double distance) {
+  SurfacePoint hit;
+  return scene.Intersect(q + distance * normal, -normal, &hit) && hit.distance < 2 * distance;
+}
+
+/// `q` (in the wall's plane, near the hole's edge) moved along the line from the hole's
+/// `centre` to the edge, in steps of kEdgeStep and at most kEdgeReach: out to the last point
+/// off the wall when it lies in the hole, in to the first off it when on the wall (a blob's
+/// pixels at their outer corners reach up to a pixel's footprint onto the wall; its edge
+/// pixels, in part wall, may not have clipped); where it meets neither, as it was.
+constexpr double kEdgeStep = 0.002, kEdgeReach = 0.1;  // m
+Eigen::Vector3d ToTheHolesEdge(const RayTracer& scene, Eigen::Vector3d q, const Eigen::Vector3d& centre,
+                               const Eigen::Vector3d& normal, double distance) {
+  const Eigen::Vector3d radial = q - centre;
+  if (radial.norm() < 1e-9) return q;
+  const Eigen::Vector3d step = kEdgeStep * radial.normalized();
+  const int steps = static_cast<int>(kEdgeReach / kEdgeStep);
+  if (WallAt(scene, q, normal, distance)) {
+    for (int k = 1; k <= steps; ++k)
+      if (!WallAt(scene, q - k * step, normal, distance)) return q - k * step;
+    return q;
+  }
+  for (int k = 1; k <= steps; ++k)
+    if (WallAt(scene, q + k * step, normal, distance)) return q + (k - 1) * step;
+  return q;
+}
+
+/// Where the rays through the outer corners of the blob's border pixels (a member with a
+/// neighbour that is not) cross the wall's plane, each moved to the hole's edge in the mesh
+/// (ToTheHolesEdge); none where one meets it within 6 degrees of edge on (it would stretch
+/// the window far).
+std::vector<Eigen::Vector3d> OutlineOnWall(const Camera& c, const ClippedBlob& b, const Eigen::Vector3d& normal,
+                                           const Eigen::Vector3d& point, const Eigen::Vector3d& centre,
+                                           const RayTracer& scene, const SeenWindowOptions& o) {
+  const int w = b.max_x - b.min_x + 1, h = b.max_y - b.min_y + 1;
+  std::vector<std::uint8_t> in(static_cast<std::size_t>(w) * h, 0);
+  for (const int p : b.members) in[(p / c.width - b.min_y) * w + (p % c.width - b.min_x)] = 1;
+  const auto member = [&](int x, int y) { return x >= 0 && y >= 0 && x < w && y < h && in[y * w + x]; };
+  std::vector<Eigen::Vector3d> out;
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      if (!member(x, y) || (member(x - 1, y) && member(x + 1, y) && member(x, y - 1) && member(x, y + 1))) continue;
+      for (const double dx : {-0.5, 0.5})
+        for (const double dy : {-0.5, 0.5}) {
+          const Eigen::Vector3d d = c.RayDirection(b.min_x + x + dx, b.min_y + y + dy);
+          if (normal.dot(d) > -0.1) return {};
+          out.push_back(ToTheHolesEdge(scene, c.center() + (point - c.center()).dot(normal) / normal.dot(d) * d, centre,
+                                       normal, o.plane_distance));
+        }
+    }
+  return out;
+}
+
 }  // namespace
 
 std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTracer& scene, const SeenWindowOptions& o) {
@@ -81,12 +136,7 @@ std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTra
     const double along = normal.dot(dir);
     if (along > -1e-3) continue;  // (the wall seen edge on)
     SeenWindow w{b.view, b.pixels, c.center() + (point - c.center()).dot(normal) / along * dir, normal, {}};
-    for (const double x : {b.min_x - 0.5, b.max_x + 0.5})
-      for (const double y : {b.min_y - 0.5, b.max_y + 0.5}) {
-        const Eigen::Vector3d d = c.RayDirection(x, y);
-        // (a corner seen within 6 degrees of the wall's plane would stretch it far: none then)
-        if (normal.dot(d) < -0.1) w.corners.push_back(c.center() + (point - c.center()).dot(normal) / normal.dot(d) * d);
-      }
+    w.outline = OutlineOnWall(c, b, normal, point, w.centre, scene, o);
     auto same = std::find_if(out.begin(), out.end(), [&](const SeenWindow& x) {
       return (x.centre - w.centre).norm() < o.merge && x.normal.dot(w.normal) > o.flat_cos;
     });

@@ -17,9 +17,11 @@ struct SeenWindow {
   int pixels = 0;            ///< that blob's pixels
   Eigen::Vector3d centre;    ///< where the blob's mean ray crosses the wall's plane
   Eigen::Vector3d normal;    ///< the wall's unit normal, into the room (towards the camera)
-  /// Where the rays through the corners of the blob's pixel bounds (their outer edges) cross
-  /// the wall's plane: the hole's extent, as far as its clipped pixels show it.
-  std::vector<Eigen::Vector3d> corners;
+  /// Where the rays through the outer corners of the blob's border pixels cross the wall's
+  /// plane, each moved to the hole's edge in the mesh along the line from its centre (by up
+  /// to 10 cm): the hole's outline (none where the wall is seen within 6 degrees of edge on).
+  /// A window's rectangle in its wall: PortalOf.
+  std::vector<Eigen::Vector3d> outline;
 };
 
 struct SeenWindowOptions {

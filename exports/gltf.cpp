@@ -82,7 +82,8 @@ std::vector<int> EmitterOfTriangle(const Mesh& mesh, const std::vector<EmitterLi
     const Eigen::Vector3d centroid =
         ((mesh.positions[tri[0]] + mesh.positions[tri[1]] + mesh.positions[tri[2]]) / 3.0f).cast<double>();
     for (std::size_t e = 0; e < emitters.size() && of[t] < 0; ++e)
-      if (emitters[e].shape && EmitterTriangleAt(*emitters[e].shape, centroid) >= 0) of[t] = static_cast<int>(e);
+      if (emitters[e].shape && !emitters[e].in_a_hole && EmitterTriangleAt(*emitters[e].shape, centroid) >= 0)
+        of[t] = static_cast<int>(e);  // (a pane over a hole is on none: PaneOverAHole)
   }
   return of;
 }
@@ -109,8 +110,39 @@ json EmitterMaterial(const EmitterLight& e) {
   return m;
 }
 
+void UseEmissiveStrength(json* gltf) {
+  json& used = (*gltf)["extensionsUsed"];
+  if (std::find(used.begin(), used.end(), "KHR_materials_emissive_strength") == used.end())
+    used.push_back("KHR_materials_emissive_strength");
+}
+
+/// A pane over a hole in the mesh (EmitterLight::in_a_hole) as a primitive of its own: its
+/// triangles wound to face the side that emits, black (it only glows).
+json PaneOverAHole(const EmitterLight& e, const Eigen::Matrix3f& G, Buffer* buffer, json* gltf) {
+  const EmitterShape& sh = *e.shape;
+  std::vector<Eigen::Vector3f> positions, normals, colours;
+  std::vector<Eigen::Vector3i> triangles;
+  for (std::size_t t = 0; t < sh.a.size(); ++t) {
+    const bool along = (sh.b[t] - sh.a[t]).cross(sh.c[t] - sh.a[t]).dot(sh.normal[t]) >= 0;
+    const int n = static_cast<int>(positions.size());
+    for (const Eigen::Vector3f& p : {sh.a[t], along ? sh.b[t] : sh.c[t], along ? sh.c[t] : sh.b[t]}) {
+      positions.push_back(G * p);
+      normals.push_back((G * sh.normal[t]).normalized());
+      colours.push_back(Eigen::Vector3f::Zero());
+    }
+    triangles.push_back({n, n + 1, n + 2});
+  }
+  (*gltf)["materials"].push_back(EmitterMaterial(e));
+  return {{"attributes",
+           {{"POSITION", buffer->AddVec3(positions, true, gltf)}, {"NORMAL", buffer->AddVec3(normals, false, gltf)},
+            {"COLOR_0", buffer->AddVec3(colours, false, gltf)}}},
+          {"indices", buffer->AddIndices(triangles, gltf)},
+          {"material", static_cast<int>((*gltf)["materials"].size()) - 1},
+          {"mode", 4}};
+}
+
 /// The mesh as one primitive per material: the faces that glow (each emitter's) apart from
-/// the rest, all sharing the vertices.
+/// the rest, all sharing the vertices; a pane over a hole a primitive of its own.
 void AddMesh(const ExportScene& s, const Eigen::Matrix3f& G, Buffer* buffer, json* gltf) {
   std::vector<Eigen::Vector3f> positions, normals;
   positions.reserve(s.mesh.positions.size());
@@ -130,10 +162,13 @@ void AddMesh(const ExportScene& s, const Eigen::Matrix3f& G, Buffer* buffer, jso
     (*gltf)["materials"].push_back(e < 0 ? AlbedoMaterial("albedo") : EmitterMaterial(emitters[e]));
     primitives.push_back({{"attributes", attributes}, {"indices", buffer->AddIndices(triangles, gltf)},
                           {"material", static_cast<int>((*gltf)["materials"].size()) - 1}, {"mode", 4}});
-    json& used = (*gltf)["extensionsUsed"];
-    if (e >= 0 && std::find(used.begin(), used.end(), "KHR_materials_emissive_strength") == used.end())
-      used.push_back("KHR_materials_emissive_strength");
+    if (e >= 0) UseEmissiveStrength(gltf);
   }
+  for (const EmitterLight& e : emitters)
+    if (e.in_a_hole && e.shape && !e.shape->a.empty()) {
+      primitives.push_back(PaneOverAHole(e, G, buffer, gltf));
+      UseEmissiveStrength(gltf);
+    }
   (*gltf)["meshes"].push_back({{"name", "lightprobe"}, {"primitives", primitives}});
   (*gltf)["nodes"].push_back({{"name", "lightprobe_mesh"}, {"mesh", 0}});
 }

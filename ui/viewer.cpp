@@ -703,8 +703,8 @@ void Viewer::LightsList() {
     if (k == 0) ImGui::Text("glowing surfaces (outlined), centre, area, radiance:");
     Swatch("##emitter" + std::to_string(k), e.radiance);
     const Eigen::Vector3d c = Centroid(*e.shape);
-    ImGui::Text("(%.2f, %.2f, %.2f) m  %.3g m^2  L %.3g %.3g %.3g", c.x(), c.y(), c.z(), e.Area(), e.radiance.x(),
-                e.radiance.y(), e.radiance.z());
+    ImGui::Text("(%.2f, %.2f, %.2f) m  %.3g m^2  L %.3g %.3g %.3g%s", c.x(), c.y(), c.z(), e.Area(), e.radiance.x(),
+                e.radiance.y(), e.radiance.z(), e.in_a_hole ? "  (a pane over a hole)" : "");
   }
   const std::size_t openings = est_.result ? est_.result->openings.size() : 0;
   for (std::size_t k = 0; k < openings; ++k) {

@@ -216,7 +216,7 @@ void UnitColumn(const RayTracer& scene, const ShadingVertices& v, const EmitterL
   out.Assign(rows);
   if (!light.shape || !(light.shape->area > 0)) return;
   const EmitterShape& s = *light.shape;
-  const bool seen = v.camera.size() == v.size();
+  const bool seen = v.camera.size() == v.size() && !light.in_a_hole;
   ParallelForChunks(0, rows, 64, [&](std::size_t b, std::size_t e) {
     for (std::size_t r = b; r < e; ++r) {
       ColumnRow row;
@@ -247,6 +247,28 @@ Eigen::Vector3d Irradiance(const RayTracer& scene, const EmitterLight& light, co
   const Eigen::Vector3d q = PointOn(*light.shape, HashUnit(key * 0x9E3779B9ull + 5), HashUnit(key ^ 0x5DEECE66Dull), &t);
   ++*rays;
   return light.radiance * std::min(Transfer(scene, *light.shape, origin, n, g, q, t) * light.shape->area, kPi);
+}
+
+Eigen::Vector3d SeenInAHole(const EmitterLight& light, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                            double before) {
+  if (!light.in_a_hole || !light.shape) return Eigen::Vector3d::Zero();
+  const EmitterShape& s = *light.shape;
+  for (std::size_t t = 0; t < s.a.size(); ++t) {
+    if (!(s.normal[t].cast<double>().dot(dir) < 0)) continue;  // (its back, or along it)
+    // Moller-Trumbore.
+    const Eigen::Vector3d a = s.a[t].cast<double>(), e1 = s.b[t].cast<double>() - a, e2 = s.c[t].cast<double>() - a;
+    const Eigen::Vector3d p = dir.cross(e2);
+    const double det = e1.dot(p);
+    if (std::abs(det) < 1e-12) continue;
+    const Eigen::Vector3d to = origin - a;
+    const double u = to.dot(p) / det;
+    if (u < 0 || u > 1) continue;
+    const Eigen::Vector3d q = to.cross(e1);
+    const double v = dir.dot(q) / det, d = e2.dot(q) / det;
+    if (v < 0 || u + v > 1 || !(d > 0) || !(d < before)) continue;
+    return light.radiance;
+  }
+  return Eigen::Vector3d::Zero();
 }
 
 }  // namespace lp

@@ -4,7 +4,7 @@
 /// lights.json's "emitters" with their triangles in emitters.ply (docs/formats.md). What only
 /// this kind knows: its unit column (next-event estimation to its triangles from every
 /// shading vertex, and the camera's own view of it: the pixels that see it receive its
-/// radiance directly), the light it sends to a point, the radiance a camera sees on it. It
+/// radiance directly; none for a pane in a hole), the light it sends to a point, the radiance a camera sees on it. It
 /// has no shape to refine: its triangles are where the keyframes saw it glow; its scale, the
 /// unknown, is its mean emitted radiance.
 #include <cstdint>
@@ -87,6 +87,11 @@ struct EmitterLight {
   /// Mean emitted radiance, image units (W/(m^2 sr) when the images are radiance), the same
   /// in every direction on its emitting side.
   Eigen::Vector3d radiance = Eigen::Vector3d::Zero();
+  /// A pane over a hole in the mesh (a window whose glass returned no depth: frosted, or a
+  /// curtain): its triangles lie on no surface of the mesh. Its light reaches the room through
+  /// the hole; no surface point glows with it (a wall's rim inside its rectangle does not),
+  /// and it is never moved onto the mesh's triangles.
+  bool in_a_hole = false;
   double Area() const { return shape ? shape->area : 0.0; }
   /// pi x radiance x area: what it emits (image units x m^2 x sr; W when the images are
   /// radiance).
@@ -115,9 +120,16 @@ Eigen::Vector3d Irradiance(const RayTracer& scene, const EmitterLight& light, co
 /// emitter's own light: its radiance there, else 0.
 inline Eigen::Vector3d Emission(const EmitterLight& light, const Eigen::Vector3d& point,
                                 const Eigen::Vector3d& towards_viewer) {
-  if (!light.shape || !OnEmitter(*light.shape, point, towards_viewer)) return Eigen::Vector3d::Zero();
+  if (!light.shape || light.in_a_hole || !OnEmitter(*light.shape, point, towards_viewer)) return Eigen::Vector3d::Zero();
   return light.radiance;
 }
+
+/// What a camera ray sees of a pane over a hole (EmitterLight::in_a_hole; 0 for any other
+/// emitter, which Emission gives on its surface): its radiance where the ray from `origin`
+/// along unit `dir` crosses one of its triangles nearer than `before` (where the ray first
+/// meets the scene; infinity when it leaves it), from the side that emits.
+Eigen::Vector3d SeenInAHole(const EmitterLight& light, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
+                            double before);
 
 inline bool SameShape(const EmitterLight& a, const EmitterLight& b) { return a.shape == b.shape; }
 inline Eigen::Vector3d& Scale(EmitterLight& l) { return l.radiance; }

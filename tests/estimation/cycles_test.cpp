@@ -453,19 +453,17 @@ TEST(Cycles, AClearWindowTheDepthCameraSawComesBackAsAnOpening) {
   EXPECT_GT(as_pane, 3 * relit);
 }
 
-// Issue 43: the same window when the glass returns no depth (a hole in the wall, its pixels
-// clipped), as a structured-light camera sees clear glass: the hole seen as a window before
-// round 1 (SeenWindows), its cells at the weakest prior until the choice and the map's next
-// events aimed through it (a portal), no lamp and no glowing surface kept in the room, and
-// the held-out view relit as well as the true world's light through the hole.
-TEST(Cycles, AClearWindowSeenAsAHoleLetsTheMapLightTheRoom) {
-  SceneBundle bundle = LoadSceneBundle(CyclesDir("glazed_window"));
-  View& v = bundle.views[0];
+/// A window whose glass returned no depth, made from a bundle that has its pane: the
+/// triangles the first view's pixels brighter than luminance 2 see (the pane) cut out of the
+/// mesh, and every pixel that then sees no mesh invalid (no depth), the bright ones clipped
+/// off the mesh, as a scan's would be. Returns the pane's triangles; `with_pane` the mesh
+/// before.
+std::vector<int> CutThePaneOut(SceneBundle* bundle, Mesh* with_pane) {
+  View& v = bundle->views[0];
   const Camera& cam = v.camera;
-  // The pane: the triangles the pixels that see the bright world through the glass hit.
-  std::vector<std::uint8_t> pane(bundle.mesh.triangles.size(), 0);
+  std::vector<std::uint8_t> pane(bundle->mesh.triangles.size(), 0);
   {
-    const RayTracer scene(bundle.mesh);
+    const RayTracer scene(bundle->mesh);
     for (std::size_t p = 0; p < v.valid.size(); ++p) {
       const float* c = v.image.at(static_cast<int>(p % cam.width), static_cast<int>(p / cam.width));
       SurfacePoint hit;
@@ -477,20 +475,43 @@ TEST(Cycles, AClearWindowSeenAsAHoleLetsTheMapLightTheRoom) {
   std::vector<int> pane_triangles;
   for (std::size_t t = 0; t < pane.size(); ++t)
     if (pane[t]) pane_triangles.push_back(static_cast<int>(t));
-  ASSERT_GE(pane_triangles.size(), 1u);
-  const Mesh with_pane = bundle.mesh;
-  bundle.mesh = WithoutTriangles(with_pane, pane);
-  // Its pixels: no depth (not fitted), the bright ones clipped.
-  const RayTracer holed(bundle.mesh);
+  *with_pane = bundle->mesh;
+  bundle->mesh = WithoutTriangles(*with_pane, pane);
+  const RayTracer holed(bundle->mesh);
   v.clipped_off.assign(v.valid.size(), 0);
-  int clipped = 0;
   for (std::size_t p = 0; p < v.valid.size(); ++p) {
     SurfacePoint hit;
     if (holed.Intersect(cam.center(), cam.RayDirection(double(p % cam.width), double(p / cam.width)), &hit)) continue;
     const float* c = v.image.at(static_cast<int>(p % cam.width), static_cast<int>(p / cam.width));
     v.valid[p] = 0;
-    if (Luminance(c[0], c[1], c[2]) > 2) v.clipped_off[p] = 1, ++clipped;
+    if (Luminance(c[0], c[1], c[2]) > 2) v.clipped_off[p] = 1;
   }
+  return pane_triangles;
+}
+
+/// The light the estimate's map sends into the room through its one seen window.
+Eigen::Vector3d LightThroughTheWindow(const EstimateResult& r) {
+  Portal p;
+  if (r.windows.size() != 1 || !PortalOf(r.windows[0], r.env.up(), &p)) return Eigen::Vector3d::Constant(-1);
+  return PowerThrough(p, r.windows[0].normal, r.env, r.lighting.map);
+}
+
+/// The clipped pixels off the mesh of a bundle's first view.
+int ClippedOff(const SceneBundle& bundle) {
+  return static_cast<int>(std::count(bundle.views[0].clipped_off.begin(), bundle.views[0].clipped_off.end(), 1));
+}
+
+// Issue 43: the same window when the glass returns no depth (a hole in the wall, its pixels
+// clipped), as a structured-light camera sees clear glass: the hole seen as a window before
+// round 1 (SeenWindows), its cells at the weakest prior until the choice and the map's next
+// events aimed through it (a portal), no lamp and no glowing surface kept in the room, and
+// the held-out view relit as well as the true world's light through the hole.
+TEST(Cycles, AClearWindowSeenAsAHoleLetsTheMapLightTheRoom) {
+  SceneBundle bundle = LoadSceneBundle(CyclesDir("glazed_window"));
+  Mesh with_pane;
+  const std::vector<int> pane_triangles = CutThePaneOut(&bundle, &with_pane);
+  ASSERT_GE(pane_triangles.size(), 1u);
+  const int clipped = ClippedOff(bundle);
   ASSERT_GT(clipped, 100);
   EstimateOptions o;
   o.render = false;
@@ -509,13 +530,64 @@ TEST(Cycles, AClearWindowSeenAsAHoleLetsTheMapLightTheRoom) {
   const std::vector<std::shared_ptr<const EmitterShape>> hole = {MakeEmitterShape(
       with_pane, pane_triangles, std::vector<Eigen::Vector3f>(pane_triangles.size(), Eigen::Vector3f::UnitX()))};
   const double relit = RelitError(held, r.env, r.lighting, true, hole), floor = RelitError(held, fine, {world, {}}, true, hole);
-  // Measured: no lamp, no emitter, 0.98x (0.92-1.01x over the tracer's seeds 2-5); at
-  // 0149ae9 (the hole seen after round 1, no portals) two lamps, 0.98x.
+  const Eigen::Vector3d power = LightThroughTheWindow(r), true_power = PowerThrough(PortalOf(*hole[0], bundle.up),
+                                                                                    Eigen::Vector3d::UnitX(), fine, world);
+  // Measured: no lamp, no emitter (the pane over the hole left out), 0.91x; at 73bf88c (the
+  // hole's extent its blob's pixel bounds, no pane tried) 0.98x (0.92-1.01x over the
+  // tracer's seeds 2-5); at 0149ae9 (the hole seen after round 1, no portals) two lamps,
+  // 0.98x. The light through the hole (printed) is 0.6x the true world's: the cells whose
+  // light falls where no view looks are the prior's, not the data's.
   std::printf("glazed window as a hole: %d clipped pixels, %zu pane triangle(s); %zu lamp(s), %zu emitter(s), prior %g; "
-              "held-out relit %.4f (the true world %.4f: %.2fx)\n",
+              "held-out relit %.4f (the true world %.4f: %.2fx); the light through it %.3f (truth %.3f)\n",
               clipped, pane_triangles.size(), r.lighting.Count<PointLight>(), r.lighting.Count<EmitterLight>(),
-              r.prior.chosen, relit, floor, relit / floor);
+              r.prior.chosen, relit, floor, relit / floor, power.x(), true_power.x());
   EXPECT_LT(relit, 1.25 * floor);
+}
+
+// Issue 43: a frosted pane whose glass returned no depth (the Cycles frosted window, KIND
+// glow, cut out as above) glows as a pane over the hole (PanesOverHoles). The map behind a
+// hole holds a diffuse pane only where the directions out through it reach the room no other
+// way; this room is open above its 1.6 m walls, and without the pane candidate the map alone
+// fitted at 0.89 relative error and round 1 kept two lamps at the wall (held-out 4.6x).
+// The pane found over the hole (IoU >= 0.7), the light through it within 15 % of the true
+// pane's power, no lamp, and the held-out view relit within 1.25x the true pane's error.
+// Measured: IoU 1.00, radiance 3.03 / 2.72 / 2.27 (truth 3 / 2.7 / 2.25), 1.00x.
+TEST(Cycles, AFrostedWindowSeenAsAHoleGlowsAsAPane) {
+  SceneBundle bundle = LoadSceneBundle(CyclesDir("glow"));
+  Mesh with_pane;
+  const std::vector<int> pane_triangles = CutThePaneOut(&bundle, &with_pane);
+  ASSERT_GE(pane_triangles.size(), 1u);
+  ASSERT_GT(ClippedOff(bundle), 100);
+  EstimateOptions o;
+  o.render = false;
+  const EstimateResult r = Estimate(bundle, o);
+  ASSERT_EQ(r.windows.size(), 1u);
+  EXPECT_EQ(r.lighting.Count<PointLight>(), 0u);
+  const fs::path truth_file = CyclesDir("glow") / "truth.json";
+  const std::vector<EmitterLight> pane = ParseTruthEmitters(ReadTextFile(truth_file), truth_file.string());
+  ASSERT_EQ(pane.size(), 1u);
+  const std::vector<EmitterLight> found = r.lighting.Of<EmitterLight>();
+  ASSERT_EQ(found.size(), 1u);
+  EXPECT_TRUE(found[0].in_a_hole);
+  const double on_pane = AreaOn(*found[0].shape, *pane[0].shape), overlap = found[0].Area() * on_pane,
+               iou = overlap / (found[0].Area() + pane[0].Area() - overlap);
+  std::printf("the pane over the hole: %.3f m^2, IoU %.2f, radiance %.3f %.3f %.3f\n", found[0].Area(), iou,
+              found[0].radiance.x(), found[0].radiance.y(), found[0].radiance.z());
+  EXPECT_GE(iou, 0.7);
+  const Eigen::Vector3d power = LightThroughTheWindow(r) + found[0].Power(), true_power = pane[0].Power();
+  const std::vector<std::shared_ptr<const EmitterShape>> hole = {MakeEmitterShape(
+      with_pane, pane_triangles, std::vector<Eigen::Vector3f>(pane_triangles.size(), Eigen::Vector3f::UnitX()))};
+  const SceneBundle held = LoadSceneBundle(CyclesDir("glow_holdout"));
+  const double relit = RelitError(held, r.env, r.lighting, true, hole),
+               floor = RelitError(held, r.env, {UniformMap(r.env, 0), AsLights(pane)}, true, hole);
+  std::printf("frosted window as a hole: %zu lamp(s), %zu emitter(s), prior %g; the light through it %.3f %.3f %.3f "
+              "(the pane's %.3f %.3f %.3f); held-out relit %.4f (the true pane %.4f: %.2fx)\n",
+              r.lighting.Count<PointLight>(), r.lighting.Count<EmitterLight>(), r.prior.chosen, power.x(), power.y(),
+              power.z(), true_power.x(), true_power.y(), true_power.z(), relit, floor, relit / floor);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(power[c], true_power[c], 0.15 * true_power[c]) << "channel " << c;
+  EXPECT_LT(relit, 1.25 * floor);
+  if (::testing::Test::HasFailure())
+    for (const std::string& c : r.point_light_choices) std::printf("  %s\n", c.c_str());
 }
 
 // Issue 44: render_view* is a clean render of the estimate, not the fit (whose 24 samples per

@@ -444,6 +444,44 @@ TEST(GltfExport, LightsCamerasAndBuffersByHand) {
   fs::remove_all(dir);
 }
 
+// A pane over a hole (EmitterLight::in_a_hole: on no triangle of the mesh) is a primitive of
+// its own: its two triangles wound to face the side it glows on (a pane at x = 1 glowing
+// towards -x; glTF's x is the bundle's with up +Z), emissive at its radiance, the mesh's
+// primitive not.
+TEST(GltfExport, APaneOverAHoleIsAGlowingPrimitiveOfItsOwn) {
+  ExportScene s = SmallScene();
+  Mesh quad;
+  quad.positions = {{1, -0.4f, 0.5f}, {1, 0.4f, 0.5f}, {1, 0.4f, 1.3f}, {1, -0.4f, 1.3f}};
+  quad.triangles = {{0, 1, 2}, {0, 2, 3}};
+  EmitterLight pane;
+  pane.shape = MakeEmitterShape(quad, {0, 1}, {-Eigen::Vector3f::UnitX(), -Eigen::Vector3f::UnitX()});
+  pane.radiance = {3, 2.7, 2.25};
+  pane.in_a_hole = true;
+  s.lights.push_back(pane);
+  const fs::path dir = Scratch("gltf_pane");
+  WriteExport(s, ExportFormat::kGltf, dir);
+  const json j = ReadJson(dir / "scene.gltf");
+  const json& primitives = j["meshes"][0]["primitives"];
+  ASSERT_EQ(primitives.size(), 2u);  // the mesh (nothing of it glows) and the pane
+  const json& material = j["materials"][primitives[1]["material"].get<int>()];
+  EXPECT_NEAR(material["extras"]["radiance"][0].get<double>(), 3.0, 1e-12);
+  EXPECT_NEAR(material["extensions"]["KHR_materials_emissive_strength"]["emissiveStrength"].get<double>(), 683 * 3.0,
+              1e-9);
+  EXPECT_FALSE(material["doubleSided"].get<bool>());
+  EXPECT_EQ(j["accessors"][primitives[1]["attributes"]["POSITION"].get<int>()]["count"].get<int>(), 6);
+  EXPECT_EQ(j["accessors"][primitives[1]["indices"].get<int>()]["count"].get<int>(), 6);
+  EXPECT_FALSE(j["materials"][primitives[0]["material"].get<int>()].contains("emissiveFactor"));
+  // Its faces wound to the side that emits: the first triangle's normal is -x (glTF's -x too).
+  const json& bytes_view = j["bufferViews"][j["accessors"][primitives[1]["attributes"]["POSITION"].get<int>()]["bufferView"].get<int>()];
+  std::ifstream bin(dir / "scene.bin", std::ios::binary);
+  std::vector<float> p(9);
+  bin.seekg(bytes_view.value("byteOffset", 0));
+  bin.read(reinterpret_cast<char*>(p.data()), 9 * sizeof(float));
+  const Eigen::Vector3f a(p[0], p[1], p[2]), b(p[3], p[4], p[5]), c(p[6], p[7], p[8]);
+  EXPECT_LT((b - a).cross(c - a).x(), 0) << a.transpose() << " / " << b.transpose() << " / " << c.transpose();
+  fs::remove_all(dir);
+}
+
 TEST(Export, TheRefinedAlbedoMeshReplacesTheBundles) {
   // ESTIMATE_DIR/albedo_mesh.ply (the de-lit mesh) when the estimate wrote one, else the bundle's.
   const fs::path dir = Scratch("refined");

@@ -166,6 +166,61 @@ TEST(EmitterLight, LightsJsonAndEmittersPlyGiveItBack) {
   std::filesystem::remove_all(dir);
 }
 
+// A pane over a hole in the mesh (EmitterLight::in_a_hole: a window whose glass returned no
+// depth): the floor under it lit as by any emitter (the closed form), but a surface point in
+// its plane (a wall's rim inside its rectangle) does not glow with it, to the camera or in
+// its column; lights.json keeps what it is, and refuses a flag that is not one.
+TEST(EmitterLight, APaneOverAHoleLightsTheRoomButNoSurfaceGlowsWithIt) {
+  FloorAndPanel s;
+  const RayTracer floor(test::Plane(4, 0.5));  // (the panel's triangles not in the scene: a hole)
+  EmitterLight pane = s.light;
+  pane.in_a_hole = true;
+  // The camera sees a point in the pane's plane (a rim of wall) and the floor under it.
+  const Eigen::Vector3f rim(0.1f, 0.1f, 0.8f);
+  for (const EmitterLight& l : {s.light, pane}) {
+    ShadingVertices v;
+    AddRow(&v, rim, {0, 0, -1}, 1, 0.5f, 0.0f);
+    AddRow(&v, {0, 0, 0}, {0, 0, 1}, 256);
+    std::vector<float> column;
+    UnitColumn(floor, v, l, &column);
+    EXPECT_NEAR(column[0], l.in_a_hole ? 0.0 : 0.5, 1e-6) << "the rim, seen";
+    const double e = 4 * kPi * CornerFormFactor(0.3 / 0.8, 0.3 / 0.8);
+    EXPECT_NEAR(column[3], e, 0.05 * e) << "the floor under it";
+    EXPECT_EQ(Emission(l, rim.cast<double>(), {0, 0, -1}).isZero(), l.in_a_hole);
+  }
+  // A render sees it through the hole (looking up at it from the floor, nothing between),
+  // not beyond the scene's first hit (looking at it from above, through the floor), nor from
+  // its back.
+  const EnvMap env(5, Eigen::Vector3d::UnitZ());
+  const std::vector<View> views{test::BlankView(test::LookAt({0, -0.05, 0.2}, {0, 0, 0.8}, 8, 8, 20)),
+                                test::BlankView(test::LookAt({0, -0.05, -0.5}, {0, 0, 0.8}, 8, 8, 20)),
+                                test::BlankView(test::LookAt({0, -0.05, 1.5}, {0, 0, 0.8}, 8, 8, 20))};
+  TracerOptions o;
+  o.spp = 4;
+  const Lighting lit{std::vector<double>(3 * env.size(), 0.0), {pane}};
+  const std::vector<ImageRGB> im = RenderLighting(floor, env, lit, CellSampler(env, lit.map, {}, 0.2), views, o, true);
+  for (int c = 0; c < 3; ++c) EXPECT_NEAR(im[0].at(4, 4)[c], pane.radiance[c], 1e-6);
+  // (what they see instead: the floor, lit by the pane at most a tenth as bright)
+  EXPECT_LT(im[1].at(4, 4)[0], 0.2 * pane.radiance[0]) << "behind the floor";
+  EXPECT_LT(im[2].at(4, 4)[0], 0.2 * pane.radiance[0]) << "its back";
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "lp_pane_in_a_hole_test";
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  std::vector<Light> numbered{pane, s.light};
+  std::get<EmitterLight>(numbered[1]).id = 1;
+  WriteEmittersPly(dir / "emitters.ply", numbered);
+  WriteTextAtomically(dir / "lights.json", LightsJson({"", numbered, {}, {}}));
+  const LightsFile back = ReadLightsFile(dir / "lights.json");
+  ASSERT_EQ(back.lights.size(), 2u);
+  EXPECT_TRUE(std::get<EmitterLight>(back.lights[0]).in_a_hole);
+  EXPECT_FALSE(std::get<EmitterLight>(back.lights[1]).in_a_hole);
+  EXPECT_NE(test::ErrorOf([&] {
+              ParseLightsJson(R"({"emitters": [{"id": 0, "radiance": [1, 1, 1], "in_a_hole": 1}]})", "x");
+            }).find("in_a_hole"),
+            std::string::npos);
+  std::filesystem::remove_all(dir);
+}
+
 // A window's opening (EstimateResult::openings): lights.json's "openings" and openings.ply
 // give its shape back, and a tracer of the mesh with the triangles on it left out (as
 // `render --lights` builds it) lets a ray from the floor through the panel; bad files refused.
