@@ -210,7 +210,8 @@ struct EstimateResult {
   /// "Windows: a pane or an opening"), on the bundle's mesh; lights.json's "openings".
   std::vector<std::shared_ptr<const EmitterShape>> openings;
   /// The windows the cameras saw as holes (seen_windows.h): the map lights the room through
-  /// them; lights.json's "windows".
+  /// them (and a glowing pane over one, where the data chose it: an emitter in_a_hole);
+  /// report.json's choices say the light through each.
   std::vector<SeenWindow> windows;
   double albedo_seconds = 0;  ///< de-lighting and segmenting (the extra rounds are in `rounds`)
   /// How far the last albedo pass moved the lights (EstimateOptions::albedo_settle's

@@ -207,14 +207,17 @@ std::vector<EmitterLight> Estimator::PanesOverHoles() {
     e.in_a_hole = true;
     if (!(e.Area() > 0)) continue;
     // What its clipped pixels show, at least (the pixels of the view that saw it whose rays
-    // cross its rectangle).
+    // cross its rectangle before they meet anything: not a lamp seen against it).
     const View& v = bundle_.views[w.view];
     const Camera& cam = v.camera;
     Eigen::Vector3d floor = Eigen::Vector3d::Zero();
     for (std::size_t i = 0; i < v.clipped_off.size(); ++i) {
       double cos = 0;
       const int x = static_cast<int>(i % cam.width), y = static_cast<int>(i / cam.width);
-      if (!v.clipped_off[i] || !(p.Crossing(cam.center(), cam.RayDirection(x, y), &cos) > 0)) continue;
+      const Eigen::Vector3d dir = cam.RayDirection(x, y);
+      const double at = v.clipped_off[i] ? p.Crossing(cam.center(), dir, &cos) : 0.0;
+      SurfacePoint hit;
+      if (!(at > 0) || (scene_->Intersect(cam.center(), dir, &hit) && hit.distance < at - 0.05)) continue;
       const float* c = v.image.at(x, y);
       floor = floor.cwiseMax(Eigen::Vector3d(c[0], c[1], c[2]) / res_.image_mean);
     }
@@ -271,7 +274,7 @@ Eigen::Vector3d Inside(const EmitterLight& e) {
 
 const EmitterLight* Estimator::ShadeOf(const PointLight& lamp) const {
   for (const EmitterLight& e : emitters_)
-    if (e.shape && (lamp.position - Inside(e)).norm() <= 0.5 * std::sqrt(e.Area())) return &e;
+    if (e.shape && !e.in_a_hole && (lamp.position - Inside(e)).norm() <= 0.5 * std::sqrt(e.Area())) return &e;
   return nullptr;
 }
 

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "common/error.h"
+#include "common/parallel.h"
 #include "common/timer.h"
 #include "estimation/lights/light.h"
 #include "estimation/pixel_loop.h"
@@ -42,17 +43,25 @@ void AddPanesInHoles(const RayTracer& scene, const std::vector<Light>& lights, c
   for (const EmitterLight& e : OfKind<EmitterLight>(lights))
     if (e.in_a_hole) panes.push_back(e);
   if (panes.empty()) return;
-  for (const detail::PixelRef& px : PixelsToTrace(views, all_pixels)) {
-    const Camera& cam = views[px.view].camera;
-    const int x = px.pixel % cam.width, y = px.pixel / cam.width;
-    const Eigen::Vector3d dir = cam.RayDirection(x, y);
-    SurfacePoint hit;
-    const double before = scene.Intersect(cam.center(), dir, &hit) ? hit.distance : std::numeric_limits<double>::infinity();
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    for (const EmitterLight& e : panes) sum += SeenInAHole(e, cam.center(), dir, before);
-    float* p = (*images)[px.view].at(x, y);
-    for (int c = 0; c < 3; ++c) p[c] += static_cast<float>(sum[c]);
-  }
+  const std::vector<detail::PixelRef> pixels = PixelsToTrace(views, all_pixels);
+  ParallelForChunks(0, pixels.size(), 1024, [&](std::size_t b, std::size_t e) {
+    for (std::size_t i = b; i < e; ++i) {
+      const Camera& cam = views[pixels[i].view].camera;
+      const int x = pixels[i].pixel % cam.width, y = pixels[i].pixel / cam.width;
+      const Eigen::Vector3d dir = cam.RayDirection(x, y);
+      const auto seen = [&](double before) {
+        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+        for (const EmitterLight& pane : panes) sum += SeenInAHole(pane, cam.center(), dir, before);
+        return sum;
+      };
+      if (seen(std::numeric_limits<double>::infinity()).isZero()) continue;  // (crosses none: no scene ray)
+      SurfacePoint hit;
+      const Eigen::Vector3d sum =
+          seen(scene.Intersect(cam.center(), dir, &hit) ? hit.distance : std::numeric_limits<double>::infinity());
+      float* p = (*images)[pixels[i].view].at(x, y);
+      for (int c = 0; c < 3; ++c) p[c] += static_cast<float>(sum[c]);
+    }
+  });
 }
 
 namespace {

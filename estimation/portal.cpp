@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "common/error.h"
 #include "estimation/envmap.h"
 #include "estimation/lights/emitter_light.h"
 #include "estimation/seen_windows.h"
@@ -58,6 +59,7 @@ bool PortalOf(const SeenWindow& w, const Eigen::Vector3d& up, Portal* out) {
 
 Eigen::Vector3d PowerThrough(const Portal& window, const Eigen::Vector3d& inward, const EnvMap& env,
                              const std::vector<double>& rgb) {
+  LP_CHECK(rgb.size() == 3 * static_cast<std::size_t>(env.size()), "PowerThrough: the map's size");
   constexpr int kSide = 8;
   const Eigen::Vector3d n = inward.normalized();
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();

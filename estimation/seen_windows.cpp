@@ -96,8 +96,8 @@ Eigen::Vector3d ToTheHolesEdge(const RayTracer& scene, Eigen::Vector3d q, const 
   return q;
 }
 
-/// Where the rays through the outer corners of the blob's border pixels (a member with a
-/// neighbour that is not) cross the wall's plane, each moved to the hole's edge in the mesh
+/// Where the rays through the pixel corners on the blob's outer boundary cross the wall's
+/// plane, each moved to the hole's edge in the mesh
 /// (ToTheHolesEdge); none where one meets it within 6 degrees of edge on (it would stretch
 /// the window far).
 std::vector<Eigen::Vector3d> OutlineOnWall(const Camera& c, const ClippedBlob& b, const Eigen::Vector3d& normal,
@@ -107,17 +107,17 @@ std::vector<Eigen::Vector3d> OutlineOnWall(const Camera& c, const ClippedBlob& b
   std::vector<std::uint8_t> in(static_cast<std::size_t>(w) * h, 0);
   for (const int p : b.members) in[(p / c.width - b.min_y) * w + (p % c.width - b.min_x)] = 1;
   const auto member = [&](int x, int y) { return x >= 0 && y >= 0 && x < w && y < h && in[y * w + x]; };
+  // The pixel corners on the blob's outer boundary (each once): of the four pixels around
+  // corner (x, y), at its top left, some in the blob and some not.
   std::vector<Eigen::Vector3d> out;
-  for (int y = 0; y < h; ++y)
-    for (int x = 0; x < w; ++x) {
-      if (!member(x, y) || (member(x - 1, y) && member(x + 1, y) && member(x, y - 1) && member(x, y + 1))) continue;
-      for (const double dx : {-0.5, 0.5})
-        for (const double dy : {-0.5, 0.5}) {
-          const Eigen::Vector3d d = c.RayDirection(b.min_x + x + dx, b.min_y + y + dy);
-          if (normal.dot(d) > -0.1) return {};
-          out.push_back(ToTheHolesEdge(scene, c.center() + (point - c.center()).dot(normal) / normal.dot(d) * d, centre,
-                                       normal, o.plane_distance));
-        }
+  for (int y = 0; y <= h; ++y)
+    for (int x = 0; x <= w; ++x) {
+      const int around = member(x - 1, y - 1) + member(x, y - 1) + member(x - 1, y) + member(x, y);
+      if (around == 0 || around == 4) continue;
+      const Eigen::Vector3d d = c.RayDirection(b.min_x + x - 0.5, b.min_y + y - 0.5);
+      if (normal.dot(d) > -0.1) return {};
+      out.push_back(ToTheHolesEdge(scene, c.center() + (point - c.center()).dot(normal) / normal.dot(d) * d, centre,
+                                   normal, o.plane_distance));
     }
   return out;
 }

@@ -17,7 +17,7 @@ struct SeenWindow {
   int pixels = 0;            ///< that blob's pixels
   Eigen::Vector3d centre;    ///< where the blob's mean ray crosses the wall's plane
   Eigen::Vector3d normal;    ///< the wall's unit normal, into the room (towards the camera)
-  /// Where the rays through the outer corners of the blob's border pixels cross the wall's
+  /// Where the rays through the pixel corners on the blob's outer boundary cross the wall's
   /// plane, each moved to the hole's edge in the mesh along the line from its centre (by up
   /// to 10 cm): the hole's outline (none where the wall is seen within 6 degrees of edge on).
   /// A window's rectangle in its wall: PortalOf.

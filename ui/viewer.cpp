@@ -703,8 +703,9 @@ void Viewer::LightsList() {
     if (k == 0) ImGui::Text("glowing surfaces (outlined), centre, area, radiance:");
     Swatch("##emitter" + std::to_string(k), e.radiance);
     const Eigen::Vector3d c = Centroid(*e.shape);
-    ImGui::Text("(%.2f, %.2f, %.2f) m  %.3g m^2  L %.3g %.3g %.3g%s", c.x(), c.y(), c.z(), e.Area(), e.radiance.x(),
-                e.radiance.y(), e.radiance.z(), e.in_a_hole ? "  (a pane over a hole)" : "");
+    ImGui::Text("(%.2f, %.2f, %.2f) m  %.3g m^2  L %.3g %.3g %.3g", c.x(), c.y(), c.z(), e.Area(), e.radiance.x(),
+                e.radiance.y(), e.radiance.z());
+    if (e.in_a_hole) ImGui::Text("  a window's pane over a hole in the mesh");
   }
   const std::size_t openings = est_.result ? est_.result->openings.size() : 0;
   for (std::size_t k = 0; k < openings; ++k) {
@@ -1078,7 +1079,7 @@ void Viewer::SurfacesState(nlohmann::json* estimate) const {
     if (e.shape)
       (*estimate)["emitters"].push_back({{"id", e.id}, {"radiance", vec(e.radiance)}, {"area", e.Area()},
                                          {"centroid", vec(Centroid(*e.shape))},
-                                         {"outline_edges", OutlineOf(e.shape).size()}});
+                                         {"outline_edges", OutlineOf(e.shape).size()}, {"in_a_hole", e.in_a_hole}});
   (*estimate)["openings"] = json::array();
   if (est_.result)
     for (const auto& shape : est_.result->openings)

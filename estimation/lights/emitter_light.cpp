@@ -265,7 +265,7 @@ Eigen::Vector3d SeenInAHole(const EmitterLight& light, const Eigen::Vector3d& or
     if (u < 0 || u > 1) continue;
     const Eigen::Vector3d q = to.cross(e1);
     const double v = dir.dot(q) / det, d = e2.dot(q) / det;
-    if (v < 0 || u + v > 1 || !(d > 0) || !(d < before)) continue;
+    if (v < 0 || u + v > 1 || !(d > 0) || !(d < before - s.cell)) continue;
     return light.radiance;
   }
   return Eigen::Vector3d::Zero();

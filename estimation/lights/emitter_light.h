@@ -126,8 +126,9 @@ inline Eigen::Vector3d Emission(const EmitterLight& light, const Eigen::Vector3d
 
 /// What a camera ray sees of a pane over a hole (EmitterLight::in_a_hole; 0 for any other
 /// emitter, which Emission gives on its surface): its radiance where the ray from `origin`
-/// along unit `dir` crosses one of its triangles nearer than `before` (where the ray first
-/// meets the scene; infinity when it leaves it), from the side that emits.
+/// along unit `dir` crosses one of its triangles, from the side that emits, nearer than
+/// `before` (where the ray first meets the scene; infinity when it leaves it) by more than
+/// its cell (a wall's rim a little behind the pane's plane is wall, as Emission says).
 Eigen::Vector3d SeenInAHole(const EmitterLight& light, const Eigen::Vector3d& origin, const Eigen::Vector3d& dir,
                             double before);
 

@@ -532,7 +532,7 @@ TEST(Cycles, AClearWindowSeenAsAHoleLetsTheMapLightTheRoom) {
   const double relit = RelitError(held, r.env, r.lighting, true, hole), floor = RelitError(held, fine, {world, {}}, true, hole);
   const Eigen::Vector3d power = LightThroughTheWindow(r), true_power = PowerThrough(PortalOf(*hole[0], bundle.up),
                                                                                     Eigen::Vector3d::UnitX(), fine, world);
-  // Measured: no lamp, no emitter (the pane over the hole left out), 0.91x; at 73bf88c (the
+  // Measured: no lamp, no emitter (the pane over the hole left out), 0.91-0.98x; at 73bf88c (the
   // hole's extent its blob's pixel bounds, no pane tried) 0.98x (0.92-1.01x over the
   // tracer's seeds 2-5); at 0149ae9 (the hole seen after round 1, no portals) two lamps,
   // 0.98x. The light through the hole (printed) is 0.6x the true world's: the cells whose
