@@ -387,13 +387,21 @@ void Viewer::AddLampMarkers(float size) {
 }
 
 /// Each glowing surface's outline, in its colour (brightest channel at full scale), a
-/// centimetre off the surface on the side that glows.
+/// centimetre off the surface on the side that glows; a pane over a hole (on no surface the
+/// lit shading could show glowing) hatched too, seven lines across each triangle.
 void Viewer::AddEmitterOutlines() {
   for (const EmitterLight& e : est_.lighting.Of<EmitterLight>()) {
     if (!e.shape) continue;
     const Eigen::Vector3f color = MarkerColour(e.radiance);
     for (const OutlineEdge& edge : OutlineOf(e.shape))
       lines_.Add(edge.from + 0.01f * edge.normal, edge.to + 0.01f * edge.normal, color);
+    if (!e.in_a_hole) continue;
+    const EmitterShape& s = *e.shape;
+    for (std::size_t t = 0; t < s.a.size(); ++t)
+      for (int k = 1; k < 8; ++k) {
+        const Eigen::Vector3f lift = 0.01f * s.normal[t];
+        lines_.Add(s.a[t] + (s.b[t] - s.a[t]) * (k / 8.f) + lift, s.a[t] + (s.c[t] - s.a[t]) * (k / 8.f) + lift, color);
+      }
   }
 }
 
