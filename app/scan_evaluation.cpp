@@ -270,6 +270,18 @@ double ScaleAndError(const std::vector<Eigen::Vector3f>& hits, const HeldOutView
   return scale;
 }
 
+}  // namespace
+
+ImageRGB UpToTheClip(ImageRGB render, const View& held) {
+  if (!std::isfinite(held.saturation)) return render;
+  const float level = static_cast<float>(held.saturation);
+  for (std::size_t i = 0; i < render.data.size(); ++i)
+    if (held.image.data[i] >= level) render.data[i] = std::min(render.data[i], held.image.data[i]);
+  return render;
+}
+
+namespace {
+
 /// The held-out view relit under the run's estimate (`file`: its map, every light) on
 /// `tracer`'s mesh, whose albedo each pixel hits is `hits`: its error over the view's
 /// pixels, and over those the mesh covers (`covered`: their share).
@@ -282,15 +294,16 @@ void RelitError(const HeldOutView& held, const RayTracer& tracer, const std::vec
   TracerOptions t;
   t.spp = spp, t.seed = 1, t.bounces = kRenderBounces;
   const CellSampler sampler(env, lighting.map, {}, 0.2);
-  const ImageRGB image = RenderLighting(tracer, env, lighting, sampler, {held.view}, t, false)[0];
-  WritePngSrgb(estimate_dir.parent_path() / "held_out_relit.png", image);
+  const ImageRGB rendered = RenderLighting(tracer, env, lighting, sampler, {held.view}, t, false)[0];
+  WritePngSrgb(estimate_dir.parent_path() / "held_out_relit.png", rendered);
+  const ImageRGB image = UpToTheClip(rendered, held.view);
   s->held_out_relit = RelativeImageRmse(image, held.view.image, held.view.valid);
   const Camera& c = held.view.camera;
   std::vector<std::uint8_t> covered = held.view.valid;
   // The light's part: each covered pixel's shading (the render over the albedo it hit)
   // times the true albedo there, so the colour map's own errors drop out.
   const bool true_albedo = held.true_albedo.width == c.width && held.true_albedo.height == c.height;
-  ImageRGB shaded_true = image;
+  ImageRGB shaded_true = rendered;
   long in_view = 0, hit = 0;
   for (std::size_t p = 0; p < covered.size(); ++p) {
     if (!covered[p]) continue;
@@ -319,6 +332,7 @@ void RelitError(const HeldOutView& held, const RayTracer& tracer, const std::vec
       }
   s->held_out_true_albedo_scale = den > 0 ? num / den : NAN;
   for (float& v : shaded_true.data) v = static_cast<float>(v * s->held_out_true_albedo_scale);
+  shaded_true = UpToTheClip(std::move(shaded_true), held.view);
   s->held_out_relit_true_albedo = RelativeImageRmse(shaded_true, held.view.image, covered);
 }
 
@@ -338,7 +352,10 @@ HeldOutView ReadHeldOutView(const fs::path& holdout_json) {
   for (int r = 0; r < 4; ++r)
     for (int k = 0; k < 4; ++k) c.world_from_camera(r, k) = T[r][k].get<double>();
   if (!j.contains("image") || !j["image"].is_string()) throw InputError(holdout_json.string(), "no \"image\"");
-  h.view.image = ReadImageLinear(dir / j["image"].get<std::string>());
+  ImageEncoding encoding = ImageEncoding::kLinearFloat;
+  h.view.image = ReadImageLinear(dir / j["image"].get<std::string>(), &encoding);
+  // An integer image is clipped at its top code (as a bundle's view; scene_bundle.cpp).
+  if (encoding != ImageEncoding::kLinearFloat) h.view.saturation = 1.0;
   if (h.view.image.width != c.width || h.view.image.height != c.height)
     throw InputError(holdout_json.string(), "the image's size is not the camera's");
   h.view.valid.assign(static_cast<std::size_t>(c.width) * c.height, 1);

@@ -22,8 +22,16 @@ struct HeldOutView {
   View view;             ///< image, camera, valid = the mask
   ImageRGB true_albedo;  ///< empty when holdout.json names none
 };
-/// Reads holdout.json and the files it names. Throws InputError naming the file.
+/// Reads holdout.json and the files it names. Throws InputError naming the file. An
+/// integer image (PNG, JPEG) is clipped at its top code (`view.saturation` 1); a linear
+/// EXR is not.
 HeldOutView ReadHeldOutView(const std::filesystem::path& holdout_json);
+
+/// `render` as the held-out view's camera would have recorded it: where the view clipped a
+/// channel (at or above its saturation) the truth is "at least this bright", so a render
+/// above it is no error there (it is cut to the recorded value; one below it is an error as
+/// anywhere else). Every held-out error is measured on this.
+ImageRGB UpToTheClip(ImageRGB render, const View& held);
 
 /// Distances (metres) from the reconstructed surface to the true one (its vertices to
 /// points sampled on `truth`'s triangles every ~5 mm: upper bounds, ~1.9 mm for a vertex

@@ -126,5 +126,36 @@ TEST(ScanEvaluation, AHeldOutFileWithAWrongSizeIsAClearError) {
   fs::remove_all(dir);
 }
 
+TEST(ScanEvaluation, AClippedHeldOutPixelIsOnlyALowerBound) {
+  const fs::path dir = fs::temp_directory_path() / ("lp_scan_clip_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  ImageRGB held(2, 1);
+  held.data = {1.f, 0.5f, 0.25f, 0.5f, 0.5f, 0.5f};  // the first pixel's red at the top code
+  WritePngSrgb(dir / "held.png", held);
+  WriteExr(dir / "held.exr", held);
+  const auto json = [](const char* image) {
+    return std::string(R"({"image": ")") + image +
+           R"(", "width": 2, "height": 1, "fx": 10, "fy": 10, "cx": 1, "cy": 0.5,
+               "world_from_camera": [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]})";
+  };
+  WriteTextAtomically(dir / "holdout.json", json("held.png"));
+  const HeldOutView png = app::ReadHeldOutView(dir / "holdout.json");
+  EXPECT_EQ(png.view.saturation, 1.0);
+  ImageRGB render(2, 1);
+  render.data = {3.f, 0.7f, 0.25f, 3.f, 0.5f, 0.5f};
+  const ImageRGB cut = app::UpToTheClip(render, png.view);
+  EXPECT_FLOAT_EQ(cut.data[0], 1.f) << "above the clip: no error";
+  EXPECT_FLOAT_EQ(cut.data[1], 0.7f) << "the pixel's unclipped channels are measured";
+  EXPECT_FLOAT_EQ(cut.data[3], 3.f) << "an unclipped pixel is measured";
+  render.data[0] = 0.4f;
+  EXPECT_FLOAT_EQ(app::UpToTheClip(render, png.view).data[0], 0.4f) << "below the clip: an error";
+  WriteTextAtomically(dir / "holdout.json", json("held.exr"));
+  const HeldOutView exr = app::ReadHeldOutView(dir / "holdout.json");
+  EXPECT_FALSE(std::isfinite(exr.view.saturation)) << "a linear image clips nothing";
+  render.data[0] = 3.f;
+  EXPECT_FLOAT_EQ(app::UpToTheClip(render, exr.view).data[0], 3.f);
+  fs::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace lp
