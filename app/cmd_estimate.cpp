@@ -392,7 +392,7 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
                             {"grid_m", r.trace_cell_m},
                             {"cluster_seconds", r.cluster_seconds}}}};
   rep["rounds"] = RoundsJson(r);
-  rep["clipped"] = {{"rows", r.clipped_rows}, {"bloom_left_out", r.bloom_left_out}};
+  rep["clipped"] = {{"rows", r.clipped_rows}, {"bloom_upper_bounds", r.bloom_rows}};
   rep["views"] = views;
   rep["image_mean"] = r.image_mean;
   rep["final"] = FinalJson(r);

@@ -228,8 +228,9 @@ struct EstimateOptions {
   bool combine_rounds = true;
   /// The pixels the camera clipped on the mesh (View::clipped) are rows whose value is a
   /// lower bound (one-sided residuals: the render must reach it), and the pixels within
-  /// kBloomMargin of any clipped pixel are left out (bloom; the default); false: clipped
-  /// pixels dropped, a glowing surface's radiance bounded below by them instead
+  /// kBloomMargin of any clipped pixel are upper bounds (bloom brightens them: the render
+  /// must not pass them; the default); false: clipped pixels dropped (those beside them
+  /// fitted as any other), a glowing surface's radiance bounded below by them instead
   /// (docs/method.md, "Clipped pixels as lower bounds").
   bool clipped_rows = true;
   /// The final relit render of the fitted views (EstimateResult::renders): N > 0 traces every

@@ -44,37 +44,47 @@ bool Beside(int x, int y, int w, int h, const Flag& flagged) {
   return false;
 }
 
+/// Whether pixel p of view v is beside (kBloomMargin) a pixel clipped on or off the mesh.
+bool BesideAClippedPixel(const View& v, std::size_t p) {
+  const int w = v.camera.width, h = v.camera.height;
+  const auto any = [&](std::size_t q) { return Flagged(v.clipped, q) || Flagged(v.clipped_off, q); };
+  return Beside(static_cast<int>(p % w), static_cast<int>(p / w), w, h, any);
+}
+
 /// The pixels clipped on the mesh (on the grid of `stride`) become rows, except beside a
-/// pixel clipped off it (a bulb's partly covered pixels on the wall behind it); the valid
-/// pixels beside any clipped pixel are left out (bloom). Returns {clipped rows, left out}.
+/// pixel clipped off it (a bulb's partly covered pixels on the wall behind it). The valid
+/// pixels beside any clipped pixel stay rows, as upper bounds (ClippedEntries: bloom only
+/// brightens). Returns {clipped rows, rows beside them}.
 std::pair<int, int> ClippedAsRows(View* v, int stride) {
   const int w = v->camera.width, h = v->camera.height;
   if (v->clipped.empty() && v->clipped_off.empty()) return {0, 0};
   const auto off = [&](std::size_t q) { return Flagged(v->clipped_off, q); };
-  const auto any = [&](std::size_t q) { return Flagged(v->clipped, q) || Flagged(v->clipped_off, q); };
   std::vector<std::uint8_t> valid = v->valid;
-  int rows = 0, left = 0;
+  int rows = 0, beside = 0;
   for (std::size_t p = 0; p < valid.size(); ++p) {
     const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
     if (Flagged(v->clipped, p)) {
       valid[p] = OnGrid(p, w, stride) && !Flagged(v->clipped_off, p) && !Beside(x, y, w, h, off);
       rows += valid[p];
-    } else if (valid[p] && Beside(x, y, w, h, any)) {
-      valid[p] = 0;
-      ++left;
+    } else if (valid[p] && BesideAClippedPixel(*v, p)) {
+      ++beside;
     }
   }
   v->valid = std::move(valid);
-  return {rows, left};
+  return {rows, beside};
 }
 
-/// Per entry of the observations of `views` (CollectObservations' order): 1 where its pixel
-/// is clipped (its value a lower bound).
+/// Per entry of the observations of `views` (CollectObservations' order), how it bounds the
+/// render (Bound): a clipped pixel's value is a lower bound; a pixel beside one an upper
+/// bound (the bloom and flare of the light beside it may have brightened it; they never
+/// darken); any other is exact.
 std::vector<std::uint8_t> ClippedEntries(const std::vector<View>& views) {
   std::vector<std::uint8_t> out;
   for (const View& v : views)
     for (std::size_t p = 0; p < v.valid.size(); ++p)
-      if (v.valid[p]) out.insert(out.end(), 3, Flagged(v.clipped, p) ? 1 : 0);
+      if (v.valid[p])
+        out.insert(out.end(), 3,
+                   Flagged(v.clipped, p) ? kAtLeast : BesideAClippedPixel(v, p) ? kAtMost : kExact);
   return out;
 }
 
@@ -209,19 +219,19 @@ void Estimator::UseViews(int stride) {
     for (View& v : views_)
       for (std::size_t p = 0; p < v.valid.size(); ++p)
         if (!OnGrid(p, v.camera.width, stride)) v.valid[p] = 0;
-  res_.clipped_rows = res_.bloom_left_out = 0;
+  res_.clipped_rows = res_.bloom_rows = 0;
   if (opt_.clipped_rows)
     for (View& v : views_) {
       const auto [rows, left] = ClippedAsRows(&v, stride);
       res_.clipped_rows += rows;
-      res_.bloom_left_out += left;
+      res_.bloom_rows += left;
     }
-  if (res_.clipped_rows + res_.bloom_left_out > 0)
-    Progress(Fmt("%d pixels clipped on the mesh fitted as lower bounds; %d beside clipped pixels left out (bloom)",
-                 res_.clipped_rows, res_.bloom_left_out));
+  if (res_.clipped_rows + res_.bloom_rows > 0)
+    Progress(Fmt("%d pixels clipped on the mesh fitted as lower bounds; %d beside clipped pixels as upper bounds (bloom)",
+                 res_.clipped_rows, res_.bloom_rows));
   y_ = CollectObservations(views_);
   for (double& v : y_) v /= res_.image_mean;
-  one_sided_ = res_.clipped_rows > 0 ? ClippedEntries(views_) : std::vector<std::uint8_t>();
+  one_sided_ = res_.clipped_rows + res_.bloom_rows > 0 ? ClippedEntries(views_) : std::vector<std::uint8_t>();
   // alpha is given per 19,200 observed pixels (one 160x120 view): the data term grows with
   // the number of observations, and so must the penalty, or the balance between them
   // (how many cells light the scene) would change with resolution and view count.
@@ -319,7 +329,7 @@ std::vector<double> Estimator::Residuals(const std::vector<double>& y, const std
   for (std::size_t row = 0; row < one_sided_.size() / 3 && i < r.size(); ++row) {
     if (keep && !(*keep)[row]) continue;
     for (int c = 0; c < 3; ++c, ++i)
-      if (one_sided_[3 * row + c] && r[i] < 0) r[i] = 0;
+      r[i] = BoundedResidual(one_sided_[3 * row + c], r[i]);
   }
   return r;
 }

@@ -179,8 +179,9 @@ struct EstimateResult {
   double trace_cell_m = 0, cluster_seconds = 0;
   int observations = 0;   ///< valid pixels over all views
   /// The rounds' last rows: the pixels clipped on the mesh fitted as lower bounds, and the
-  /// valid pixels left out beside a clipped one (bloom; EstimateOptions::clipped_rows).
-  int clipped_rows = 0, bloom_left_out = 0;
+  /// valid pixels beside a clipped one fitted as upper bounds (bloom;
+  /// EstimateOptions::clipped_rows).
+  int clipped_rows = 0, bloom_rows = 0;
   double final_rmse = 0, final_relative_rmse = 0;
   double final_angular_error_deg = std::nan("");
   double kkt_violation = 0;

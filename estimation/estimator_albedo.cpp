@@ -93,7 +93,7 @@ bool Estimator::RefineAlbedo(int pass) {
       // cell's boundary, and a vertex there can sit behind its neighbours' triangles).
       std::unique_ptr<RayTracer> full;
       if (!cluster_.empty()) full = std::make_unique<RayTracer>(mesh_, TrianglesOnShapes(mesh_, res_.openings));
-      VertexRadiance radiance(full ? *full : *scene_, env_, {lambda_, Joined(suns_, points_)}, opt_.tracer.bounces,
+      VertexRadiance radiance(full ? *full : *scene_, env_, {lambda_, Lights()}, opt_.tracer.bounces,
                               opt_.tracer.seed * 7919 + pass);
       if (!portals_.empty()) radiance.SetPortals(portals_, kPortalShare);
       for (int done = 0; done < paths; done += 2) {  // Cancel is polled between steps

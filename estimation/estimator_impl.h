@@ -57,7 +57,7 @@ inline bool OnGrid(std::size_t p, int width, int stride) {
 }
 
 /// Pixels within this many (Chebyshev distance, at the bundle's resolution) of a clipped
-/// pixel are left out of the fit (EstimateOptions::clipped_rows): a lamp's bloom and the
+/// pixel are upper bounds in the fit (EstimateOptions::clipped_rows): a lamp's bloom and the
 /// lens's flare brighten them, and a bulb's partly covered pixels clip on the wall behind it.
 constexpr int kBloomMargin = 1;
 

@@ -371,7 +371,7 @@ double RefitScale(const LightFitProblem& p, const SplitColumn& column, const Spl
     for (std::size_t i = 0; i < col.size(); ++i) {
       const double left = (*p.y)[i] - m[i] * rest[i], mc = m[i] * col[i];
       const double r = left - scale[i % 3] * mc, w = p.loss.Weight(r);
-      if (r < 0 && p.OneSided(i)) continue;  // (a bound it passes)
+      if (p.Passes(i, r)) continue;  // (a bound it passes)
       num[i % 3] += w * mc * left;
       den[i % 3] += w * mc * mc;
       if (debiased) {

@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 
 #include "estimation/lights/light.h"
+#include "estimation/objective.h"
 #include "estimation/robust_loss.h"
 #include "estimation/shading_vertices.h"
 #include "scene/ray_tracer.h"
@@ -44,13 +45,15 @@ struct LightFitProblem {
   /// Per row: the segment of the surface it sees (0 ..), or -1 (its albedo held); null: every
   /// albedo held.
   const std::vector<int>* segment = nullptr;
-  /// Per entry of y: 1 where it is a lower bound (LinearProblem::one_sided); null: none.
+  /// Per entry of y: how it bounds the model (LinearProblem::one_sided's Bound); null: every
+  /// one exact.
   const std::vector<std::uint8_t>* one_sided = nullptr;
-  bool OneSided(std::size_t i) const { return one_sided && (*one_sided)[i]; }
-  /// y - model with a lower bound's excess over it counted as 0.
+  /// Whether the residual r of entry i passes its bound on its free side (it then counts 0).
+  bool Passes(std::size_t i, double r) const { return one_sided && r != 0 && BoundedResidual((*one_sided)[i], r) == 0; }
+  /// y - model with what passes a bound counted as 0.
   double RowResidual(std::size_t i, double model) const {
     const double r = (*y)[i] - model;
-    return r < 0 && OneSided(i) ? 0.0 : r;
+    return one_sided ? BoundedResidual((*one_sided)[i], r) : r;
   }
   bool debiased = false;
   /// E at these lights; `sse`, when given, receives the sum of squared residuals.

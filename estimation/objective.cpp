@@ -322,10 +322,10 @@ double Objective::DataPass(const std::vector<double>& lambda, std::vector<double
         a2 += p_.val[k][2] * l[2];
       }
       double r0 = p_.y[3 * r] - a0, r1 = p_.y[3 * r + 1] - a1, r2 = p_.y[3 * r + 2] - a2;
-      if (!p_.one_sided.empty() && p_.one_sided[3 * r]) {  // a lower bound: above it costs nothing
-        r0 = std::max(r0, 0.0);
-        r1 = std::max(r1, 0.0);
-        r2 = std::max(r2, 0.0);
+      if (!p_.one_sided.empty()) {  // a bound: past it on its free side costs nothing
+        r0 = BoundedResidual(p_.one_sided[3 * r], r0);
+        r1 = BoundedResidual(p_.one_sided[3 * r + 1], r1);
+        r2 = BoundedResidual(p_.one_sided[3 * r + 2], r2);
       }
       if (residual) {
         (*residual)[3 * r] = r0;

@@ -42,6 +42,19 @@ struct NormalMatrices {
 };
 
 /// A with the unreachable columns removed, in row (CSR) and column (CSC) form,
+/// How an observation bounds the model (LinearProblem::one_sided's values).
+enum Bound : std::uint8_t {
+  kExact = 0,    ///< a measurement: the residual counts both ways
+  kAtLeast = 1,  ///< a lower bound (a clipped pixel): the model above it costs nothing
+  kAtMost = 2,   ///< an upper bound (a pixel beside a clipped one, brightened by bloom)
+};
+
+/// The residual r = y - model as a bound `b` counts it: 0 where the model passes the bound
+/// on its free side (above a lower bound, below an upper one).
+inline double BoundedResidual(std::uint8_t b, double r) {
+  return b == kAtLeast ? (r > 0 ? r : 0.0) : b == kAtMost ? (r < 0 ? r : 0.0) : r;
+}
+
 /// plus the observations. Unknowns are lambda[3*j + c] for compact cell j.
 struct LinearProblem {
   int unknown_cells = 0;
@@ -54,8 +67,9 @@ struct LinearProblem {
   std::vector<std::array<float, 3>> col_val;
   std::vector<std::int64_t> col_pos;    ///< CSR position of each CSC entry
   std::vector<double> y;  ///< 3*rows observations
-  /// Per entry of y: 1 where it is a lower bound (a clipped pixel: the residual counts only
-  /// where the model is below it, max(0, y - A lambda)); empty: none.
+  /// Per entry of y: how it bounds the model (Bound: kAtLeast for a clipped pixel, the
+  /// residual counting only where the model is below it, max(0, y - A lambda); kAtMost for
+  /// a pixel that bloom may have brightened, min(0, y - A lambda)); empty: every one exact.
   std::vector<std::uint8_t> one_sided;
   /// The normal matrices of this problem's leading unknowns, when they are known (a
   /// problem made by WithColumns from one whose matrices were built): the solver then

@@ -385,8 +385,9 @@ class MajorizeMinimize {
           double render = 0;
           for (std::int64_t k = p_.row_start[r]; k < p_.row_start[r + 1]; ++k)
             render += p_.val[k][c] * lambda[3 * static_cast<std::size_t>(p_.col[k]) + c];
-          const double above = render - p_.y[i];
-          if (above > 0) need = OneSidedCurvature(above / sigma);
+          // (how far past the bound on its free side: above a lower one, below an upper one)
+          const double past = p_.one_sided[i] == kAtMost ? p_.y[i] - render : render - p_.y[i];
+          if (past > 0) need = OneSidedCurvature(past / sigma);
           if (need != curvature_[i]) change.emplace_back(r, need - curvature_[i]);
           curvature_[i] = need;
           continue;

@@ -59,8 +59,8 @@ TEST(Objective, AOneSidedRowCountsOnlyBelowItsLevel) {
   // gradient against central differences (the loss is C1 at the level).
   const auto rp = test::MakeRandomProblem(90, 12, 0.3, 0.2, 5);
   LinearProblem one = MakeLinearProblem(rp.A, rp.y), two = one;
-  one.one_sided.assign(one.y.size(), 0);
-  for (std::size_t r = 0; r < one.rows(); r += 3) std::fill_n(&one.one_sided[3 * r], 3, 1);
+  one.one_sided.assign(one.y.size(), kExact);
+  for (std::size_t r = 0; r < one.rows(); r += 3) std::fill_n(&one.one_sided[3 * r], 3, kAtLeast);
   const ObjectiveParams prm{0.3, 0.0, 1.0, {}, 0, {}};  // (the data term alone)
   const Objective o1(one, prm), o2(two, prm);
   for (const double level : {0.0, 0.35, 5.0}) {  // the model below every bound, mixed, above every bound
@@ -70,7 +70,7 @@ TEST(Objective, AOneSidedRowCountsOnlyBelowItsLevel) {
     double expected = 0;
     const double s2 = prm.sigma * prm.sigma;
     for (std::size_t i = 0; i < r2.size(); ++i) {
-      const double r = one.one_sided[i] ? std::max(0.0, r2[i]) : r2[i];
+      const double r = one.one_sided[i] == kAtLeast ? std::max(0.0, r2[i]) : r2[i];
       EXPECT_EQ(r1[i], r) << i;
       expected += 0.5 * s2 * std::log1p(r * r / s2);
     }
@@ -81,6 +81,41 @@ TEST(Objective, AOneSidedRowCountsOnlyBelowItsLevel) {
   }
   // WithColumns keeps the flags.
   EXPECT_EQ(WithColumns(one, rp.A.cells, {std::vector<float>(one.y.size(), 0.1f)}).one_sided, one.one_sided);
+}
+
+TEST(Objective, AnUpperBoundCountsOnlyAboveItsLevel) {
+  // A pixel beside a clipped one may be brightened by bloom: an upper bound, its residual
+  // min(0, y - A lambda). Every third row an upper bound, the next a lower bound, against the
+  // same rows two-sided; with the model below, around and above them; and the gradient
+  // against central differences.
+  const auto rp = test::MakeRandomProblem(90, 12, 0.3, 0.2, 5);
+  LinearProblem bounded = MakeLinearProblem(rp.A, rp.y), exact = bounded;
+  bounded.one_sided.assign(bounded.y.size(), kExact);
+  for (std::size_t r = 0; r + 1 < bounded.rows(); r += 3) {
+    std::fill_n(&bounded.one_sided[3 * r], 3, kAtMost);
+    std::fill_n(&bounded.one_sided[3 * r + 3], 3, kAtLeast);
+  }
+  const ObjectiveParams prm{0.3, 0.0, 1.0, {}, 0, {}};
+  const Objective ob(bounded, prm), oe(exact, prm);
+  for (const double level : {0.0, 0.35, 5.0}) {
+    std::vector<double> lambda(ob.unknowns(), level);
+    std::vector<double> rb, re;
+    const double eb = ob.Value(lambda, &rb), ee = oe.Value(lambda, &re);
+    double expected = 0;
+    const double s2 = prm.sigma * prm.sigma;
+    int free = 0;
+    for (std::size_t i = 0; i < re.size(); ++i) {
+      const std::uint8_t b = bounded.one_sided[i];
+      const double r = b == kAtMost ? std::min(0.0, re[i]) : b == kAtLeast ? std::max(0.0, re[i]) : re[i];
+      EXPECT_EQ(rb[i], r) << i;
+      free += b == kAtMost && re[i] > 0;  // (below an upper bound: free)
+      expected += 0.5 * s2 * std::log1p(r * r / s2);
+    }
+    EXPECT_NEAR(eb, expected, 1e-9 * std::max(1.0, expected));
+    EXPECT_LE(eb, ee);
+    if (level == 0.0) EXPECT_GT(free, 0) << "the model below the upper bounds passes them";
+    ExpectGradientIsCentralDifferences(ob, lambda, 1e-6, 1e-5);
+  }
 }
 
 TEST(Objective, UnreachedCellsAreLeftOut) {

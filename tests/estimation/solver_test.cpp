@@ -185,6 +185,9 @@ struct Rows {
     A.row_start.push_back(0);
   }
   void Add(std::vector<std::pair<int, float>> entries, double level, bool bound = false) {
+    Add(std::move(entries), level, bound ? kAtLeast : kExact);
+  }
+  void Add(std::vector<std::pair<int, float>> entries, double level, Bound bound) {
     for (const auto& [j, a] : entries) {
       A.col.push_back(j);
       A.val.push_back({a, a, a});
@@ -193,36 +196,68 @@ struct Rows {
     A.row_view.push_back(0);
     A.row_pixel.push_back(static_cast<int>(A.row_pixel.size()));
     y.insert(y.end(), 3, level);
-    clipped.insert(clipped.end(), 3, bound ? 1 : 0);
+    clipped.insert(clipped.end(), 3, bound);
   }
 };
 
-TEST(Solver, RowsAboveTheirLevelKeepTheFastSolverMonotone) {
+/// Five cells, each seen by 200 bounded rows at `level` (entry 1, `bound`) and by 6 pixels
+/// of the room (entries 0.02 and 0.01 from a neighbour, about the truth 10).
+LinearProblem FiveBoundedCells(double level, Bound bound) {
   Rows rows(5);
   for (int j = 0; j < 5; ++j) {
-    for (int i = 0; i < 200; ++i) rows.Add({{j, 1.0f}}, 0.1, true);
+    for (int i = 0; i < 200; ++i) rows.Add({{j, 1.0f}}, level, bound);
     for (int i = 0; i < 6; ++i) rows.Add({{j, 0.02f}, {(j + 1) % 5, 0.01f}}, 0.3 + (i % 2 ? 0.02 : -0.02));
   }
   LinearProblem p = MakeLinearProblem(rows.A, rows.y);
   p.one_sided = rows.clipped;
-  const Objective obj(p, ObjectiveParams{0.1, 0.01, 1.0, {}, 0, {}});
+  return p;
+}
+
+/// The fast and the gradient solvers from a uniform `start` to 1e-12: both sane, the fast one
+/// at a KKT violation of 1e-6 and the gradient one's objective. Returns the fast one's map.
+std::vector<double> SolvedAlike(const Objective& obj, double start) {
   SolverOptions o;
   o.relative_tolerance = 1e-12;
   o.gradient_tolerance = 1e-12;
   o.adaptive_step = true;
+  o.max_iterations = 100;  // (x100 for the gradient solver)
+  const LoggedRun fast = SolveLogged(SolverKind::kFast, obj, o, start);
+  const LoggedRun grad = SolveLogged(SolverKind::kGradient, obj, o, start);
+  ExpectSane(fast);
+  ExpectSane(grad);
+  EXPECT_LT(fast.result.kkt_violation, 1e-6) << start << ": " << fast.result.iterations << " iterations";
+  EXPECT_NEAR(fast.result.objective, grad.result.objective, 1e-7 * std::abs(grad.result.objective)) << start;
+  return fast.result.lambda;
+}
+
+TEST(Solver, RowsAboveTheirLevelKeepTheFastSolverMonotone) {
+  const LinearProblem p = FiveBoundedCells(0.1, kAtLeast);  // (the objective refers to it)
+  const Objective obj(p, ObjectiveParams{0.1, 0.01, 1.0, {}, 0, {}});
   for (const double start : {20.0, 1e-3}) {
-    o.max_iterations = 100;
-    const LoggedRun fast = SolveLogged(SolverKind::kFast, obj, o, start);
-    o.max_iterations = 100;  // (x100 for the gradient solver)
-    const LoggedRun grad = SolveLogged(SolverKind::kGradient, obj, o, start);
-    ExpectSane(fast);
-    ExpectSane(grad);
-    EXPECT_LT(fast.result.kkt_violation, 1e-6) << start << ": " << fast.result.iterations << " iterations";
-    EXPECT_NEAR(fast.result.objective, grad.result.objective, 1e-7 * std::abs(grad.result.objective)) << start;
     // (from above, the room's answer, 10 less the penalty's pull; from below, the penalty
     // holds the cells where the clipped rows reach their level, a local minimum of E)
-    for (double v : fast.result.lambda) EXPECT_NEAR(v, start > 1 ? 9.932 : 0.1, 0.01) << start;
+    for (double v : SolvedAlike(obj, start)) EXPECT_NEAR(v, start > 1 ? 9.932 : 0.1, 0.01) << start;
   }
+}
+
+// The same with upper bounds (the pixels beside a clipped one, which bloom may have
+// brightened): the 200 rows of each cell bounded above at 50. At the answer the bounds lie
+// 40 sigmas above the render and cost nothing. Started above them (60: every bound passed,
+// pulling down) and under them (20), the fast solver reaches the gradient solver's objective
+// and a KKT violation of 1e-6; from 20 the room's rows fix the cells as with no bound at all.
+TEST(Solver, RowsBelowTheirUpperBoundKeepTheFastSolverMonotone) {
+  LinearProblem p = FiveBoundedCells(50, kAtMost);
+  const Objective obj(p, ObjectiveParams{0.1, 0.01, 1.0, {}, 0, {}});
+  for (const double start : {60.0, 20.0}) {
+    // (from 60 the bounds pull every cell under 50; from 20, under them all, the room's
+    // answer, 10 less the penalty's pull, as with no bound at all)
+    for (double v : SolvedAlike(obj, start))
+      if (start > 50) EXPECT_LT(v, 50.01) << start; else EXPECT_NEAR(v, 9.932, 0.01) << start;
+  }
+  // Two-sided, the same rows pull every cell to their 50.
+  p.one_sided.clear();
+  const Objective exact(p, ObjectiveParams{0.1, 0.01, 1.0, {}, 0, {}});
+  for (double v : SolvedAlike(exact, 60.0)) EXPECT_GT(v, 45) << "two-sided";
 }
 
 // Two columns that light the inlier rows almost alike (a glowing surface and the map cells

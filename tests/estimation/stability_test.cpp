@@ -336,13 +336,13 @@ TEST(Stability, BadPixelsAreMaskedCountedAndChangeNothingElse) {
   ExpectHealthy(bad);
   EXPECT_EQ(bad.lighting.map, hand.lighting.map);
   // By default the clipped one is a lower bound instead (a row of the fit: the render must
-  // reach 50), and its 8 neighbours are left out (bloom); the same lights found.
+  // reach 50), and its 8 neighbours are upper bounds (bloom); the same lights found.
   const EstimateResult bound = Estimate(b, Small());
   ExpectHealthy(bound);
   EXPECT_EQ(bound.lighting.Count<DirectionalLight>(), hand.lighting.Count<DirectionalLight>());
   EXPECT_EQ(bound.lighting.lights.size(), hand.lighting.lights.size());
   EXPECT_EQ(bound.clipped_rows, 1);
-  EXPECT_EQ(bound.bloom_left_out, 8);
+  EXPECT_EQ(bound.bloom_rows, 8);
   EXPECT_EQ(bound.observations, clean.observations - 5);
   EXPECT_EQ(bad.observations, clean.observations - 5);
 }
