@@ -304,11 +304,33 @@ bool Estimator::LampInside(const EmitterLight& candidate, const std::vector<Emit
   return true;
 }
 
+std::vector<EmitterLight> Estimator::ApartFrom(const std::vector<EmitterLight>& kept, const EmitterLight& candidate) {
+  if (candidate.in_a_hole) return kept;  // (a pane over a hole is on no surface of the mesh)
+  std::vector<EmitterLight> out;
+  for (const EmitterLight& e : kept) {
+    if (e.in_a_hole) {
+      out.push_back(e);
+      continue;
+    }
+    std::shared_ptr<const EmitterShape> rest = ShapeOnMesh(scene_->mesh(), *e.shape, candidate.shape.get());
+    if (!rest) continue;  // (the candidate covers it all)
+    if (rest->normal.size() == e.shape->normal.size()) {
+      out.push_back(e);  // (no triangle of it covered)
+      continue;
+    }
+    EmitterLight cut = e;
+    cut.shape = std::move(rest);
+    if (const auto it = emitter_floor_.find(e.shape); it != emitter_floor_.end()) emitter_floor_[cut.shape] = it->second;
+    out.push_back(cut);
+  }
+  return out;
+}
+
 bool Estimator::TryEmitter(const EmitterLight& candidate, std::vector<EmitterLight>* kept, double* objective,
                            double* held) {
   const bool over_a_hole = candidate.in_a_hole;
   CheckCancel();
-  std::vector<EmitterLight> with = *kept;
+  std::vector<EmitterLight> with = ApartFrom(*kept, candidate);
   with.push_back(candidate);
   double objective_with = ObjectiveWith(with), held_with = HoldoutLoss(points_);
   const std::vector<PointLight> lamps = points_;
@@ -331,7 +353,7 @@ bool Estimator::TryEmitter(const EmitterLight& candidate, std::vector<EmitterLig
   }
   if (!keep) return false;
   *kept = with;
-  kept->back().id = static_cast<int>(kept->size()) - 1;
+  for (std::size_t k = 0; k < kept->size(); ++k) (*kept)[k].id = static_cast<int>(k);
   *objective = objective_with;
   *held = held_with;
   return true;

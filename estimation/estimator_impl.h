@@ -449,6 +449,11 @@ class Estimator {
   /// A pane over a hole (EmitterLight::in_a_hole) is neither tried with a lamp inside nor as
   /// an opening (it is one).
   bool TryEmitter(const EmitterLight& candidate, std::vector<EmitterLight>* kept, double* objective, double* held);
+  /// `kept` beside `candidate` with no surface glowing twice: each kept emitter on the traced
+  /// mesh without the triangles the candidate covers (dropped when it covers them all; its
+  /// clipped pixels' floor carried over). A candidate that is a part of a kept surface is
+  /// then that part glowing apart from the rest, at its own radiance.
+  std::vector<EmitterLight> ApartFrom(const std::vector<EmitterLight>& kept, const EmitterLight& candidate);
   /// The windows seen as holes (res_.windows), each as a glowing pane over its opening
   /// (frosted glass or a curtain that returned no depth), its radiance at least what its
   /// clipped pixels show.

@@ -49,6 +49,14 @@ for e, p in per.items():
     hits.append(140 <= u <= 280 and 140 <= v <= 330)
 if not any(hits):
     sys.exit("no emitter at the window")
+# No surface glows twice: no triangle (its three corners, in order) in two emitters. (The
+# search found a kept surface's pixels glowing again and kept a part of it as a second,
+# overlapping emitter.)
+owner = {}
+for e, p in per.items():
+    for t in range(0, len(p) - 2, 3):
+        key = tuple(p[t:t + 3])
+        assert owner.setdefault(key, e) == e, "a triangle in emitters %d and %d" % (owner[key], e)
 PY
 # The keyframes' cameras carry the file's focal length: 575.8 px at 640 px, 143.95 in the
 # bundle's 160 px views (575.8 / 4).
