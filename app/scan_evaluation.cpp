@@ -324,9 +324,11 @@ void RelitError(const HeldOutView& held, const RayTracer& tracer, const std::vec
   // At the one scale that fits best (light x albedo is what the images fix; the scale's
   // share of the error is in light_times_albedo).
   double num = 0, den = 0;
+  const float level = static_cast<float>(held.view.saturation);  // (a clipped channel sets no scale)
   for (std::size_t p = 0; p < covered.size(); ++p)
     if (covered[p])
       for (int ch = 0; ch < 3; ++ch) {
+        if (held.view.image.data[3 * p + ch] >= level) continue;
         num += static_cast<double>(shaded_true.data[3 * p + ch]) * held.view.image.data[3 * p + ch];
         den += static_cast<double>(shaded_true.data[3 * p + ch]) * shaded_true.data[3 * p + ch];
       }

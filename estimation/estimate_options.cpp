@@ -49,7 +49,8 @@ std::vector<EstimateOption> LightOptions() {
        Type::kBool, 0, 1, false, LP_GET(point_lights.debiased), LP_SET(point_lights.debiased, bool), "", 0, 0, {}},
       {"clipped-rows", "clipped_rows",
        "1 (the default) = the pixels the camera clipped on the mesh are fitted as lower bounds (the render must "
-       "reach them), the pixels next to any clipped pixel left out (bloom); 0 = clipped pixels dropped, a glowing "
+       "reach them), the pixels next to any clipped pixel as upper bounds (bloom only brightens); 0 = clipped pixels "
+       "dropped, a glowing "
        "surface's radiance bounded below by them",
        Type::kBool, 0, 1, false, LP_GET(clipped_rows), LP_SET(clipped_rows, bool), "", 0, 0, {}},
       {"seen-lamps", "seen_lamps",

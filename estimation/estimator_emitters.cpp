@@ -67,7 +67,7 @@ Estimator::Glow Estimator::GlowingTriangles() {
   const std::vector<double> render = Plus(A_.Multiply(lambda_), LightsRender(points_, suns_));
   Glow g(scene_->mesh().triangles.size());
   for (std::size_t r = 0; r < A_.rows(); ++r) {
-    if (!one_sided_.empty() && one_sided_[3 * r]) continue;  // (a clipped row: below)
+    if (!one_sided_.empty() && one_sided_[3 * r]) continue;  // (a bound: a clipped row, below; bloom's, left out)
     const double y = (y_[3 * r] + y_[3 * r + 1] + y_[3 * r + 2]) / 3,
                  f = std::max(0.0, (render[3 * r] + render[3 * r + 1] + render[3 * r + 2]) / 3);
     const Camera& cam = views_[A_.row_view[r]].camera;
@@ -156,6 +156,7 @@ std::vector<int> Segments(const Mesh& mesh, const std::vector<int>& seen, const 
 std::vector<EmitterLight> Estimator::GlowingSegments() {
   const Mesh& mesh = scene_->mesh();
   const Glow glow = GlowingTriangles();
+  triangle_floor_ = glow.floor;
   const std::vector<int> segment = Segments(mesh, glow.seen, glow.looked);
   struct Gathered {
     std::vector<int> triangles;
@@ -306,22 +307,42 @@ bool Estimator::LampInside(const EmitterLight& candidate, const std::vector<Emit
 
 std::vector<EmitterLight> Estimator::ApartFrom(const std::vector<EmitterLight>& kept, const EmitterLight& candidate) {
   if (candidate.in_a_hole) return kept;  // (a pane over a hole is on no surface of the mesh)
+  const Mesh& mesh = scene_->mesh();
   std::vector<EmitterLight> out;
   for (const EmitterLight& e : kept) {
     if (e.in_a_hole) {
       out.push_back(e);
       continue;
     }
-    std::shared_ptr<const EmitterShape> rest = ShapeOnMesh(scene_->mesh(), *e.shape, candidate.shape.get());
-    if (!rest) continue;  // (the candidate covers it all)
-    if (rest->normal.size() == e.shape->normal.size()) {
-      out.push_back(e);  // (no triangle of it covered)
+    // The traced mesh's triangles on the kept surface and not on the candidate, and the
+    // floor their clipped pixels show.
+    std::vector<int> rest;
+    std::vector<Eigen::Vector3f> facing;
+    Eigen::Vector3d floor = Eigen::Vector3d::Zero();
+    bool cut = false;
+    for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+      const Eigen::Vector3i& f = mesh.triangles[t];
+      const Eigen::Vector3d centre = ((mesh.positions[f[0]] + mesh.positions[f[1]] + mesh.positions[f[2]]) / 3).cast<double>();
+      const int on = EmitterTriangleAt(*e.shape, centre);
+      if (on < 0) continue;
+      if (EmitterTriangleAt(*candidate.shape, centre) >= 0) {
+        cut = true;
+        continue;
+      }
+      rest.push_back(static_cast<int>(t));
+      facing.push_back(e.shape->normal[on]);
+      if (t < triangle_floor_.size()) floor = floor.cwiseMax(triangle_floor_[t]);
+    }
+    if (!cut) {
+      out.push_back(e);
       continue;
     }
-    EmitterLight cut = e;
-    cut.shape = std::move(rest);
-    if (const auto it = emitter_floor_.find(e.shape); it != emitter_floor_.end()) emitter_floor_[cut.shape] = it->second;
-    out.push_back(cut);
+    if (rest.empty()) continue;  // (the candidate covers it all)
+    EmitterLight apart = e;
+    apart.shape = MakeEmitterShape(mesh, rest, facing);
+    if (!(apart.Area() > 0)) continue;
+    if (!floor.isZero()) emitter_floor_[apart.shape] = floor;
+    out.push_back(apart);
   }
   return out;
 }
@@ -330,7 +351,8 @@ bool Estimator::TryEmitter(const EmitterLight& candidate, std::vector<EmitterLig
                            double* held) {
   const bool over_a_hole = candidate.in_a_hole;
   CheckCancel();
-  std::vector<EmitterLight> with = ApartFrom(*kept, candidate);
+  const std::vector<EmitterLight> apart = ApartFrom(*kept, candidate);
+  std::vector<EmitterLight> with = apart;
   with.push_back(candidate);
   double objective_with = ObjectiveWith(with), held_with = HoldoutLoss(points_);
   const std::vector<PointLight> lamps = points_;
@@ -345,12 +367,21 @@ bool Estimator::TryEmitter(const EmitterLight& candidate, std::vector<EmitterLig
           objective_with, *objective, held_with, *held, keep ? "kept" : "left out");
   res_.point_light_choices.push_back(line);
   Progress(line);
-  // A window's clear glass: the surface as an opening instead, where it could be one.
-  emitters_ = *kept;
-  if (!over_a_hole && TryOpening(candidate, keep ? with : *kept, objective, held)) {
+  // A window's clear glass: the surface as an opening instead, where it could be one (not
+  // a surface seen glowing again where a kept one lies: that one's own trial decided). The
+  // opening's side has the kept emitters apart from it; the closed side is the trial's.
+  const Eigen::Vector3d centre = Centroid(*candidate.shape);
+  const bool on_kept = std::any_of(kept->begin(), kept->end(), [&](const EmitterLight& e) {
+    return !e.in_a_hole && EmitterTriangleAt(*e.shape, centre) >= 0;
+  });
+  emitters_ = apart;
+  if (!over_a_hole && !on_kept && TryOpening(candidate, keep ? with : *kept, objective, held)) {
     points_ = lamps;  // (no lamp inside an opening)
+    *kept = apart;
+    for (std::size_t k = 0; k < kept->size(); ++k) (*kept)[k].id = static_cast<int>(k);
     return true;
   }
+  emitters_ = *kept;
   if (!keep) return false;
   *kept = with;
   for (std::size_t k = 0; k < kept->size(); ++k) (*kept)[k].id = static_cast<int>(k);

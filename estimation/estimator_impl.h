@@ -566,6 +566,9 @@ class Estimator {
   /// Per emitter (its triangles): the least radiance its clipped pixels show (normalized).
   /// (Held by the shape itself: a candidate's freed address could not come back with another's floor.)
   std::map<std::shared_ptr<const EmitterShape>, Eigen::Vector3d> emitter_floor_;
+  /// Per triangle of the traced mesh: the least radiance its clipped pixels show, as the last
+  /// search for glowing surfaces found it (ApartFrom's floor for what is left of a surface).
+  std::vector<Eigen::Vector3d> triangle_floor_;
   ShadingVertices vertices_;        ///< the rounds', for the lights' columns and positions
   /// The last few columns on vertices_ (Column), cleared when vertices_ change.
   struct CachedColumn {

@@ -567,7 +567,7 @@ double Estimator::HoldoutLoss(const std::vector<PointLight>& lights, const Direc
     for (std::size_t r = 0; r < holdout_.size(); ++r)
       (holdout_[r] ? held_columns : fit_columns)[k].insert((holdout_[r] ? held_columns : fit_columns)[k].end(),
                                                            &columns[k][3 * r], &columns[k][3 * r] + 3);
-  if (directional && traced) held_columns.back() = HeldOutSunColumn(*directional);
+  if (directional && traced) held_columns[lights.size()] = HeldOutSunColumn(*directional);  // (the emitters after it)
   const LinearProblem problem = WithColumns(*holdout_fit_, cells_, fit_columns);
   ObjectiveParams params = res_.objective_params;
   params.alpha *= static_cast<double>(holdout_fit_->rows()) / std::max<std::size_t>(1, holdout_.size());

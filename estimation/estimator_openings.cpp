@@ -108,7 +108,11 @@ bool Estimator::TryOpening(const EmitterLight& candidate, const std::vector<Emit
   const std::string line = Fmt(
       "glowing surface of %.3g m^2 as a window's opening (the map seen through it) against %s: objective %.6g "
       "against %.6g, held-out loss %.6g against %.6g (%.2f s): %s",
-      candidate.Area(), as_is.size() > kept.size() ? "a glowing pane" : "a pane that does not glow", open_objective,
+      candidate.Area(),
+      std::any_of(as_is.begin(), as_is.end(), [&](const EmitterLight& e) { return e.shape == candidate.shape; })
+          ? "a glowing pane"
+          : "a pane that does not glow",
+      open_objective,
       closed_objective, open_held, closed_held, sw.Seconds(), open ? "an opening" : "not an opening");
   res_.point_light_choices.push_back(line);
   Progress(line);

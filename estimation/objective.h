@@ -41,7 +41,6 @@ struct NormalMatrices {
   std::vector<double> G[3];  ///< cell_of.size()^2 each
 };
 
-/// A with the unreachable columns removed, in row (CSR) and column (CSC) form,
 /// How an observation bounds the model (LinearProblem::one_sided's values).
 enum Bound : std::uint8_t {
   kExact = 0,    ///< a measurement: the residual counts both ways
@@ -55,6 +54,7 @@ inline double BoundedResidual(std::uint8_t b, double r) {
   return b == kAtLeast ? (r > 0 ? r : 0.0) : b == kAtMost ? (r < 0 ? r : 0.0) : r;
 }
 
+/// A with the unreachable columns removed, in row (CSR) and column (CSC) form,
 /// plus the observations. Unknowns are lambda[3*j + c] for compact cell j.
 struct LinearProblem {
   int unknown_cells = 0;

@@ -141,13 +141,11 @@ Mesh WithoutShapes(const Mesh& mesh, const std::vector<std::shared_ptr<const Emi
   return WithoutTriangles(mesh, TrianglesOnShapes(mesh, shapes));
 }
 
-std::shared_ptr<const EmitterShape> ShapeOnMesh(const Mesh& mesh, const EmitterShape& shape,
-                                                const EmitterShape* without) {
+std::shared_ptr<const EmitterShape> ShapeOnMesh(const Mesh& mesh, const EmitterShape& shape) {
   std::vector<int> triangles;
   std::vector<Eigen::Vector3f> facing;
   for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
-    if (const int on = EmitterTriangleAt(shape, TriangleCentre(mesh, t));
-        on >= 0 && !(without && EmitterTriangleAt(*without, TriangleCentre(mesh, t)) >= 0)) {
+    if (const int on = EmitterTriangleAt(shape, TriangleCentre(mesh, t)); on >= 0) {
       triangles.push_back(static_cast<int>(t));
       facing.push_back(shape.normal[on]);
     }

@@ -57,12 +57,10 @@ std::vector<std::uint8_t> TrianglesOnShapes(const Mesh& mesh,
                                             const std::vector<std::shared_ptr<const EmitterShape>>& shapes);
 /// The shape of the triangles of `mesh` on `shape` (facing as its own), or null when none is:
 /// a shape moved onto another mesh of the same surface (a traced mesh's onto the bundle's).
-/// With `without`, the triangles on it are left out (a shape with a part of it cut away).
 /// `mesh` without its triangles on `shapes` (TrianglesOnShapes; every vertex kept): a
 /// window's openings drawn or exported as no surface.
 Mesh WithoutShapes(const Mesh& mesh, const std::vector<std::shared_ptr<const EmitterShape>>& shapes);
-std::shared_ptr<const EmitterShape> ShapeOnMesh(const Mesh& mesh, const EmitterShape& shape,
-                                                const EmitterShape* without = nullptr);
+std::shared_ptr<const EmitterShape> ShapeOnMesh(const Mesh& mesh, const EmitterShape& shape);
 
 /// The sum of its triangles' normals (the side each emits on) weighted by their areas: its
 /// length is the area for a flat shape, less the more it bends.

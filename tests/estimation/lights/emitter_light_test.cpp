@@ -279,15 +279,6 @@ TEST(EmitterLight, AnLShapesCentreAndOutline) {
     EXPECT_FALSE(mid.x() > 0.01f && mid.x() < 0.19f && mid.y() > 0.01f && mid.y() < 0.19f) << "an inner edge";
   }
   EXPECT_NEAR(length, 1.2, 1e-5);
-  // The same shape on its mesh again, and with a part cut away (no surface glows twice: a
-  // kept emitter without what a new one covers, EstimatorImpl::ApartFrom).
-  EXPECT_NEAR(ShapeOnMesh(grid, *shape)->area, 0.08, 1e-7);
-  const auto first_row = MakeEmitterShape(grid, {0, 1, 2, 3, 4, 5}, std::vector<Eigen::Vector3f>(6, Eigen::Vector3f::UnitZ()));
-  const auto rest = ShapeOnMesh(grid, *shape, first_row.get());
-  ASSERT_TRUE(rest);
-  EXPECT_NEAR(rest->area, 0.05, 1e-7) << "the first row's 0.03 m^2 cut away";
-  EXPECT_EQ(rest->normal.size(), 10u);
-  EXPECT_EQ(ShapeOnMesh(grid, *first_row, shape.get()), nullptr) << "a part wholly cut away";
 }
 
 }  // namespace
