@@ -232,10 +232,11 @@ std::vector<EmitterLight> Estimator::PanesOverHoles() {
 void Estimator::OnBundleMesh(std::vector<Light>* lights) {
   if (cluster_.empty()) return;  // (the bundle's mesh is the traced one)
   const Mesh& full = mesh_.positions.empty() ? bundle_.mesh : mesh_;
+  std::vector<std::uint8_t> taken(full.triangles.size(), 0);  // (no triangle glows twice)
   for (Light& l : *lights) {
     EmitterLight* e = std::get_if<EmitterLight>(&l);
     if (!e || !e->shape || e->in_a_hole) continue;  // (a pane over a hole: on no triangle)
-    auto on = ShapeOnMesh(full, *e->shape);
+    auto on = ShapeOnMesh(full, *e->shape, &taken);
     if (!on) continue;  // (keeps the traced mesh's)
     const double area = e->Area();
     e->shape = std::move(on);

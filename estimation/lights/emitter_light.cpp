@@ -141,14 +141,18 @@ Mesh WithoutShapes(const Mesh& mesh, const std::vector<std::shared_ptr<const Emi
   return WithoutTriangles(mesh, TrianglesOnShapes(mesh, shapes));
 }
 
-std::shared_ptr<const EmitterShape> ShapeOnMesh(const Mesh& mesh, const EmitterShape& shape) {
+std::shared_ptr<const EmitterShape> ShapeOnMesh(const Mesh& mesh, const EmitterShape& shape,
+                                                std::vector<std::uint8_t>* taken) {
   std::vector<int> triangles;
   std::vector<Eigen::Vector3f> facing;
-  for (std::size_t t = 0; t < mesh.triangles.size(); ++t)
+  for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
+    if (taken && t < taken->size() && (*taken)[t]) continue;
     if (const int on = EmitterTriangleAt(shape, TriangleCentre(mesh, t)); on >= 0) {
+      if (taken && t < taken->size()) (*taken)[t] = 1;
       triangles.push_back(static_cast<int>(t));
       facing.push_back(shape.normal[on]);
     }
+  }
   return triangles.empty() ? nullptr : MakeEmitterShape(mesh, triangles, facing);
 }
 

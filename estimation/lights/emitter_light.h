@@ -60,7 +60,11 @@ std::vector<std::uint8_t> TrianglesOnShapes(const Mesh& mesh,
 /// `mesh` without its triangles on `shapes` (TrianglesOnShapes; every vertex kept): a
 /// window's openings drawn or exported as no surface.
 Mesh WithoutShapes(const Mesh& mesh, const std::vector<std::shared_ptr<const EmitterShape>>& shapes);
-std::shared_ptr<const EmitterShape> ShapeOnMesh(const Mesh& mesh, const EmitterShape& shape);
+/// With `taken` (per triangle of `mesh`), the triangles taken already are left out and those
+/// on the shape marked taken: shapes moved one after another share no triangle (a triangle
+/// at the seam of two, within a millimetre of both, goes to the first).
+std::shared_ptr<const EmitterShape> ShapeOnMesh(const Mesh& mesh, const EmitterShape& shape,
+                                                std::vector<std::uint8_t>* taken = nullptr);
 
 /// The sum of its triangles' normals (the side each emits on) weighted by their areas: its
 /// length is the area for a flat shape, less the more it bends.

@@ -279,6 +279,16 @@ TEST(EmitterLight, AnLShapesCentreAndOutline) {
     EXPECT_FALSE(mid.x() > 0.01f && mid.x() < 0.19f && mid.y() > 0.01f && mid.y() < 0.19f) << "an inner edge";
   }
   EXPECT_NEAR(length, 1.2, 1e-5);
+  // Moved onto its mesh again; then a shape over all of it moved after it takes none of the
+  // triangles the first took (no triangle in two emitters).
+  std::vector<std::uint8_t> taken(grid.triangles.size(), 0);
+  const auto first_row = MakeEmitterShape(grid, {0, 1, 2, 3, 4, 5}, std::vector<Eigen::Vector3f>(6, Eigen::Vector3f::UnitZ()));
+  EXPECT_NEAR(ShapeOnMesh(grid, *first_row, &taken)->area, 0.03, 1e-7);
+  const auto rest = ShapeOnMesh(grid, *shape, &taken);
+  ASSERT_TRUE(rest);
+  EXPECT_NEAR(rest->area, 0.05, 1e-7) << "the first row's 0.03 m^2 taken";
+  EXPECT_EQ(ShapeOnMesh(grid, *first_row, &taken), nullptr) << "every triangle taken";
+  EXPECT_NEAR(ShapeOnMesh(grid, *shape)->area, 0.08, 1e-7);
 }
 
 }  // namespace
