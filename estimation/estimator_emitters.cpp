@@ -322,8 +322,7 @@ std::vector<EmitterLight> Estimator::ApartFrom(const std::vector<EmitterLight>& 
     Eigen::Vector3d floor = Eigen::Vector3d::Zero();
     bool cut = false;
     for (std::size_t t = 0; t < mesh.triangles.size(); ++t) {
-      const Eigen::Vector3i& f = mesh.triangles[t];
-      const Eigen::Vector3d centre = ((mesh.positions[f[0]] + mesh.positions[f[1]] + mesh.positions[f[2]]) / 3).cast<double>();
+      const Eigen::Vector3d centre = TriangleCentre(mesh, t);
       const int on = EmitterTriangleAt(*e.shape, centre);
       if (on < 0) continue;
       if (EmitterTriangleAt(*candidate.shape, centre) >= 0) {
@@ -347,6 +346,16 @@ std::vector<EmitterLight> Estimator::ApartFrom(const std::vector<EmitterLight>& 
   }
   return out;
 }
+
+namespace {
+
+/// `emitters` with their ids their places in it.
+std::vector<EmitterLight> Numbered(std::vector<EmitterLight> emitters) {
+  for (std::size_t k = 0; k < emitters.size(); ++k) emitters[k].id = static_cast<int>(k);
+  return emitters;
+}
+
+}  // namespace
 
 bool Estimator::TryEmitter(const EmitterLight& candidate, std::vector<EmitterLight>* kept, double* objective,
                            double* held) {
@@ -373,19 +382,17 @@ bool Estimator::TryEmitter(const EmitterLight& candidate, std::vector<EmitterLig
   // opening's side has the kept emitters apart from it; the closed side is the trial's.
   const Eigen::Vector3d centre = Centroid(*candidate.shape);
   const bool on_kept = std::any_of(kept->begin(), kept->end(), [&](const EmitterLight& e) {
-    return !e.in_a_hole && EmitterTriangleAt(*e.shape, centre) >= 0;
+    return e.shape && EmitterTriangleAt(*e.shape, centre) >= 0;
   });
   emitters_ = apart;
   if (!over_a_hole && !on_kept && TryOpening(candidate, keep ? with : *kept, objective, held)) {
     points_ = lamps;  // (no lamp inside an opening)
-    *kept = apart;
-    for (std::size_t k = 0; k < kept->size(); ++k) (*kept)[k].id = static_cast<int>(k);
+    *kept = Numbered(apart);
     return true;
   }
   emitters_ = *kept;
   if (!keep) return false;
-  *kept = with;
-  for (std::size_t k = 0; k < kept->size(); ++k) (*kept)[k].id = static_cast<int>(k);
+  *kept = Numbered(with);
   *objective = objective_with;
   *held = held_with;
   return true;

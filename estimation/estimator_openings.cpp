@@ -86,10 +86,7 @@ struct Estimator::TracedState {
 bool Estimator::TryOpening(const EmitterLight& candidate, const std::vector<EmitterLight>& as_is, double* objective,
                            double* held) {
   CheckCancel();
-  // (a surface seen glowing again where a kept one lies is that one: its own trial decided)
-  const Eigen::Vector3d centre = Centroid(*candidate.shape);
-  for (const EmitterLight& e : emitters_)
-    if (e.shape && EmitterTriangleAt(*e.shape, centre) >= 0) return false;
+  // (a surface seen glowing again where a kept one lies is not tried: TryEmitter)
   auto opened = std::make_unique<RayTracer>(scene_->mesh(), TrianglesOn(candidate.shape));
   if (!CouldBeWindow(candidate, *opened)) return false;
   Stopwatch sw;

@@ -119,12 +119,10 @@ int EmitterTriangleAt(const EmitterShape& shape, const Eigen::Vector3d& point) {
   return -1;
 }
 
-namespace {
 Eigen::Vector3d TriangleCentre(const Mesh& mesh, std::size_t t) {
   const Eigen::Vector3i& f = mesh.triangles[t];
   return ((mesh.positions[f[0]] + mesh.positions[f[1]] + mesh.positions[f[2]]) / 3).cast<double>();
 }
-}  // namespace
 
 std::vector<std::uint8_t> TrianglesOnShapes(const Mesh& mesh,
                                             const std::vector<std::shared_ptr<const EmitterShape>>& shapes) {

@@ -51,6 +51,8 @@ bool OnEmitter(const EmitterShape& shape, const Eigen::Vector3d& point, const Ei
 /// The shape's triangle `point` lies on (as OnEmitter, either side), or -1.
 int EmitterTriangleAt(const EmitterShape& shape, const Eigen::Vector3d& point);
 
+/// Triangle t's centre (its corners' mean), where a shape is looked up for it.
+Eigen::Vector3d TriangleCentre(const Mesh& mesh, std::size_t t);
 /// Per triangle of `mesh`: 1 where its centre lies on one of `shapes` (EmitterTriangleAt;
 /// a window's opening: the triangles a tracer leaves out, RayTracer(mesh, open)).
 std::vector<std::uint8_t> TrianglesOnShapes(const Mesh& mesh,
