@@ -62,9 +62,11 @@ bool WeightedIntensity(const std::vector<float>& col, const std::vector<double>&
 const std::vector<SeenLamp>& Estimator::SeenLampsOnce() {
   if (seen_lamps_) return *seen_lamps_;
   seen_lamps_ = opt_.point_lights.seen ? SeenLamps(bundle_.views, *scene_) : std::vector<SeenLamp>();
-  // (a window's blobs, triangulated, meet behind its wall: the sky's)
+  // (a window's blobs, triangulated, meet behind its wall or at it: the sky's, or its pane's)
   seen_lamps_->erase(std::remove_if(seen_lamps_->begin(), seen_lamps_->end(),
-                                    [&](const SeenLamp& l) { return BeyondAWindow(res_.windows, l.position, bundle_.up); }),
+                                    [&](const SeenLamp& l) {
+                                      return BeyondAWindow(res_.windows, l.position, bundle_.up, -kBeyondWindow);
+                                    }),
                      seen_lamps_->end());
   res_.seen_lamps = *seen_lamps_;
   for (const SeenLamp& l : *seen_lamps_) {

@@ -14,12 +14,31 @@ struct RimHit {
   Eigen::Vector3d position, normal;  ///< the normal towards the camera
 };
 
-/// The ring of rays around the blob's mean pixel that hit the mesh.
-std::vector<RimHit> RimHits(const Camera& c, const ClippedBlob& b, const RayTracer& scene, const SeenWindowOptions& o) {
-  const double radius = o.rim_scale * std::sqrt(b.pixels / M_PI) + 2;
+/// How far (pixels) the blob reaches from its mean pixel along angle `a`: the farthest of
+/// its pixels met, in half-pixel steps, within its bounds.
+double Reach(const Camera& c, const ClippedBlob& b, double a) {
+  const int w = b.max_x - b.min_x + 1, h = b.max_y - b.min_y + 1;
+  std::vector<std::uint8_t> in(static_cast<std::size_t>(w) * h, 0);
+  for (const int p : b.members) in[(p / c.width - b.min_y) * w + (p % c.width - b.min_x)] = 1;
+  double reach = 0;
+  for (double t = 0;; t += 0.5) {
+    const int x = static_cast<int>(std::lround(b.u + t * std::cos(a))) - b.min_x,
+              y = static_cast<int>(std::lround(b.v + t * std::sin(a))) - b.min_y;
+    if (x < 0 || y < 0 || x >= w || y >= h) return reach;
+    if (in[static_cast<std::size_t>(y) * w + x]) reach = t;
+  }
+}
+
+/// The ring of rays around the blob's mean pixel that hit the mesh: on a circle of
+/// rim_scale times the blob's radius (`near`: just outside the blob along each ray, at
+/// near_scale times its reach there), plus 2 pixels.
+std::vector<RimHit> RimHits(const Camera& c, const ClippedBlob& b, const RayTracer& scene, const SeenWindowOptions& o,
+                            bool near) {
+  const double circle = o.rim_scale * std::sqrt(b.pixels / M_PI) + 2;
   std::vector<RimHit> out;
   for (int k = 0; k < o.rim_rays; ++k) {
-    const double a = 2 * M_PI * k / o.rim_rays, u = b.u + radius * std::cos(a), v = b.v + radius * std::sin(a);
+    const double a = 2 * M_PI * k / o.rim_rays, radius = near ? o.near_scale * Reach(c, b, a) + 2 : circle;
+    const double u = b.u + radius * std::cos(a), v = b.v + radius * std::sin(a);
     if (u < 0 || v < 0 || u > c.width - 1 || v > c.height - 1) continue;
     const Eigen::Vector3d dir = c.RayDirection(u, v);
     SurfacePoint hit;
@@ -122,6 +141,20 @@ std::vector<Eigen::Vector3d> OutlineOnWall(const Camera& c, const ClippedBlob& b
   return out;
 }
 
+/// Whether `p` lies in `w`'s wall (within `distance` of its plane) and within its outline's
+/// bounds there.
+bool Covers(const SeenWindow& w, const Eigen::Vector3d& p, double distance) {
+  if (w.outline.empty() || std::abs((p - w.centre).dot(w.normal)) > distance) return false;
+  const Eigen::Vector3d a = w.normal.unitOrthogonal(), b = w.normal.cross(a);
+  Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
+  for (const Eigen::Vector3d& q : w.outline) {
+    const Eigen::Vector2d x((q - w.centre).dot(a), (q - w.centre).dot(b));
+    lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
+  }
+  const Eigen::Vector2d x((p - w.centre).dot(a), (p - w.centre).dot(b));
+  return (x.array() >= lo.array()).all() && (x.array() <= hi.array()).all();
+}
+
 }  // namespace
 
 std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTracer& scene, const SeenWindowOptions& o) {
@@ -132,13 +165,20 @@ std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTra
     const Eigen::Vector3d dir = c.RayDirection(b.u, b.v);
     if (!MostlyEscapes(c, b, scene, o)) continue;  // (a bulb before a wall: the lamps')
     Eigen::Vector3d normal, point;
-    if (!RimWall(RimHits(c, b, scene, o), o.rim_rays, o, &normal, &point)) continue;
+    // (the ring just outside the blob where the circle meets more than its wall: a window
+    // large in view beside a room's corner, the circle reaching the side wall)
+    if (!RimWall(RimHits(c, b, scene, o, false), o.rim_rays, o, &normal, &point) &&
+        !RimWall(RimHits(c, b, scene, o, true), o.rim_rays, o, &normal, &point))
+      continue;
     const double along = normal.dot(dir);
     if (along > -1e-3) continue;  // (the wall seen edge on)
     SeenWindow w{b.view, b.pixels, c.center() + (point - c.center()).dot(normal) / along * dir, normal, {}};
     w.outline = OutlineOnWall(c, b, normal, point, w.centre, scene, o);
+    // (one window seen in parts, from two views: the smaller's centre within the larger)
     auto same = std::find_if(out.begin(), out.end(), [&](const SeenWindow& x) {
-      return (x.centre - w.centre).norm() < o.merge && x.normal.dot(w.normal) > o.flat_cos;
+      return x.normal.dot(w.normal) > o.flat_cos &&
+             ((x.centre - w.centre).norm() < o.merge || Covers(x, w.centre, o.plane_distance) ||
+              Covers(w, x.centre, o.plane_distance));
     });
     if (same == out.end()) out.push_back(w);
     else if (w.pixels > same->pixels) *same = w;
@@ -146,13 +186,14 @@ std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTra
   return out;
 }
 
-bool BeyondAWindow(const std::vector<SeenWindow>& windows, const Eigen::Vector3d& p, const Eigen::Vector3d& up) {
+bool BeyondAWindow(const std::vector<SeenWindow>& windows, const Eigen::Vector3d& p, const Eigen::Vector3d& up,
+                   double from) {
   return std::any_of(windows.begin(), windows.end(), [&](const SeenWindow& w) {
-    const double depth = (w.centre - p).dot(w.normal);
+    const double depth = (w.centre - p).dot(w.normal), grown = std::abs(depth);
     Portal hole;
-    if (depth < kBeyondWindow || !PortalOf(w, up, &hole)) return false;
+    if (depth < from || !PortalOf(w, up, &hole)) return false;
     const Eigen::Vector3d d = p - hole.centre;
-    return std::abs(d.dot(hole.axis_u)) < hole.half_u + depth && std::abs(d.dot(hole.axis_v)) < hole.half_v + depth;
+    return std::abs(d.dot(hole.axis_u)) < hole.half_u + grown && std::abs(d.dot(hole.axis_v)) < hole.half_v + grown;
   });
 }
 

@@ -120,6 +120,66 @@ TEST(SeenWindows, APlaceSeenThroughTheHoleIsBeyondItALampOnItsWallIsNot) {
   EXPECT_FALSE(BeyondAWindow(seen, middle + Eigen::Vector3d(0, -1.0, 0), up));  // in the room
   EXPECT_FALSE(BeyondAWindow(seen, middle + Eigen::Vector3d(-1.2, 0.1, 0), up));  // a sconce on the wall
   EXPECT_FALSE(BeyondAWindow(seen, middle + Eigen::Vector3d(-3.0, 1.0, 0), up));  // behind the wall, off the hole's cone
+  // From a little before the wall (the window's own blobs triangulated: its pane's light, not
+  // a bulb's): at the hole, yes; on the wall beside it, or farther into the room, no.
+  EXPECT_TRUE(BeyondAWindow(seen, middle + Eigen::Vector3d(0.1, -0.2, 0), up, -kBeyondWindow));
+  EXPECT_FALSE(BeyondAWindow(seen, middle + Eigen::Vector3d(0.1, -0.2, 0), up));
+  EXPECT_FALSE(BeyondAWindow(seen, middle + Eigen::Vector3d(-1.2, -0.1, 0), up, -kBeyondWindow));
+  EXPECT_FALSE(BeyondAWindow(seen, middle + Eigen::Vector3d(0, -0.4, 0), up, -kBeyondWindow));
+}
+
+TEST(SeenWindows, AHoleBesideARoomsCornerIsAWindow) {
+  // A side wall 12 cm beyond the hole's right edge, reaching into the room, and the hole large
+  // in view: the circle around the blob meets the side wall as much as the hole's own wall
+  // (not one flat wall: refused); the ring just outside the blob (near_scale) meets its wall.
+  Mesh mesh = Wall(true);
+  const float side = static_cast<float>(kX1 + 0.12);
+  Mesh wall = Quad({side, -1.0f, 0.0f}, {side, -1.0f, 3.0f}, {side, float(kWallY), 3.0f}, {side, float(kWallY), 0.0f});
+  ComputeVertexNormals(&wall);
+  mesh.Append(wall);
+  const RayTracer scene(std::move(mesh));
+  std::vector<View> views{BlankView(LookAt({0.45, 0.9, 1.4}, {0.6, kWallY, 1.4}, 160, 120, 70))};
+  ASSERT_GT(ClipOff(&views[0], [](const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+              return ThroughWall(o, d, kX0, kX1, kZ0, kZ1);
+            }), 2000);
+  SeenWindowOptions circle_only;
+  circle_only.near_scale = 0;  // (a ring 2 pixels from the blob's middle: its rays leave the scene)
+  EXPECT_TRUE(SeenWindows(views, scene, circle_only).empty());
+  const std::vector<SeenWindow> seen = SeenWindows(views, scene);
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_NEAR(seen[0].normal.y(), -1, 1e-6) << seen[0].normal.transpose();
+  EXPECT_NEAR(seen[0].centre.y(), kWallY, 1e-6);
+  const Portal p = PortalAround(seen[0].outline, seen[0].centre, seen[0].normal, Eigen::Vector3d::UnitX());
+  EXPECT_NEAR(p.centre.x() - p.half_u, kX0, 0.01);
+  EXPECT_NEAR(p.centre.x() + p.half_u, kX1, 0.01);
+  EXPECT_NEAR(p.centre.z() - p.half_v, kZ0, 0.01);
+  EXPECT_NEAR(p.centre.z() + p.half_v, kZ1, 0.01);
+}
+
+TEST(SeenWindows, AWindowSeenInPartsFromTwoViewsIsOneWindow) {
+  // One view sees the whole hole clipped, the other only its left third (the rest below the
+  // clip level): the third alone is a window too, its centre farther from the whole's than
+  // `merge` (made 5 cm here: the scans' windows seen in part lie 32 cm off, 30 by default);
+  // it lies within the whole's outline on one wall: one window, the whole's.
+  const RayTracer scene(Wall(true));
+  const double third = (kX1 - kX0) / 3;
+  std::vector<View> views{BlankView(LookAt({0.3, -1, 1.3}, {0.5, kWallY, 1.3}, 160, 120, 60)),
+                          BlankView(LookAt({0.7, -1, 1.3}, {0.5, kWallY, 1.3}, 160, 120, 60))};
+  for (int k = 0; k < 2; ++k) {
+    const double x1 = k == 0 ? kX1 : kX0 + third;
+    ASSERT_GT(ClipOff(&views[k], [&](const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+                return ThroughWall(o, d, kX0, x1, kZ0, kZ1);
+              }), 100);
+  }
+  SeenWindowOptions o;
+  o.merge = 0.05;
+  const std::vector<SeenWindow> whole = SeenWindows({views[0]}, scene, o), part = SeenWindows({views[1]}, scene, o);
+  ASSERT_EQ(whole.size(), 1u);
+  ASSERT_EQ(part.size(), 1u);
+  EXPECT_GT((whole[0].centre - part[0].centre).norm(), o.merge);
+  const std::vector<SeenWindow> seen = SeenWindows(views, scene, o);
+  ASSERT_EQ(seen.size(), 1u);
+  EXPECT_EQ(seen[0].pixels, whole[0].pixels);
 }
 
 TEST(SeenWindows, ASillBelowTheHoleDoesNotMoveItsWall) {
