@@ -138,6 +138,10 @@ void ScoreLamps(const TrueLamps& truth, const std::vector<PointLight>& estimate,
   s->estimated_lamps = static_cast<int>(estimate.size());
 }
 
+/// An estimated emitter's point counts as on a true one within this of its surface (issue
+/// 43's measure: "within 2 cm of the true emitter's surface").
+constexpr double kOnTrueEmitter = 0.02;  // m
+
 /// Each true emitter against the estimate overlapping it most; the estimates overlapping
 /// none are spurious (their share of the estimated emitters' power).
 void ScoreEmitters(const std::vector<EmitterLight>& truth, const std::vector<EmitterLight>& estimate, ScanScore* s) {
@@ -147,7 +151,7 @@ void ScoreEmitters(const std::vector<EmitterLight>& truth, const std::vector<Emi
     es.true_area = t.Area();
     for (std::size_t k = 0; k < estimate.size(); ++k) {
       if (!estimate[k].shape || !t.shape) continue;
-      const double overlap = estimate[k].Area() * AreaOn(*estimate[k].shape, *t.shape);
+      const double overlap = estimate[k].Area() * AreaOn(*estimate[k].shape, *t.shape, kOnTrueEmitter);
       if (overlap > 0) matched[k] = true;
       const double iou = overlap / (estimate[k].Area() + t.Area() - overlap);
       if (iou > es.iou) es.iou = iou, es.power_ratio = Lum(estimate[k].Power()) / Lum(t.Power());

@@ -194,8 +194,11 @@ std::vector<OutlineEdge> Outline(const EmitterShape& s) {
   return outline;
 }
 
-double AreaOn(const EmitterShape& a, const EmitterShape& b) {
+double AreaOn(const EmitterShape& a, const EmitterShape& b, double within) {
   constexpr int kGrid = 60;
+  // (a point within `within` of b's plane is within half a cell of it, or is so once moved
+  // by the rest along a's normal, one way or the other)
+  const double shift = std::max(0.0, within - 0.5 * b.cell);
   double on = 0, all = 0;
   for (std::size_t t = 0; t < a.a.size(); ++t) {
     const Eigen::Vector3d p0 = a.a[t].cast<double>(), e1 = (a.b[t] - a.a[t]).cast<double>(),
@@ -205,7 +208,10 @@ double AreaOn(const EmitterShape& a, const EmitterShape& b) {
       for (int j = 0; i + j < kGrid; ++j) {
         const Eigen::Vector3d p = p0 + e1 * ((i + 1.0 / 3) / kGrid) + e2 * ((j + 1.0 / 3) / kGrid);
         all += w;
-        on += w * (OnEmitter(b, p, n) || OnEmitter(b, p, -n));
+        bool hit = false;
+        for (const double d : {0.0, shift, -shift})
+          if (!hit && (d == 0 || shift > 0)) hit = OnEmitter(b, p + d * n, n) || OnEmitter(b, p + d * n, -n);
+        on += w * hit;
       }
   }
   return all > 0 ? on / all : 0.0;

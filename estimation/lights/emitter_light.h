@@ -83,9 +83,10 @@ std::vector<OutlineEdge> Outline(const EmitterShape& shape);
 
 /// The share of `a`'s area on `b`: points on a grid of each of a's triangles (60 x 60 / 2 a
 /// triangle, weighted by area) that lie on b (OnEmitter, either side: within half of b's cell
-/// of one of its triangles' planes, inside its edges). An intersection over union by area is
+/// of one of its triangles' planes, inside its edges; or within `within` metres of it, where
+/// that is more, along a's normal). An intersection over union by area is
 /// area(a) x AreaOn(a, b) over area(a) + area(b) - that.
-double AreaOn(const EmitterShape& a, const EmitterShape& b);
+double AreaOn(const EmitterShape& a, const EmitterShape& b, double within = 0);
 
 struct EmitterLight {
   int id = 0;  ///< its number in lights.json and emitters.ply

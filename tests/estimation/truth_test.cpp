@@ -56,6 +56,16 @@ TEST(ParseTruthEmitters, QuadsAreasAndOverlapInClosedForm) {
   // The first square half on the second's first quad; the second's area a quarter on the first.
   EXPECT_NEAR(AreaOn(*e[0].shape, *e[1].shape), 0.5, 0.02);
   EXPECT_NEAR(AreaOn(*e[1].shape, *e[0].shape), 0.25, 0.01);
+  // A square 1.5 cm before the first, tilted so that one edge is 2.5 cm before it: on it
+  // within half a cell (1 cm) nowhere; within 2 cm where its height is under 2 cm (its first
+  // 5/10 of the way across), the rest off.
+  const std::vector<EmitterLight> off = ParseTruthEmitters(R"({"emitters": [{"corners":
+      [[0, 0, 0.015], [1, 0, 0.025], [1, 1, 0.025], [0, 1, 0.015]], "normal": [0, 0, 1], "radiance": [1, 1, 1]}]})",
+                                                           "t");
+  ASSERT_EQ(off.size(), 1u);
+  EXPECT_NEAR(AreaOn(*off[0].shape, *e[0].shape), 0.0, 1e-9);
+  EXPECT_NEAR(AreaOn(*off[0].shape, *e[0].shape, 0.02), 0.5, 0.03);
+  EXPECT_NEAR(AreaOn(*off[0].shape, *e[0].shape, 0.03), 1.0, 1e-9);
   EXPECT_TRUE(ParseTruthEmitters(R"({"lights": []})", "t").empty());
   EXPECT_THROW(ParseTruthEmitters(R"({"emitters": [{"corners": [[0, 0, 0]], "normal": [0, 0, 1]}]})", "t"), InputError);
   EXPECT_THROW(ParseTruthEmitters(R"({"emitters": [{"corners": [[0,0,0],[1,0,0],[1,1,0],[0,1,0]], "normal": [0,0,1]}]})", "t"),
