@@ -430,6 +430,7 @@ bool Estimator::ProposeEmitters(RoundInfo* info) {
     it = std::any_of(kept.begin(), kept.end(), [&](const EmitterLight& e) { return e.shape == it->first; })
              ? std::next(it)
              : emitter_floor_.erase(it);
+  WindowCellsBesidePanes();
   if (!kept.empty()) ReselectLamps(info);
   return !kept.empty();
 }

@@ -435,6 +435,10 @@ class Estimator {
   /// the room through it: the map's (PowerThrough) and a pane's over it.
   void SayTheLightThroughWindows();
   void StartBesideSeenWindows();
+  /// After the glowing surfaces are chosen: a window seen as a hole whose glowing pane was
+  /// kept is no longer a window whose light the map holds; window_cells_ again from the
+  /// openings and the other windows (none left: the given prior for the rounds to its choice).
+  void WindowCellsBesidePanes();
   /// Flat, and most rays out of its back leave the scene (`opened`: the scene with it open).
   bool CouldBeWindow(const EmitterLight& e, const RayTracer& opened) const;
   /// Per triangle of the traced mesh: open already, or its centre on `shape`.

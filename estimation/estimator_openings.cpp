@@ -184,6 +184,32 @@ void Estimator::SayTheLightThroughWindows() {
   }
 }
 
+void Estimator::WindowCellsBesidePanes() {
+  if (window_cells_.empty() || !PriorGivenByOptions().empty()) return;
+  const auto paned = [&](const Portal& p) {
+    return std::any_of(emitters_.begin(), emitters_.end(), [&](const EmitterLight& e) {
+      return e.in_a_hole && e.shape && (Centroid(*e.shape) - p.centre).norm() < 1e-3;
+    });
+  };
+  std::vector<Eigen::Vector3d> outs;
+  for (const auto& opening : res_.openings) outs.push_back(-FacingSum(*opening).normalized());
+  bool any_paned = false;
+  for (const SeenWindow& w : res_.windows) {
+    Portal p;
+    const bool pane = PortalOf(w, bundle_.up, &p) && paned(p);
+    any_paned = any_paned || pane;
+    if (!pane) outs.push_back(-w.normal);
+  }
+  if (!any_paned) return;
+  window_cells_.clear();
+  for (const Eigen::Vector3d& out : outs) MarkWindowCells(out);
+  Progress(window_cells_.empty() ? std::string("the glowing pane over the window seen as a hole holds its light: the "
+                                               "map's cells behind it at the given prior")
+                                 : std::string("the glowing panes over windows seen as holes hold their light: the map's "
+                                               "cells behind the other windows only are the windows'"));
+  if (window_cells_.empty() && !res_.prior.done) UseAlpha(opt_.objective.alpha);
+}
+
 /// Before round 1: the windows seen as holes; beside one, the map's cells behind it start at
 /// the weakest prior the choice tries (until it chooses), so that a lamp is kept only where
 /// it explains the images better than the light through the window, a sky's, extended (the
