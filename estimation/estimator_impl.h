@@ -437,7 +437,9 @@ class Estimator {
   void StartBesideSeenWindows();
   /// After the glowing surfaces are chosen: a window seen as a hole whose glowing pane was
   /// kept is no longer a window whose light the map holds; window_cells_ again from the
-  /// openings and the other windows (none left: the given prior for the rounds to its choice).
+  /// openings and the other windows (cells are marked per wall: an unpaned window on the
+  /// same wall keeps them the windows'; none left: the given prior for the rounds to its
+  /// choice). Not once the prior is chosen.
   void WindowCellsBesidePanes();
   /// Flat, and most rays out of its back leave the scene (`opened`: the scene with it open).
   bool CouldBeWindow(const EmitterLight& e, const RayTracer& opened) const;

@@ -185,7 +185,8 @@ void Estimator::SayTheLightThroughWindows() {
 }
 
 void Estimator::WindowCellsBesidePanes() {
-  if (window_cells_.empty() || !PriorGivenByOptions().empty()) return;
+  // (once the prior is chosen, by the windows' rule, its weights stay as they were chosen)
+  if (window_cells_.empty() || !PriorGivenByOptions().empty() || res_.prior.done) return;
   const auto paned = [&](const Portal& p) {
     return std::any_of(emitters_.begin(), emitters_.end(), [&](const EmitterLight& e) {
       return e.in_a_hole && e.shape && (Centroid(*e.shape) - p.centre).norm() < 1e-3;
@@ -203,11 +204,15 @@ void Estimator::WindowCellsBesidePanes() {
   if (!any_paned) return;
   window_cells_.clear();
   for (const Eigen::Vector3d& out : outs) MarkWindowCells(out);
-  Progress(window_cells_.empty() ? std::string("the glowing pane over the window seen as a hole holds its light: the "
-                                               "map's cells behind it at the given prior")
-                                 : std::string("the glowing panes over windows seen as holes hold their light: the map's "
-                                               "cells behind the other windows only are the windows'"));
-  if (window_cells_.empty() && !res_.prior.done) UseAlpha(opt_.objective.alpha);
+  const std::string line =
+      window_cells_.empty()
+          ? "the glowing pane over the window seen as a hole holds its light: the map's cells behind it at the given "
+            "prior"
+          : "the glowing panes over windows seen as holes hold their light: the map's cells behind the other windows' "
+            "walls only are the windows'";
+  res_.point_light_choices.push_back(line);
+  Progress(line);
+  if (window_cells_.empty()) UseAlpha(opt_.objective.alpha);
 }
 
 /// Before round 1: the windows seen as holes; beside one, the map's cells behind it start at

@@ -14,18 +14,29 @@ struct RimHit {
   Eigen::Vector3d position, normal;  ///< the normal towards the camera
 };
 
+/// A blob's pixels within their bounds.
+struct BlobMask {
+  int w = 0, h = 0;
+  std::vector<std::uint8_t> in;
+};
+
+BlobMask MaskOf(const Camera& c, const ClippedBlob& b) {
+  BlobMask m;
+  m.w = b.max_x - b.min_x + 1, m.h = b.max_y - b.min_y + 1;
+  m.in.assign(static_cast<std::size_t>(m.w) * m.h, 0);
+  for (const int p : b.members) m.in[(p / c.width - b.min_y) * m.w + (p % c.width - b.min_x)] = 1;
+  return m;
+}
+
 /// How far (pixels) the blob reaches from its mean pixel along angle `a`: the farthest of
 /// its pixels met, in half-pixel steps, within its bounds.
-double Reach(const Camera& c, const ClippedBlob& b, double a) {
-  const int w = b.max_x - b.min_x + 1, h = b.max_y - b.min_y + 1;
-  std::vector<std::uint8_t> in(static_cast<std::size_t>(w) * h, 0);
-  for (const int p : b.members) in[(p / c.width - b.min_y) * w + (p % c.width - b.min_x)] = 1;
+double Reach(const ClippedBlob& b, const BlobMask& m, double a) {
   double reach = 0;
   for (double t = 0;; t += 0.5) {
     const int x = static_cast<int>(std::lround(b.u + t * std::cos(a))) - b.min_x,
               y = static_cast<int>(std::lround(b.v + t * std::sin(a))) - b.min_y;
-    if (x < 0 || y < 0 || x >= w || y >= h) return reach;
-    if (in[static_cast<std::size_t>(y) * w + x]) reach = t;
+    if (x < 0 || y < 0 || x >= m.w || y >= m.h) return reach;
+    if (m.in[static_cast<std::size_t>(y) * m.w + x]) reach = t;
   }
 }
 
@@ -35,9 +46,10 @@ double Reach(const Camera& c, const ClippedBlob& b, double a) {
 std::vector<RimHit> RimHits(const Camera& c, const ClippedBlob& b, const RayTracer& scene, const SeenWindowOptions& o,
                             bool near) {
   const double circle = o.rim_scale * std::sqrt(b.pixels / M_PI) + 2;
+  const BlobMask mask = near ? MaskOf(c, b) : BlobMask();
   std::vector<RimHit> out;
   for (int k = 0; k < o.rim_rays; ++k) {
-    const double a = 2 * M_PI * k / o.rim_rays, radius = near ? o.near_scale * Reach(c, b, a) + 2 : circle;
+    const double a = 2 * M_PI * k / o.rim_rays, radius = near ? o.near_scale * Reach(b, mask, a) + 2 : circle;
     const double u = b.u + radius * std::cos(a), v = b.v + radius * std::sin(a);
     if (u < 0 || v < 0 || u > c.width - 1 || v > c.height - 1) continue;
     const Eigen::Vector3d dir = c.RayDirection(u, v);
@@ -155,6 +167,29 @@ bool Covers(const SeenWindow& w, const Eigen::Vector3d& p, double distance) {
   return (x.array() >= lo.array()).all() && (x.array() <= hi.array()).all();
 }
 
+/// Whether `x` and `w` are one window: facing alike, and their centres within `merge` or
+/// one's centre within the other's outline on its wall (one window seen in parts).
+bool OneWindow(const SeenWindow& x, const SeenWindow& w, const SeenWindowOptions& o) {
+  return x.normal.dot(w.normal) > o.flat_cos &&
+         ((x.centre - w.centre).norm() < o.merge || Covers(x, w.centre, o.plane_distance) ||
+          Covers(w, x.centre, o.plane_distance));
+}
+
+/// `windows` with each pair that is one window made one (the one seen with more pixels kept),
+/// until none is: whatever order the parts and the whole came in.
+void MergeParts(std::vector<SeenWindow>* windows, const SeenWindowOptions& o) {
+  for (bool merged = true; merged;) {
+    merged = false;
+    for (std::size_t i = 0; i < windows->size() && !merged; ++i)
+      for (std::size_t j = i + 1; j < windows->size() && !merged; ++j)
+        if (OneWindow((*windows)[i], (*windows)[j], o)) {
+          if ((*windows)[j].pixels > (*windows)[i].pixels) (*windows)[i] = (*windows)[j];
+          windows->erase(windows->begin() + static_cast<std::ptrdiff_t>(j));
+          merged = true;
+        }
+  }
+}
+
 }  // namespace
 
 std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTracer& scene, const SeenWindowOptions& o) {
@@ -165,7 +200,7 @@ std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTra
     const Eigen::Vector3d dir = c.RayDirection(b.u, b.v);
     if (!MostlyEscapes(c, b, scene, o)) continue;  // (a bulb before a wall: the lamps')
     Eigen::Vector3d normal, point;
-    // (the ring just outside the blob where the circle meets more than its wall: a window
+    // (where the circle finds no one flat wall, the ring just outside the blob: a window
     // large in view beside a room's corner, the circle reaching the side wall)
     if (!RimWall(RimHits(c, b, scene, o, false), o.rim_rays, o, &normal, &point) &&
         !RimWall(RimHits(c, b, scene, o, true), o.rim_rays, o, &normal, &point))
@@ -174,14 +209,8 @@ std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTra
     if (along > -1e-3) continue;  // (the wall seen edge on)
     SeenWindow w{b.view, b.pixels, c.center() + (point - c.center()).dot(normal) / along * dir, normal, {}};
     w.outline = OutlineOnWall(c, b, normal, point, w.centre, scene, o);
-    // (one window seen in parts, from two views: the smaller's centre within the larger)
-    auto same = std::find_if(out.begin(), out.end(), [&](const SeenWindow& x) {
-      return x.normal.dot(w.normal) > o.flat_cos &&
-             ((x.centre - w.centre).norm() < o.merge || Covers(x, w.centre, o.plane_distance) ||
-              Covers(w, x.centre, o.plane_distance));
-    });
-    if (same == out.end()) out.push_back(w);
-    else if (w.pixels > same->pixels) *same = w;
+    out.push_back(w);
+    MergeParts(&out, o);
   }
   return out;
 }
@@ -189,7 +218,7 @@ std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTra
 bool BeyondAWindow(const std::vector<SeenWindow>& windows, const Eigen::Vector3d& p, const Eigen::Vector3d& up,
                    double from) {
   return std::any_of(windows.begin(), windows.end(), [&](const SeenWindow& w) {
-    const double depth = (w.centre - p).dot(w.normal), grown = std::abs(depth);
+    const double depth = (w.centre - p).dot(w.normal), grown = std::max(depth, 0.0);
     Portal hole;
     if (depth < from || !PortalOf(w, up, &hole)) return false;
     const Eigen::Vector3d d = p - hole.centre;

@@ -32,7 +32,7 @@ struct SeenWindowOptions {
   double min_escape_share = 0.5;  ///< of the blob's pixels' rays (up to 64 of them) this share leave the scene
   int rim_rays = 24;             ///< rays cast on a ring around the blob's mean pixel
   double rim_scale = 1.5;        ///< the ring's radius: this times the blob's (sqrt(pixels / pi)), plus 2 pixels
-  double near_scale = 1.15;      ///< where that ring fails: a ring this times the blob's reach along each ray, plus 2
+  double near_scale = 1.15;      ///< where that ring finds no wall: one this times the blob's reach along each ray, plus 2
   double min_rim_share = 0.6;    ///< of the ring's rays at least this share hit the mesh ...
   double flat_share = 0.8;       ///< ... and of those this share lie on one plane:
   double flat_cos = 0.9;         ///< their normals within acos(0.9) = 26 degrees of their mean,
@@ -48,7 +48,8 @@ std::vector<SeenWindow> SeenWindows(const std::vector<View>& views, const RayTra
 
 /// Whether `p` lies out beyond one of `windows`: behind its wall by more than `from`
 /// (kBeyondWindow; negative: before it, in the room, by less than that) and within the cone
-/// the hole opens onto (its rectangle, PortalOf, grown by that depth on each side). A place
+/// the hole opens onto (its rectangle, PortalOf, grown by the depth behind the wall on each
+/// side; before the wall, the rectangle itself). A place
 /// seen through the hole is the sky's, not a lamp's; a lamp on the window's wall, or in
 /// another part of the room behind that wall's plane, is not.
 constexpr double kBeyondWindow = 0.25;  // m

@@ -196,9 +196,10 @@ std::vector<OutlineEdge> Outline(const EmitterShape& s) {
 
 double AreaOn(const EmitterShape& a, const EmitterShape& b, double within) {
   constexpr int kGrid = 60;
-  // (a point within `within` of b's plane is within half a cell of it, or is so once moved
-  // by the rest along a's normal, one way or the other)
+  // (a point within `within` of b's plane is within half a cell of it once moved along a's
+  // normal by one of the offsets, a cell apart at most, up to the rest either way)
   const double shift = std::max(0.0, within - 0.5 * b.cell);
+  const int steps = static_cast<int>(std::ceil(shift / b.cell));
   double on = 0, all = 0;
   for (std::size_t t = 0; t < a.a.size(); ++t) {
     const Eigen::Vector3d p0 = a.a[t].cast<double>(), e1 = (a.b[t] - a.a[t]).cast<double>(),
@@ -209,8 +210,10 @@ double AreaOn(const EmitterShape& a, const EmitterShape& b, double within) {
         const Eigen::Vector3d p = p0 + e1 * ((i + 1.0 / 3) / kGrid) + e2 * ((j + 1.0 / 3) / kGrid);
         all += w;
         bool hit = false;
-        for (const double d : {0.0, shift, -shift})
-          if (!hit && (d == 0 || shift > 0)) hit = OnEmitter(b, p + d * n, n) || OnEmitter(b, p + d * n, -n);
+        for (int k = -steps; k <= steps && !hit; ++k) {
+          const Eigen::Vector3d q = p + (steps > 0 ? shift * k / steps : 0.0) * n;
+          hit = OnEmitter(b, q, n) || OnEmitter(b, q, -n);
+        }
         on += w * hit;
       }
   }

@@ -126,6 +126,8 @@ TEST(SeenWindows, APlaceSeenThroughTheHoleIsBeyondItALampOnItsWallIsNot) {
   EXPECT_FALSE(BeyondAWindow(seen, middle + Eigen::Vector3d(0.1, -0.2, 0), up));
   EXPECT_FALSE(BeyondAWindow(seen, middle + Eigen::Vector3d(-1.2, -0.1, 0), up, -kBeyondWindow));
   EXPECT_FALSE(BeyondAWindow(seen, middle + Eigen::Vector3d(0, -0.4, 0), up, -kBeyondWindow));
+  // (a sconce 15 cm before the wall, 10 cm past the hole's edge: a lamp still)
+  EXPECT_FALSE(BeyondAWindow(seen, middle + Eigen::Vector3d(0.5 * (kX1 - kX0) + 0.1, -0.15, 0), up, -kBeyondWindow));
 }
 
 TEST(SeenWindows, AHoleBesideARoomsCornerIsAWindow) {
@@ -180,6 +182,16 @@ TEST(SeenWindows, AWindowSeenInPartsFromTwoViewsIsOneWindow) {
   const std::vector<SeenWindow> seen = SeenWindows(views, scene, o);
   ASSERT_EQ(seen.size(), 1u);
   EXPECT_EQ(seen[0].pixels, whole[0].pixels);
+  // The left and the right thirds first (neither within the other's outline: two windows),
+  // then the whole: one window whatever the order.
+  View right = views[1];
+  ASSERT_GT(ClipOff(&right, [&](const Eigen::Vector3d& o, const Eigen::Vector3d& d) {
+              return ThroughWall(o, d, kX1 - third, kX1, kZ0, kZ1);
+            }), 100);
+  EXPECT_EQ(SeenWindows({views[1], right}, scene, o).size(), 2u);
+  const std::vector<SeenWindow> all = SeenWindows({views[1], right, views[0]}, scene, o);
+  ASSERT_EQ(all.size(), 1u);
+  EXPECT_EQ(all[0].pixels, whole[0].pixels);
 }
 
 TEST(SeenWindows, ASillBelowTheHoleDoesNotMoveItsWall) {
