@@ -166,6 +166,16 @@ void Estimator::MarkSeenWindows() {
   }
 }
 
+namespace {
+
+/// Whether `e` is the glowing pane over the hole whose rectangle is `p` (PanesOverHoles'
+/// quad over that rectangle).
+bool PaneOver(const EmitterLight& e, const Portal& p) {
+  return e.in_a_hole && e.shape && (Centroid(*e.shape) - p.centre).norm() < 1e-3;
+}
+
+}  // namespace
+
 void Estimator::SayTheLightThroughWindows() {
   for (const SeenWindow& w : res_.windows) {
     Portal p;
@@ -173,7 +183,7 @@ void Estimator::SayTheLightThroughWindows() {
     const Eigen::Vector3d map = PowerThrough(p, w.normal, env_, res_.lighting.map);
     Eigen::Vector3d pane = Eigen::Vector3d::Zero();
     for (const EmitterLight& e : res_.lighting.Of<EmitterLight>())
-      if (e.in_a_hole && e.shape && (Centroid(*e.shape) - p.centre).norm() < 1e-3) pane += e.Power();
+      if (PaneOver(e, p)) pane += e.Power();
     const std::string line = Fmt(
         "the window seen as a hole at (%.3f, %.3f, %.3f): %.2f x %.2f m; the light through it (image units x m^2 x sr) "
         "%.4g %.4g %.4g from the map, %.4g %.4g %.4g from a glowing pane over it",
@@ -187,17 +197,13 @@ void Estimator::SayTheLightThroughWindows() {
 void Estimator::WindowCellsBesidePanes() {
   // (once the prior is chosen, by the windows' rule, its weights stay as they were chosen)
   if (window_cells_.empty() || !PriorGivenByOptions().empty() || res_.prior.done) return;
-  const auto paned = [&](const Portal& p) {
-    return std::any_of(emitters_.begin(), emitters_.end(), [&](const EmitterLight& e) {
-      return e.in_a_hole && e.shape && (Centroid(*e.shape) - p.centre).norm() < 1e-3;
-    });
-  };
   std::vector<Eigen::Vector3d> outs;
   for (const auto& opening : res_.openings) outs.push_back(-FacingSum(*opening).normalized());
   bool any_paned = false;
   for (const SeenWindow& w : res_.windows) {
     Portal p;
-    const bool pane = PortalOf(w, bundle_.up, &p) && paned(p);
+    const bool pane = PortalOf(w, bundle_.up, &p) &&
+                      std::any_of(emitters_.begin(), emitters_.end(), [&](const EmitterLight& e) { return PaneOver(e, p); });
     any_paned = any_paned || pane;
     if (!pane) outs.push_back(-w.normal);
   }

@@ -14,19 +14,17 @@ struct RimHit {
   Eigen::Vector3d position, normal;  ///< the normal towards the camera
 };
 
-/// A blob's pixels within their bounds.
+/// A blob's pixels within their bounds (x, y from its top left).
 struct BlobMask {
-  int w = 0, h = 0;
+  BlobMask(const Camera& c, const ClippedBlob& b)
+      : w(b.max_x - b.min_x + 1), h(b.max_y - b.min_y + 1), in(static_cast<std::size_t>(w) * h, 0) {
+    for (const int p : b.members) in[(p / c.width - b.min_y) * w + (p % c.width - b.min_x)] = 1;
+  }
+  bool Inside(int x, int y) const { return x >= 0 && y >= 0 && x < w && y < h; }
+  bool Member(int x, int y) const { return Inside(x, y) && in[static_cast<std::size_t>(y) * w + x]; }
+  int w, h;
   std::vector<std::uint8_t> in;
 };
-
-BlobMask MaskOf(const Camera& c, const ClippedBlob& b) {
-  BlobMask m;
-  m.w = b.max_x - b.min_x + 1, m.h = b.max_y - b.min_y + 1;
-  m.in.assign(static_cast<std::size_t>(m.w) * m.h, 0);
-  for (const int p : b.members) m.in[(p / c.width - b.min_y) * m.w + (p % c.width - b.min_x)] = 1;
-  return m;
-}
 
 /// How far (pixels) the blob reaches from its mean pixel along angle `a`: the farthest of
 /// its pixels met, in half-pixel steps, within its bounds.
@@ -35,8 +33,8 @@ double Reach(const ClippedBlob& b, const BlobMask& m, double a) {
   for (double t = 0;; t += 0.5) {
     const int x = static_cast<int>(std::lround(b.u + t * std::cos(a))) - b.min_x,
               y = static_cast<int>(std::lround(b.v + t * std::sin(a))) - b.min_y;
-    if (x < 0 || y < 0 || x >= m.w || y >= m.h) return reach;
-    if (m.in[static_cast<std::size_t>(y) * m.w + x]) reach = t;
+    if (!m.Inside(x, y)) return reach;
+    if (m.Member(x, y)) reach = t;
   }
 }
 
@@ -46,7 +44,7 @@ double Reach(const ClippedBlob& b, const BlobMask& m, double a) {
 std::vector<RimHit> RimHits(const Camera& c, const ClippedBlob& b, const RayTracer& scene, const SeenWindowOptions& o,
                             bool near) {
   const double circle = o.rim_scale * std::sqrt(b.pixels / M_PI) + 2;
-  const BlobMask mask = near ? MaskOf(c, b) : BlobMask();
+  const BlobMask mask(c, b);
   std::vector<RimHit> out;
   for (int k = 0; k < o.rim_rays; ++k) {
     const double a = 2 * M_PI * k / o.rim_rays, radius = near ? o.near_scale * Reach(b, mask, a) + 2 : circle;
@@ -134,10 +132,9 @@ Eigen::Vector3d ToTheHolesEdge(const RayTracer& scene, Eigen::Vector3d q, const 
 std::vector<Eigen::Vector3d> OutlineOnWall(const Camera& c, const ClippedBlob& b, const Eigen::Vector3d& normal,
                                            const Eigen::Vector3d& point, const Eigen::Vector3d& centre,
                                            const RayTracer& scene, const SeenWindowOptions& o) {
-  const int w = b.max_x - b.min_x + 1, h = b.max_y - b.min_y + 1;
-  std::vector<std::uint8_t> in(static_cast<std::size_t>(w) * h, 0);
-  for (const int p : b.members) in[(p / c.width - b.min_y) * w + (p % c.width - b.min_x)] = 1;
-  const auto member = [&](int x, int y) { return x >= 0 && y >= 0 && x < w && y < h && in[y * w + x]; };
+  const BlobMask mask(c, b);
+  const int w = mask.w, h = mask.h;
+  const auto member = [&](int x, int y) { return mask.Member(x, y); };
   // The pixel corners on the blob's outer boundary (each once): of the four pixels around
   // corner (x, y), at its top left, some in the blob and some not.
   std::vector<Eigen::Vector3d> out;
@@ -153,18 +150,13 @@ std::vector<Eigen::Vector3d> OutlineOnWall(const Camera& c, const ClippedBlob& b
   return out;
 }
 
-/// Whether `p` lies in `w`'s wall (within `distance` of its plane) and within its outline's
-/// bounds there.
+/// Whether `p` lies in `w`'s wall (within `distance` of its plane) and within the rectangle
+/// around its outline there.
 bool Covers(const SeenWindow& w, const Eigen::Vector3d& p, double distance) {
   if (w.outline.empty() || std::abs((p - w.centre).dot(w.normal)) > distance) return false;
-  const Eigen::Vector3d a = w.normal.unitOrthogonal(), b = w.normal.cross(a);
-  Eigen::Vector2d lo = Eigen::Vector2d::Constant(1e300), hi = -lo;
-  for (const Eigen::Vector3d& q : w.outline) {
-    const Eigen::Vector2d x((q - w.centre).dot(a), (q - w.centre).dot(b));
-    lo = lo.cwiseMin(x), hi = hi.cwiseMax(x);
-  }
-  const Eigen::Vector2d x((p - w.centre).dot(a), (p - w.centre).dot(b));
-  return (x.array() >= lo.array()).all() && (x.array() <= hi.array()).all();
+  const Portal r = PortalAround(w.outline, w.centre, w.normal, w.normal.unitOrthogonal());
+  const Eigen::Vector3d d = p - r.centre;
+  return std::abs(d.dot(r.axis_u)) <= r.half_u && std::abs(d.dot(r.axis_v)) <= r.half_v;
 }
 
 /// Whether `x` and `w` are one window: facing alike, and their centres within `merge` or
