@@ -181,7 +181,9 @@ std::vector<double> SegmentMultipliers(const LightFitProblem& p, const std::vect
       const int s = seg[i / 3];
       if (s < 0 || rows[s] < kMinSegmentRows) continue;
       const std::size_t j = 3 * s + i % 3;
-      const double w = p.loss.Weight((*p.y)[i] - k[j] * model[i]);
+      const double r = (*p.y)[i] - k[j] * model[i];
+      if (p.Passes(i, r)) continue;  // a bound the segment's albedo keeps: no pull (an active one pulls as a measurement)
+      const double w = p.loss.Weight(r);
       num[j] += w * model[i] * (*p.y)[i];
       den[j] += w * model[i] * model[i];
       if (!noise.empty()) var[j] += w * noise[i] * noise[i];

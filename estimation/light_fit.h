@@ -90,7 +90,9 @@ constexpr double kMaxSegmentMultiplier = 8;
 /// The albedo multipliers of LightFitProblem's segments for a model (3 per row: what the
 /// lights and base render), 3 per row (1 where the row's albedo is held): per segment and
 /// channel the m minimizing sum rho(y - m model) over its rows, by reweighted least squares
-/// (4 passes from 1), kept within kMaxSegmentMultiplier. `noise` (3 per row, or empty): the
+/// (4 passes from 1), kept within kMaxSegmentMultiplier; a row of one_sided whose bound the
+/// pass's multiplier keeps is left out of that pass (it would pull the albedo towards its clip
+/// level), one it breaks counts as a measurement. `noise` (3 per row, or empty): the
 /// model's halves' difference, whose square is taken from the model's (debiased).
 std::vector<double> SegmentMultipliers(const LightFitProblem& problem, const std::vector<double>& model,
                                        const std::vector<double>& noise = {});

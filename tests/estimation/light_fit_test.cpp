@@ -272,6 +272,36 @@ TEST(LightFit, SegmentMultipliersAreEachSegmentsLeastSquaresRatio) {
   for (double v : SegmentMultipliers(p, model)) EXPECT_EQ(v, 1.0);
 }
 
+TEST(LightFit, SegmentMultipliersAreNotPulledByTheBoundsTheyKeep) {
+  // A segment whose exact rows say y = 0.5 model, beside clipped rows (at least 0.3 model:
+  // the clip below what the surface sends) and rows beside them (at most 0.9 model): every
+  // bound holds at 0.5, so the multiplier is 0.5 exactly, as without them. Counted as
+  // measurements they pull it to 0.54 (a quarter of the rows at 0.9). A lower bound the
+  // exact rows break (at least 0.8 model) raises it.
+  const int rows = 2 * kMinSegmentRows;
+  std::vector<int> segment(rows, 0);
+  std::vector<double> model(3 * rows), y(3 * rows);
+  std::vector<std::uint8_t> bound(3 * rows, kExact);
+  for (int r = 0; r < rows; ++r)
+    for (int c = 0; c < 3; ++c) {
+      const int i = 3 * r + c;
+      model[i] = 0.2 + 0.01 * ((5 * r + 2 * c) % 17);
+      bound[i] = r % 4 == 1 ? kAtLeast : r % 4 == 3 ? kAtMost : kExact;
+      y[i] = (bound[i] == kAtLeast ? 0.3 : bound[i] == kAtMost ? 0.9 : 0.5) * model[i];
+    }
+  LightFitProblem p;
+  p.y = &y;
+  p.segment = &segment;
+  p.one_sided = &bound;
+  for (double m : SegmentMultipliers(p, model)) EXPECT_NEAR(m, 0.5, 1e-9);
+  p.one_sided = nullptr;  // the same rows as measurements
+  for (double m : SegmentMultipliers(p, model)) EXPECT_GT(std::abs(m - 0.5), 0.03);
+  p.one_sided = &bound;
+  for (int i = 0; i < 3 * rows; ++i)
+    if (bound[i] == kAtLeast) y[i] = 0.8 * model[i];
+  for (double m : SegmentMultipliers(p, model)) EXPECT_GT(m, 0.55);
+}
+
 TEST(LightFit, ALampIsPlacedByTheShadingWhenTheAlbedoIsLeftFree) {
   // The image of a lamp over a plane and a ball whose albedos are wrong by 1.6x and 0.6x
   // (what a de-lit albedo that took some of the light may be): with the albedo held the
