@@ -251,18 +251,11 @@ void Estimator::FitSky() {
   const std::vector<double> rest = Plus(A_.Multiply(lambda_), LightsRender(points_, {}));
   const CauchyLoss cauchy{res_.objective_params.sigma};
   Eigen::Vector3d irradiance = sun.irradiance, sky = Eigen::Vector3d::Zero();
+  std::vector<double> t(y_.size());  // what the light and the sky render
+  for (std::size_t e = 0; e < t.size(); ++e) t[e] = y_[e] - rest[e];
+  const std::vector<std::uint8_t> bounds = one_sided_.size() == y_.size() ? one_sided_ : std::vector<std::uint8_t>();
   for (int c = 0; c < 3; ++c) {
-    Eigen::Matrix2d m = Eigen::Matrix2d::Zero();
-    Eigen::Vector2d v = Eigen::Vector2d::Zero();
-    for (std::size_t e = c; e < y_.size(); e += 3) {
-      const double t = y_[e] - rest[e], r = t - sun.irradiance[c] * x[e];
-      const double w = cauchy.Weight(r);  // at the fit
-      m(0, 0) += w * z[e] * x[e], m(0, 1) += w * z[e] * s[e];
-      m(1, 0) += w * s[e] * x[e], m(1, 1) += w * s[e] * s[e];
-      v(0) += w * z[e] * t, v(1) += w * s[e] * t;
-    }
-    Eigen::Vector2d ab = m.fullPivLu().solve(v);
-    if (!(ab(1) > 0) || !ab.allFinite()) ab = Eigen::Vector2d(m(0, 0) > 0 ? v(0) / m(0, 0) : irradiance[c], 0.0);
+    const Eigen::Vector2d ab = FitLightBesideSky(x, z, s, t, sun.irradiance[c], cauchy, bounds, c, 3);
     irradiance[c] = std::max(0.0, ab(0));
     sky[c] = ab(1);
   }

@@ -161,6 +161,25 @@ double LightFitProblem::Value(const std::vector<Light>& lights, const std::vecto
   return Energy(*this, lights, f);
 }
 
+Eigen::Vector2d FitLightBesideSky(const std::vector<float>& x, const std::vector<float>& z,
+                                  const std::vector<double>& s, const std::vector<double>& t, double a0,
+                                  const CauchyLoss& loss, const std::vector<std::uint8_t>& one_sided,
+                                  std::size_t first, std::size_t step) {
+  Eigen::Matrix2d m = Eigen::Matrix2d::Zero();
+  Eigen::Vector2d v = Eigen::Vector2d::Zero();
+  for (std::size_t e = first; e < t.size(); e += step) {
+    const double r = t[e] - a0 * x[e];
+    if (!one_sided.empty() && r != 0 && BoundedResidual(one_sided[e], r) == 0) continue;
+    const double w = loss.Weight(r);  // at the fit
+    m(0, 0) += w * z[e] * x[e], m(0, 1) += w * z[e] * s[e];
+    m(1, 0) += w * s[e] * x[e], m(1, 1) += w * s[e] * s[e];
+    v(0) += w * z[e] * t[e], v(1) += w * s[e] * t[e];
+  }
+  Eigen::Vector2d ab = m.fullPivLu().solve(v);
+  if (!(ab(1) > 0) || !ab.allFinite()) ab = Eigen::Vector2d(m(0, 0) > 0 ? v(0) / m(0, 0) : a0, 0.0);
+  return ab;
+}
+
 std::vector<double> SegmentMultipliers(const LightFitProblem& p, const std::vector<double>& model,
                                        const std::vector<double>& noise) {
   std::vector<double> m(model.size(), 1.0);

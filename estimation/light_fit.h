@@ -97,6 +97,18 @@ constexpr double kMaxSegmentMultiplier = 8;
 std::vector<double> SegmentMultipliers(const LightFitProblem& problem, const std::vector<double>& model,
                                        const std::vector<double>& noise = {});
 
+/// A directional light's scale `a` and a uniform sky's radiance `b` in one channel, fitted
+/// together to t = a x + b s (x the light's column, s the sky's, t what the other lights leave)
+/// by instrumental variables: z, an independently traced column of the light, instruments x
+/// (docs/method.md, "The sky"). Each entry is weighted by the loss at the fit r = t - a0 x; an
+/// entry of `one_sided` (empty: every one exact) whose bound holds there is left out (a clipped
+/// sunlit pixel says only "at least this bright"). Returns (a, b); where the sky does not come
+/// out positive, (the light alone, 0); where nothing is weighed, (a0, 0).
+Eigen::Vector2d FitLightBesideSky(const std::vector<float>& x, const std::vector<float>& z,
+                                  const std::vector<double>& s, const std::vector<double>& t, double a0,
+                                  const CauchyLoss& loss, const std::vector<std::uint8_t>& one_sided,
+                                  std::size_t first = 0, std::size_t step = 1);
+
 /// Called after each accepted step of a fit: (step, E, sum of squared residuals, lights).
 using LightFitLog = std::function<void(int, double, double, const std::vector<Light>&)>;
 

@@ -302,6 +302,43 @@ TEST(LightFit, SegmentMultipliersAreNotPulledByTheBoundsTheyKeep) {
   for (double m : SegmentMultipliers(p, model)) EXPECT_GT(m, 0.55);
 }
 
+TEST(LightFit, TheSunBesideItsSkyIsNotPulledByTheBoundsItKeeps) {
+  // t = 2 x + 0.3 s on the exact entries (the light's column instrumented by itself); clipped
+  // entries at half the model (at least: the model is above) and entries beside them at 1.5
+  // times it (at most: below) hold at the fit, so the light and the sky come back exactly.
+  // Counted as measurements they pull both; where the sky would come out negative, the light
+  // alone.
+  const int n = 240;
+  std::vector<float> x(n);
+  std::vector<double> s(n), t(n);
+  std::vector<std::uint8_t> bound(n, kExact);
+  for (int e = 0; e < n; ++e) {
+    x[e] = static_cast<float>(0.5 + 0.01 * ((7 * e) % 53));
+    s[e] = 0.2 + 0.8 * ((11 * e) % 29) / 28.0;
+    bound[e] = e % 5 == 1 ? kAtLeast : e % 5 == 3 ? kAtMost : kExact;
+    const double model = 2 * x[e] + 0.3 * s[e];
+    t[e] = (bound[e] == kAtLeast ? 0.5 : bound[e] == kAtMost ? 1.5 : 1.0) * model;
+  }
+  const CauchyLoss loss{0.5};
+  const Eigen::Vector2d ab = FitLightBesideSky(x, x, s, t, 2.0, loss, bound);
+  EXPECT_NEAR(ab(0), 2.0, 1e-9);
+  EXPECT_NEAR(ab(1), 0.3, 1e-9);
+  const Eigen::Vector2d pulled = FitLightBesideSky(x, x, s, t, 2.0, loss, {});
+  EXPECT_GT((pulled - Eigen::Vector2d(2.0, 0.3)).norm(), 0.05);
+  // Every third entry of a three-channel vector: the same fit on that channel alone.
+  std::vector<float> x3(3 * n);
+  std::vector<double> s3(3 * n), t3(3 * n, 0.0);
+  std::vector<std::uint8_t> b3(3 * n, kExact);
+  for (int e = 0; e < n; ++e) x3[3 * e + 1] = x[e], s3[3 * e + 1] = s[e], t3[3 * e + 1] = t[e], b3[3 * e + 1] = bound[e];
+  EXPECT_NEAR((FitLightBesideSky(x3, x3, s3, t3, 2.0, loss, b3, 1, 3) - ab).norm(), 0.0, 1e-12);
+  // A sky that fits negative: the light alone, the sky 0.
+  for (int e = 0; e < n; ++e) t[e] = 2 * x[e] - 0.3 * s[e];
+  const Eigen::Vector2d alone = FitLightBesideSky(x, x, s, t, 2.0, loss, {});
+  EXPECT_EQ(alone(1), 0.0);
+  EXPECT_GT(alone(0), 1.5);
+  EXPECT_LT(alone(0), 2.0);
+}
+
 TEST(LightFit, ALampIsPlacedByTheShadingWhenTheAlbedoIsLeftFree) {
   // The image of a lamp over a plane and a ball whose albedos are wrong by 1.6x and 0.6x
   // (what a de-lit albedo that took some of the light may be): with the albedo held the
