@@ -253,7 +253,7 @@ void Estimator::FitSky() {
   Eigen::Vector3d irradiance = sun.irradiance, sky = Eigen::Vector3d::Zero();
   std::vector<double> t(y_.size());  // what the light and the sky render
   for (std::size_t e = 0; e < t.size(); ++e) t[e] = y_[e] - rest[e];
-  const std::vector<std::uint8_t> bounds = one_sided_.size() == y_.size() ? one_sided_ : std::vector<std::uint8_t>();
+  const std::vector<std::uint8_t>* bounds = one_sided_.size() == y_.size() ? &one_sided_ : nullptr;
   for (int c = 0; c < 3; ++c) {
     const Eigen::Vector2d ab = FitLightBesideSky(x, z, s, t, sun.irradiance[c], cauchy, bounds, c, 3);
     irradiance[c] = std::max(0.0, ab(0));

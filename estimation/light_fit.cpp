@@ -163,13 +163,13 @@ double LightFitProblem::Value(const std::vector<Light>& lights, const std::vecto
 
 Eigen::Vector2d FitLightBesideSky(const std::vector<float>& x, const std::vector<float>& z,
                                   const std::vector<double>& s, const std::vector<double>& t, double a0,
-                                  const CauchyLoss& loss, const std::vector<std::uint8_t>& one_sided,
+                                  const CauchyLoss& loss, const std::vector<std::uint8_t>* one_sided,
                                   std::size_t first, std::size_t step) {
   Eigen::Matrix2d m = Eigen::Matrix2d::Zero();
   Eigen::Vector2d v = Eigen::Vector2d::Zero();
   for (std::size_t e = first; e < t.size(); e += step) {
     const double r = t[e] - a0 * x[e];
-    if (!one_sided.empty() && r != 0 && BoundedResidual(one_sided[e], r) == 0) continue;
+    if (one_sided && PassesBound((*one_sided)[e], r)) continue;
     const double w = loss.Weight(r);  // at the fit
     m(0, 0) += w * z[e] * x[e], m(0, 1) += w * z[e] * s[e];
     m(1, 0) += w * s[e] * x[e], m(1, 1) += w * s[e] * s[e];

@@ -49,7 +49,7 @@ struct LightFitProblem {
   /// one exact.
   const std::vector<std::uint8_t>* one_sided = nullptr;
   /// Whether the residual r of entry i passes its bound on its free side (it then counts 0).
-  bool Passes(std::size_t i, double r) const { return one_sided && r != 0 && BoundedResidual((*one_sided)[i], r) == 0; }
+  bool Passes(std::size_t i, double r) const { return one_sided && PassesBound((*one_sided)[i], r); }
   /// y - model with what passes a bound counted as 0.
   double RowResidual(std::size_t i, double model) const {
     const double r = (*y)[i] - model;
@@ -101,12 +101,12 @@ std::vector<double> SegmentMultipliers(const LightFitProblem& problem, const std
 /// together to t = a x + b s (x the light's column, s the sky's, t what the other lights leave)
 /// by instrumental variables: z, an independently traced column of the light, instruments x
 /// (docs/method.md, "The sky"). Each entry is weighted by the loss at the fit r = t - a0 x; an
-/// entry of `one_sided` (empty: every one exact) whose bound holds there is left out (a clipped
+/// entry of `one_sided` (null: every one exact) whose bound holds there is left out (a clipped
 /// sunlit pixel says only "at least this bright"). Returns (a, b); where the sky does not come
 /// out positive, (the light alone, 0); where nothing is weighed, (a0, 0).
 Eigen::Vector2d FitLightBesideSky(const std::vector<float>& x, const std::vector<float>& z,
                                   const std::vector<double>& s, const std::vector<double>& t, double a0,
-                                  const CauchyLoss& loss, const std::vector<std::uint8_t>& one_sided,
+                                  const CauchyLoss& loss, const std::vector<std::uint8_t>* one_sided,
                                   std::size_t first = 0, std::size_t step = 1);
 
 /// Called after each accepted step of a fit: (step, E, sum of squared residuals, lights).

@@ -54,6 +54,9 @@ inline double BoundedResidual(std::uint8_t b, double r) {
   return b == kAtLeast ? (r > 0 ? r : 0.0) : b == kAtMost ? (r < 0 ? r : 0.0) : r;
 }
 
+/// Whether a residual r != 0 passes its bound `b` on the free side (it then counts 0).
+inline bool PassesBound(std::uint8_t b, double r) { return r != 0 && BoundedResidual(b, r) == 0; }
+
 /// A with the unreachable columns removed, in row (CSR) and column (CSC) form,
 /// plus the observations. Unknowns are lambda[3*j + c] for compact cell j.
 struct LinearProblem {

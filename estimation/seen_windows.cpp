@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "estimation/portal.h"
 #include "estimation/seen_lamps.h"
@@ -44,10 +45,10 @@ double Reach(const ClippedBlob& b, const BlobMask& m, double a) {
 std::vector<RimHit> RimHits(const Camera& c, const ClippedBlob& b, const RayTracer& scene, const SeenWindowOptions& o,
                             bool near) {
   const double circle = o.rim_scale * std::sqrt(b.pixels / M_PI) + 2;
-  const BlobMask mask(c, b);
+  const std::optional<BlobMask> mask = near ? std::optional<BlobMask>(std::in_place, c, b) : std::nullopt;
   std::vector<RimHit> out;
   for (int k = 0; k < o.rim_rays; ++k) {
-    const double a = 2 * M_PI * k / o.rim_rays, radius = near ? o.near_scale * Reach(b, mask, a) + 2 : circle;
+    const double a = 2 * M_PI * k / o.rim_rays, radius = near ? o.near_scale * Reach(b, *mask, a) + 2 : circle;
     const double u = b.u + radius * std::cos(a), v = b.v + radius * std::sin(a);
     if (u < 0 || v < 0 || u > c.width - 1 || v > c.height - 1) continue;
     const Eigen::Vector3d dir = c.RayDirection(u, v);

@@ -320,20 +320,20 @@ TEST(LightFit, TheSunBesideItsSkyIsNotPulledByTheBoundsItKeeps) {
     t[e] = (bound[e] == kAtLeast ? 0.5 : bound[e] == kAtMost ? 1.5 : 1.0) * model;
   }
   const CauchyLoss loss{0.5};
-  const Eigen::Vector2d ab = FitLightBesideSky(x, x, s, t, 2.0, loss, bound);
+  const Eigen::Vector2d ab = FitLightBesideSky(x, x, s, t, 2.0, loss, &bound);
   EXPECT_NEAR(ab(0), 2.0, 1e-9);
   EXPECT_NEAR(ab(1), 0.3, 1e-9);
-  const Eigen::Vector2d pulled = FitLightBesideSky(x, x, s, t, 2.0, loss, {});
+  const Eigen::Vector2d pulled = FitLightBesideSky(x, x, s, t, 2.0, loss, nullptr);
   EXPECT_GT((pulled - Eigen::Vector2d(2.0, 0.3)).norm(), 0.05);
   // Every third entry of a three-channel vector: the same fit on that channel alone.
   std::vector<float> x3(3 * n);
   std::vector<double> s3(3 * n), t3(3 * n, 0.0);
   std::vector<std::uint8_t> b3(3 * n, kExact);
   for (int e = 0; e < n; ++e) x3[3 * e + 1] = x[e], s3[3 * e + 1] = s[e], t3[3 * e + 1] = t[e], b3[3 * e + 1] = bound[e];
-  EXPECT_NEAR((FitLightBesideSky(x3, x3, s3, t3, 2.0, loss, b3, 1, 3) - ab).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((FitLightBesideSky(x3, x3, s3, t3, 2.0, loss, &b3, 1, 3) - ab).norm(), 0.0, 1e-12);
   // A sky that fits negative: the light alone, the sky 0.
   for (int e = 0; e < n; ++e) t[e] = 2 * x[e] - 0.3 * s[e];
-  const Eigen::Vector2d alone = FitLightBesideSky(x, x, s, t, 2.0, loss, {});
+  const Eigen::Vector2d alone = FitLightBesideSky(x, x, s, t, 2.0, loss, nullptr);
   EXPECT_EQ(alone(1), 0.0);
   EXPECT_GT(alone(0), 1.5);
   EXPECT_LT(alone(0), 2.0);
