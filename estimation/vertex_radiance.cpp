@@ -1,5 +1,6 @@
 #include "estimation/vertex_radiance.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include "common/color.h"
@@ -29,6 +30,12 @@ VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, Lighti
   LP_CHECK(bounces >= 1, "bounces " << bounces);
   sum_.assign(scene.mesh().positions.size(), Eigen::Vector3d::Zero());
   odd_ = sum_;
+  fixed_at_vertex_ = std::all_of(lighting_.lights.begin(), lighting_.lights.end(), [](const Light& light) {
+    if (const auto* p = std::get_if<PointLight>(&light)) return p->radius == 0;
+    if (const auto* d = std::get_if<DirectionalLight>(&light)) return d->angular_radius == 0;
+    return false;
+  });
+  if (fixed_at_vertex_ && !lighting_.lights.empty()) at_vertex_.assign(sum_.size(), Eigen::Vector3d::Constant(NAN));
 }
 
 VertexRadiance::~VertexRadiance() = default;
@@ -42,6 +49,7 @@ void VertexRadiance::Refine(int samples) {
       if (v >= mesh.normals.size()) continue;
       const Eigen::Vector3d n0 = mesh.normals[v].cast<double>();
       if (!(n0.squaredNorm() > 0.5)) continue;
+      const Eigen::Vector3d start = mesh.positions[v].cast<double>() + n0 * (4 * scene_.epsilon());
       for (int s = first; s < first + samples; ++s) {
         Rng rng(seed_, v, static_cast<std::uint64_t>(s));
         // The path tracer's conventions: leave a surface 4 epsilon along its geometric
@@ -49,7 +57,7 @@ void VertexRadiance::Refine(int samples) {
         // absorbed, and next-event estimation towards a cell drawn by the estimate's
         // brightness is combined with cosine sampling by the power heuristic (the lit
         // shading of a small bright light converges in tens of samples, not thousands).
-        Eigen::Vector3d origin = mesh.positions[v].cast<double>() + n0 * (4 * scene_.epsilon());
+        Eigen::Vector3d origin = start;
         Eigen::Vector3d n = n0, geometric = n0, throughput = Eigen::Vector3d::Ones();
         const std::vector<double>& map = lighting_.map;
         Eigen::Vector3d got = Eigen::Vector3d::Zero();  // this path's incident radiance
@@ -57,12 +65,17 @@ void VertexRadiance::Refine(int samples) {
         for (int bounce = 0; bounce < bounces_; ++bounce) {
           const NextEvent ne = SampleNextEvent(scene_, env_, *sampler_, n, geometric, origin, rng);
           if (ne.visible) got += throughput.cwiseProduct(cell(ne.cell)) * ne.weight;
-          if (!lighting_.lights.empty()) {  // the lights' irradiance / pi
+          if (bounce == 0 && !at_vertex_.empty() && !std::isnan(at_vertex_[v].x())) {
+            got += at_vertex_[v];
+          } else if (!lighting_.lights.empty()) {  // the lights' irradiance / pi
             const std::uint64_t key = (static_cast<std::uint64_t>(v) << 24) ^ (static_cast<std::uint64_t>(s) << 4) ^
                                       static_cast<std::uint64_t>(bounce);
             std::int64_t rays = 0;
-            got += throughput.cwiseProduct(lp::Irradiance(scene_, lighting_.lights, origin, n, geometric, key, &rays)) *
-                       kInvPi;
+            const Eigen::Vector3d lit =
+                throughput.cwiseProduct(lp::Irradiance(scene_, lighting_.lights, origin, n, geometric, key, &rays)) *
+                kInvPi;
+            got += lit;
+            if (bounce == 0 && !at_vertex_.empty()) at_vertex_[v] = lit;
           }
           const double u1 = rng.Uniform(), u2 = rng.Uniform();
           const Eigen::Vector3d dir = SampleCosine(n, u1, u2);
