@@ -298,7 +298,7 @@ double Objective::Activation(const std::vector<double>& lambda) const {
 }
 
 double Objective::DataPass(const std::vector<double>& lambda, std::vector<double>* residual,
-                           std::vector<double>* adjoint) const {
+                           std::vector<double>* adjoint, std::vector<double>* model) const {
   const std::size_t rows = p_.rows();
   const std::size_t L3 = 3 * static_cast<std::size_t>(p_.unknown_cells);
   const double s2 = params_.sigma * params_.sigma;
@@ -309,6 +309,7 @@ double Objective::DataPass(const std::vector<double>& lambda, std::vector<double
   std::vector<double> data(chunks, 0.0);
   std::vector<double> partial(adjoint ? chunks * L3 : 0, 0.0);
   if (residual) residual->resize(3 * rows);
+  if (model) model->resize(3 * rows);
   ParallelFor(0, chunks, [&](std::size_t c) {
     const std::size_t b = c * per, e = std::min(rows, b + per);
     double* acc = adjoint ? &partial[c * L3] : nullptr;
@@ -320,6 +321,11 @@ double Objective::DataPass(const std::vector<double>& lambda, std::vector<double
         a0 += p_.val[k][0] * l[0];
         a1 += p_.val[k][1] * l[1];
         a2 += p_.val[k][2] * l[2];
+      }
+      if (model) {
+        (*model)[3 * r] = a0;
+        (*model)[3 * r + 1] = a1;
+        (*model)[3 * r + 2] = a2;
       }
       double r0 = p_.y[3 * r] - a0, r1 = p_.y[3 * r + 1] - a1, r2 = p_.y[3 * r + 2] - a2;
       if (!p_.one_sided.empty()) {  // a bound: past it on its free side costs nothing
@@ -353,6 +359,45 @@ double Objective::DataPass(const std::vector<double>& lambda, std::vector<double
       for (std::size_t i = 0; i < L3; ++i) (*adjoint)[i] += partial[c * L3 + i];
   }
   return total;
+}
+
+double Objective::ValueOnSegment(const std::vector<double>& lambda, const std::vector<double>& next,
+                                 const std::vector<double>& model, const std::vector<double>& model_next, double t,
+                                 std::vector<double>* x, std::vector<double>* model_x) const {
+  const std::size_t rows = p_.rows();
+  LP_CHECK(model.size() == 3 * rows && model_next.size() == 3 * rows, "ValueOnSegment: models of " << model.size()
+                                                                          << " and " << model_next.size() << " values");
+  x->resize(lambda.size());
+  std::vector<std::pair<std::size_t, double>> clipped;  // (unknown, what the clip adds)
+  for (std::size_t i = 0; i < lambda.size(); ++i) {
+    const double v = lambda[i] + t * (next[i] - lambda[i]);
+    (*x)[i] = std::max(0.0, v);
+    if (v < 0) clipped.emplace_back(i, -v);
+  }
+  std::vector<double>& a = *model_x;
+  a.resize(3 * rows);
+  for (std::size_t k = 0; k < a.size(); ++k) a[k] = model[k] + t * (model_next[k] - model[k]);
+  for (const auto& [i, add] : clipped) {
+    const std::size_t j = i / 3, c = i % 3;
+    for (std::int64_t k = p_.col_start[j]; k < p_.col_start[j + 1]; ++k) a[3 * p_.col_row[k] + c] += p_.col_val[k][c] * add;
+  }
+  const double s2 = params_.sigma * params_.sigma;
+  // In DataPass's fixed chunks, reduced in their order: the same for any number of threads.
+  const std::size_t chunks = std::max<std::size_t>(1, std::min<std::size_t>(64, (rows + 511) / 512));
+  const std::size_t per = (rows + chunks - 1) / chunks;
+  std::vector<double> data(chunks, 0.0);
+  ParallelFor(0, chunks, [&](std::size_t c) {
+    double sum = 0;
+    for (std::size_t k = 3 * c * per; k < std::min(3 * rows, 3 * (c + 1) * per); ++k) {
+      double r = p_.y[k] - a[k];
+      if (!p_.one_sided.empty()) r = BoundedResidual(p_.one_sided[k], r);
+      sum += 0.5 * s2 * std::log1p(r * r / s2);
+    }
+    data[c] = sum;
+  });
+  double total = 0;
+  for (double d : data) total += d;
+  return total + Penalty(*x);
 }
 
 double Objective::Value(const std::vector<double>& lambda, std::vector<double>* residual) const {

@@ -114,9 +114,18 @@ class Objective {
   double ValueAndGradient(const std::vector<double>& lambda, std::vector<double>* gradient,
                           std::vector<double>* residual = nullptr) const;
   /// One pass over A: the data term sum rho(y - A lambda); `residual` (optional)
-  /// receives y - A lambda, `adjoint` (optional) A^T psi(y - A lambda), psi = rho'.
-  double DataPass(const std::vector<double>& lambda, std::vector<double>* residual,
-                  std::vector<double>* adjoint) const;
+  /// receives y - A lambda, `adjoint` (optional) A^T psi(y - A lambda), psi = rho', `model`
+  /// (optional) A lambda.
+  double DataPass(const std::vector<double>& lambda, std::vector<double>* residual, std::vector<double>* adjoint,
+                  std::vector<double>* model = nullptr) const;
+  /// E at x = max(0, lambda + t (next - lambda)) (into `x`, its model A x into `model_x`)
+  /// without a pass over A: A x is model + t (model_next - model), the models being A lambda
+  /// and A next, plus the columns of the unknowns the bound at 0 clips times what the clip
+  /// adds. Equal to Value(x) up to rounding; its cost is the rows' and the clipped columns',
+  /// not A's.
+  double ValueOnSegment(const std::vector<double>& lambda, const std::vector<double>& next,
+                        const std::vector<double>& model, const std::vector<double>& model_next, double t,
+                        std::vector<double>* x, std::vector<double>* model_x) const;
   /// The priors: the activation penalty and the smoothness.
   double Penalty(const std::vector<double>& lambda) const { return Activation(lambda) + Smoothness(lambda); }
   /// The activation penalty sum_j alpha_j*log(1 + beta*sum_c lambda_jc).

@@ -292,8 +292,8 @@ class MajorizeMinimize {
   SolveResult Run(std::vector<double> lambda, const SolverOptions& o) {
     Stopwatch sw;
     SolveResult res;
-    std::vector<double> r, h, r_next, h_next;
-    double e = obj_.DataPass(lambda, &r, &h) + obj_.Penalty(lambda);
+    std::vector<double> r, h, m, r_next, h_next, m_next;  // residual, adjoint and model (A lambda)
+    double e = obj_.DataPass(lambda, &r, &h, &m) + obj_.Penalty(lambda);
     double last_decrease = HUGE_VAL;
     for (int it = 1; it <= o.max_iterations; ++it) {
       // Far from convergence the support still moves: approximate QPs are enough there
@@ -308,21 +308,25 @@ class MajorizeMinimize {
         cont = InnerMinimize(cont, 1.0, 20, false);
         if (Majorizer(cont) < Majorizer(next)) next.swap(cont);
       }
-      double e_next = obj_.DataPass(next, &r_next, &h_next) + obj_.Penalty(next);
+      double e_next = obj_.DataPass(next, &r_next, &h_next, &m_next) + obj_.Penalty(next);
       // Over-relaxation: the unit-curvature majorizer is loose where residuals are large
-      // (early on), so try longer steps along the MM direction while E keeps falling.
+      // (early on), so try longer steps along the MM direction while E keeps falling. A is
+      // linear: each trial's E comes from the two models without a pass over A (only the
+      // columns the bound at 0 clips are read), and one pass follows at the step taken.
       if (e_next < e) {
-        std::vector<double> longer(next.size()), r_long, h_long;
+        std::vector<double> longer, m_long;
+        bool longer_taken = false;
         for (double t = 2; t <= 64; t *= 2) {
-          for (std::size_t i = 0; i < next.size(); ++i)
-            longer[i] = std::max(0.0, lambda[i] + t * (next[i] - lambda[i]));
-          const double e_long = obj_.DataPass(longer, &r_long, &h_long) + obj_.Penalty(longer);
+          const double e_long = obj_.ValueOnSegment(lambda, next, m, m_next, t, &longer, &m_long);
           if (!(e_long < e_next)) break;
-          next = longer;
-          r_next.swap(r_long);
-          h_next.swap(h_long);
+          next.swap(longer);
+          m_next.swap(m_long);
           e_next = e_long;
+          longer_taken = true;
         }
+        // (A next computed again: carried from step to step, the rounding of the models would
+        // grow by the step's factor each time)
+        if (longer_taken) e_next = obj_.DataPass(next, &r_next, &h_next, &m_next) + obj_.Penalty(next);
       }
       res.iterations = it;
       if (!(e_next <= e)) {
@@ -337,6 +341,7 @@ class MajorizeMinimize {
       lambda.swap(next);
       r.swap(r_next);
       h.swap(h_next);
+      m.swap(m_next);
       e = e_next;
       Report(o, it, e, lambda, r);
       if (decrease <= o.relative_tolerance * std::abs(e)) {

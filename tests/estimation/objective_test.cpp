@@ -118,6 +118,52 @@ TEST(Objective, AnUpperBoundCountsOnlyAboveItsLevel) {
   }
 }
 
+// The solver's over-relaxation evaluates E along its step without a pass over A:
+// ValueOnSegment at t gives E and A x at x = max(0, lambda + t (next - lambda)), from A lambda
+// and A next alone plus the columns of the unknowns the bound at 0 clips. Against Value and
+// Multiply at that x, on a problem with both kinds of bound and the smoothness, for steps that
+// clip no unknown, some and most.
+TEST(Objective, EAlongAStepFromTheTwoModelsIsEAtThePoint) {
+  const auto rp = test::MakeRandomProblem(150, 16, 0.3, 0.2, 3);
+  LinearProblem p = MakeLinearProblem(rp.A, rp.y);
+  p.one_sided.assign(p.y.size(), kExact);
+  for (std::size_t r = 0; r + 1 < p.rows(); r += 4) {
+    std::fill_n(&p.one_sided[3 * r], 3, kAtLeast);
+    std::fill_n(&p.one_sided[3 * r + 3], 3, kAtMost);
+  }
+  const Objective obj(p, Smooth(ObjectiveParams{0.3, 0.5, 2.0, {}, 0, {}}, p.unknown_cells));
+  std::vector<double> lambda(obj.unknowns()), next(obj.unknowns());
+  for (std::size_t i = 0; i < lambda.size(); ++i) {
+    lambda[i] = 0.1 + 0.04 * (i % 5);
+    next[i] = lambda[i] + (i % 3 == 0 ? -0.03 : 0.02);  // every third falls: clipped at 0 once t is large
+  }
+  std::vector<double> model, model_next, r_model, h_model;
+  obj.DataPass(lambda, nullptr, nullptr, &model);
+  obj.DataPass(next, nullptr, nullptr, &model_next);
+  int clipped_cases = 0;
+  for (const double t : {1.0, 2.0, 4.0, 16.0, 64.0}) {
+    std::vector<double> x, ax, want_ax;
+    const double e = obj.ValueOnSegment(lambda, next, model, model_next, t, &x, &ax);
+    int clipped = 0;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      const double v = lambda[i] + t * (next[i] - lambda[i]);
+      EXPECT_EQ(x[i], std::max(0.0, v)) << i;
+      clipped += v < 0;
+    }
+    clipped_cases += clipped > 0;
+    const double want = obj.Value(x);
+    EXPECT_NEAR(e, want, 1e-10 * std::max(1.0, std::abs(want))) << "t " << t << ", " << clipped << " clipped";
+    p.Multiply(x, &want_ax);
+    ASSERT_EQ(ax.size(), want_ax.size());
+    for (std::size_t k = 0; k < ax.size(); ++k) EXPECT_NEAR(ax[k], want_ax[k], 1e-10 * (1 + std::abs(want_ax[k]))) << k;
+    // DataPass's model is A x too.
+    std::vector<double> pass_ax;
+    obj.DataPass(x, nullptr, nullptr, &pass_ax);
+    for (std::size_t k = 0; k < ax.size(); ++k) EXPECT_NEAR(pass_ax[k], want_ax[k], 1e-12 * (1 + std::abs(want_ax[k]))) << k;
+  }
+  EXPECT_GE(clipped_cases, 2) << "the steps should clip some unknowns";
+}
+
 TEST(Objective, UnreachedCellsAreLeftOut) {
   auto rp = test::MakeRandomProblem(50, 10, 0.3, 0.0, 3);
   // Add 5 columns nobody touches.
