@@ -300,13 +300,24 @@ class MajorizeMinimize {
       // (M is checked either way); exact ones take over when progress slows.
       const bool settling = last_decrease < 1e-2 * std::abs(e);
       SetCentre(lambda, h, r, settling && it > kOutlierAfter);
-      std::vector<double> next = InnerMinimize(lambda, 1.0, settling ? 20 : 3, settling);
-      if (!settling && next == lambda) next = InnerMinimize(lambda, 1.0);
+      std::vector<double> next;
       if (prm_.alpha > 0 && settling) {
+        // The step and the continuation side by side: each is three channels' QPs, which
+        // leave one of two cores idle half the time alone. (The continuation's QPs are
+        // approximate: they touch no solver's state, only G.)
         std::vector<double> cont = lambda;
-        for (int m = 8; m >= 1; m -= 2) cont = InnerMinimize(cont, std::ldexp(1.0, -m), 1);
-        cont = InnerMinimize(cont, 1.0, 20, false);
+        ParallelFor(0, 2, [&](std::size_t task) {
+          if (task == 0) {
+            next = InnerMinimize(lambda, 1.0, 20, true);
+            return;
+          }
+          for (int m = 8; m >= 1; m -= 2) cont = InnerMinimize(cont, std::ldexp(1.0, -m), 1);
+          cont = InnerMinimize(cont, 1.0, 20, false);
+        });
         if (Majorizer(cont) < Majorizer(next)) next.swap(cont);
+      } else {
+        next = InnerMinimize(lambda, 1.0, settling ? 20 : 3, settling);
+        if (!settling && next == lambda) next = InnerMinimize(lambda, 1.0);
       }
       double e_next = obj_.DataPass(next, &r_next, &h_next, &m_next) + obj_.Penalty(next);
       // Over-relaxation: the unit-curvature majorizer is loose where residuals are large
