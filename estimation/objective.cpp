@@ -64,6 +64,13 @@ void SumNormalCross(const LinearProblem& p, int first, std::vector<double> G[3])
 }
 
 /// Whether `n` are the normal matrices of p's leading unknowns over the same rows.
+/// The fixed chunks of rows a pass sums apart (their count, rows per chunk): independent of
+/// the thread count, so the sums reduced in chunk order are too.
+std::pair<std::size_t, std::size_t> RowChunks(std::size_t rows) {
+  const std::size_t chunks = std::max<std::size_t>(1, std::min<std::size_t>(64, (rows + 511) / 512));
+  return {chunks, (rows + chunks - 1) / chunks};
+}
+
 bool Extends(const LinearProblem& p, const NormalMatrices& n) {
   return n.rows == p.rows() && n.cell_of.size() <= p.cell_of.size() &&
          std::equal(n.cell_of.begin(), n.cell_of.end(), p.cell_of.begin());
@@ -304,8 +311,7 @@ double Objective::DataPass(const std::vector<double>& lambda, std::vector<double
   const double s2 = params_.sigma * params_.sigma;
   // Fixed chunks (independent of the thread count), each with its own partial sums,
   // reduced in chunk order: the result is bit-identical for any number of threads.
-  const std::size_t chunks = std::max<std::size_t>(1, std::min<std::size_t>(64, (rows + 511) / 512));
-  const std::size_t per = (rows + chunks - 1) / chunks;
+  const auto [chunks, per] = RowChunks(rows);
   std::vector<double> data(chunks, 0.0);
   std::vector<double> partial(adjoint ? chunks * L3 : 0, 0.0);
   if (residual) residual->resize(3 * rows);
@@ -382,9 +388,8 @@ double Objective::ValueOnSegment(const std::vector<double>& lambda, const std::v
     for (std::int64_t k = p_.col_start[j]; k < p_.col_start[j + 1]; ++k) a[3 * p_.col_row[k] + c] += p_.col_val[k][c] * add;
   }
   const double s2 = params_.sigma * params_.sigma;
-  // In DataPass's fixed chunks, reduced in their order: the same for any number of threads.
-  const std::size_t chunks = std::max<std::size_t>(1, std::min<std::size_t>(64, (rows + 511) / 512));
-  const std::size_t per = (rows + chunks - 1) / chunks;
+  // (DataPass's chunks, reduced in their order: the same for any number of threads)
+  const auto [chunks, per] = RowChunks(rows);
   std::vector<double> data(chunks, 0.0);
   ParallelFor(0, chunks, [&](std::size_t c) {
     double sum = 0;

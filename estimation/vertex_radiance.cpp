@@ -30,12 +30,12 @@ VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, Lighti
   LP_CHECK(bounces >= 1, "bounces " << bounces);
   sum_.assign(scene.mesh().positions.size(), Eigen::Vector3d::Zero());
   odd_ = sum_;
-  fixed_at_vertex_ = std::all_of(lighting_.lights.begin(), lighting_.lights.end(), [](const Light& light) {
+  const bool fixed_at_vertex = std::all_of(lighting_.lights.begin(), lighting_.lights.end(), [](const Light& light) {
     if (const auto* p = std::get_if<PointLight>(&light)) return p->radius == 0;
     if (const auto* d = std::get_if<DirectionalLight>(&light)) return d->angular_radius == 0;
     return false;
   });
-  if (fixed_at_vertex_ && !lighting_.lights.empty()) at_vertex_.assign(sum_.size(), Eigen::Vector3d::Constant(NAN));
+  if (fixed_at_vertex && !lighting_.lights.empty()) at_vertex_.assign(sum_.size(), Eigen::Vector3d::Constant(NAN));
 }
 
 VertexRadiance::~VertexRadiance() = default;

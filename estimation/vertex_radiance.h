@@ -67,10 +67,9 @@ class VertexRadiance {
   std::uint64_t seed_;
   int samples_ = 0;
   std::unique_ptr<CellSampler> sampler_;  ///< NEE over cells, by the estimate's brightness
-  /// Whether the lights' irradiance at a vertex itself is the same for every sample (points
-  /// and directions without extent: one shadow ray, no randomness): traced once a vertex,
-  /// kept in at_vertex_ (NaN until then).
-  bool fixed_at_vertex_ = false;
+  /// Per vertex, the lights' irradiance / pi at the vertex itself, where that is the same for
+  /// every sample (points and directions without extent: one shadow ray, no randomness):
+  /// traced once (NaN until then). Empty where it is not (or there is no light).
   std::vector<Eigen::Vector3d> at_vertex_;
   std::vector<Eigen::Vector3d> sum_;  ///< per vertex, incident radiance summed over samples
   std::vector<Eigen::Vector3d> odd_;  ///< the same over the odd samples only
