@@ -311,7 +311,8 @@ double Objective::DataPass(const std::vector<double>& lambda, std::vector<double
   const double s2 = params_.sigma * params_.sigma;
   // Fixed chunks (independent of the thread count), each with its own partial sums,
   // reduced in chunk order: the result is bit-identical for any number of threads.
-  const auto [chunks, per] = RowChunks(rows);
+  const std::pair<std::size_t, std::size_t> chunking = RowChunks(rows);
+  const std::size_t chunks = chunking.first, per = chunking.second;  // (named: lambdas capture them)
   std::vector<double> data(chunks, 0.0);
   std::vector<double> partial(adjoint ? chunks * L3 : 0, 0.0);
   if (residual) residual->resize(3 * rows);
@@ -389,7 +390,8 @@ double Objective::ValueOnSegment(const std::vector<double>& lambda, const std::v
   }
   const double s2 = params_.sigma * params_.sigma;
   // (DataPass's chunks, reduced in their order: the same for any number of threads)
-  const auto [chunks, per] = RowChunks(rows);
+  const std::pair<std::size_t, std::size_t> chunking = RowChunks(rows);
+  const std::size_t chunks = chunking.first, per = chunking.second;  // (named: lambdas capture them)
   std::vector<double> data(chunks, 0.0);
   ParallelFor(0, chunks, [&](std::size_t c) {
     double sum = 0;
