@@ -22,15 +22,15 @@ std::vector<EstimateOption> RenderOptions() {
        "(--render-noise)",
        Type::kInt, 0, kInf, false, LP_GET(render_spp), LP_SET(render_spp, int), "", 0, 0, {}},
       {"render-noise", "render_noise",
-       "the clean render (render_view*) is traced in passes until its relative noise is at most this; 0 = write the "
-       "fit as the render",
+       "the clean render (render_view*) is traced in passes until its relative noise (its two halves' difference) is "
+       "at most this; 0 = write the fit as the render",
        Type::kReal, 0, 1, false, LP_GET(render_noise), LP_SET(render_noise, double), "", 0, 0, {}},
       {"render-seconds", "render_seconds",
        "the clean render's passes stop before this many seconds; 0 = as long as the estimate took (at least 2)",
        Type::kReal, 0, kInf, false, LP_GET(render_seconds), LP_SET(render_seconds, double), "", 0, 0, {}},
       {"render-denoise", "render_denoise",
-       "the clean render's noise smoothed out over the pixels that see the same surface (its albedo kept sharp); the "
-       "passes stop at the denoised render's noise",
+       "the clean render's noise smoothed out over the pixels that see the same surface (its albedo kept sharp, the "
+       "lights' direct light traced over each pixel); the passes stop at the denoised render's noise",
        Type::kBool, 0, 1, false, LP_GET(render_denoise), LP_SET(render_denoise, bool), "", 0, 0, {}},
   };
 }

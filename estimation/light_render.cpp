@@ -108,19 +108,20 @@ std::vector<ImageRGB> ProgressiveRender(const RayTracer& scene, const EnvMap& en
                                         std::vector<RenderPass>* passes, const RenderPassCallback& on_pass,
                                         bool denoise) {
   Stopwatch clock;
-  std::vector<PixelGuide> guides;
+  std::vector<Denoiser> denoisers;
   if (denoise)
-    for (const View& v : views) guides.push_back(GuideOf(scene, v.camera, lighting.lights));
+    for (const View& v : views) denoisers.emplace_back(GuideOf(scene, v.camera, lighting.lights), v.camera.center());
   const auto denoised_mean = [&](const std::vector<ImageRGB>& sums, int n) {  // sums over n samples
     std::vector<ImageRGB> out = sums;
     for (std::size_t v = 0; v < sums.size(); ++v) {
       for (float& x : out[v].data) x /= static_cast<float>(n);
-      out[v] = Denoise(out[v], guides[v], views[v].camera.center());
+      out[v] = denoisers[v](out[v]);
     }
     return out;
   };
   std::vector<ImageRGB> half[2], mean;
   TracerOptions o = options;
+  o.first_vertex_lights = !denoise;  // the guide's direct light instead
   int each = 0;  // samples per pixel in each half so far
   passes->clear();
   for (int pass = 0;; ++pass) {

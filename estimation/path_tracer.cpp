@@ -269,8 +269,9 @@ std::vector<ImageRGB> RenderEnvironment(const RayTracer& scene, const EnvMap& en
       TracePath(scene, env, sampler, cam, x, y, rng, opt, cnt, cell,
                 [&](const SurfacePoint& hit, const Eigen::Vector3d& off, const Eigen::Vector3d& w) {
                   if (first && seen) sum += seen(hit);
+                  ++key;
+                  if (lights && (!first || opt.first_vertex_lights)) sum += w.cwiseProduct(lights(hit, off, key, cnt.rays));
                   first = false;
-                  if (lights) sum += w.cwiseProduct(lights(hit, off, ++key, cnt.rays));
                 });
     }
     float* p = out[px.view].at(x, y);

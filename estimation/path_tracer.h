@@ -31,6 +31,10 @@ struct TracerOptions {
   double nee_floor = 0.05;       ///< epsilon: share of NEE samples spread by solid angle
   double min_throughput = 1e-4;  ///< paths whose throughput falls below this stop (negligible)
   std::uint64_t seed = 1;
+  /// The lights' (VertexLight's) light at each path's first vertex: off, a render leaves a
+  /// pixel's direct light from them to the caller (the clean render's guide traces it
+  /// stratified over the pixel; estimation/render_denoise.h).
+  bool first_vertex_lights = true;
   /// Checked (from the worker threads) before each chunk of 64 pixels; once it returns true
   /// the remaining pixels are skipped and the result is incomplete: the caller discards it.
   std::function<bool()> cancelled;

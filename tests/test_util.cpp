@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "common/error.h"
+#include "common/rng.h"
 
 namespace lp::test {
 
@@ -13,6 +14,27 @@ Mesh Plane(double size, double rho) {
   m.normals.assign(4, Eigen::Vector3f(0, 0, 1));
   m.albedo.assign(4, Eigen::Vector3f::Constant(static_cast<float>(rho)));
   m.triangles = {{0, 1, 2}, {0, 2, 3}};
+  return m;
+}
+
+Mesh FineFloor(double rho, double max_tilt) {
+  Rng rng(11);
+  Mesh m;
+  const int n = 101;
+  for (int y = 0; y < n; ++y)
+    for (int x = 0; x < n; ++x) {
+      m.positions.emplace_back(-0.5f + 0.01f * x, -0.5f + 0.01f * y, 0.f);
+      const double a = 2 * M_PI * rng.Uniform(), t = max_tilt * rng.Uniform();
+      m.normals.emplace_back(Eigen::Vector3f(static_cast<float>(std::sin(t) * std::cos(a)),
+                                             static_cast<float>(std::sin(t) * std::sin(a)), static_cast<float>(std::cos(t))));
+      m.albedo.emplace_back(Eigen::Vector3f::Constant(static_cast<float>(rho)));
+    }
+  for (int y = 0; y + 1 < n; ++y)
+    for (int x = 0; x + 1 < n; ++x) {
+      const int i = y * n + x;
+      m.triangles.emplace_back(i, i + 1, i + n + 1);
+      m.triangles.emplace_back(i, i + n + 1, i + n);
+    }
   return m;
 }
 

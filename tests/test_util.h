@@ -10,6 +10,10 @@ namespace lp::test {
 
 /// Square in the plane z = 0 (normal +z), side `size`, centred at the origin, albedo rho.
 Mesh Plane(double size, double rho);
+/// A 1 m square of albedo `rho` in the plane z = 0 centred at the origin, a vertex every
+/// centimetre; each vertex's normal tilted at random (a fixed seed) by up to `max_tilt`
+/// radians (a scan's noisy normals), straight up with 0.
+Mesh FineFloor(double rho, double max_tilt = 0);
 /// Axis-aligned horizontal square at height z facing down and up (two-sided occluder).
 Mesh Square(double cx, double cy, double z, double half, double rho);
 /// UV sphere, outward normals.

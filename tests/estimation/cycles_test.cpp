@@ -647,7 +647,7 @@ TEST(Cycles, TheAlbedoPassDividesTheGlowingPanesLightOut) {
 TEST(Cycles, TheCleanRenderIsFreeOfVisibleNoiseAndSaysHowNoisyItIs) {
   const SceneBundle bundle = LoadSceneBundle(CyclesDir("cornerbox_one_light"));
   EstimateOptions o;
-  // The noise asked by default (1 %; denoised: about 400 spp), with the time for it whatever
+  // The noise asked by default (0.7 %; denoised: about 300 spp), with the time for it whatever
   // the machine's load (by default the clean render takes as long as the estimate did).
   o.render_seconds = 60;
   const EstimateResult r = Estimate(bundle, o);

@@ -271,32 +271,13 @@ TEST(VertexRadiance, RefiningAddsSamplesAndStaysConsistent) {
   EXPECT_NEAR(mean, 0.5, 0.01);
 }
 
-/// A 1 m square of albedo `rho` in the plane z = 0, a vertex every centimetre.
-Mesh FineFloor(double rho) {
-  Mesh m;
-  const int n = 101;
-  for (int y = 0; y < n; ++y)
-    for (int x = 0; x < n; ++x) {
-      m.positions.emplace_back(-0.5f + 0.01f * x, -0.5f + 0.01f * y, 0.f);
-      m.normals.emplace_back(Eigen::Vector3f::UnitZ());
-      m.albedo.emplace_back(Eigen::Vector3f::Constant(static_cast<float>(rho)));
-    }
-  for (int y = 0; y + 1 < n; ++y)
-    for (int x = 0; x + 1 < n; ++x) {
-      const int i = y * n + x;
-      m.triangles.emplace_back(i, i + 1, i + n + 1);
-      m.triangles.emplace_back(i, i + n + 1, i + n);
-    }
-  return m;
-}
-
 TEST(VertexRadiance, TheCleanLitShadingIsWithinTheNoiseItSays) {
   // A floor under a uniform sky (radiance 1: its part of the incident radiance is 1 at
   // every vertex, sampled with noise) and a lamp (I cos / (pi d^2), exact: one shadow ray).
   // The clean shading's error against that closed form is what it says its noise is, and
   // far below the raw per-vertex average's.
   const double rho = 0.5;
-  const RayTracer scene(FineFloor(rho));
+  const RayTracer scene(test::FineFloor(rho));
   const EnvMap env(11, Eigen::Vector3d::UnitZ());
   PointLight lamp;
   lamp.position = {0.2, -0.1, 0.6};
@@ -388,7 +369,7 @@ TEST(ProgressiveRender, DenoisedItKeepsTheTextureAndSaysItsNoiseHonestly) {
   // pixel is closer to a 3072-sample reference (its own noise taken out) than the plain one
   // by 2.5x or more; the error is the noise it says (the blur's bias small); the dark squares
   // keep their level (texture is not smoothed: its mean ratio to the reference within 2 %).
-  Mesh floor = FineFloor(0.8);
+  Mesh floor = test::FineFloor(0.8);
   for (std::size_t v = 0; v < floor.positions.size(); ++v) {
     const int cx = static_cast<int>(std::floor((floor.positions[v].x() + 0.5) / 0.05));
     const int cy = static_cast<int>(std::floor((floor.positions[v].y() + 0.5) / 0.05));
