@@ -63,7 +63,6 @@ void SumNormalCross(const LinearProblem& p, int first, std::vector<double> G[3])
   });
 }
 
-/// Whether `n` are the normal matrices of p's leading unknowns over the same rows.
 /// The fixed chunks of rows a pass sums apart (their count, rows per chunk): independent of
 /// the thread count, so the sums reduced in chunk order are too.
 std::pair<std::size_t, std::size_t> RowChunks(std::size_t rows) {
@@ -71,6 +70,7 @@ std::pair<std::size_t, std::size_t> RowChunks(std::size_t rows) {
   return {chunks, (rows + chunks - 1) / chunks};
 }
 
+/// Whether `n` are the normal matrices of p's leading unknowns over the same rows.
 bool Extends(const LinearProblem& p, const NormalMatrices& n) {
   return n.rows == p.rows() && n.cell_of.size() <= p.cell_of.size() &&
          std::equal(n.cell_of.begin(), n.cell_of.end(), p.cell_of.begin());

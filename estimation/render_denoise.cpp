@@ -1,7 +1,6 @@
 #include "estimation/render_denoise.h"
 
 #include <cmath>
-#include <cstdlib>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
@@ -40,10 +39,11 @@ PixelSums TracePixel(const RayTracer& scene, const Camera& cam, const std::vecto
   PixelSums p;
   p.rays = side * side;
   const std::size_t i = static_cast<std::size_t>(y) * cam.width + x;
+  const Eigen::Vector3d origin = cam.center();
   for (int s = 0; s < side * side; ++s) {
     const double u = x - 0.5 + (s % side + 0.5) / side, v = y - 0.5 + (s / side + 0.5) / side;
     SurfacePoint hit;
-    if (!scene.Intersect(cam.center(), cam.RayDirection(u, v), &hit)) continue;
+    if (!scene.Intersect(origin, cam.RayDirection(u, v), &hit)) continue;
     p.albedo += hit.albedo;
     p.albedo_sq += hit.albedo.sum() * hit.albedo.sum();
     if (!lights.empty()) {
@@ -69,14 +69,13 @@ bool Whole(const PixelGuide& g, std::size_t i) { return g.hit_share[i] >= 1.f &&
 /// tenth to a neighbour (wholly covered pixels only): an edge may cross the pixel between
 /// its 16 rays.
 std::vector<std::uint8_t> ShadowEdges(const PixelGuide& g) {
-  const auto whole = [&](std::size_t i) { return Whole(g, i); };
   const std::size_t n = g.direct.size();
   std::vector<float> level(n, 0.f);
   double sum = 0;
   std::size_t count = 0;
   for (std::size_t i = 0; i < n; ++i) {
     const float a = g.albedo[i].sum();
-    if (!whole(i) || !(a > 1e-3f)) continue;
+    if (!Whole(g, i) || !(a > 1e-3f)) continue;
     level[i] = g.direct[i].sum() / a;
     sum += level[i];
     ++count;
@@ -91,7 +90,7 @@ std::vector<std::uint8_t> ShadowEdges(const PixelGuide& g) {
         const int xx = x + dx, yy = y + dy;
         if (xx < 0 || yy < 0 || xx >= g.width || yy >= g.height) continue;
         const std::size_t j = static_cast<std::size_t>(yy) * g.width + xx;
-        if (!whole(j)) continue;  // the mesh's edge, not a shadow's
+        if (!Whole(g, j)) continue;  // the mesh's edge, not a shadow's
         if (std::abs(level[i] - level[j]) > 0.1f * std::max(level[i], level[j]) + floor) edge[i] = 1;
       }
   }
