@@ -18,6 +18,7 @@ namespace lp {
 namespace {
 /// The path tracer's defaults: the same negligible throughput and Russian roulette.
 const TracerOptions kPathEnds;
+
 }  // namespace
 
 VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, Lighting lighting, int bounces,
@@ -115,13 +116,20 @@ LitShading VertexRadiance::Clean(const SurfaceFilter& filter) const {
   const Mesh& mesh = scene_.mesh();
   const std::size_t n = sum_.size();
   const double half = samples_ / 2;
-  std::vector<Eigen::Vector3f> even(n), odd(n);
+  // The lights' light at the vertex itself, where it is the same in every sample, is exact:
+  // only the rest (the map's, and what surfaces send) is noise to smooth out. Smoothing the
+  // whole would mix the direct light of neighbours whose normals differ (a scan's).
+  std::vector<Eigen::Vector3f> exact(n, Eigen::Vector3f::Zero()), even(n), odd(n);
   for (std::size_t v = 0; v < n; ++v) {
-    odd[v] = (odd_[v] / half).cast<float>();
-    even[v] = ((sum_[v] - odd_[v]) / half).cast<float>();
+    if (v < at_vertex_.size() && !std::isnan(at_vertex_[v].x())) exact[v] = at_vertex_[v].cast<float>();
+    odd[v] = (odd_[v] / half).cast<float>() - exact[v];
+    even[v] = ((sum_[v] - odd_[v]) / half).cast<float>() - exact[v];
   }
-  even = SmoothOverSurface(mesh, even, filter);
-  odd = SmoothOverSurface(mesh, odd, filter);
+  FitAffineOverSurface(mesh, {&even, &odd}, filter);
+  for (std::size_t v = 0; v < n; ++v) {
+    even[v] += exact[v];
+    odd[v] += exact[v];
+  }
   LitShading out;
   out.radiance.resize(n);
   double diff2 = 0, level = 0;

@@ -17,6 +17,12 @@ struct SurfaceFilter {
   int iterations = 8;  ///< Jacobi steps: the blur's width grows as spacing * sqrt(iterations)
   /// Neighbours whose normals' cosine is below this are not averaged (a crease, a corner).
   double min_normal_cosine = 0.9;
+  /// FitAffineOverSurface's ridges on the fit's slopes, in the units of the features'
+  /// spread: square metres for the place, squared normal differences for the normal. They
+  /// hold a slope the neighbours cannot tell (a flat patch's spread along its normal, a
+  /// patch whose normals are all alike) at 0 instead of at the noise's.
+  double place_ridge = 1e-6;
+  double normal_ridge = 1e-3;
 };
 
 /// Each vertex's value averaged with its neighbours' along the mesh's edges, `iterations`
@@ -24,5 +30,18 @@ struct SurfaceFilter {
 /// normal keep their value. Deterministic; parallel over vertices.
 std::vector<Eigen::Vector3f> SmoothOverSurface(const Mesh& mesh, const std::vector<Eigen::Vector3f>& values,
                                                const SurfaceFilter& filter = {});
+/// Each vertex's values replaced by a local fit affine in the place and the normal,
+/// evaluated at the vertex: a weighted least-squares fit over the neighbours, weighted as
+/// SmoothOverSurface averages them (its diffusion of the fit's moments). Values affine in the
+/// place and the normal come back as they were (the ridges aside), where SmoothOverSurface
+/// would mix the values of neighbours whose normals differ (a scan's) and, beside a crease
+/// or a border, of neighbours on one side. Every field is fitted on the same neighbours and
+/// weights (one diffusion). Vertices with no usable normal keep their values.
+void FitAffineOverSurface(const Mesh& mesh, const std::vector<std::vector<Eigen::Vector3f>*>& fields,
+                          const SurfaceFilter& filter = {});
+/// The same for `channels` values per vertex (vertex v's at [v * channels, (v + 1) * channels)):
+/// one diffusion for many quantities (a local fit's moments).
+std::vector<float> SmoothOverSurface(const Mesh& mesh, const std::vector<float>& values, int channels,
+                                     const SurfaceFilter& filter = {});
 
 }  // namespace lp

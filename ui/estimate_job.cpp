@@ -225,12 +225,15 @@ void EstimateJob::CleanRender(const RayTracer& tracer, const SceneBundle& scene,
 }
 
 /// Progressive per-vertex radiance under the estimate, its noise smoothed out over the
-/// surface (VertexRadiance::Clean), until its noise is lit_noise or it has lit_samples;
+/// surface (VertexRadiance::Clean), until its noise is lit_noise or it has lit_samples (more
+/// on a small mesh);
 /// then the error against the keyframes.
 void EstimateJob::RefineLit(const RayTracer& tracer, const SceneBundle& scene, const EstimateResult& result) {
   try {
     VertexRadiance radiance(tracer, result.env, result.lighting, std::max(1, settings_.options.tracer.bounces), 1);
-    const int target = settings_.lit_samples + settings_.lit_samples % 2;  // Clean needs an even count
+    const double more = std::max(1.0, kLitVertices / std::max<std::size_t>(1, tracer.mesh().positions.size()));
+    const int most = static_cast<int>(std::min(1e6, settings_.lit_samples * more));
+    const int target = most + most % 2;  // Clean needs an even count
     int step = 2;
     // The error shading follows the radiance's noise down: recomputed at 2 samples, then
     // each time they have grown 4-fold, and at the end.
@@ -238,7 +241,7 @@ void EstimateJob::RefineLit(const RayTracer& tracer, const SceneBundle& scene, c
     bool done = false;
     while (!done && !cancelled()) {
       radiance.Refine(std::min(step, target - radiance.samples()));
-      step = std::min(step * 2, 32);
+      step = std::min(step * 2, std::max(32, target / 32 * 2));  // even; a small mesh: Clean less often
       LitShading clean = radiance.Clean(SurfaceFilter{});
       done = radiance.samples() >= target || clean.noise <= settings_.lit_noise;
       auto lit = std::make_shared<const std::vector<Eigen::Vector3f>>(std::move(clean.radiance));

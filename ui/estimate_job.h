@@ -24,9 +24,13 @@ using SceneSource = std::variant<std::shared_ptr<const SceneBundle>, Reconstruct
 
 class EstimateJob {
  public:
+  static constexpr double kLitVertices = 250000;
   struct Settings {
     EstimateOptions options;
-    int lit_samples = 256;        ///< the lit shading stops refining here at the latest
+    /// The lit shading stops refining here at the latest: samples per vertex of a mesh of
+    /// kLitVertices or more; a smaller mesh gets as many more as the same paths allow (a
+    /// 1,500-vertex box needs thousands for 1 %: its vertices are too far apart to smooth).
+    int lit_samples = 256;
     double lit_noise = 0.01;      ///< ... or once its relative noise (LitShading::noise) is this
     const Stopwatch* clock = nullptr;  ///< the session's clock (outlives the job)
     double pressed_at = 0;        ///< on `clock`: when Estimate was pressed
