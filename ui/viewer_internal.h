@@ -137,7 +137,7 @@ class Viewer {
 
   // Frame timing (the benchmark) and the script.
   bool changed_ = true;
-  std::array<std::uint64_t, 6> versions_{};
+  std::array<std::uint64_t, 5> versions_{};
   double last_frame_time_ = 0;
   int bench_frames_left_ = 0;
   std::vector<double> bench_seconds_;
