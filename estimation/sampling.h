@@ -1,6 +1,7 @@
 #pragma once
 /// Sampling helpers shared by the tracers.
 #include <cmath>
+#include <cstdint>
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
@@ -29,6 +30,23 @@ inline Eigen::Vector3d SampleCone(const Eigen::Vector3d& axis, double cos_max, d
   const Eigen::Vector3d t = axis.cross(a).normalized();
   const Eigen::Vector3d b = axis.cross(t);
   return (s * std::cos(phi) * t + s * std::sin(phi) * b + z * axis).normalized();
+}
+
+/// The k-th point of the two-dimensional Sobol sequence (a (0,2)-sequence: every first 2^m
+/// points put one in each of the 2^m elementary intervals of any shape), in [0, 1)².
+/// Shifted by a random offset modulo 1 per estimate (Cranley-Patterson rotation) it stays
+/// unbiased, and a smooth integrand's error falls faster than with independent points.
+inline void Sobol2(std::uint32_t k, double* u1, double* u2) {
+  std::uint32_t x = 0, y = 0, v = 1u << 31;
+  for (std::uint32_t i = k, bit = 0; i != 0; i >>= 1, ++bit) {
+    if (i & 1u) {
+      x ^= 1u << (31 - bit);
+      y ^= v;
+    }
+    v ^= v >> 1;
+  }
+  *u1 = x * (1.0 / 4294967296.0);
+  *u2 = y * (1.0 / 4294967296.0);
 }
 
 /// Power heuristic (beta = 2) weight of strategy a against b.

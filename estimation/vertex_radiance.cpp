@@ -78,7 +78,20 @@ void VertexRadiance::Refine(int samples) {
             got += lit;
             if (bounce == 0 && !at_vertex_.empty()) at_vertex_[v] = lit;
           }
-          const double u1 = rng.Uniform(), u2 = rng.Uniform();
+          double u1, u2;
+          if (bounce == 0 && stratified_) {
+            // The s-th direction of its half (the even samples and the odd, each shifted at
+            // random per vertex: independent halves, so Clean's noise stays what it says).
+            Sobol2(static_cast<std::uint32_t>(s >> 1), &u1, &u2);
+            Rng shift(seed_ ^ 0x9e3779b97f4a7c15ull, v, static_cast<std::uint64_t>(s & 1));
+            u1 += shift.Uniform();
+            u2 += shift.Uniform();
+            u1 -= std::floor(u1);
+            u2 -= std::floor(u2);
+          } else {
+            u1 = rng.Uniform();
+            u2 = rng.Uniform();
+          }
           const Eigen::Vector3d dir = SampleCosine(n, u1, u2);
           if (geometric.dot(dir) <= 0) break;
           SurfacePoint hit;

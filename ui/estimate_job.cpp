@@ -231,6 +231,7 @@ void EstimateJob::CleanRender(const RayTracer& tracer, const SceneBundle& scene,
 void EstimateJob::RefineLit(const RayTracer& tracer, const SceneBundle& scene, const EstimateResult& result) {
   try {
     VertexRadiance radiance(tracer, result.env, result.lighting, std::max(1, settings_.options.tracer.bounces), 1);
+    radiance.SetStratified(true);
     const double more = std::max(1.0, kLitVertices / std::max<std::size_t>(1, tracer.mesh().positions.size()));
     const int most = static_cast<int>(std::min(1e6, settings_.lit_samples * more));
     const int target = most + most % 2;  // Clean needs an even count

@@ -31,7 +31,9 @@ class EstimateJob {
     /// kLitVertices or more; a smaller mesh gets as many more as the same paths allow (a
     /// 1,500-vertex box needs thousands for 1 %: its vertices are too far apart to smooth).
     int lit_samples = 256;
-    double lit_noise = 0.01;      ///< ... or once its relative noise (LitShading::noise) is this
+    /// ... or once its relative noise (LitShading::noise) is this (the fit's bias, about 1 % on
+    /// a scan's rough spots, comes on top: docs/method.md).
+    double lit_noise = 0.007;
     const Stopwatch* clock = nullptr;  ///< the session's clock (outlives the job)
     double pressed_at = 0;        ///< on `clock`: when Estimate was pressed
     /// Where the status's version counters start (the window re-uploads what changed).

@@ -127,16 +127,24 @@ TEST(VertexRadiance, TheSkyThroughASkylightIsItsViewFactorWithAndWithoutAPortal)
     p.half_u = p.half_v = half;
     return p;
   };
-  const std::vector<std::pair<const char*, std::vector<Portal>>> cases = {
-      {"no portal", {}}, {"the skylight", {skylight(c)}}, {"1.5 x larger", {skylight(1.5 * c)}},
-      {"half as large", {skylight(0.5 * c)}}};
+  struct Case {
+    const char* name;
+    std::vector<Portal> portals;
+    bool stratified = false;
+  };
+  const std::vector<Case> cases = {{"no portal", {}},
+                                   {"the skylight", {skylight(c)}},
+                                   {"1.5 x larger", {skylight(1.5 * c)}},
+                                   {"half as large", {skylight(0.5 * c)}},
+                                   {"no portal, the first bounce stratified", {}, true}};
   constexpr int kSeeds = 24, kSamples = 640;
   std::vector<double> spread;
-  for (const auto& [name, portals] : cases) {
+  for (const auto& [name, portals, stratified] : cases) {
     double sum = 0, sq = 0;
     for (int seed = 1; seed <= kSeeds; ++seed) {
       VertexRadiance vr(scene, env, {lambda, {}}, 1, seed);
       if (!portals.empty()) vr.SetPortals(portals, 0.5);
+      vr.SetStratified(stratified);
       vr.Refine(kSamples);
       const double e = vr.Irradiance()[0];
       sum += e;
@@ -153,6 +161,8 @@ TEST(VertexRadiance, TheSkyThroughASkylightIsItsViewFactorWithAndWithoutAPortal)
   // spread over 24 seeds is itself noisy); a portal larger than the skylight wastes some.
   EXPECT_LT(spread[1], spread[0] / 1.6);
   EXPECT_LT(spread[2], spread[0] / 1.2);
+  // The cosine-sampled directions from a Sobol sequence: as unbiased (above), less spread.
+  EXPECT_LT(spread[4], spread[0] / 1.2);
 }
 
 TEST(VertexRadiance, OneLitCellMatchesTheIrradianceOfASmallSource) {
@@ -196,6 +206,11 @@ TEST(VertexRadiance, InterreflectionsAgreeWithThePathTracer) {
                                                  OriginTracer(), true)[0]);
   std::printf("origin under the square: vertex radiance %.4f, path tracer %.4f\n", vertex, pixel);
   EXPECT_NEAR(vertex, pixel, 0.04 * pixel) << "vertex " << vertex << ", path tracer " << pixel;
+  VertexRadiance stratified(scene, env, {lambda, {}}, 4, 3);  // (its first bounce from a Sobol sequence)
+  stratified.SetStratified(true);
+  stratified.Refine(20000);
+  std::printf("the first bounce stratified: %.4f\n", stratified.Radiance()[0].x());
+  EXPECT_NEAR(stratified.Radiance()[0].x(), pixel, 0.04 * pixel);
   VertexRadiance direct(scene, env, {lambda, {}}, 1, 3);
   direct.Refine(20000);
   std::printf("direct light only: %.4f\n", direct.Radiance()[0].x());
