@@ -18,7 +18,6 @@ namespace lp {
 namespace {
 /// The path tracer's defaults: the same negligible throughput and Russian roulette.
 const TracerOptions kPathEnds;
-
 }  // namespace
 
 VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, Lighting lighting, int bounces,

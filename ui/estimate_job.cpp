@@ -225,9 +225,8 @@ void EstimateJob::CleanRender(const RayTracer& tracer, const SceneBundle& scene,
 }
 
 /// Progressive per-vertex radiance under the estimate, its noise smoothed out over the
-/// surface (VertexRadiance::Clean), until its noise is lit_noise or it has lit_samples (more
-/// on a small mesh);
-/// then the error against the keyframes.
+/// surface (VertexRadiance::Clean), its first bounce stratified, until its noise is lit_noise
+/// or it has lit_samples (more on a small mesh); then the error against the keyframes.
 void EstimateJob::RefineLit(const RayTracer& tracer, const SceneBundle& scene, const EstimateResult& result) {
   try {
     VertexRadiance radiance(tracer, result.env, result.lighting, std::max(1, settings_.options.tracer.bounces), 1);
