@@ -1,6 +1,7 @@
 #include "estimation/vertex_radiance.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "common/color.h"
@@ -50,6 +51,16 @@ void VertexRadiance::Refine(int samples) {
       const Eigen::Vector3d n0 = mesh.normals[v].cast<double>();
       if (!(n0.squaredNorm() > 0.5)) continue;
       const Eigen::Vector3d start = mesh.positions[v].cast<double>() + n0 * (4 * scene_.epsilon());
+      // The stratified first bounce's random shift, per vertex and half (the even samples
+      // and the odd, each shifted apart: independent halves, so Clean's noise stays what it
+      // says).
+      std::array<Eigen::Vector2d, 2> shift;
+      if (stratified_)
+        for (std::uint64_t h = 0; h < 2; ++h) {
+          Rng r(seed_ ^ 0x9e3779b97f4a7c15ull, v, h);
+          shift[h].x() = r.Uniform();
+          shift[h].y() = r.Uniform();
+        }
       for (int s = first; s < first + samples; ++s) {
         Rng rng(seed_, v, static_cast<std::uint64_t>(s));
         // The path tracer's conventions: leave a surface 4 epsilon along its geometric
@@ -78,13 +89,10 @@ void VertexRadiance::Refine(int samples) {
             if (bounce == 0 && !at_vertex_.empty()) at_vertex_[v] = lit;
           }
           double u1, u2;
-          if (bounce == 0 && stratified_) {
-            // The s-th direction of its half (the even samples and the odd, each shifted at
-            // random per vertex: independent halves, so Clean's noise stays what it says).
+          if (bounce == 0 && stratified_) {  // the s-th direction of its half
             Sobol2(static_cast<std::uint32_t>(s >> 1), &u1, &u2);
-            Rng shift(seed_ ^ 0x9e3779b97f4a7c15ull, v, static_cast<std::uint64_t>(s & 1));
-            u1 += shift.Uniform();
-            u2 += shift.Uniform();
+            u1 += shift[s & 1].x();
+            u2 += shift[s & 1].y();
             u1 -= std::floor(u1);
             u2 -= std::floor(u2);
           } else {

@@ -75,23 +75,15 @@ std::vector<T> Diffuse(const Mesh& mesh, const Adjacency& adj, std::vector<T> no
 
 }  // namespace
 
-std::vector<float> SmoothOverSurface(const Mesh& mesh, const std::vector<float>& values, int channels,
-                                     const SurfaceFilter& filter) {
-  LP_CHECK(channels >= 1 && values.size() == mesh.positions.size() * channels,
-           "SmoothOverSurface: " << values.size() << " values for " << mesh.positions.size() << " vertices and "
-                                 << channels << " channel(s)");
-  LP_CHECK(filter.spacing > 0 && filter.iterations >= 0, "SmoothOverSurface: spacing " << filter.spacing);
-  return Diffuse(mesh, WeightedAdjacency(mesh, filter), values, static_cast<std::size_t>(channels), filter.iterations);
-}
-
 std::vector<Eigen::Vector3f> SmoothOverSurface(const Mesh& mesh, const std::vector<Eigen::Vector3f>& values,
                                                const SurfaceFilter& filter) {
   LP_CHECK(values.size() == mesh.positions.size(),
            "SmoothOverSurface: " << values.size() << " values for " << mesh.positions.size() << " vertices");
+  LP_CHECK(filter.spacing > 0 && filter.iterations >= 0, "SmoothOverSurface: spacing " << filter.spacing);
   std::vector<float> flat(3 * values.size());
   for (std::size_t v = 0; v < values.size(); ++v)
     for (int k = 0; k < 3; ++k) flat[3 * v + k] = values[v][k];
-  flat = SmoothOverSurface(mesh, flat, 3, filter);
+  flat = Diffuse(mesh, WeightedAdjacency(mesh, filter), std::move(flat), 3, filter.iterations);
   std::vector<Eigen::Vector3f> out(values.size());
   for (std::size_t v = 0; v < values.size(); ++v) out[v] = Eigen::Vector3f(flat[3 * v], flat[3 * v + 1], flat[3 * v + 2]);
   return out;

@@ -39,9 +39,5 @@ std::vector<Eigen::Vector3f> SmoothOverSurface(const Mesh& mesh, const std::vect
 /// weights (one diffusion). Vertices with no usable normal keep their values.
 void FitAffineOverSurface(const Mesh& mesh, const std::vector<std::vector<Eigen::Vector3f>*>& fields,
                           const SurfaceFilter& filter = {});
-/// The same for `channels` values per vertex (vertex v's at [v * channels, (v + 1) * channels)):
-/// one diffusion for many quantities (a local fit's moments).
-std::vector<float> SmoothOverSurface(const Mesh& mesh, const std::vector<float>& values, int channels,
-                                     const SurfaceFilter& filter = {});
 
 }  // namespace lp
