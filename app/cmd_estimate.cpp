@@ -286,6 +286,7 @@ static json WriteAlbedo(const fs::path& out, const SceneBundle& bundle, const Es
   json albedo = {{"refined", r.albedo_passes > 0},
                  {"passes", r.albedo_passes},
                  {"segments", r.albedo_segments},
+                 {"paths", r.albedo_paths},
                  {"scale", r.albedo_scale}};
   if (std::isfinite(r.albedo_last_move)) albedo["last_move"] = r.albedo_last_move;
   if (r.albedo_scale != 1)

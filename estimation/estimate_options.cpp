@@ -132,6 +132,10 @@ std::vector<EstimateOption> MakeTable() {
        Type::kBool, 0, 1, false, LP_GET(choose_prior), LP_SET(choose_prior, bool), "", 0, 0, {}},
       {"albedo-samples", "albedo_samples", "paths per vertex for the irradiance an albedo pass de-lights by",
        Type::kInt, 1, 4096, false, LP_GET(albedo_samples), LP_SET(albedo_samples, int), "", 0, 0, {}},
+      {"albedo-noise", "albedo_noise",
+       "an albedo pass traces more paths (up to --albedo-samples a cluster) only where the irradiance's relative "
+       "standard error is above this; 0 = --albedo-samples everywhere",
+       Type::kReal, 0, 1, false, LP_GET(albedo_noise), LP_SET(albedo_noise, double), "", 0, 0, {}},
       {"pre-albedo-stride", "pre_albedo_stride",
        "the rounds before the first albedo pass fit the pixels on a grid of this many (at most round 1's); 1 = "
        "every pixel",

@@ -193,6 +193,10 @@ struct EstimateOptions {
   /// into many segments, each pass moves a lamp part of the way (docs/method.md).
   double albedo_settle = 0.1;
   int albedo_samples = 32;
+  /// An albedo pass gives a cluster's vertices more paths (doubling from 2 a vertex, up to
+  /// albedo_samples a cluster) only while its mean irradiance's relative standard error is
+  /// above this; 0: albedo_samples paths everywhere.
+  double albedo_noise = 0.1;
   /// The rounds before the first albedo pass fit the valid pixels on a grid of this many
   /// (at most round 1's grid): they only settle the lights the pass de-lights under, and the
   /// rounds after it start over under the new albedo (docs/method.md, "Rounds"); 1 fits

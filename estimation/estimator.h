@@ -206,6 +206,9 @@ struct EstimateResult {
   /// The refined per-vertex albedo the estimate was made under (empty: the bundle's, unrefined).
   std::vector<Eigen::Vector3f> albedo;
   int albedo_passes = 0, albedo_segments = 0;
+  /// The last albedo pass's paths per vertex of the bundle's mesh, on average
+  /// (EstimateOptions::albedo_noise: fewer where the irradiance settles early).
+  double albedo_paths = 0;
   /// Surfaces seen glowing that the data chose as a window's opening (the map seen through
   /// it, its triangles no surface) over a glowing pane or a plain one (docs/method.md,
   /// "Windows: a pane or an opening"), on the bundle's mesh; lights.json's "openings".

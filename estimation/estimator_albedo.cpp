@@ -79,6 +79,64 @@ int Estimator::AlbedoPaths() const {
   return std::min(opt_.albedo_samples, std::max(2, static_cast<int>(std::lround(opt_.albedo_samples * share))));
 }
 
+/// The albedo pass's irradiance per vertex of the bundle's mesh, averaged over its clusters
+/// (OverClusters). With albedo_noise > 0 every vertex has a quarter of them first, and a cluster's
+/// vertices get twice their paths while its mean's relative standard error is above it,
+/// up to AlbedoPaths() (a lit wall settles in a few paths, a corner in the shade takes them
+/// all); with 0, AlbedoPaths() each.
+std::vector<float> Estimator::AlbedoIrradiance(VertexRadiance* radiance, int pass) {
+  const int most = AlbedoPaths();
+  std::vector<std::uint8_t> more(mesh_.positions.size(), 1);
+  int paths = 0;  // of each vertex still marked
+  // First a quarter of the paths (about 8 a cluster: a standard error from fewer would say
+  // too little too often), at least 2 a vertex.
+  for (int step = opt_.albedo_noise > 0 ? std::min(most, std::max(2, most / 4)) : most; step > 0;) {
+    for (int done = 0; done < step; done += 2) {  // Cancel is polled between steps
+      radiance->Refine(std::min(2, step - done), more);
+      CheckCancel();
+    }
+    paths += step;
+    if (opt_.albedo_noise <= 0 || paths >= most) break;
+    const std::size_t noisy = MarkNoisyClusters(*radiance, &more);
+    const auto marked = std::count(more.begin(), more.end(), 1);
+    Progress(Fmt("albedo pass %d: at %d paths a vertex %zu clusters (%lld vertices) above %.3g relative noise", pass,
+                 paths, noisy, static_cast<long long>(marked), opt_.albedo_noise));
+    step = noisy > 0 ? std::min(paths, most - paths) : 0;
+  }
+  double sum = 0;
+  for (std::size_t v = 0; v < more.size(); ++v) sum += radiance->samples(v);
+  res_.albedo_paths = more.empty() ? 0 : sum / more.size();
+  return OverClusters(radiance->Irradiance());
+}
+
+/// Marks in `more` the vertices of the clusters (the traced mesh's vertices; each vertex its
+/// own where the mesh is traced as it is) whose mean irradiance has a relative standard
+/// error above albedo_noise, from their vertices' paths (a cluster's mean is its vertices'
+/// mean); one without light yet is marked too (its few paths may have missed it). Returns
+/// how many clusters it marked.
+std::size_t Estimator::MarkNoisyClusters(const VertexRadiance& radiance, std::vector<std::uint8_t>* more) const {
+  const std::vector<float> mean = radiance.Irradiance(), variance = radiance.IrradianceVariance();
+  const auto cluster = [&](std::size_t v) { return cluster_.empty() ? static_cast<int>(v) : cluster_[v]; };
+  const std::size_t clusters = cluster_.empty() ? mean.size() : scene_->mesh().positions.size();
+  std::vector<double> sum(clusters, 0), var(clusters, 0);
+  std::vector<int> members(clusters, 0);
+  for (std::size_t v = 0; v < mean.size(); ++v)
+    if ((*more)[v] && cluster(v) >= 0 && radiance.samples(v) > 0) {
+      sum[cluster(v)] += mean[v];
+      var[cluster(v)] += variance[v];
+      ++members[cluster(v)];
+    }
+  std::vector<std::uint8_t> noisy(clusters, 0);
+  std::size_t count = 0;
+  for (std::size_t c = 0; c < clusters; ++c)
+    if (members[c] > 0 && (!(sum[c] > 0) || std::sqrt(var[c]) > opt_.albedo_noise * sum[c])) {  // sqrt(var/m²)/(sum/m)
+      noisy[c] = 1;
+      ++count;
+    }
+  for (std::size_t v = 0; v < more->size(); ++v) (*more)[v] = (*more)[v] && cluster(v) >= 0 && noisy[cluster(v)];
+  return count;
+}
+
 bool Estimator::RefineAlbedo(int pass) {
   CheckCancel();
   Stopwatch as;
@@ -86,8 +144,8 @@ bool Estimator::RefineAlbedo(int pass) {
   std::vector<float> irradiance;
   std::vector<int> labels;
   if (res_.rendered_fraction >= 0.01) {
-    const int paths = AlbedoPaths();
-    Progress(Fmt("albedo pass %d: de-lighting %zu vertices (%d paths each)", pass, mesh_.positions.size(), paths));
+    Progress(Fmt("albedo pass %d: de-lighting %zu vertices (at most %d paths each)", pass, mesh_.positions.size(),
+                 AlbedoPaths()));
     {
       // The bundle's mesh itself (a clustered mesh folds where a flat surface crosses a
       // cell's boundary, and a vertex there can sit behind its neighbours' triangles).
@@ -96,11 +154,7 @@ bool Estimator::RefineAlbedo(int pass) {
       VertexRadiance radiance(full ? *full : *scene_, env_, {lambda_, Lights()}, opt_.tracer.bounces,
                               opt_.tracer.seed * 7919 + pass);
       if (!portals_.empty()) radiance.SetPortals(portals_, kPortalShare);
-      for (int done = 0; done < paths; done += 2) {  // Cancel is polled between steps
-        radiance.Refine(std::min(2, paths - done));
-        CheckCancel();
-      }
-      irradiance = OverClusters(radiance.Irradiance());
+      irradiance = AlbedoIrradiance(&radiance, pass);
       // The albedo's scale by the rule it was given before the rounds (--room-albedo), or
       // the colours' own when that is 0.
       segments = DelightAlbedo(&mesh_, irradiance, DelitAlbedoOptions(), res_.albedo_scale, opt_.room_albedo, &labels);

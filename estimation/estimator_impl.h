@@ -182,6 +182,8 @@ class Estimator {
   bool Settled(const std::vector<Light>& before);
   std::vector<float> OverClusters(const std::vector<float>& values) const;
   int AlbedoPaths() const;
+  std::vector<float> AlbedoIrradiance(VertexRadiance* radiance, int pass);
+  std::size_t MarkNoisyClusters(const VertexRadiance& radiance, std::vector<std::uint8_t>* more) const;
   Mesh WithAlbedoOf(const Mesh& full, const std::vector<float>& irradiance) const;
   /// The estimate in image units, its scores and what the user should know about it.
   void Conclude();

@@ -31,6 +31,8 @@ VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, Lighti
   LP_CHECK(bounces >= 1, "bounces " << bounces);
   sum_.assign(scene.mesh().positions.size(), Eigen::Vector3d::Zero());
   odd_ = sum_;
+  square_.assign(sum_.size(), 0.0);
+  count_.assign(sum_.size(), 0);
   const bool fixed_at_vertex = std::all_of(lighting_.lights.begin(), lighting_.lights.end(), [](const Light& light) {
     if (const auto* p = std::get_if<PointLight>(&light)) return p->radius == 0;
     if (const auto* d = std::get_if<DirectionalLight>(&light)) return d->angular_radius == 0;
@@ -42,92 +44,105 @@ VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, Lighti
 VertexRadiance::~VertexRadiance() = default;
 
 void VertexRadiance::Refine(int samples) {
-  const Mesh& mesh = scene_.mesh();
-  const int first = samples_;
-  ParallelForChunks(0, mesh.positions.size(), 256, [&](std::size_t b, std::size_t e) {
-    detail::Counters ended;  // how paths ended (not reported)
-    for (std::size_t v = b; v < e; ++v) {
-      if (v >= mesh.normals.size()) continue;
-      const Eigen::Vector3d n0 = mesh.normals[v].cast<double>();
-      if (!(n0.squaredNorm() > 0.5)) continue;
-      const Eigen::Vector3d start = mesh.positions[v].cast<double>() + n0 * (4 * scene_.epsilon());
-      // The stratified first bounce's random shift, per vertex and half (the even samples
-      // and the odd, each shifted apart: independent halves, so Clean's noise stays what it
-      // says).
-      std::array<Eigen::Vector2d, 2> shift;
-      if (stratified_)
-        for (std::uint64_t h = 0; h < 2; ++h) {
-          Rng r(seed_ ^ 0x9e3779b97f4a7c15ull, v, h);
-          shift[h].x() = r.Uniform();
-          shift[h].y() = r.Uniform();
-        }
-      for (int s = first; s < first + samples; ++s) {
-        Rng rng(seed_, v, static_cast<std::uint64_t>(s));
-        // The path tracer's conventions: leave a surface 4 epsilon along its geometric
-        // normal, a direction the shading normal allows but the geometry faces away from is
-        // absorbed, and next-event estimation towards a cell drawn by the estimate's
-        // brightness is combined with cosine sampling by the power heuristic (the lit
-        // shading of a small bright light converges in tens of samples, not thousands).
-        Eigen::Vector3d origin = start;
-        Eigen::Vector3d n = n0, geometric = n0, throughput = Eigen::Vector3d::Ones();
-        const std::vector<double>& map = lighting_.map;
-        Eigen::Vector3d got = Eigen::Vector3d::Zero();  // this path's incident radiance
-        auto cell = [&](int j) { return Eigen::Vector3d(map[3 * j], map[3 * j + 1], map[3 * j + 2]); };
-        for (int bounce = 0; bounce < bounces_; ++bounce) {
-          const NextEvent ne = SampleNextEvent(scene_, env_, *sampler_, n, geometric, origin, rng);
-          if (ne.visible) got += throughput.cwiseProduct(cell(ne.cell)) * ne.weight;
-          if (bounce == 0 && !at_vertex_.empty() && !std::isnan(at_vertex_[v].x())) {
-            got += at_vertex_[v];
-          } else if (!lighting_.lights.empty()) {  // the lights' irradiance / pi
-            const std::uint64_t key = (static_cast<std::uint64_t>(v) << 24) ^ (static_cast<std::uint64_t>(s) << 4) ^
-                                      static_cast<std::uint64_t>(bounce);
-            std::int64_t rays = 0;
-            const Eigen::Vector3d lit =
-                throughput.cwiseProduct(lp::Irradiance(scene_, lighting_.lights, origin, n, geometric, key, &rays)) *
-                kInvPi;
-            got += lit;
-            if (bounce == 0 && !at_vertex_.empty()) at_vertex_[v] = lit;
-          }
-          double u1, u2;
-          if (bounce == 0 && stratified_) {  // the s-th direction of its half
-            Sobol2(static_cast<std::uint32_t>(s >> 1), &u1, &u2);
-            u1 += shift[s & 1].x();
-            u2 += shift[s & 1].y();
-            u1 -= std::floor(u1);
-            u2 -= std::floor(u2);
-          } else {
-            u1 = rng.Uniform();
-            u2 = rng.Uniform();
-          }
-          const Eigen::Vector3d dir = SampleCosine(n, u1, u2);
-          if (geometric.dot(dir) <= 0) break;
-          SurfacePoint hit;
-          if (!scene_.Intersect(origin, dir, &hit)) {
-            const int j = env_.Lookup(dir);
-            got += throughput.cwiseProduct(cell(j)) * EscapeWeight(env_, *sampler_, j, n.dot(dir), origin, dir);
-            break;
-          }
-          // Cosine sampling cancels cos/pi against the Lambertian albedo/pi: the weight is the albedo.
-          throughput = throughput.cwiseProduct(hit.albedo);
-          if (!detail::PathContinues(bounce, kPathEnds, &throughput, rng, ended)) break;
-          n = hit.shading;
-          geometric = hit.geometric;
-          origin = hit.position + hit.geometric * (4 * scene_.epsilon());
-        }
-        sum_[v] += got;
-        if (s & 1) odd_[v] += got;
-      }
-    }
+  ParallelForChunks(0, sum_.size(), 256, [&](std::size_t b, std::size_t e) {
+    for (std::size_t v = b; v < e; ++v) RefineVertex(v, samples);
   });
-  samples_ += samples;
+  if (samples_ >= 0) samples_ += samples;
+}
+
+void VertexRadiance::Refine(int samples, const std::vector<std::uint8_t>& which) {
+  LP_CHECK(which.size() == sum_.size(), "VertexRadiance::Refine: " << which.size() << " marks for " << sum_.size()
+                                                                     << " vertices");
+  ParallelForChunks(0, sum_.size(), 256, [&](std::size_t b, std::size_t e) {
+    for (std::size_t v = b; v < e; ++v)
+      if (which[v]) RefineVertex(v, samples);
+  });
+  samples_ = -1;
+}
+
+void VertexRadiance::RefineVertex(std::size_t v, int samples) {
+  const Mesh& mesh = scene_.mesh();
+  const int first = count_[v];
+  count_[v] += samples;
+  detail::Counters ended;  // how paths ended (not reported)
+  if (v >= mesh.normals.size()) return;
+  const Eigen::Vector3d n0 = mesh.normals[v].cast<double>();
+  if (!(n0.squaredNorm() > 0.5)) return;
+  const Eigen::Vector3d start = mesh.positions[v].cast<double>() + n0 * (4 * scene_.epsilon());
+  // The stratified first bounce's random shift, per vertex and half (the even samples
+  // and the odd, each shifted apart: independent halves, so Clean's noise stays what it
+  // says).
+  std::array<Eigen::Vector2d, 2> shift;
+  if (stratified_)
+    for (std::uint64_t h = 0; h < 2; ++h) {
+      Rng r(seed_ ^ 0x9e3779b97f4a7c15ull, v, h);
+      shift[h].x() = r.Uniform();
+      shift[h].y() = r.Uniform();
+    }
+  for (int s = first; s < first + samples; ++s) {
+    Rng rng(seed_, v, static_cast<std::uint64_t>(s));
+    // The path tracer's conventions: leave a surface 4 epsilon along its geometric
+    // normal, a direction the shading normal allows but the geometry faces away from is
+    // absorbed, and next-event estimation towards a cell drawn by the estimate's
+    // brightness is combined with cosine sampling by the power heuristic (the lit
+    // shading of a small bright light converges in tens of samples, not thousands).
+    Eigen::Vector3d origin = start;
+    Eigen::Vector3d n = n0, geometric = n0, throughput = Eigen::Vector3d::Ones();
+    const std::vector<double>& map = lighting_.map;
+    Eigen::Vector3d got = Eigen::Vector3d::Zero();  // this path's incident radiance
+    auto cell = [&](int j) { return Eigen::Vector3d(map[3 * j], map[3 * j + 1], map[3 * j + 2]); };
+    for (int bounce = 0; bounce < bounces_; ++bounce) {
+      const NextEvent ne = SampleNextEvent(scene_, env_, *sampler_, n, geometric, origin, rng);
+      if (ne.visible) got += throughput.cwiseProduct(cell(ne.cell)) * ne.weight;
+      if (bounce == 0 && !at_vertex_.empty() && !std::isnan(at_vertex_[v].x())) {
+        got += at_vertex_[v];
+      } else if (!lighting_.lights.empty()) {  // the lights' irradiance / pi
+        const std::uint64_t key = (static_cast<std::uint64_t>(v) << 24) ^ (static_cast<std::uint64_t>(s) << 4) ^
+                                  static_cast<std::uint64_t>(bounce);
+        std::int64_t rays = 0;
+        const Eigen::Vector3d lit =
+            throughput.cwiseProduct(lp::Irradiance(scene_, lighting_.lights, origin, n, geometric, key, &rays)) *
+            kInvPi;
+        got += lit;
+        if (bounce == 0 && !at_vertex_.empty()) at_vertex_[v] = lit;
+      }
+      double u1, u2;
+      if (bounce == 0 && stratified_) {  // the s-th direction of its half
+        Sobol2(static_cast<std::uint32_t>(s >> 1), &u1, &u2);
+        u1 += shift[s & 1].x();
+        u2 += shift[s & 1].y();
+        u1 -= std::floor(u1);
+        u2 -= std::floor(u2);
+      } else {
+        u1 = rng.Uniform();
+        u2 = rng.Uniform();
+      }
+      const Eigen::Vector3d dir = SampleCosine(n, u1, u2);
+      if (geometric.dot(dir) <= 0) break;
+      SurfacePoint hit;
+      if (!scene_.Intersect(origin, dir, &hit)) {
+        const int j = env_.Lookup(dir);
+        got += throughput.cwiseProduct(cell(j)) * EscapeWeight(env_, *sampler_, j, n.dot(dir), origin, dir);
+        break;
+      }
+      // Cosine sampling cancels cos/pi against the Lambertian albedo/pi: the weight is the albedo.
+      throughput = throughput.cwiseProduct(hit.albedo);
+      if (!detail::PathContinues(bounce, kPathEnds, &throughput, rng, ended)) break;
+      n = hit.shading;
+      geometric = hit.geometric;
+      origin = hit.position + hit.geometric * (4 * scene_.epsilon());
+    }
+    sum_[v] += got;
+    square_[v] += got.mean() * got.mean();
+    if (s & 1) odd_[v] += got;
+  }
 }
 
 std::vector<Eigen::Vector3f> VertexRadiance::Radiance() const {
   const Mesh& mesh = scene_.mesh();
   std::vector<Eigen::Vector3f> out(sum_.size(), Eigen::Vector3f::Zero());
-  if (samples_ == 0) return out;
   for (std::size_t v = 0; v < out.size(); ++v)
-    out[v] = (mesh.albedo[v].cast<double>().cwiseProduct(sum_[v]) / samples_).cast<float>();
+    if (count_[v] > 0) out[v] = (mesh.albedo[v].cast<double>().cwiseProduct(sum_[v]) / count_[v]).cast<float>();
   return out;
 }
 
@@ -175,8 +190,19 @@ LitShading VertexRadiance::Clean(const SurfaceFilter& filter) const {
 
 std::vector<float> VertexRadiance::Irradiance() const {
   std::vector<float> out(sum_.size(), 0.f);
-  if (samples_ == 0) return out;
-  for (std::size_t v = 0; v < out.size(); ++v) out[v] = static_cast<float>(sum_[v].mean() / samples_);
+  for (std::size_t v = 0; v < out.size(); ++v)
+    if (count_[v] > 0) out[v] = static_cast<float>(sum_[v].mean() / count_[v]);
+  return out;
+}
+
+std::vector<float> VertexRadiance::IrradianceVariance() const {
+  std::vector<float> out(sum_.size(), 0.f);
+  for (std::size_t v = 0; v < out.size(); ++v) {
+    const double k = count_[v];
+    if (k < 2) continue;
+    const double mean = sum_[v].mean() / k;
+    out[v] = static_cast<float>(std::max(0.0, (square_[v] - k * mean * mean) / (k - 1)) / k);
+  }
   return out;
 }
 

@@ -53,25 +53,37 @@ class VertexRadiance {
   void SetStratified(bool on) { stratified_ = on; }
   /// Adds `samples` paths per vertex (parallel over vertices; deterministic per seed).
   void Refine(int samples);
+  /// The same for the vertices `which` marks only (one entry per vertex): each vertex's
+  /// paths continue its own sequence, so a vertex refined k times in all has the paths it
+  /// would have from Refine(k). Clean() then no longer applies (its halves need one count).
+  void Refine(int samples, const std::vector<std::uint8_t>& which);
   /// Mean outgoing radiance per vertex (linear RGB, the estimate's units): albedo times the
   /// mean incident radiance over the cosine-weighted hemisphere.
   std::vector<Eigen::Vector3f> Radiance() const;
   /// Mean incident radiance per vertex over the cosine-weighted hemisphere, as a grey
   /// level (the mean of its channels): irradiance / pi.
   std::vector<float> Irradiance() const;
+  /// Per vertex, the variance of Irradiance()'s value as a mean of its paths: the grey
+  /// level's sample variance over the vertex's paths over their count (0 with fewer than 2).
+  std::vector<float> IrradianceVariance() const;
   /// Radiance() with the incident radiance smoothed over the surface (SmoothOverSurface:
   /// shadows' edges blur by a few `filter.spacing`s) and its noise left, from the even and
   /// the odd samples apart. Needs an even samples() >= 2.
   LitShading Clean(const SurfaceFilter& filter) const;
+  /// The paths each vertex has had (with Refine(samples) alone, samples() for every one).
   int samples() const { return samples_; }
+  int samples(std::size_t vertex) const { return count_[vertex]; }
 
  private:
+  void RefineVertex(std::size_t v, int samples);
+
   const RayTracer& scene_;
   const EnvMap& env_;
   Lighting lighting_;
   int bounces_;
   std::uint64_t seed_;
-  int samples_ = 0;
+  int samples_ = 0;       ///< the paths of every vertex, or -1 once Refine(samples, which) ran
+  std::vector<int> count_;  ///< per vertex, its paths
   bool stratified_ = false;
   std::unique_ptr<CellSampler> sampler_;  ///< NEE over cells, by the estimate's brightness
   /// Per vertex, the lights' irradiance / pi at the vertex itself, where that is the same for
@@ -80,6 +92,7 @@ class VertexRadiance {
   std::vector<Eigen::Vector3d> at_vertex_;
   std::vector<Eigen::Vector3d> sum_;  ///< per vertex, incident radiance summed over samples
   std::vector<Eigen::Vector3d> odd_;  ///< the same over the odd samples only
+  std::vector<double> square_;        ///< per vertex, the grey level's square summed over samples
 };
 
 /// Per vertex: PixelError(radiance, observed) / WhiteLevel(view) against the nearest view

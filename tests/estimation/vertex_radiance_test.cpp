@@ -286,6 +286,59 @@ TEST(VertexRadiance, RefiningAddsSamplesAndStaysConsistent) {
   EXPECT_NEAR(mean, 0.5, 0.01);
 }
 
+TEST(VertexRadiance, RefiningSomeVerticesContinuesTheirOwnPaths) {
+  // The albedo pass gives some vertices more paths than others: a vertex refined 16 + 16
+  // paths has exactly the radiance of 32 in one call, and one left out keeps its 16.
+  const RayTracer scene(test::Ball(1.0, 0.5, 8, 16));
+  const EnvMap env(7, Eigen::Vector3d::UnitZ());
+  const std::vector<double> lambda(3 * env.size(), 1.0);
+  VertexRadiance some(scene, env, {lambda, {}}, 2), all16(scene, env, {lambda, {}}, 2), all32(scene, env, {lambda, {}}, 2);
+  const std::size_t n = scene.mesh().positions.size();
+  std::vector<std::uint8_t> odd(n, 0);
+  for (std::size_t v = 1; v < n; v += 2) odd[v] = 1;
+  some.Refine(16);
+  some.Refine(16, odd);
+  all16.Refine(16);
+  all32.Refine(32);
+  const std::vector<float> e = some.Irradiance(), e16 = all16.Irradiance(), e32 = all32.Irradiance();
+  for (std::size_t v = 0; v < n; ++v) {
+    EXPECT_EQ(some.samples(v), odd[v] ? 32 : 16);
+    EXPECT_EQ(e[v], odd[v] ? e32[v] : e16[v]) << "vertex " << v;
+  }
+  EXPECT_EQ(some.samples(), -1) << "no longer one count for all";
+  std::vector<std::uint8_t> short_mask(n - 1, 1);
+  EXPECT_THROW(some.Refine(2, short_mask), std::exception);
+}
+
+TEST(VertexRadiance, TheIrradiancesVarianceIsItsSpreadOverSeeds) {
+  // A floor under a square that hides most of its sky (light mostly after bounces: a
+  // skewed, wide distribution of path values): the variance each vertex says its mean has,
+  // from its own 8 paths, averaged over 400 seeds, against the variance of that mean over
+  // the seeds. Divided by the paths once too often (or not at all) it is off 8 times.
+  const RayTracer scene(FloorUnderASquare());
+  const EnvMap env(7, Eigen::Vector3d::UnitZ());
+  const std::vector<double> lambda(3 * env.size(), 1.0);
+  const int seeds = 400;
+  std::vector<double> sum(5, 0), sum2(5, 0), said(5, 0);
+  for (int seed = 1; seed <= seeds; ++seed) {
+    VertexRadiance vr(scene, env, {lambda, {}}, 3, seed);
+    vr.Refine(8);
+    const std::vector<float> e = vr.Irradiance(), var = vr.IrradianceVariance();
+    for (int v = 0; v < 5; ++v) {  // the floor's vertices (the origin under the square, the corners)
+      sum[v] += e[v];
+      sum2[v] += static_cast<double>(e[v]) * e[v];
+      said[v] += var[v] / seeds;
+    }
+  }
+  for (int v = 0; v < 5; ++v) {
+    const double mean = sum[v] / seeds, spread = (sum2[v] - seeds * mean * mean) / (seeds - 1);
+    std::printf("vertex %d: irradiance %.4f, its variance over seeds %.3g, said %.3g (ratio %.3f)\n", v, mean, spread,
+                said[v], said[v] / spread);
+    // The spread's own sampling error over 400 seeds is about 7 % (more for skewed paths).
+    EXPECT_NEAR(said[v] / spread, 1.0, 0.25) << "vertex " << v;
+  }
+}
+
 TEST(VertexRadiance, TheCleanLitShadingIsWithinTheNoiseItSays) {
   // A floor under a uniform sky (radiance 1: its part of the incident radiance is 1 at
   // every vertex, sampled with noise) and a lamp (I cos / (pi d^2), exact: one shadow ray).
