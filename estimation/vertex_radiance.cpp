@@ -44,20 +44,22 @@ VertexRadiance::VertexRadiance(const RayTracer& scene, const EnvMap& env, Lighti
 VertexRadiance::~VertexRadiance() = default;
 
 void VertexRadiance::Refine(int samples) {
-  ParallelForChunks(0, sum_.size(), 256, [&](std::size_t b, std::size_t e) {
-    for (std::size_t v = b; v < e; ++v) RefineVertex(v, samples);
-  });
+  RefineWhere(samples, nullptr);
   if (samples_ >= 0) samples_ += samples;
 }
 
 void VertexRadiance::Refine(int samples, const std::vector<std::uint8_t>& which) {
   LP_CHECK(which.size() == sum_.size(), "VertexRadiance::Refine: " << which.size() << " marks for " << sum_.size()
                                                                      << " vertices");
+  RefineWhere(samples, which.data());
+  samples_ = -1;
+}
+
+void VertexRadiance::RefineWhere(int samples, const std::uint8_t* which) {
   ParallelForChunks(0, sum_.size(), 256, [&](std::size_t b, std::size_t e) {
     for (std::size_t v = b; v < e; ++v)
-      if (which[v]) RefineVertex(v, samples);
+      if (!which || which[v]) RefineVertex(v, samples);
   });
-  samples_ = -1;
 }
 
 void VertexRadiance::RefineVertex(std::size_t v, int samples) {

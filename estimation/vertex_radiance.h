@@ -75,6 +75,8 @@ class VertexRadiance {
   int samples(std::size_t vertex) const { return count_[vertex]; }
 
  private:
+  /// Refines every vertex, or those `which` marks (one entry per vertex) where given.
+  void RefineWhere(int samples, const std::uint8_t* which);
   void RefineVertex(std::size_t v, int samples);
 
   const RayTracer& scene_;
