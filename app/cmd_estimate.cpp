@@ -241,7 +241,7 @@ static json SettingsJson(const EstimateOptions& o, const EstimateResult& r) {
 static json SecondsJson(const EstimateResult& r, double command_seconds) {
   json seconds = {{"total", command_seconds}, {"bvh", r.bvh_seconds}, {"trace", r.trace.seconds},
                   {"render", r.render_seconds}, {"clean_render", r.clean_render_seconds},
-                  {"estimate", r.total_seconds}};
+                  {"estimate", r.total_seconds}, {"lights", r.lights_seconds}};
   double solve = 0;
   for (const auto& ri : r.rounds) solve += ri.solve_seconds;
   seconds["solve"] = solve;
@@ -282,7 +282,18 @@ static json PriorJson(const EstimateOptions& o, const EstimateResult& r) {
 /// Albedo refinement: done for a reconstructed mesh (it carries the colours seen), left out
 /// where the albedo is known (no shaded colours) or when turned off. Writes albedo_mesh.ply
 /// when done; returns report.json's "albedo".
-static json WriteAlbedo(const fs::path& out, const SceneBundle& bundle, const EstimateResult& r) {
+/// albedo_mesh.ply: the bundle's mesh with the albedo the lights go with (when the estimate
+/// changed it: refined or scaled).
+static void WriteAlbedoMesh(const fs::path& out, const SceneBundle& bundle, const EstimateResult& r) {
+  if (r.albedo.empty()) return;
+  Mesh mesh = bundle.mesh;
+  mesh.albedo = r.albedo;
+  mesh.shaded.clear();
+  WritePly(out / "albedo_mesh.ply", mesh);
+}
+
+/// report.json's "albedo" (its mesh: WriteAlbedoMesh's).
+static json AlbedoJson(const EstimateResult& r) {
   json albedo = {{"refined", r.albedo_passes > 0},
                  {"passes", r.albedo_passes},
                  {"segments", r.albedo_segments},
@@ -293,13 +304,7 @@ static json WriteAlbedo(const fs::path& out, const SceneBundle& bundle, const Es
     albedo["scale_rule"] = "the bundle's albedo (the colours seen, flattened) scaled so its median luminance over "
                            "the vertices is --room-albedo; every albedo pass keeps that median; the lights are in "
                            "its terms";
-  if (!r.albedo.empty()) {
-    Mesh mesh = bundle.mesh;
-    mesh.albedo = r.albedo;
-    mesh.shaded.clear();
-    WritePly(out / "albedo_mesh.ply", mesh);
-    albedo["mesh"] = "albedo_mesh.ply";
-  }
+  if (!r.albedo.empty()) albedo["mesh"] = "albedo_mesh.ply";
   if (r.albedo_passes == 0) {
     // The reason as the command line says it (the library names no flags).
     albedo["why_not"] = r.albedo_left_out == AlbedoLeftOut::kNoPasses ? "--albedo-passes 0"
@@ -364,15 +369,27 @@ static json EnvMapFrameJson(const EnvMap& env) {
           {"frame_y", {env.frame_y().x(), env.frame_y().y(), env.frame_y().z()}}};
 }
 
-void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle, const EstimateOptions& o,
-                          const EstimateResult& r, double command_seconds) {
+/// out_dir, created where it is not.
+static fs::path OutputDirectory(const std::string& out_dir) {
   const fs::path out(out_dir);
   std::error_code ec;
   fs::create_directories(out, ec);
   if (ec) throw InputError(out_dir, "cannot create output directory: " + ec.message());
+  return out;
+}
+
+void WriteEstimateLights(const std::string& out_dir, const SceneBundle& bundle, const EstimateResult& r) {
+  const fs::path out = OutputDirectory(out_dir);
   WriteEnvMap(out, r);
-  WriteConvergence(out, r);
+  WriteAlbedoMesh(out, bundle, r);
   WriteLights(out, r);
+}
+
+void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle, const EstimateOptions& o,
+                          const EstimateResult& r, double command_seconds, bool lights_written) {
+  const fs::path out = OutputDirectory(out_dir);
+  if (!lights_written) WriteEstimateLights(out_dir, bundle, r);
+  WriteConvergence(out, r);
   json views = json::array();
   for (std::size_t k = 0; k < r.renders.size(); ++k)
     views.push_back(WriteView(out, k, bundle.views[k], r.renders[k], r.fits[k]));
@@ -380,7 +397,7 @@ void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle,
   rep["scene"] = fs::absolute(bundle.dir).lexically_normal().string();
   rep["settings"] = SettingsJson(o, r);
   rep["seconds"] = SecondsJson(r, command_seconds);
-  rep["albedo"] = WriteAlbedo(out, bundle, r);
+  rep["albedo"] = AlbedoJson(r);
   WriteCleanRenderPlot(out, o, r);
   rep["clean_render"] = json::array();  // its passes: error (noise) against run time
   for (const RenderPass& p : r.render_passes)
@@ -468,8 +485,16 @@ Run AddEstimate(CLI::App& app) {
     if (!warm->empty()) o->warm = ReadWarmStart(*warm);
     o->time_offset = sw.Seconds();
     o->scorer = TruthScorer::FromBundle(bundle, o->point_lights.far);  // truth.json's errors, when it has one
-    EstimateResult r = Estimate(bundle, *o);
-    WriteEstimateOutputs(*out, bundle, *o, r, sw.Seconds());
+    // lights.json as soon as the lights are final, before the pictures (the clean render).
+    EstimateOptions eo = *o;
+    bool lights_written = false;
+    eo.on_lights = [&](const EstimateResult& lit) {
+      WriteEstimateLights(*out, bundle, lit);
+      lights_written = true;
+      if (!*quiet) std::fprintf(stderr, "  lights.json written after %.2f s (the pictures follow)\n", sw.Seconds());
+    };
+    EstimateResult r = Estimate(bundle, eo);
+    WriteEstimateOutputs(*out, bundle, eo, r, sw.Seconds(), lights_written);
     std::printf("estimated %d directions (%d rings) in %.2f s; relative RMSE %.4f", r.env.size(), o->rings,
                 sw.Seconds(), r.final_relative_rmse);
     if (!std::isnan(r.final_angular_error_deg)) std::printf("; dominant light error %.2f deg", r.final_angular_error_deg);

@@ -78,9 +78,15 @@ void ReconstructionBench(const BenchRow& row);
 /// Registers the estimator options shared by estimate and bench.
 void AddEstimateOptions(CLI::App& cmd, EstimateOptions* o, int* threads);
 
-/// Writes every output of an estimate into out_dir (atomically per file).
+/// Writes every output of an estimate into out_dir (atomically per file); `lights_written`:
+/// WriteEstimateLights already wrote its part (not written again).
 void WriteEstimateOutputs(const std::string& out_dir, const SceneBundle& bundle, const EstimateOptions& options,
-                          const EstimateResult& result, double command_seconds);
+                          const EstimateResult& result, double command_seconds, bool lights_written = false);
+
+/// The lights and what they go with into out_dir (atomically per file): envmap.exr (.png,
+/// _directions.csv), albedo_mesh.ply, emitters.ply and openings.ply, then lights.json, which
+/// names them (a reader that finds it finds them). What EstimateOptions::on_lights writes.
+void WriteEstimateLights(const std::string& out_dir, const SceneBundle& bundle, const EstimateResult& result);
 
 /// Seconds of one render of `views` with one cell lit (the finite-difference baseline's
 /// unit of work; the same paths as a trace of A), averaged over `probes` renders.

@@ -17,6 +17,7 @@ namespace lp {
 
 struct ConvergenceRow;
 struct RoundInfo;
+struct EstimateResult;
 class EnvMap;
 struct WarmStart;
 class TruthScorer;
@@ -272,6 +273,11 @@ struct EstimateOptions {
   /// with every finished round (its estimate so far): a live plot and map.
   std::function<void(const ConvergenceRow&)> on_convergence;
   std::function<void(const RoundInfo&, const EnvMap&)> on_round;
+  /// Called on the estimating thread once, when the lights are final (polished, their
+  /// uncertainty known), before the views are relit: the result so far (its lighting,
+  /// uncertainty, albedo, openings, convergence, rounds and lights_seconds; no renders or
+  /// fits yet). A caller writes lights.json there, so that it does not wait for the pictures.
+  std::function<void(const EstimateResult&)> on_lights;
   /// Scores every convergence row and the result against a ground truth (their angular and
   /// position errors; NaN without one): TruthScorer::FromBundle(bundle) where truth.json is.
   std::shared_ptr<const TruthScorer> scorer;

@@ -967,6 +967,7 @@ EstimateResult Estimate(const SceneBundle& bundle, const EstimateOptions& option
   if (estimator.OnPreAlbedoGrid()) estimator.RunRounds();  // no albedo pass came after the grid's rounds
   estimator.FitSky();
   estimator.Conclude();
+  estimator.LightsFinal();
   if (options.render) estimator.RenderFittedViews();
   return estimator.TakeResult();
 }

@@ -172,6 +172,9 @@ struct EstimateResult {
   /// total_seconds: the estimate, the fit's render included and the clean render (its own
   /// clean_render_seconds, after the estimate) not; render_seconds: both renders.
   double bvh_seconds = 0, total_seconds = 0, render_seconds = 0, clean_render_seconds = 0;
+  /// When the lights were final (EstimateOptions::on_lights), on total_seconds' clock: a
+  /// caller's lights.json need not wait for the renders.
+  double lights_seconds = 0;
   /// The mesh the estimator traced (EstimateOptions::trace_pixels): its triangles and
   /// vertices, the grid it was clustered on (m; 0: the bundle's mesh as it is) and the
   /// seconds clustering took (in bvh_seconds too).

@@ -207,6 +207,11 @@ class Estimator {
   bool PriorRound(int round, int last);
   /// The sky beside a directional light, after the rounds (docs/method.md).
   void FitSky();
+  /// The lights are final: their time, and EstimateOptions::on_lights with the result so far.
+  void LightsFinal() {
+    res_.lights_seconds = clock_.Seconds();
+    if (opt_.on_lights) opt_.on_lights(res_);
+  }
   /// Relit renders of the fitted views under the estimate (EstimateOptions::render_spp).
   void RenderFittedViews();
   std::vector<ImageRGB> CleanRender(const CellSampler& sampler);

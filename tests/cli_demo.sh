@@ -35,6 +35,15 @@ c = r["clean_render"]
 assert c and all(b["spp"] > a["spp"] and b["relative_noise"] < a["relative_noise"] for a, b in zip(c, c[1:])), c
 assert r["seconds"]["clean_render"] > 0 and r["seconds"]["estimate"] + r["seconds"]["clean_render"] <= r["seconds"]["total"] + 0.1
 assert r["views"][0]["render"] == "render_view0.exr" and r["views"][0]["fit"] == "fit_view0.exr", r["views"][0]
+# lights.json (and what it names) written when the lights were final, before the pictures:
+# the clean render's seconds lie between it and render_view0.exr.
+import os
+out = os.path.dirname(sys.argv[1])
+at = lambda f: os.stat(os.path.join(out, f)).st_mtime
+assert 0 < r["seconds"]["lights"] <= r["seconds"]["estimate"], r["seconds"]
+assert at("envmap.exr") <= at("lights.json"), "lights.json before the envmap.exr it names"
+gap = at("render_view0.exr") - at("lights.json")
+assert gap >= 0.8 * r["seconds"]["clean_render"], (gap, r["seconds"])
 PY
 if python3 -c 'import json,sys; sys.exit(json.load(open(sys.argv[1]))["prior"]["alpha"] == 3)' "$out/report.json"; then
   grep -q ',prior,' "$out/convergence.csv" || { echo "a prior other than --alpha, and no 'prior' rows in convergence.csv"; exit 1; }

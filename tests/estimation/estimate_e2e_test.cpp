@@ -223,6 +223,37 @@ TEST(EstimateEndToEnd, TheRelitViewIsTheFitWhereItUsedThePixelsAndARenderElsewhe
   EXPECT_GT(shifted, 0.12);
 }
 
+TEST(EstimateEndToEnd, TheLightsAreHandedOverOnceBeforeTheViewsAreRelit) {
+  // EstimateOptions::on_lights (a caller writes lights.json there): once, with the lights
+  // the result ends with, before any render exists, at a time no later than the estimate's.
+  SceneBundle b = Synth("one-light", 40, 30, 64);
+  EstimateOptions eo;
+  eo.max_rounds = 2;
+  eo.render_noise = 0.05;  // a clean render after the fit's: the pictures come after the lights
+  int calls = 0;
+  Lighting handed;
+  std::size_t renders_then = 99, fits_then = 99;
+  double seconds_then = -1;
+  eo.on_lights = [&](const EstimateResult& r) {
+    ++calls;
+    handed = r.lighting;
+    renders_then = r.renders.size();
+    fits_then = r.fits.size();
+    seconds_then = r.lights_seconds;
+  };
+  const EstimateResult r = Estimate(b, eo);
+  EXPECT_EQ(calls, 1);
+  EXPECT_EQ(renders_then, 0u);
+  EXPECT_EQ(fits_then, 0u);
+  ASSERT_EQ(r.renders.size(), 1u);
+  ASSERT_FALSE(r.render_passes.empty());
+  EXPECT_EQ(handed.map, r.lighting.map);
+  EXPECT_EQ(handed.lights.size(), r.lighting.lights.size());
+  EXPECT_EQ(seconds_then, r.lights_seconds);
+  EXPECT_GT(r.lights_seconds, 0);
+  EXPECT_LE(r.lights_seconds, r.total_seconds);
+}
+
 TEST(EstimateEndToEnd, SameSeedBitIdenticalForAnyThreadCount) {
   const SceneBundle b = Synth("two-light", 40, 30, 32);
   EstimateOptions eo;
