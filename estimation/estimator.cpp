@@ -698,9 +698,10 @@ void Estimator::Conclude() {
   OnBundleMesh(&res_.lighting.lights);
   SayTheLightThroughWindows();
   for (LightUncertainty& u : res_.uncertainty) u.scale_sigma *= res_.image_mean;
-  // The rounds' last error (the polish's rows are on its own fresh vertices: another measure).
+  // The rounds' last error (the polish's rows are on its own fresh vertices: another measure;
+  // a trial's rows, such as the prior's folds after a last round's solve, are its own problem's).
   for (auto row = res_.convergence.rbegin(); row != res_.convergence.rend(); ++row)
-    if (std::string(row->step) != "polish") {
+    if (std::string(row->step) != "polish" && std::string(row->step) != "trial") {
       res_.final_relative_rmse = row->relative_rmse;
       break;
     }

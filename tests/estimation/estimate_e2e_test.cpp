@@ -254,6 +254,24 @@ TEST(EstimateEndToEnd, TheLightsAreHandedOverOnceBeforeTheViewsAreRelit) {
   EXPECT_LE(r.lights_seconds, r.total_seconds);
 }
 
+TEST(EstimateEndToEnd, TheFinalErrorIsTheFitsNotATrialsAfterIt) {
+  // One round, which also chooses the map's prior: its last convergence rows are the
+  // prior's trial fits on folds of the pixels (logged from parallel workers, in any
+  // order). The final relative RMSE is the fit's own, the error of fit_view0 where the fit
+  // used the pixels (all of them here), not a trial's.
+  const SceneBundle b = Synth("one-light", 40, 30, 64);
+  EstimateOptions eo;
+  eo.max_rounds = 1;
+  eo.render_noise = 0;
+  eo.point_lights.max_lights = 0;
+  eo.directional_lights = false;  // (the sky beside a sun is fitted after the rounds)
+  const EstimateResult r = Estimate(b, eo);
+  ASSERT_FALSE(r.convergence.empty());
+  ASSERT_STREQ(r.convergence.back().step, "trial");
+  ASSERT_EQ(r.fits.size(), 1u);
+  EXPECT_NEAR(RelativeRmse(r.fits[0], b.views[0]), r.final_relative_rmse, 1e-5 * r.final_relative_rmse);
+}
+
 TEST(EstimateEndToEnd, SameSeedBitIdenticalForAnyThreadCount) {
   const SceneBundle b = Synth("two-light", 40, 30, 32);
   EstimateOptions eo;
