@@ -18,6 +18,7 @@ namespace lp {
 struct ConvergenceRow;
 struct RoundInfo;
 struct EstimateResult;
+struct Lighting;
 class EnvMap;
 struct WarmStart;
 class TruthScorer;
@@ -273,6 +274,11 @@ struct EstimateOptions {
   /// with every finished round (its estimate so far): a live plot and map.
   std::function<void(const ConvergenceRow&)> on_convergence;
   std::function<void(const RoundInfo&, const EnvMap&)> on_round;
+  /// Called on the estimating thread once, after round 1's first solve and before its search
+  /// for lamps and its model selection (about half of round 1), on a cold start only: that
+  /// solve's lighting (image units; the map alone). A window shows it while the lamps are
+  /// sought (a warm start's first solve lacks the last estimate's lamps: not called).
+  std::function<void(const Lighting&, const EnvMap&)> on_first_solve;
   /// Called on the estimating thread once, when the lights are final (polished, their
   /// uncertainty known), before the views are relit: the result so far (its lighting,
   /// uncertainty, albedo, openings, convergence, rounds and lights_seconds; no renders or

@@ -294,6 +294,7 @@ void Estimator::RunRounds() {
     const RoundProblem rp = TraceRound(round, since, &info);
     const SolveResult sr = Solve(rp, round, &info, round == 1);
     const std::vector<double> full = TakeSolution(rp, sr, &info);
+    if (round == 1 && !warm_ && opt_.on_first_solve) opt_.on_first_solve(InImageUnits(), env_);
     FitLights(rp, full, &info);
     // A changed prior is solved again in its round; one more round follows it (the transport
     // was sampled for the old prior's map). Beside lamps it refits them under the new prior:

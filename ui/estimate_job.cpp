@@ -113,6 +113,18 @@ EstimateOptions EstimateJob::Callbacks() {
     self->Update([&](EstimateStatus& s) { s.rows.push_back(row); });
   };
   const int max_rounds = options.max_rounds * (1 + std::max(0, options.albedo_passes));  // an upper bound
+  options.on_first_solve = [self](const Lighting& lighting, const EnvMap& env) {
+    auto dominant = DominantDirections(env, lighting.map, 2);
+    const double t = self->SincePressed();
+    self->Update([&](EstimateStatus& s) {
+      if (!s.env || s.env->up() != env.up() || s.env->rings() != env.rings())
+        s.env = std::make_shared<const EnvMap>(env);
+      s.lighting = lighting;
+      s.dominant = dominant;
+      ++s.version;
+      if (std::isnan(s.seconds_to_map)) s.seconds_to_map = t;
+    });
+  };
   options.on_round = [self, max_rounds](const RoundInfo& info, const EnvMap& env) {
     auto dominant = DominantDirections(env, info.lighting.map, 2);
     const double t = self->SincePressed();

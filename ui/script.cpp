@@ -194,6 +194,12 @@ bool Cancel(const Call& c) {
   return true;
 }
 
+bool WaitMap(const Call& c) {
+  c.Timeout(c.Arg(1, 300), "round 1's first solve");
+  if (c.v.est.state == EstimateState::kFailed) c.Fail(c.v.est.message);
+  return !std::isnan(c.v.est.seconds_to_map);
+}
+
 bool WaitFirst(const Call& c) {
   c.Timeout(c.Arg(1, 300), "the first estimate");
   if (c.v.est.state == EstimateState::kFailed) c.Fail(c.v.est.message);
@@ -324,6 +330,7 @@ const std::map<std::string, Handler>& Handlers() {
       {"live", SetLive},
       {"wait-live", WaitLive},
       {"sleep", Sleep},
+      {"wait-map", WaitMap},
       {"wait-first", WaitFirst},
       {"wait-estimate", WaitEstimate},
       {"expect-estimate", ExpectEstimate},

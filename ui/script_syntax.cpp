@@ -25,6 +25,7 @@ const std::map<std::string, ScriptSyntax>& ScriptCommands() {
       {"cancel", {0, 0}},
       {"live", {1, 20}},
       {"wait-live", {1, 2}},
+      {"wait-map", {0, 1}},
       {"wait-first", {0, 1}},
       {"wait-estimate", {0, 1}},
       {"expect-estimate", {1, 1}},

@@ -74,6 +74,9 @@ struct EstimateStatus {
   /// Seconds from pressing Estimate to the first finished round (the first usable
   /// estimate) and to the end; NaN until then.
   double seconds_to_first = std::nan(""), seconds_total = std::nan("");
+  /// Seconds from pressing Estimate to round 1's first solve shown (on a cold start the map
+  /// alone, before round 1 seeks lamps: EstimateOptions::on_first_solve); NaN until then.
+  double seconds_to_map = std::nan("");
   /// On the session's clock: when the job started and when its result came (NaN until
   /// then): the panel says how old the shown estimate is. `live`: started by live estimation.
   double started_at = std::nan(""), finished_at = std::nan("");

@@ -801,8 +801,12 @@ void Viewer::PanelEstimate() {
   std::snprintf(overlay, sizeof overlay, "%s %.0f%%", ToString(est_.state), 100 * est_.progress);
   ImGui::ProgressBar(static_cast<float>(est_.progress), ImVec2(-1, 0), overlay);
   ImGui::TextWrapped("%s", est_.message.c_str());
+  if (!std::isnan(est_.seconds_to_map) && std::isnan(est_.seconds_to_first))
+    ImGui::Text("the map after %.2f s (round 1 seeks lamps)", est_.seconds_to_map);
   if (!std::isnan(est_.seconds_to_first))
-    ImGui::Text("first estimate after %.2f s%s", est_.seconds_to_first,
+    ImGui::Text("%sfirst round after %.2f s%s",
+                std::isnan(est_.seconds_to_map) ? "" : ("the map after " + std::to_string(est_.seconds_to_map).substr(0, 4) + " s, ").c_str(),
+                est_.seconds_to_first,
                 std::isnan(est_.seconds_total) ? "" : (", done after " + std::to_string(est_.seconds_total).substr(0, 5) + " s").c_str());
   if (est_.live)
     ImGui::Text("live estimate %d (%s)%s", est_.live_index, est_.warm ? "warm" : "cold",
@@ -1069,6 +1073,7 @@ nlohmann::json Viewer::EstimateStateJson() const {
           {"albedo_shading_refined", shading_ == Shading::kAlbedo && shown_refined_albedo_},
           {"lit_samples", est_.lit_samples},
           {"lit_noise", std::isnan(est_.lit_noise) ? json() : json(est_.lit_noise)},
+          {"seconds_to_map", std::isnan(est_.seconds_to_map) ? json() : json(est_.seconds_to_map)},
           {"seconds_to_first", std::isnan(est_.seconds_to_first) ? json() : json(est_.seconds_to_first)},
           {"seconds_total", std::isnan(est_.seconds_total) ? json() : json(est_.seconds_total)},
           {"export", est_.export_message},

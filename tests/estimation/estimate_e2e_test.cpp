@@ -3,6 +3,8 @@
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -270,6 +272,37 @@ TEST(EstimateEndToEnd, TheFinalErrorIsTheFitsNotATrialsAfterIt) {
   ASSERT_STREQ(r.convergence.back().step, "trial");
   ASSERT_EQ(r.fits.size(), 1u);
   EXPECT_NEAR(RelativeRmse(r.fits[0], b.views[0]), r.final_relative_rmse, 1e-5 * r.final_relative_rmse);
+}
+
+TEST(EstimateEndToEnd, RoundOnesFirstSolveIsHandedOverBeforeItsLampsAreSought) {
+  // EstimateOptions::on_first_solve (a window shows it while round 1 seeks lamps): once,
+  // before round 1 ends, with the map alone (no lamp yet, though the scene's lamp is found
+  // later in round 1), lit, and a map as the round's own solve would have it.
+  SceneBundle b = Synth("lamp-1m", 40, 30, 64);
+  EstimateOptions eo;
+  eo.max_rounds = 1;
+  eo.render = false;
+  std::vector<std::string> order;
+  Lighting first;
+  eo.on_first_solve = [&](const Lighting& l, const EnvMap& env) {
+    order.push_back("first solve");
+    first = l;
+    EXPECT_EQ(l.map.size(), 3u * env.size());
+  };
+  eo.on_round = [&](const RoundInfo& info, const EnvMap&) { order.push_back("round " + std::to_string(info.round)); };
+  const EstimateResult r = Estimate(b, eo);
+  ASSERT_EQ(order, (std::vector<std::string>{"first solve", "round 1"}));
+  EXPECT_TRUE(first.lights.empty());
+  EXPECT_GE(r.lighting.Count<PointLight>(), 1u) << "round 1 found the lamp after the first solve";
+  double power = 0;
+  for (double v : first.map) power += v;
+  EXPECT_GT(power, 0);
+  // A warm start's first solve lacks the last estimate's lamps (they are the search's
+  // candidates): not handed over, the last estimate stays shown.
+  order.clear();
+  eo.warm = WarmStartOf(r);
+  Estimate(b, eo);
+  EXPECT_EQ(order, (std::vector<std::string>{"round 1"}));
 }
 
 TEST(EstimateEndToEnd, SameSeedBitIdenticalForAnyThreadCount) {

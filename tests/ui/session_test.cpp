@@ -97,6 +97,9 @@ TEST(Session, ReconstructsTheDemoEstimatesWithALiveLogAndExports) {
   ASSERT_EQ(e.rows.size(), e.result->convergence.size());
   for (std::size_t i = 1; i < e.rows.size(); ++i) EXPECT_GE(e.rows[i].wall_seconds, e.rows[i - 1].wall_seconds);
   EXPECT_LE(e.seconds_to_first, e.seconds_total);
+  // Round 1's first solve (the map, before the lamps are sought) is shown before round 1 ends.
+  EXPECT_GT(e.seconds_to_map, 0);
+  EXPECT_LT(e.seconds_to_map, e.seconds_to_first);
   EXPECT_EQ(e.dominant.size(), e.result->dominant.size());
   // The lit shading refines up to its sample count; the error covers the seen vertices.
   ASSERT_TRUE(WaitForEstimate(s, [&] { return s.estimate().lit_samples >= Options().lit_samples; }));

@@ -151,6 +151,8 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
                            "screenshot " << (a / "2-reconstructed.png").string() << "\n"
                            "state " << (a / "2-reconstructed.json").string() << "\n"
                            "estimate rings=13 spp=16 bounces=2 rounds=2 render-noise=0.05 point-lights=1 trace-pixels=2\n"
+                           "wait-map 900\n"
+                           "state " << (a / "3-map.json").string() << "\n"
                            "wait-first 900\n"
                            "screenshot " << (a / "3-first-estimate.png").string() << "\n"
                            "wait-estimate 1200\n"
@@ -210,6 +212,11 @@ TEST(Viewer, DemoRecordingToEstimateThroughTheWindow) {
   EXPECT_GT(lit["estimate"]["rows"].get<int>(), 2);
   EXPECT_GE(lit["estimate"]["lit_samples"].get<int>(), 8);
   EXPECT_LE(lit["estimate"]["seconds_to_first"].get<double>(), lit["estimate"]["seconds_total"].get<double>());
+  EXPECT_LT(lit["estimate"]["seconds_to_map"].get<double>(), lit["estimate"]["seconds_to_first"].get<double>());
+  // wait-map came back with the map shown (round 1's first solve) and round 1 not yet over
+  // or just over: the map's time is set, and the same as at the end.
+  const nlohmann::json map = ReadJson(a / "3-map.json");
+  EXPECT_EQ(map["estimate"]["seconds_to_map"], lit["estimate"]["seconds_to_map"]);
   const ImageRgb8 shot4 = ReadRgb8(a / "4-lit.png");
   // The demo is lit by a lamp 1.5 m from the room (and a dim sky): it comes back as a point
   // light, drawn where the 3D view's projection puts it.
