@@ -1,6 +1,8 @@
 // `lightprobe estimate`: light-source estimation on a scene bundle.
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <sstream>
 
@@ -225,9 +227,11 @@ static json WriteView(const fs::path& out, std::size_t k, const View& v, const I
 /// report.json's "settings": the options the estimate ran with (every option of the table,
 /// a choice by its name), and what follows from them.
 static json SettingsJson(const EstimateOptions& o, const EstimateResult& r) {
+  const char* tunables = std::getenv("GLIBC_TUNABLES");  // (main.cpp's UseHugePages)
   json settings = {{"directions", r.env.size()}, {"alpha_effective", r.objective_params.alpha},
                    {"threads", HardwareThreads()}, {"min_throughput", o.tracer.min_throughput},
-                   {"combine_rounds", o.combine_rounds}};
+                   {"combine_rounds", o.combine_rounds},
+                   {"huge_pages", tunables != nullptr && std::strstr(tunables, "glibc.malloc.hugetlb=1") != nullptr}};
   for (const EstimateOption& option : EstimateOptionTable()) {
     if (option.type == EstimateOption::Type::kChoice) settings[option.report] = EstimateOptionText(option, o);
     else if (option.type == EstimateOption::Type::kReal) settings[option.report] = option.get(o);

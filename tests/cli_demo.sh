@@ -6,6 +6,11 @@ exe="$1"; demo="$2"
 out=$(mktemp -d)
 trap 'rm -rf "$out"' EXIT
 "$exe" estimate "$demo" --out "$out" --quiet --max-rounds 2
+# lightprobe starts itself again with malloc's huge pages asked for (app/main.cpp), unless
+# GLIBC_TUNABLES names the tunable: the report says which.
+grep -q '"huge_pages": true' "$out/report.json" || { echo "huge_pages not true in report.json"; exit 1; }
+GLIBC_TUNABLES=glibc.malloc.hugetlb=0 "$exe" estimate "$demo" --out "$out/off" --quiet --max-rounds 1 --render-noise 0
+grep -q '"huge_pages": false' "$out/off/report.json" || { echo "GLIBC_TUNABLES=glibc.malloc.hugetlb=0 not kept"; exit 1; }
 for f in envmap.exr envmap_directions.csv render_view0.exr render_view0.png fit_view0.exr clean_render.png error_view0.png convergence.csv convergence.png report.json; do
   [ -s "$out/$f" ] || { echo "missing $f"; exit 1; }
 done
