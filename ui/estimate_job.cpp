@@ -102,6 +102,17 @@ EstimateStatus EstimateJob::status() const {
   return status_;
 }
 
+namespace {
+/// `lighting` (on `env`'s cells, with its dominant directions) as the one shown; a new
+/// version for the views to pick up.
+void Show(EstimateStatus& s, const Lighting& lighting, const EnvMap& env, std::vector<Eigen::Vector3d> dominant) {
+  if (!s.env || s.env->up() != env.up() || s.env->rings() != env.rings()) s.env = std::make_shared<const EnvMap>(env);
+  s.lighting = lighting;
+  s.dominant = std::move(dominant);
+  ++s.version;
+}
+}  // namespace
+
 /// The estimate's options with the job's cancel token and its live reports.
 EstimateOptions EstimateJob::Callbacks() {
   EstimateOptions options = settings_.options;
@@ -117,11 +128,7 @@ EstimateOptions EstimateJob::Callbacks() {
     auto dominant = DominantDirections(env, lighting.map, 2);
     const double t = self->SincePressed();
     self->Update([&](EstimateStatus& s) {
-      if (!s.env || s.env->up() != env.up() || s.env->rings() != env.rings())
-        s.env = std::make_shared<const EnvMap>(env);
-      s.lighting = lighting;
-      s.dominant = dominant;
-      ++s.version;
+      Show(s, lighting, env, std::move(dominant));
       if (std::isnan(s.seconds_to_map)) s.seconds_to_map = t;
     });
   };
@@ -129,11 +136,7 @@ EstimateOptions EstimateJob::Callbacks() {
     auto dominant = DominantDirections(env, info.lighting.map, 2);
     const double t = self->SincePressed();
     self->Update([&](EstimateStatus& s) {
-      if (!s.env || s.env->up() != env.up() || s.env->rings() != env.rings())
-        s.env = std::make_shared<const EnvMap>(env);
-      s.lighting = info.lighting;
-      s.dominant = dominant;
-      ++s.version;
+      Show(s, info.lighting, env, std::move(dominant));
       s.progress = static_cast<double>(info.round) / (max_rounds + 1);
       if (std::isnan(s.seconds_to_first)) s.seconds_to_first = t;
     });
@@ -188,11 +191,7 @@ void EstimateJob::Run(SceneSource source) {
     s.state = EstimateState::kDone;
     s.progress = 1;
     s.result = result;
-    s.lighting = result->lighting;
-    s.dominant = result->dominant;
-    if (!s.env || s.env->up() != result->env.up() || s.env->rings() != result->env.rings())
-      s.env = std::make_shared<const EnvMap>(result->env);
-    ++s.version;
+    Show(s, result->lighting, result->env, result->dominant);
     s.seconds_total = t;
     s.finished_at = settings_.clock->Seconds();
     s.message = "done in " + std::to_string(t).substr(0, 5) + " s";
