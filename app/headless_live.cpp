@@ -4,9 +4,10 @@
 // whenever the model has changed enough (reconstruction/live_trigger.h) and no estimate is
 // running, one starts on a fresh snapshot, warm-started from the last (EstimateOptions::
 // warm). Each finished estimate is written to DIR/live/NNN/ and replaces DIR/estimate
-// (atomically); DIR/live/live.csv logs when each started and finished. At the input's end
-// the running estimate finishes, the bundle is written to DIR/scene, and, when the model
-// changed after the last snapshot, a last estimate is made on it.
+// (atomically), twice: with its lights as soon as they are final, then with its pictures;
+// DIR/live/live.csv logs when each started, had its lights and finished. At the input's end
+// the bundle is written to DIR/scene and, when the model changed after the last snapshot,
+// the running estimate (of an older snapshot) is cancelled and a last one is made on it.
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -23,6 +24,7 @@
 #include "app/commands.h"
 #include "capture/frame_source.h"
 #include "common/atomic_file.h"
+#include "common/error.h"
 #include "common/parallel.h"
 #include "common/timer.h"
 #include "estimation/truth_scorer.h"
@@ -68,8 +70,8 @@ class LiveEstimates {
       : out_(out), options_(std::move(options)), clock_(clock) {
     fs::create_directories(out_ / "live");
     std::ofstream csv(out_ / "live" / "live.csv");
-    csv << "estimate,frame,started_s,scene_s,finished_s,estimate_s,vertices,keyframes,lights,rounds,relative_rmse,"
-           "warm,position_error_share,error\n";
+    csv << "estimate,frame,started_s,scene_s,lights_s,finished_s,estimate_s,vertices,keyframes,lights,rounds,"
+           "relative_rmse,warm,position_error_share,error\n";
   }
   /// An estimate still running (the run ended with an error) stops at its next check.
   ~LiveEstimates() {
@@ -80,6 +82,13 @@ class LiveEstimates {
   int finished() const { return finished_; }
   void Wait() {
     if (thread_.joinable()) thread_.join();
+  }
+  /// Stops the running estimate (if any) at its next check and waits for it: its snapshot
+  /// is older than what comes next. It is logged as cancelled; the last finished one stays.
+  void Cancel() {
+    cancel_ = true;
+    Wait();
+    cancel_ = false;
   }
   /// Starts an estimate of `snapshot` (taken at input frame `frame`); the last must be done.
   void Start(ReconstructionRunSnapshot snapshot, std::int64_t frame) {
@@ -101,6 +110,11 @@ class LiveEstimates {
   /// `scene` makes the bundle (a snapshot finished on this thread); `intermediate`
   /// estimates leave the clean render out (their render_view* are the fit).
   void Run(const std::function<SceneBundle()>& scene, std::int64_t frame, int index, bool intermediate);
+  /// DIR/live/NAME made what `write` writes (into a fresh directory, with `snapshot`, over
+  /// a hard-linked copy of what DIR/live/NAME holds when `over`), and DIR/estimate made a
+  /// copy of it: each exchanged in one step (a reader sees the old or the new, never a mix).
+  void Publish(const std::string& name, const nlohmann::json& snapshot, bool over,
+               const std::function<void(const fs::path&)>& write);
   void Log(const std::string& row) {
     std::ofstream(out_ / "live" / "live.csv", std::ios::app) << row << "\n";
   }
@@ -110,59 +124,80 @@ class LiveEstimates {
   const Stopwatch& clock_;
   std::shared_ptr<const WarmStart> warm_;  // the thread's alone (one estimate at a time)
   std::thread thread_;
-  std::atomic<bool> busy_{false}, stop_{false};
+  std::atomic<bool> busy_{false}, stop_{false}, cancel_{false};
   std::atomic<int> finished_{0};
   int started_ = 0;
 };
 
-/// One live estimate: estimated, written to DIR/live/NNN/, made DIR/estimate, logged. A
-/// failure (nothing usable seen yet) is logged and the run goes on.
+void LiveEstimates::Publish(const std::string& name, const nlohmann::json& snapshot, bool over,
+                            const std::function<void(const fs::path&)>& write) {
+  const fs::path dir = out_ / "live" / name, tmp = out_ / "live" / (".tmp." + name);
+  fs::remove_all(tmp);
+  if (over) fs::copy(dir, tmp, fs::copy_options::recursive | fs::copy_options::create_hard_links);
+  write(tmp);  // (each file written atomically: a new file, never into a linked one)
+  WriteTextAtomically(tmp / "snapshot.json", snapshot.dump(2) + "\n");
+  ReplaceDirectory(dir, tmp);
+  const fs::path copy = out_ / ".tmp.estimate";
+  fs::remove_all(copy);
+  fs::copy(dir, copy, fs::copy_options::recursive | fs::copy_options::create_hard_links);
+  ReplaceDirectory(out_ / "estimate", copy);
+}
+
+/// One live estimate: estimated, written to DIR/live/NNN/ and made DIR/estimate as soon as
+/// its lights are final (lights.json, the map, the albedo), again with its pictures and
+/// report when it ends, logged. A failure (nothing usable seen yet) or a cancel is logged
+/// and the run goes on.
 void LiveEstimates::Run(const std::function<SceneBundle()>& make_scene, std::int64_t frame, int index,
                         bool intermediate) {
   const double started = clock_.Seconds();
   char name[16];
   std::snprintf(name, sizeof name, "%03d", index);
   char row[512];
+  double lit = NAN;
   try {
     SceneBundle scene = make_scene();
     scene.dir = out_ / "scene";  // where the whole scan's bundle is written at the end
     const double scened = clock_.Seconds();
     EstimateOptions o = options_;
     o.warm = warm_;
-    o.cancelled = [this] { return stop_.load(); };
+    o.cancelled = [this] { return stop_.load() || cancel_.load(); };
     if (intermediate) o.render_noise = 0;
     o.scorer = TruthScorer::FromBundle(scene, o.point_lights.far);  // truth.json's errors, when it has one
-    const EstimateResult r = Estimate(scene, o);
     const bool warm = warm_ != nullptr;
+    const nlohmann::json snap = {{"estimate", index},
+                                 {"frame", frame},
+                                 {"started_s", started},
+                                 {"warm", warm},
+                                 {"vertices", scene.mesh.positions.size()},
+                                 {"keyframes", scene.views.size()}};
+    o.on_lights = [&](const EstimateResult& r) {
+      Publish(name, snap, false, [&](const fs::path& tmp) { WriteEstimateLights(tmp.string(), scene, r); });
+      lit = clock_.Seconds();
+      warm_ = WarmStartOf(r);  // (the next starts from these lights even if this one is cancelled)
+    };
+    const EstimateResult r = Estimate(scene, o);
     warm_ = WarmStartOf(r);
-    const fs::path dir = out_ / "live" / name, tmp = out_ / "live" / (std::string(".tmp.") + name);
-    fs::remove_all(tmp);
-    WriteEstimateOutputs(tmp.string(), scene, o, r, clock_.Seconds() - scened);
-    nlohmann::json snap = {{"estimate", index}, {"frame", frame}, {"started_s", started}, {"warm", warm},
-                           {"vertices", scene.mesh.positions.size()}, {"keyframes", scene.views.size()}};
-    WriteTextAtomically(tmp / "snapshot.json", snap.dump(2) + "\n");
-    ReplaceDirectory(dir, tmp);
-    // DIR/estimate: a copy of it (hard links), exchanged with the old one in one step.
-    const fs::path copy = out_ / ".tmp.estimate";
-    fs::remove_all(copy);
-    fs::copy(dir, copy, fs::copy_options::recursive | fs::copy_options::create_hard_links);
-    ReplaceDirectory(out_ / "estimate", copy);
+    Publish(name, snap, !std::isnan(lit), [&](const fs::path& tmp) {
+      WriteEstimateOutputs(tmp.string(), scene, o, r, clock_.Seconds() - scened, !std::isnan(lit));
+    });
     ++finished_;
     const double finished = clock_.Seconds();
-    std::snprintf(row, sizeof row, "%d,%lld,%.3f,%.3f,%.3f,%.3f,%zu,%zu,%zu,%zu,%.6g,%d,%s,", index,
-                  static_cast<long long>(frame), started, scened, finished, r.total_seconds,
+    std::snprintf(row, sizeof row, "%d,%lld,%.3f,%.3f,%s,%.3f,%.3f,%zu,%zu,%zu,%zu,%.6g,%d,%s,", index,
+                  static_cast<long long>(frame), started, scened, CsvNumber(lit).c_str(), finished, r.total_seconds,
                   scene.mesh.positions.size(), scene.views.size(), r.lighting.lights.size(), r.rounds.size(),
                   r.final_relative_rmse, warm ? 1 : 0, CsvNumber(r.final_position_error_share).c_str());
-    std::printf("live estimate %d (frame %lld, %s): %.1f s to %.1f s, %zu light(s), fit %.3f -> %s\n", index,
-                static_cast<long long>(frame), warm ? "warm" : "cold", started, finished, r.lighting.lights.size(),
-                r.final_relative_rmse, dir.c_str());
+    std::printf("live estimate %d (frame %lld, %s): %.1f s to %.1f s (its lights at %.1f s), %zu light(s), fit %.3f "
+                "-> %s\n",
+                index, static_cast<long long>(frame), warm ? "warm" : "cold", started, finished, lit,
+                r.lighting.lights.size(), r.final_relative_rmse, (out_ / "live" / name).c_str());
   } catch (const std::exception& e) {
-    std::string what = e.what();
+    const bool cancelled = dynamic_cast<const Cancelled*>(&e) != nullptr;
+    std::string what = cancelled ? "cancelled: a newer snapshot replaces it" : e.what();
     std::replace(what.begin(), what.end(), ',', ';');
     std::replace(what.begin(), what.end(), '\n', ' ');
-    std::snprintf(row, sizeof row, "%d,%lld,%.3f,,%.3f,,,,,,,,,%s", index, static_cast<long long>(frame), started,
-                  clock_.Seconds(), what.c_str());
-    std::fprintf(stderr, "live estimate %d failed: %s\n", index, e.what());
+    std::snprintf(row, sizeof row, "%d,%lld,%.3f,,%s,%.3f,,,,,,,,,%s", index, static_cast<long long>(frame), started,
+                  CsvNumber(lit).c_str(), clock_.Seconds(), what.c_str());
+    std::fprintf(stderr, "live estimate %d %s: %s\n", index, cancelled ? "cancelled" : "failed", what.c_str());
   }
   std::fflush(stdout);
   Log(row);
@@ -205,10 +240,16 @@ void RunLive(const std::string& input, const std::string& out, const Reconstruct
   std::printf("input ended after %.1f s: %lld frames read, %lld dropped (late), %lld tracked, %lld lost\n", ended,
               static_cast<long long>(read), static_cast<long long>(dropped), static_cast<long long>(run.tracked()),
               static_cast<long long>(run.lost()));
-  estimates.Wait();
+  // The whole scan supersedes a running estimate of an older snapshot: it stops, and the
+  // last one (warm from the last finished) starts at once.
+  const bool changed = last_taken != run.frames();
+  if (changed)
+    estimates.Cancel();
+  else
+    estimates.Wait();
   const SceneBundle bundle = run.Finish();
   WriteSceneBundle((fs::path(out) / "scene").string(), bundle);
-  if (last_taken != run.frames()) estimates.RunLast(bundle, f.index);
+  if (changed) estimates.RunLast(bundle, f.index);
   std::printf("live done: %d estimate(s) finished, the last %.1f s after the input ended; %s (scene bundle), %s "
               "(the latest estimate), %s (each, and live.csv)\n",
               estimates.finished(), clock.Seconds() - ended, (fs::path(out) / "scene").c_str(),
