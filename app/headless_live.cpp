@@ -175,10 +175,9 @@ void LiveEstimates::Run(const std::function<SceneBundle()>& make_scene, std::int
       lit = clock_.Seconds();
       warm_ = WarmStartOf(r);  // (the next starts from these lights even if this one is cancelled)
     };
-    const EstimateResult r = Estimate(scene, o);
-    warm_ = WarmStartOf(r);
-    Publish(name, snap, !std::isnan(lit), [&](const fs::path& tmp) {
-      WriteEstimateOutputs(tmp.string(), scene, o, r, clock_.Seconds() - scened, !std::isnan(lit));
+    const EstimateResult r = Estimate(scene, o);  // (on_lights came before it returned)
+    Publish(name, snap, true, [&](const fs::path& tmp) {
+      WriteEstimateOutputs(tmp.string(), scene, o, r, clock_.Seconds() - scened, true);
     });
     ++finished_;
     const double finished = clock_.Seconds();
@@ -197,7 +196,7 @@ void LiveEstimates::Run(const std::function<SceneBundle()>& make_scene, std::int
     std::replace(what.begin(), what.end(), '\n', ' ');
     std::snprintf(row, sizeof row, "%d,%lld,%.3f,,%s,%.3f,,,,,,,,,%s", index, static_cast<long long>(frame), started,
                   CsvNumber(lit).c_str(), clock_.Seconds(), what.c_str());
-    std::fprintf(stderr, "live estimate %d %s: %s\n", index, cancelled ? "cancelled" : "failed", what.c_str());
+    std::fprintf(stderr, "live estimate %d %s%s\n", index, cancelled ? "" : "failed: ", what.c_str());
   }
   std::fflush(stdout);
   Log(row);
