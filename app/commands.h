@@ -60,6 +60,9 @@ void Reconstruct(const std::string& input, const std::string& out, const Reconst
 /// `--headless --live`'s settings.
 struct LiveSettings {
   double speed = 1;  ///< times the recorded rate (0: as fast as frames are processed, none dropped)
+  /// The estimates while it plays are previews (LivePreview), and the whole scan gets a
+  /// preview before its full estimate; false: every estimate full.
+  bool preview = true;
   LiveTriggerOptions trigger;
 };
 /// `lightprobe --headless INPUT --out DIR --live`: the input played at its recorded rate,

@@ -51,6 +51,10 @@ int RunHeadless(const std::vector<std::string>& args) {
   app.add_option("--live-speed", live_settings.speed, "with --live: times the recorded rate (0: as fast as read)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, 100.0));
+  app.add_option("--live-preview", live_settings.preview,
+                 "with --live: 1 = the estimates while it plays are previews (round 1 alone, seconds on one core) and "
+                 "the whole scan gets one before its full estimate; 0 = every estimate full")
+      ->capture_default_str();
   app.add_option("--live-growth", live_settings.trigger.growth,
                  "with --live: a new estimate once the model grew by this share of its voxel blocks")
       ->capture_default_str()

@@ -3,11 +3,13 @@
 // them), reconstructed, and its lighting estimated on a background thread while it plays:
 // whenever the model has changed enough (reconstruction/live_trigger.h) and no estimate is
 // running, one starts on a fresh snapshot, warm-started from the last (EstimateOptions::
-// warm). Each finished estimate is written to DIR/live/NNN/ and replaces DIR/estimate
+// warm): a preview (LivePreview: seconds on one core) unless LiveSettings::preview is off.
+// Each finished estimate is written to DIR/live/NNN/ and replaces DIR/estimate
 // (atomically), twice: with its lights as soon as they are final, then with its pictures;
-// DIR/live/live.csv logs when each started, had its lights and finished. At the input's end
-// the bundle is written to DIR/scene and, when the model changed after the last snapshot,
-// the running estimate (of an older snapshot) is cancelled and a last one is made on it.
+// DIR/live/live.csv logs when each started, had its lights and finished. At the input's end,
+// when the model changed after the last snapshot, the running estimate (of an older
+// snapshot) is cancelled and a preview is made of the whole scan; then its bundle is
+// written to DIR/scene and the full estimate is made of it.
 #include <algorithm>
 #include <atomic>
 #include <chrono>
@@ -70,7 +72,7 @@ class LiveEstimates {
       : out_(out), options_(std::move(options)), clock_(clock) {
     fs::create_directories(out_ / "live");
     std::ofstream csv(out_ / "live" / "live.csv");
-    csv << "estimate,frame,started_s,scene_s,lights_s,finished_s,estimate_s,vertices,keyframes,lights,rounds,"
+    csv << "estimate,kind,frame,started_s,scene_s,lights_s,finished_s,estimate_s,vertices,keyframes,lights,rounds,"
            "relative_rmse,warm,position_error_share,error\n";
   }
   /// An estimate still running (the run ended with an error) stops at its next check.
@@ -90,26 +92,28 @@ class LiveEstimates {
     Wait();
     cancel_ = false;
   }
+  /// What an estimate is: a preview (LivePreview), a full one while the input plays (its
+  /// render_view* the fit), or the full one at the end (with its clean render).
+  enum class Kind { kPreview, kWhilePlaying, kLast };
   /// Starts an estimate of `snapshot` (taken at input frame `frame`); the last must be done.
-  void Start(ReconstructionRunSnapshot snapshot, std::int64_t frame) {
+  void Start(ReconstructionRunSnapshot snapshot, std::int64_t frame, Kind kind) {
     Wait();
     busy_ = true;
     const int index = ++started_;
-    thread_ = std::thread([this, snapshot = std::move(snapshot), frame, index] {
+    thread_ = std::thread([this, snapshot = std::move(snapshot), frame, index, kind] {
       RunThisThreadInBackground();
-      Run([&] { return snapshot.Finish(); }, frame, index, true);
+      Run([&] { return snapshot.Finish(); }, frame, index, kind);
       busy_ = false;
     });
   }
-  /// The last, on the finished bundle, on the calling thread (with the clean render).
-  void RunLast(const SceneBundle& bundle, std::int64_t frame) {
-    Run([&] { return bundle; }, frame, ++started_, false);
+  /// An estimate of the finished bundle, on the calling thread.
+  void RunOn(const SceneBundle& bundle, std::int64_t frame, Kind kind) {
+    Run([&] { return bundle; }, frame, ++started_, kind);
   }
 
  private:
-  /// `scene` makes the bundle (a snapshot finished on this thread); `intermediate`
-  /// estimates leave the clean render out (their render_view* are the fit).
-  void Run(const std::function<SceneBundle()>& scene, std::int64_t frame, int index, bool intermediate);
+  /// `scene` makes the bundle (a snapshot finished on this thread).
+  void Run(const std::function<SceneBundle()>& scene, std::int64_t frame, int index, Kind kind);
   /// DIR/live/NAME made what `write` writes (into a fresh directory, with `snapshot`, over
   /// a hard-linked copy of what DIR/live/NAME holds when `over`), and DIR/estimate made a
   /// copy of it: each exchanged in one step (a reader sees the old or the new, never a mix).
@@ -147,24 +151,25 @@ void LiveEstimates::Publish(const std::string& name, const nlohmann::json& snaps
 /// its lights are final (lights.json, the map, the albedo), again with its pictures and
 /// report when it ends, logged. A failure (nothing usable seen yet) or a cancel is logged
 /// and the run goes on.
-void LiveEstimates::Run(const std::function<SceneBundle()>& make_scene, std::int64_t frame, int index,
-                        bool intermediate) {
+void LiveEstimates::Run(const std::function<SceneBundle()>& make_scene, std::int64_t frame, int index, Kind kind) {
   const double started = clock_.Seconds();
   char name[16];
   std::snprintf(name, sizeof name, "%03d", index);
   char row[512];
   double lit = NAN;
+  const char* kind_name = kind == Kind::kPreview ? "preview" : "full";
   try {
     SceneBundle scene = make_scene();
     scene.dir = out_ / "scene";  // where the whole scan's bundle is written at the end
     const double scened = clock_.Seconds();
-    EstimateOptions o = options_;
+    EstimateOptions o = kind == Kind::kPreview ? LivePreview(options_) : options_;
     o.warm = warm_;
     o.cancelled = [this] { return stop_.load() || cancel_.load(); };
-    if (intermediate) o.render_noise = 0;
+    if (kind == Kind::kWhilePlaying) o.render_noise = 0;
     o.scorer = TruthScorer::FromBundle(scene, o.point_lights.far);  // truth.json's errors, when it has one
     const bool warm = warm_ != nullptr;
     const nlohmann::json snap = {{"estimate", index},
+                                 {"kind", kind_name},
                                  {"frame", frame},
                                  {"started_s", started},
                                  {"warm", warm},
@@ -181,20 +186,21 @@ void LiveEstimates::Run(const std::function<SceneBundle()>& make_scene, std::int
     });
     ++finished_;
     const double finished = clock_.Seconds();
-    std::snprintf(row, sizeof row, "%d,%lld,%.3f,%.3f,%s,%.3f,%.3f,%zu,%zu,%zu,%zu,%.6g,%d,%s,", index,
+    std::snprintf(row, sizeof row, "%d,%s,%lld,%.3f,%.3f,%s,%.3f,%.3f,%zu,%zu,%zu,%zu,%.6g,%d,%s,", index, kind_name,
                   static_cast<long long>(frame), started, scened, CsvNumber(lit).c_str(), finished, r.total_seconds,
                   scene.mesh.positions.size(), scene.views.size(), r.lighting.lights.size(), r.rounds.size(),
                   r.final_relative_rmse, warm ? 1 : 0, CsvNumber(r.final_position_error_share).c_str());
-    std::printf("live estimate %d (frame %lld, %s): %.1f s to %.1f s (its lights at %.1f s), %zu light(s), fit %.3f "
-                "-> %s\n",
-                index, static_cast<long long>(frame), warm ? "warm" : "cold", started, finished, lit,
+    std::printf("live estimate %d (%s, frame %lld, %s): %.1f s to %.1f s (its lights at %.1f s), %zu light(s), fit "
+                "%.3f -> %s\n",
+                index, kind_name, static_cast<long long>(frame), warm ? "warm" : "cold", started, finished, lit,
                 r.lighting.lights.size(), r.final_relative_rmse, (out_ / "live" / name).c_str());
   } catch (const std::exception& e) {
     const bool cancelled = dynamic_cast<const Cancelled*>(&e) != nullptr;
     std::string what = cancelled ? "cancelled: a newer snapshot replaces it" : e.what();
     std::replace(what.begin(), what.end(), ',', ';');
     std::replace(what.begin(), what.end(), '\n', ' ');
-    std::snprintf(row, sizeof row, "%d,%lld,%.3f,,%s,%.3f,,,,,,,,,%s", index, static_cast<long long>(frame), started,
+    std::snprintf(row, sizeof row, "%d,%s,%lld,%.3f,,%s,%.3f,,,,,,,,,%s", index, kind_name, static_cast<long long>(frame),
+                  started,
                   CsvNumber(lit).c_str(), clock_.Seconds(), what.c_str());
     std::fprintf(stderr, "live estimate %d %s%s\n", index, cancelled ? "" : "failed: ", what.c_str());
   }
@@ -230,7 +236,8 @@ void RunLive(const std::string& input, const std::string& out, const Reconstruct
     if (!estimates.busy() && trigger.Due(run, pose)) {
       trigger.Taken(run, pose);
       last_taken = run.frames();
-      estimates.Start(run.Snapshot(), f.index);
+      estimates.Start(run.Snapshot(), f.index,
+                      live.preview ? LiveEstimates::Kind::kPreview : LiveEstimates::Kind::kWhilePlaying);
     }
   }
   source.reset();  // a file player's threads stop with it
@@ -240,15 +247,17 @@ void RunLive(const std::string& input, const std::string& out, const Reconstruct
               static_cast<long long>(read), static_cast<long long>(dropped), static_cast<long long>(run.tracked()),
               static_cast<long long>(run.lost()));
   // The whole scan supersedes a running estimate of an older snapshot: it stops, and the
-  // last one (warm from the last finished) starts at once.
+  // last ones (warm from the last finished) start at once: a preview first (its lights in
+  // seconds), then the full estimate (after a preview of the whole scan, whenever it came).
   const bool changed = last_taken != run.frames();
   if (changed)
     estimates.Cancel();
   else
     estimates.Wait();
   const SceneBundle bundle = run.Finish();
+  if (changed && live.preview) estimates.RunOn(bundle, f.index, LiveEstimates::Kind::kPreview);
   WriteSceneBundle((fs::path(out) / "scene").string(), bundle);
-  if (changed) estimates.RunLast(bundle, f.index);
+  if (changed || live.preview) estimates.RunOn(bundle, f.index, LiveEstimates::Kind::kLast);
   std::printf("live done: %d estimate(s) finished, the last %.1f s after the input ended; %s (scene bundle), %s "
               "(the latest estimate), %s (each, and live.csv)\n",
               estimates.finished(), clock.Seconds() - ended, (fs::path(out) / "scene").c_str(),

@@ -225,4 +225,14 @@ void Validate(const EstimateOptions& o) {
     if (!InRange(option, option.get(o))) throw InputError(std::string(option.key) + " must be " + RangeText(option));
 }
 
+EstimateOptions LivePreview(EstimateOptions full) {
+  full.max_rounds = 1;
+  full.albedo_passes = 0;
+  full.point_lights.polish_spp = 0;
+  full.trace_pixels = kPreviewTracePixels;
+  full.render = false;
+  full.render_noise = 0;
+  return full;
+}
+
 }  // namespace lp

@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # `--headless --live` (issue 44): the bundled demo recording played at 0.03 of its recorded
-# rate (44 s: long enough for an estimate while it plays), estimated while it plays. Every
+# rate (44 s: long enough for estimates while it plays), estimated while it plays. Every
 # finished estimate is in DIR/live/NNN/ and logged in live.csv (one at a time, the second on
-# warm-started from the first; the one running when the input ends cancelled, the last on
-# the whole scan started at once), DIR/estimate is the latest and is never missing nor
-# half-written once it first appears (a reader polls it throughout), DIR/scene is the whole
-# scan, and the last estimate finds the lamp as the demo's single estimate does.
+# warm-started from the first; previews while it plays; the one running when the input ends
+# cancelled, a preview of the whole scan started at once, then its full estimate),
+# DIR/estimate is the latest and is never missing nor half-written once it first appears (a
+# reader polls it throughout), DIR/scene is the whole scan, and the last estimate finds the
+# lamp as the demo's single estimate does.
 set -eu
 exe="$1"; demo="$2"
 . "$(dirname "$0")/check_number.sh"
@@ -35,11 +36,14 @@ python3 - "$out/run" <<'PY' || exit 1
 import csv, filecmp, json, os, sys
 run = sys.argv[1]
 rows = list(csv.DictReader(open(os.path.join(run, "live", "live.csv"))))
-# Only the one running when the input ended may be cancelled (the one before the last).
-assert all(r["error"] == "" for i, r in enumerate(rows) if i != len(rows) - 2), rows
+# Previews, then the full estimate of the whole scan, after a preview of it.
+assert [r["kind"] for r in rows] == ["preview"] * (len(rows) - 1) + ["full"], rows
+assert rows[-2]["frame"] == rows[-1]["frame"], rows
+# Only the one running when the input ended may be cancelled (the one before the last two).
+assert all(r["error"] == "" for i, r in enumerate(rows) if i != len(rows) - 3), rows
 assert all(r["error"] in ("", "cancelled: a newer snapshot replaces it") for r in rows), rows
 done = [r for r in rows if r["error"] == ""]
-assert len(done) >= 2, rows
+assert len(done) >= 4, rows  # at least two while it plays
 for a, b in zip(rows, rows[1:]):  # one at a time, each after the last
     assert float(b["started_s"]) >= float(a["finished_s"]) - 1e-6, (a, b)
 for r in done[1:]:  # warm from the second on
@@ -51,7 +55,10 @@ for r in done:
     d = os.path.join(run, "live", "%03d" % int(r["estimate"]))
     for f in ("lights.json", "report.json", "envmap.exr", "convergence.csv", "snapshot.json"):
         assert os.path.getsize(os.path.join(d, f)) > 0, (d, f)
-    assert json.load(open(os.path.join(d, "snapshot.json")))["frame"] == int(r["frame"])
+    snap = json.load(open(os.path.join(d, "snapshot.json")))
+    assert snap["frame"] == int(r["frame"]) and snap["kind"] == r["kind"], (snap, r)
+    # a preview relights no view; the full estimate writes its pictures
+    assert os.path.exists(os.path.join(d, "render_view0.png")) == (r["kind"] == "full"), (d, r)
 last = os.path.join(run, "live", "%03d" % int(done[-1]["estimate"]))
 assert done[-1] is rows[-1], rows
 assert filecmp.cmp(os.path.join(last, "lights.json"), os.path.join(run, "estimate", "lights.json"), shallow=False)
