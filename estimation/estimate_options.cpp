@@ -227,6 +227,7 @@ void Validate(const EstimateOptions& o) {
 
 EstimateOptions LivePreview(EstimateOptions full) {
   full.max_rounds = 1;
+  full.tracer.spp = std::max(1, full.tracer.spp / 2);
   full.albedo_passes = 0;
   full.point_lights.polish_spp = 0;
   full.trace_pixels = kPreviewTracePixels;

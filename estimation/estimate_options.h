@@ -331,11 +331,12 @@ void Validate(const EstimateOptions& o);
 /// The traced mesh's grid in a live preview (LivePreview): pixels a cluster spans.
 constexpr double kPreviewTracePixels = 3;
 /// A live preview of `full` (docs/method.md, "Live"): what a scan still growing gets, in a
-/// few seconds on one core. Round 1 alone (its lamp search and the map on round 1's grid),
-/// the mesh traced on a kPreviewTracePixels grid, the bundle's albedo (the colours seen at
-/// the room's scale: no albedo pass), no polish, no relit views. The lights come out
-/// rougher than the full estimate's (about 0.04-0.07 of a lamp's distance off on the
-/// 60 s scan, against 0.045-0.05); the full estimate is made on the finished scan.
+/// few seconds on one core. Round 1 alone (its lamp search and the map on round 1's grid)
+/// at half the map's samples, the mesh traced on a kPreviewTracePixels grid, the bundle's
+/// albedo (the colours seen at the room's scale: no albedo pass), no polish, no relit
+/// views. The lights come out rougher than the full estimate's (a lamp 0.02-0.09 of its
+/// distance off on the 60 s scan of scripts/bench-live.sh, against 0.045-0.06); the full
+/// estimate is made on the finished scan.
 EstimateOptions LivePreview(EstimateOptions full);
 
 }  // namespace lp

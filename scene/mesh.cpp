@@ -6,6 +6,7 @@
 #include <unordered_map>
 
 #include "common/error.h"
+#include "common/parallel.h"
 #include "scene/mesh.h"
 
 namespace lp {
@@ -78,33 +79,38 @@ void ComputeVertexNormals(Mesh* mesh) {
 
 void SmoothMesh(Mesh* mesh, int iterations, float lambda, float mu) {
   if (iterations <= 0 || mesh->triangles.empty()) return;
-  const int n = static_cast<int>(mesh->positions.size());
-  // Each undirected edge once, then compressed rows of neighbours.
-  std::vector<std::pair<int, int>> edges;
-  edges.reserve(mesh->triangles.size() * 6);
+  const std::size_t n = mesh->positions.size();
+  // Each vertex's neighbours (the other corners of its triangles), each once: rows
+  // [start[v], end[v]) of `next`.
+  std::vector<std::size_t> start(n + 1, 0);
+  for (const Eigen::Vector3i& t : mesh->triangles)
+    for (int k = 0; k < 3; ++k) start[t[k] + 1] += 2;
+  for (std::size_t v = 0; v < n; ++v) start[v + 1] += start[v];
+  std::vector<int> next(start[n]);
+  std::vector<std::size_t> end(start.begin(), start.end() - 1);
   for (const Eigen::Vector3i& t : mesh->triangles)
     for (int k = 0; k < 3; ++k) {
-      const int a = t[k], b = t[(k + 1) % 3];
-      edges.emplace_back(a, b);
-      edges.emplace_back(b, a);
+      next[end[t[k]]++] = t[(k + 1) % 3];
+      next[end[t[k]]++] = t[(k + 2) % 3];
     }
-  std::sort(edges.begin(), edges.end());
-  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
-  std::vector<int> start(n + 1, 0), next(edges.size());
-  for (const auto& e : edges) ++start[e.first + 1];
-  for (int v = 0; v < n; ++v) start[v + 1] += start[v];
-  for (std::size_t e = 0; e < edges.size(); ++e) next[e] = edges[e].second;
+  ParallelForChunks(0, n, 4096, [&](std::size_t b, std::size_t e) {
+    for (std::size_t v = b; v < e; ++v) {
+      std::sort(next.begin() + start[v], next.begin() + end[v]);
+      end[v] = std::unique(next.begin() + start[v], next.begin() + end[v]) - next.begin();
+    }
+  });
   std::vector<Eigen::Vector3f> moved(mesh->positions);
   for (int it = 0; it < iterations; ++it)
     for (const float f : {lambda, mu}) {
-      for (int v = 0; v < n; ++v) {
-        const int b = start[v], e = start[v + 1];
-        if (b == e) continue;
-        Eigen::Vector3f mean = Eigen::Vector3f::Zero();
-        for (int k = b; k < e; ++k) mean += mesh->positions[next[k]];
-        mean /= static_cast<float>(e - b);
-        moved[v] = mesh->positions[v] + f * (mean - mesh->positions[v]);
-      }
+      ParallelForChunks(0, n, 4096, [&](std::size_t b, std::size_t e) {
+        for (std::size_t v = b; v < e; ++v) {
+          if (start[v] == end[v]) continue;
+          Eigen::Vector3f mean = Eigen::Vector3f::Zero();
+          for (std::size_t k = start[v]; k < end[v]; ++k) mean += mesh->positions[next[k]];
+          mean /= static_cast<float>(end[v] - start[v]);
+          moved[v] = mesh->positions[v] + f * (mean - mesh->positions[v]);
+        }
+      });
       std::swap(moved, mesh->positions);
     }
   mesh->normals.clear();

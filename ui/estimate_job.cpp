@@ -34,6 +34,7 @@ EstimateJob::EstimateJob(Settings settings) : settings_(std::move(settings)) {
   settings_.shown.reset();
   status_.live = settings_.live;
   status_.live_index = settings_.live_index;
+  status_.preview = settings_.preview;
   status_.warm = settings_.options.warm != nullptr;
   status_.started_at = settings_.pressed_at;
   status_.state = EstimateState::kPreparing;

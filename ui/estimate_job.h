@@ -43,6 +43,7 @@ class EstimateJob {
     std::shared_ptr<const EstimateStatus> shown;
     bool live = false;
     int live_index = 0;
+    bool preview = false;  ///< a live preview (LivePreview: the options are already its)
   };
 
   /// A job waiting for its scene: kPreparing, "taking a snapshot of the scene".

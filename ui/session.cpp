@@ -84,7 +84,9 @@ struct Session::Impl {
   LiveTrigger trigger;
   Eigen::Matrix4d live_pose = Eigen::Matrix4d::Identity();  // the last tracked pose
   int live_started = 0;
-  std::int64_t live_frames = -1;  // the run's frames when the last estimate took its snapshot
+  /// The run's frames when the last full estimate (not a preview; a pressed one too) took
+  /// its snapshot.
+  std::int64_t full_frames = -1;
   // Export: one at a time, on its own thread.
   std::thread exporter;
   std::atomic<bool> exporting{false};
@@ -180,7 +182,7 @@ struct Session::Impl {
     fused_any = false;
     trigger = LiveTrigger(options.live_trigger);
     live_started = 0;
-    live_frames = -1;
+    full_frames = -1;
     try {
       run = std::make_unique<ReconstructionRun>(rec_options);
     } catch (const std::exception& e) {
@@ -425,15 +427,15 @@ struct Session::Impl {
     return run->Snapshot();
   }
 
-  /// On the worker, after a tracked frame: a live estimate, when live estimation is on, the
-  /// model has changed enough since the last one's snapshot, and the last one has its
-  /// result (or failed, or none runs); warm-started from that result. With `stopped` (the
-  /// input paused or at its end), any frame since the last snapshot is enough: the scan's
-  /// last frames get their estimate once the one running finishes, as `--headless --live`'s
-  /// last estimate does.
+  /// On the worker, after a tracked frame: a live preview (LivePreview), when live
+  /// estimation is on, the model has changed enough since the last one's snapshot, and the
+  /// last one has its result (or failed, or none runs); warm-started from that result. With
+  /// `stopped` (the input paused or at its end), a full estimate once the one running has
+  /// its result, when a frame came since the last full one's snapshot: the scan's last
+  /// frames get one, as `--headless --live`'s last estimate.
   void MaybeStartLive(bool stopped = false) {
     if (!live_on || !run || !fused_any) return;
-    if (stopped ? run->frames() == live_frames : !trigger.Due(*run, live_pose)) return;
+    if (stopped ? run->frames() == full_frames : !trigger.Due(*run, live_pose)) return;
     EstimateJob* started;
     {
       std::lock_guard<std::mutex> lock(mutex);
@@ -442,26 +444,28 @@ struct Session::Impl {
       // Its own result (a live job shows the last one's until it has its own).
       const bool has_result = last.HasOwnResult();
       if (running && !has_result) return;  // the last one still estimating
-      EstimateJob::Settings settings = JobSettings(live_options);
+      EstimateJob::Settings settings = JobSettings(stopped ? live_options : LivePreview(live_options));
       if (last.result) settings.options.warm = WarmStartOf(*last.result);
       settings.shown = std::make_shared<const EstimateStatus>(std::move(last));
       settings.live = true;
       settings.live_index = live_started + 1;
+      settings.preview = !stopped;
       started = ReplaceJob(std::move(settings));
     }
     trigger.Taken(*run, live_pose);
     ++live_started;
     UpdateLive([&](LiveStatus& l) { l.live_estimates = live_started; });
-    StartJob(started);
+    StartJob(started, stopped);
   }
 
-  /// On the worker: starts `target` (if it is still the current job) on a snapshot.
-  void StartJob(EstimateJob* target) {
+  /// On the worker: starts `target` (if it is still the current job) on a snapshot; `full`:
+  /// not a preview.
+  void StartJob(EstimateJob* target, bool full = true) {
     SceneSource snapshot;
     std::string error;
     try {
       snapshot = Snapshot();
-      if (run) live_frames = run->frames();  // (a pressed estimate's snapshot covers them too)
+      if (run && full) full_frames = run->frames();
     } catch (const std::exception& e) {
       error = e.what();
     }

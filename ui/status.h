@@ -82,6 +82,7 @@ struct EstimateStatus {
   double started_at = std::nan(""), finished_at = std::nan("");
   bool live = false;
   int live_index = 0;  ///< which live estimate since the source opened (1 = the first)
+  bool preview = false;  ///< a live preview while the scan plays (LivePreview), not a full estimate
   /// Whether the job has its own result (a live job shows the last one's until it has it).
   bool HasOwnResult() const { return result && !std::isnan(finished_at) && !(finished_at < started_at); }
   bool warm = false;   ///< warm-started from the last estimate

@@ -809,7 +809,7 @@ void Viewer::PanelEstimate() {
                 est_.seconds_to_first,
                 std::isnan(est_.seconds_total) ? "" : (", done after " + std::to_string(est_.seconds_total).substr(0, 5) + " s").c_str());
   if (est_.live)
-    ImGui::Text("live estimate %d (%s)%s", est_.live_index, est_.warm ? "warm" : "cold",
+    ImGui::Text("live estimate %d (%s%s)%s", est_.live_index, est_.preview ? "preview, " : "", est_.warm ? "warm" : "cold",
                 std::isnan(est_.finished_at)
                     ? ""
                     : (", the one shown from " + std::to_string(session_.seconds() - est_.finished_at).substr(0, 4) +
@@ -1080,6 +1080,7 @@ nlohmann::json Viewer::EstimateStateJson() const {
           {"export_state", ToString(est_.export_state)},
           {"live", est_.live},
           {"live_index", est_.live_index},
+          {"preview", est_.preview},
           {"warm", est_.warm},
           {"has_result", est_.HasOwnResult()},
           {"age_seconds", std::isnan(est_.finished_at) ? json() : json(session_.seconds() - est_.finished_at)}};

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include "common/parallel.h"
 #include "common/rng.h"
 #include "estimation/path_tracer.h"
 #include "estimation/light_fit.h"
@@ -628,6 +629,46 @@ TEST(SmoothMesh, StraightensNoisyNormalsWithoutShrinking) {
   std::printf("sphere radius 0.35: Taubin %.4f, Laplacian %.4f\n", mean_radius(sphere), mean_radius(laplacian));
   EXPECT_NEAR(mean_radius(sphere), 0.35, 0.002);
   EXPECT_LT(mean_radius(laplacian), 0.35 - 0.004);
+}
+
+// One step in closed form: a flat grid's centre lifted by h, one Laplacian step of weight
+// lambda (mu = 0: the second step does nothing) moves it to h (1 - lambda) and each of its
+// neighbours (the other corners of its triangles, each counted once) to lambda h / degree;
+// the same bits on one thread as on two (each vertex from the positions before the step).
+TEST(SmoothMesh, OneStepIsTheNeighboursMeanAndTheSameOnAnyThreadCount) {
+  const int n = 65;
+  Mesh grid;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) grid.positions.emplace_back(0.01f * j, 0.01f * i, 0.f);
+  for (int i = 0; i + 1 < n; ++i)
+    for (int j = 0; j + 1 < n; ++j) {
+      const int a = i * n + j;
+      grid.triangles.emplace_back(a, a + 1, a + n + 1);
+      grid.triangles.emplace_back(a, a + n + 1, a + n);
+    }
+  const int centre = (n / 2) * n + n / 2;
+  const float h = 0.1f, lambda = 0.5f;
+  grid.positions[centre].z() = h;
+  Mesh one = grid;
+  SmoothMesh(&one, 1, lambda, 0.f);
+  EXPECT_NEAR(one.positions[centre].z(), h * (1 - lambda), 1e-7);
+  // On this grid an interior vertex has 6 neighbours: right, left, up, down and two diagonals.
+  for (const int d : {1, -1, n, -n, n + 1, -n - 1}) EXPECT_NEAR(one.positions[centre + d].z(), lambda * h / 6, 1e-7) << d;
+  EXPECT_EQ(one.positions[centre + n - 1].z(), 0.f);  // not a neighbour (the other diagonal)
+
+  Mesh serial = grid, parallel = grid;
+  Rng rng(5);
+  for (std::size_t k = 0; k < grid.positions.size(); ++k)
+    serial.positions[k].z() = parallel.positions[k].z() = static_cast<float>(0.01 * (rng.Uniform() - 0.5));
+  {
+    ThreadLimit limit(1);
+    SmoothMesh(&serial, 40);
+  }
+  {
+    ThreadLimit limit(2);
+    SmoothMesh(&parallel, 40);
+  }
+  for (std::size_t k = 0; k < grid.positions.size(); ++k) ASSERT_EQ(serial.positions[k], parallel.positions[k]) << k;
 }
 
 }  // namespace

@@ -190,9 +190,9 @@ TEST(Session, CancelStopsTheEstimateAndClosingStopsEverything) {
   s.reset();
 }
 
-// Live estimation (issue 44): when the input stops (here at the recording's end), the frames
-// since the last estimate's snapshot get one more live estimate, warm-started, once the one
-// running has its result; then no more. The trigger is set never to fire again after the
+// Live estimation (issue 44): when the input stops (here at the recording's end), the scan
+// gets a full live estimate, warm-started, once the one running (a preview: the scan was
+// playing) has its result; then no more. The trigger is set never to fire again after the
 // first snapshot, so the second can only be that one (the window waited for a tracked frame
 // that never came: Viewer.LiveEstimatesFollowTheScan timed out when the first estimate
 // outlasted the recording).
@@ -205,11 +205,15 @@ TEST(Session, TheScansLastFramesGetALiveEstimateWhenTheInputStops) {
   Reconstruct(&s);
   const int at_end = s.live().live_estimates;
   EXPECT_EQ(at_end, 1) << "only the first snapshot during the play";
-  // The first has its result (the second, when it starts, replaces it as the job shown) ...
+  // The first, a preview while the scan played, has its result (the second, when it
+  // starts, replaces it as the job shown) ...
+  bool first_a_preview = true;
   ASSERT_TRUE(WaitForEstimate(s, [&] {
     const EstimateStatus e = s.estimate();
+    if (e.live_index == 1) first_a_preview = first_a_preview && e.preview;
     return e.live_index >= 2 || e.HasOwnResult();
   })) << s.estimate().message;
+  EXPECT_TRUE(first_a_preview);
   // ... and the second starts at once (the worker looks every 50 ms; a minute is a hang).
   ASSERT_TRUE(WaitFor([&] { return s.live().live_estimates >= 2; }, 60)) << "no estimate for the last frames";
   ASSERT_TRUE(WaitForEstimate(s, [&] {
@@ -219,6 +223,7 @@ TEST(Session, TheScansLastFramesGetALiveEstimateWhenTheInputStops) {
   const EstimateStatus last = s.estimate();
   EXPECT_TRUE(last.live);
   EXPECT_TRUE(last.warm) << "warm-started from the first";
+  EXPECT_FALSE(last.preview) << "the stopped scan's full estimate";
   std::this_thread::sleep_for(std::chrono::seconds(1));
   EXPECT_EQ(s.live().live_estimates, 2) << "one for the last frames, then no more";
 }
