@@ -82,16 +82,15 @@ class LiveEstimates {
   }
   bool busy() const { return busy_; }
   int finished() const { return finished_; }
+  /// Waits for the running estimate (if any) to end, or to stop when cancelled.
   void Wait() {
     if (thread_.joinable()) thread_.join();
-  }
-  /// Stops the running estimate (if any) at its next check and waits for it: its snapshot
-  /// is older than what comes next. It is logged as cancelled; the last finished one stays.
-  void Cancel() {
-    cancel_ = true;
-    Wait();
     cancel_ = false;
   }
+  /// Asks the running estimate (if any) to stop at its next check (Wait waits for that): its
+  /// snapshot is older than what comes next. It is logged as cancelled; the last finished
+  /// one stays.
+  void Cancel() { cancel_ = true; }
   /// What an estimate is: a preview (LivePreview), a full one while the input plays (its
   /// render_view* the fit), or the full one at the end (with its clean render).
   enum class Kind { kPreview, kWhilePlaying, kLast };
@@ -102,7 +101,7 @@ class LiveEstimates {
     const int index = ++started_;
     thread_ = std::thread([this, snapshot = std::move(snapshot), frame, index, kind] {
       RunThisThreadInBackground();
-      Run([&] { return snapshot.Finish(); }, frame, index, kind);
+      Run([&] { return snapshot.Finish([this] { return stop_.load() || cancel_.load(); }); }, frame, index, kind);
       busy_ = false;
     });
   }
@@ -250,11 +249,9 @@ void RunLive(const std::string& input, const std::string& out, const Reconstruct
   // last ones (warm from the last finished) start at once: a preview first (its lights in
   // seconds), then the full estimate (after a preview of the whole scan, whenever it came).
   const bool changed = last_taken != run.frames();
-  if (changed)
-    estimates.Cancel();
-  else
-    estimates.Wait();
-  const SceneBundle bundle = run.Finish();
+  if (changed) estimates.Cancel();
+  const SceneBundle bundle = run.Finish();  // while the running estimate stops (or ends)
+  estimates.Wait();
   if (changed && live.preview) estimates.RunOn(bundle, f.index, LiveEstimates::Kind::kPreview);
   WriteSceneBundle((fs::path(out) / "scene").string(), bundle);
   if (changed || live.preview) estimates.RunOn(bundle, f.index, LiveEstimates::Kind::kLast);

@@ -100,8 +100,8 @@ ReconstructionRunSnapshot ReconstructionRun::Snapshot() const {
   return s;
 }
 
-SceneBundle ReconstructionRunSnapshot::Finish() const {
-  SceneBundle bundle = snapshot_.Finish();
+SceneBundle ReconstructionRunSnapshot::Finish(const std::function<bool()>& cancelled) const {
+  SceneBundle bundle = snapshot_.Finish(cancelled);
   bundle.truth_json = truth_json_;
   bundle.extra_files = extra_files_;
   return bundle;

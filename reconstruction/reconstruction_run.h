@@ -6,6 +6,7 @@
 /// (reconstruction.csv), the estimated trajectory (trajectory.log) and the calibration its
 /// keyframes were linearized with (calibration.json) as part of itself.
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -37,8 +38,9 @@ struct ReconstructionRunOptions {
 /// The extra files of a run's bundle at one moment, and its snapshot to finish elsewhere.
 class ReconstructionRunSnapshot {
  public:
-  /// The bundle as the run's Finish would have returned it when the snapshot was taken.
-  SceneBundle Finish() const;
+  /// The bundle as the run's Finish would have returned it when the snapshot was taken
+  /// (`cancelled`: as ReconstructionSnapshot::Finish).
+  SceneBundle Finish(const std::function<bool()>& cancelled = {}) const;
 
  private:
   friend class ReconstructionRun;

@@ -550,25 +550,32 @@ FrameCounts CountFrames(const std::vector<FrameReport>& reports) {
   return n;
 }
 
-/// The bundle from a volume and the chosen keyframes (Reconstructor::Finish).
+/// The bundle from a volume and the chosen keyframes (Reconstructor::Finish); `cancelled`
+/// (may be empty) is polled between the steps.
 SceneBundle FinishBundle(bool started, const ReconstructionOptions& o, const TsdfVolume& volume,
                          const std::vector<const Candidate*>& chosen, const Eigen::Matrix4d& first_pose,
-                         const FrameCounts& counts) {
+                         const FrameCounts& counts, const std::function<bool()>& cancelled = {}) {
   if (!started) throw InputError("reconstruct: no frame had enough valid depth to build a model");
+  const auto check = [&] {
+    if (cancelled && cancelled()) throw Cancelled();
+  };
   SceneBundle b;
   b.mesh = volume.ExtractMesh(o.mesh_min_weight);
+  check();
   if (b.mesh.triangles.empty())
     throw InputError("reconstruct: the fused model has no surface seen at least " +
                      std::to_string(static_cast<int>(o.mesh_min_weight)) + " times (" + std::to_string(counts.fused) +
                      " of " + std::to_string(counts.frames) + " frames fused, tracking lost in " +
                      std::to_string(counts.lost) + ": moving too fast between frames?)");
   SmoothMesh(&b.mesh, o.smooth_iterations);
+  check();
   SanitizeMesh(&b.mesh, "reconstructed mesh");
   b.up = UpOf(b.mesh, first_pose, o.tsdf.voxel, nullptr);
   b.mesh.shaded = b.mesh.albedo;  // the colour seen: the estimator de-lights it (scene/albedo.h)
   FlattenAlbedo(&b.mesh, o.albedo);
 
   for (const Candidate* c : chosen) {
+    check();
     View v;
     const Camera& k = c->color_k;
     v.camera = k;
@@ -630,11 +637,11 @@ struct ReconstructionSnapshot::Impl {
   Impl(const ReconstructionOptions& opt, TsdfVolume v) : o(opt), volume(std::move(v)) {}
 };
 
-SceneBundle ReconstructionSnapshot::Finish() const {
+SceneBundle ReconstructionSnapshot::Finish(const std::function<bool()>& cancelled) const {
   LP_CHECK(impl_ != nullptr, "a snapshot not taken from a reconstruction");
   std::vector<const Candidate*> chosen;
   for (const Candidate& c : impl_->chosen) chosen.push_back(&c);
-  return FinishBundle(impl_->started, impl_->o, impl_->volume, chosen, impl_->first_pose, impl_->counts);
+  return FinishBundle(impl_->started, impl_->o, impl_->volume, chosen, impl_->first_pose, impl_->counts, cancelled);
 }
 
 ReconstructionSnapshot Reconstructor::Snapshot() const {

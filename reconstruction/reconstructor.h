@@ -4,6 +4,7 @@
 /// with masks, the up direction). The orchestrator reads as that list of stages.
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -113,8 +114,9 @@ struct FrameReport {
 class ReconstructionSnapshot {
  public:
   /// The bundle Reconstructor::Finish would have returned when the snapshot was taken.
-  /// Throws InputError when nothing was fused.
-  SceneBundle Finish() const;
+  /// Throws InputError when nothing was fused; Cancelled when `cancelled` (polled between
+  /// its steps) returns true.
+  SceneBundle Finish(const std::function<bool()>& cancelled = {}) const;
 
  private:
   friend class Reconstructor;

@@ -674,6 +674,12 @@ TEST(Reconstruction, SnapshotFinishesAsTheReconstructionWasWhenTaken) {
   }
   // The frames after the snapshot did change the reconstruction.
   EXPECT_NE(later.mesh.positions.size(), then.mesh.positions.size());
+  // A live estimate cancelled while its snapshot finishes stops between the steps: asked
+  // after the first, it throws Cancelled; never asked, the bundle is the same.
+  int polls = 0;
+  EXPECT_THROW(snapshot.Finish([&] { return ++polls >= 2; }), Cancelled);
+  EXPECT_EQ(polls, 2);
+  EXPECT_EQ(snapshot.Finish([] { return false; }).mesh.positions, then.mesh.positions);
   // Nothing fused yet: the snapshot's Finish is the same clear error.
   Reconstructor empty(ReconstructionOptions{});
   EXPECT_THROW(empty.Snapshot().Finish(), InputError);
