@@ -198,9 +198,8 @@ void LiveEstimates::Run(const std::function<SceneBundle()>& make_scene, std::int
     std::string what = cancelled ? "cancelled: a newer snapshot replaces it" : e.what();
     std::replace(what.begin(), what.end(), ',', ';');
     std::replace(what.begin(), what.end(), '\n', ' ');
-    std::snprintf(row, sizeof row, "%d,%s,%lld,%.3f,,%s,%.3f,,,,,,,,,%s", index, kind_name, static_cast<long long>(frame),
-                  started,
-                  CsvNumber(lit).c_str(), clock_.Seconds(), what.c_str());
+    std::snprintf(row, sizeof row, "%d,%s,%lld,%.3f,,%s,%.3f,,,,,,,,,%s", index, kind_name,
+                  static_cast<long long>(frame), started, CsvNumber(lit).c_str(), clock_.Seconds(), what.c_str());
     std::fprintf(stderr, "live estimate %d %s%s\n", index, cancelled ? "" : "failed: ", what.c_str());
   }
   std::fflush(stdout);

@@ -653,7 +653,8 @@ TEST(SmoothMesh, OneStepIsTheNeighboursMeanAndTheSameOnAnyThreadCount) {
   SmoothMesh(&one, 1, lambda, 0.f);
   EXPECT_NEAR(one.positions[centre].z(), h * (1 - lambda), 1e-7);
   // On this grid an interior vertex has 6 neighbours: right, left, up, down and two diagonals.
-  for (const int d : {1, -1, n, -n, n + 1, -n - 1}) EXPECT_NEAR(one.positions[centre + d].z(), lambda * h / 6, 1e-7) << d;
+  for (const int d : {1, -1, n, -n, n + 1, -n - 1})
+    EXPECT_NEAR(one.positions[centre + d].z(), lambda * h / 6, 1e-7) << d;
   EXPECT_EQ(one.positions[centre + n - 1].z(), 0.f);  // not a neighbour (the other diagonal)
 
   Mesh serial = grid, parallel = grid;
